@@ -1,0 +1,217 @@
+"""Argument checks shared by the blocks.
+
+Every function raises a ``ValueError`` whose message names the offending
+argument and says what is allowed, so that a student who mistypes a
+parameter is told which one and why.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+
+def positive_scalar(name: str, value, *, allow_zero: bool = False) -> float:
+    """Return ``value`` as a float, refusing non-finite and non-positive values.
+
+    Examples
+    --------
+    >>> positive_scalar("Ts", 0.1)
+    0.1
+    """
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a real number, got {value!r}") from None
+    if not math.isfinite(x) or x < 0 or (x == 0 and not allow_zero):
+        allowed = ">= 0" if allow_zero else "> 0"
+        raise ValueError(f"{name} must be finite and {allowed}, got {value!r}")
+    return x
+
+
+def in_interval(name: str, value, low: float, high: float, *, low_open: bool = True) -> float:
+    """Return ``value`` as a float if it lies in ``(low, high]`` (or ``[low, high]``).
+
+    Examples
+    --------
+    >>> in_interval("lambda_", 0.995, 0.0, 1.0)
+    0.995
+    """
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a real number, got {value!r}") from None
+    ok = math.isfinite(x) and (x > low if low_open else x >= low) and x <= high
+    if not ok:
+        bracket = "(" if low_open else "["
+        raise ValueError(f"{name} must lie in {bracket}{low:g}, {high:g}], got {value!r}")
+    return x
+
+
+def nonnegative_gain(name: str, value) -> float:
+    """Return a controller gain as a float, refusing negative values.
+
+    Examples
+    --------
+    >>> nonnegative_gain("C1", 3)
+    3.0
+    """
+    return positive_scalar(name, value, allow_zero=True)
+
+
+def vector(name: str, value, size: int) -> np.ndarray:
+    """Return ``value`` as a finite float vector of length ``size``.
+
+    Examples
+    --------
+    >>> vector("v1", [1, 0, 0], 3)
+    array([1., 0., 0.])
+    """
+    x = np.asarray(value, dtype=float)
+    if x.shape != (size,):
+        raise ValueError(f"{name} must be a vector of length {size}, got shape {x.shape}")
+    if not np.all(np.isfinite(x)):
+        raise ValueError(f"{name} must be finite, got {x}")
+    return x
+
+
+def inertia(name: str, value) -> np.ndarray:
+    """Return a 3x3 inertia matrix, refusing non-symmetric or non-positive-definite ones.
+
+    A 3-vector is read as the diagonal of the matrix.
+
+    Examples
+    --------
+    >>> inertia("J_b", [4000, 5000, 6000]).diagonal()
+    array([4000., 5000., 6000.])
+    """
+    J = np.asarray(value, dtype=float)
+    if J.shape == (3,):
+        J = np.diag(J)
+    if J.shape != (3, 3):
+        raise ValueError(
+            f"{name} must be a 3x3 inertia matrix or its diagonal (3 values), got shape {J.shape}"
+        )
+    if not np.all(np.isfinite(J)):
+        raise ValueError(f"{name} must be finite, got {J.tolist()}")
+    if not np.allclose(J, J.T, rtol=1e-12, atol=1e-12 * np.abs(J).max()):
+        raise ValueError(f"{name} must be symmetric, got {J.tolist()}")
+    eigenvalues = np.linalg.eigvalsh(J)
+    if eigenvalues.min() <= 0:
+        raise ValueError(
+            f"{name} must be positive definite (all principal moments > 0), "
+            f"got principal moments {eigenvalues.tolist()}"
+        )
+    return J
+
+
+def wheel_axes(v1, v2) -> tuple[np.ndarray, np.ndarray]:
+    """Return the two wheel axes as unit vectors, refusing zero or parallel axes.
+
+    Examples
+    --------
+    >>> wheel_axes([2, 0, 0], [0, 1, 0])[0]
+    array([1., 0., 0.])
+    """
+    axes = []
+    for name, v in (("v1", v1), ("v2", v2)):
+        v = vector(name, v, 3)
+        n = np.linalg.norm(v)
+        if n == 0:
+            raise ValueError(f"wheel axis {name} must be a non-zero 3-vector, got {v.tolist()}")
+        axes.append(v / n)
+    if np.linalg.norm(np.cross(axes[0], axes[1])) < 1e-9:
+        raise ValueError(
+            f"wheel axes v1 and v2 must not be parallel (two wheels on one axis cannot "
+            f"control two outputs), got v1={axes[0].tolist()}, v2={axes[1].tolist()}"
+        )
+    return axes[0], axes[1]
+
+
+def momentum(name: str, value) -> Callable[[float], np.ndarray]:
+    """Return an angular momentum as a function of time.
+
+    ``value`` is a constant 3-vector or a callable ``t -> 3-vector``.
+
+    Examples
+    --------
+    >>> momentum("H0", [0, 0, 0.05])(12.0)
+    array([0.  , 0.  , 0.05])
+    """
+    if callable(value):
+        probe = np.asarray(value(0.0), dtype=float)
+        if probe.shape != (3,) or not np.all(np.isfinite(probe)):
+            raise ValueError(
+                f"{name} must return a finite 3-vector of N m s; {name}(0) gave {probe!r}"
+            )
+        return value
+    constant = vector(name, value, 3)
+    return lambda t: constant
+
+
+def gain_pair(name: str, value) -> np.ndarray:
+    """Return a diagonal gain ``diag(F1, F2)`` as a length-2 vector, refusing negative entries.
+
+    Accepts a scalar (both entries equal), two values, or a diagonal 2x2 matrix.
+
+    Examples
+    --------
+    >>> gain_pair("F", 0.0009)
+    array([0.0009, 0.0009])
+    """
+    F = np.asarray(value, dtype=float)
+    if F.ndim == 0:
+        F = np.array([float(F), float(F)])
+    elif F.shape == (2, 2):
+        if F[0, 1] != 0 or F[1, 0] != 0:
+            raise ValueError(f"{name} must be diagonal, diag({name}1, {name}2); got {F.tolist()}")
+        F = F.diagonal().copy()
+    if F.shape != (2,):
+        raise ValueError(f"{name} must be a scalar, two values or diag(2x2), got shape {F.shape}")
+    if not np.all(np.isfinite(F)) or np.any(F < 0):
+        raise ValueError(f"{name} must be finite and >= 0 (a negative gain destabilises), got {F}")
+    return F
+
+
+def gain_matrix(name: str, value) -> np.ndarray:
+    """Return a 2x2 compensation gain, accepting a scalar (times identity) or a 2x2 matrix.
+
+    Examples
+    --------
+    >>> gain_matrix("K", 0.1)
+    array([[0.1, 0. ],
+           [0. , 0.1]])
+    """
+    K = np.asarray(value, dtype=float)
+    if K.ndim == 0:
+        K = float(K) * np.eye(2)
+    if K.shape != (2, 2):
+        raise ValueError(f"{name} must be a scalar or a 2x2 matrix, got shape {K.shape}")
+    if not np.all(np.isfinite(K)):
+        raise ValueError(f"{name} must be finite, got {K.tolist()}")
+    return K
+
+
+def unit_quaternion(name: str, value, tol: float = 1e-6) -> np.ndarray:
+    """Return a unit quaternion ``[q0, q1, q2, q3]`` (scalar first).
+
+    controlkit refuses, rather than silently normalises, a quaternion whose
+    norm differs from 1 by more than ``tol``: a non-unit attitude is almost
+    always a typing or unit mistake worth seeing. Within ``tol`` the vector is
+    normalised so that the simulation starts on the unit sphere exactly.
+
+    Examples
+    --------
+    >>> unit_quaternion("q", [1, 0, 0, 0])
+    array([1., 0., 0., 0.])
+    """
+    q = vector(name, value, 4)
+    n = np.linalg.norm(q)
+    if abs(n - 1.0) > tol:
+        raise ValueError(
+            f"{name} must be a unit quaternion [q0, q1, q2, q3] (norm 1 within {tol:g}), "
+            f"got norm {n:.9g}; build one with quaternion_from_axis_angle(axis, angle)"
+        )
+    return q / n

@@ -1,0 +1,393 @@
+"""Two-wheel spacecraft: plant, input-output linearizer, output map and outer controller.
+
+Equations and numbers are those of Endo, Sekiguchi and Nonaka, "Model Error
+Compensator for Attitude Control of 2-Wheel Spacecraft with On-line FRIT
+based Tuning" (2017), cited as eq. (n) and Table n. Departures from the
+printed text are listed in ``docs`` (errata E1-E6 of the project spec).
+
+The quaternion is scalar first, ``q = [q0, q1, q2, q3]``; ``R_bs(q)`` maps
+body-frame vectors to the inertial frame (Hamilton convention), which is the
+convention under which eq. (4) reads ``q' = Q(q) w_b`` with body rates.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+import control as ct
+
+from .. import _checks
+
+# --- Paper values (Tables 2 and 3) -------------------------------------------------
+
+#: Nominal body inertia ``J_bn`` (Table 2), kg m^2.
+J_BN = np.diag([4000.0, 5000.0, 6000.0])
+#: Inertia of wheel 1 ``J_w1`` (Table 2), kg m^2.
+J_W1 = np.diag([0.45, 0.225, 0.225])
+#: Inertia of wheel 2 ``J_w2`` (Table 2), kg m^2.
+J_W2 = np.diag([0.225, 0.45, 0.225])
+#: Wheel axes ``v1``, ``v2`` (Table 2): the z wheel has failed.
+V1 = np.array([1.0, 0.0, 0.0])
+V2 = np.array([0.0, 1.0, 0.0])
+#: Nominal total inertia ``J_m = J_bn + J_w1 + J_w2`` (eq. 3 with nominal values).
+J_M = J_BN + J_W1 + J_W2
+#: Inertia error ``Delta J`` (eq. 31, Table 2), kg m^2.
+DELTA_J = np.diag([20.003, 25.003, 30.002])
+#: Amplitude (N m s) and angular frequency (rad/s) of the true momentum ``H0(t)``.
+H0_AMPLITUDE = 0.05
+H0_FREQUENCY = 2 * np.pi * 1e-4
+#: Outer-loop gain ``F1 = F2`` (Table 3).
+F_PAPER = 0.0009
+#: Sampling period of the whole loop (section 5.1), s.
+TS_PAPER = 0.1
+#: Pointing requirement (section 1), degrees.
+POINTING_REQUIREMENT_DEG = 0.05
+
+
+def paper_momentum(t: float) -> np.ndarray:
+    """True total angular momentum of the paper's scenario (Table 2), N m s.
+
+    ``H0(t) = 0.05 [sin(w t), cos(w t), sin(w t)]`` with ``w = 2 pi 1e-4`` rad/s.
+
+    Examples
+    --------
+    >>> paper_momentum(0.0)
+    array([0.  , 0.05, 0.  ])
+    """
+    s, c = np.sin(H0_FREQUENCY * t), np.cos(H0_FREQUENCY * t)
+    return H0_AMPLITUDE * np.array([s, c, s])
+
+
+# --- Pure math ---------------------------------------------------------------------
+
+
+def rotation_matrix(q) -> np.ndarray:
+    """Rotation matrix ``R_bs(q)`` of a scalar-first unit quaternion (body -> inertial).
+
+    Examples
+    --------
+    >>> rotation_matrix([1.0, 0.0, 0.0, 0.0])
+    array([[1., 0., 0.],
+           [0., 1., 0.],
+           [0., 0., 1.]])
+    """
+    q0, q1, q2, q3 = q
+    return np.array(
+        [
+            [1 - 2 * (q2 * q2 + q3 * q3), 2 * (q1 * q2 - q0 * q3), 2 * (q1 * q3 + q0 * q2)],
+            [2 * (q1 * q2 + q0 * q3), 1 - 2 * (q1 * q1 + q3 * q3), 2 * (q2 * q3 - q0 * q1)],
+            [2 * (q1 * q3 - q0 * q2), 2 * (q2 * q3 + q0 * q1), 1 - 2 * (q1 * q1 + q2 * q2)],
+        ]
+    )
+
+
+def quaternion_rate_matrix(q) -> np.ndarray:
+    """Kinematic matrix ``Q(q)`` of eq. (4): ``q' = Q(q) w_b``.
+
+    Examples
+    --------
+    >>> quaternion_rate_matrix([1.0, 0.0, 0.0, 0.0])
+    array([[-0. , -0. , -0. ],
+           [ 0.5, -0. ,  0. ],
+           [ 0. ,  0.5, -0. ],
+           [-0. ,  0. ,  0.5]])
+    """
+    q0, q1, q2, q3 = q
+    return 0.5 * np.array(
+        [[-q1, -q2, -q3], [q0, -q3, q2], [q3, q0, -q1], [-q2, q1, q0]]
+    )
+
+
+def quaternion_from_axis_angle(axis, angle_deg: float) -> np.ndarray:
+    """Unit quaternion of a rotation by ``angle_deg`` degrees about ``axis``.
+
+    ``q = [cos(theta/2), k sin(theta/2)]`` with ``k = axis/|axis|`` (section 2.1).
+
+    Examples
+    --------
+    >>> quaternion_from_axis_angle([0, 0, 1], 180.0).round(12)
+    array([0., 0., 0., 1.])
+    """
+    k = _checks.vector("axis", axis, 3)
+    n = np.linalg.norm(k)
+    if n == 0:
+        raise ValueError("axis must be a non-zero 3-vector")
+    half = np.deg2rad(float(angle_deg)) / 2
+    return np.concatenate([[np.cos(half)], np.sin(half) * k / n])
+
+
+def body_rate(q, u, H0, J_t_inv, b1, b2) -> np.ndarray:
+    """Body angular velocity ``w_b`` of eq. (2).
+
+    ``w_b = J_t^-1 (R_bs(q)^T H0 - J_w1 v1 u1 - J_w2 v2 u2)``; ``b_l = J_wl v_l``.
+
+    Examples
+    --------
+    >>> body_rate([1, 0, 0, 0], [0, 0], np.zeros(3), np.eye(3), V1, V2)
+    array([0., 0., 0.])
+    """
+    return J_t_inv @ (rotation_matrix(q).T @ H0 - b1 * u[0] - b2 * u[1])
+
+
+def total_momentum(q, w_b, u, J_b, J_w1, J_w2, v1, v2) -> np.ndarray:
+    """Total angular momentum in the inertial frame, the left side of eq. (1).
+
+    ``R_bs(q) {J_b w_b + J_w1 (w_b + v1 u1) + J_w2 (w_b + v2 u2)}``.
+
+    Examples
+    --------
+    >>> total_momentum([1, 0, 0, 0], np.zeros(3), [1.0, 0.0], J_BN, J_W1, J_W2, V1, V2)
+    array([0.45, 0.  , 0.  ])
+    """
+    body = J_b @ w_b + J_w1 @ (w_b + v1 * u[0]) + J_w2 @ (w_b + v2 * u[1])
+    return rotation_matrix(q) @ body
+
+
+def pointing_error_deg(q) -> np.ndarray:
+    """Angle between body z (antenna) and inertial z, in degrees.
+
+    ``arccos(1 - 2 (q1^2 + q2^2))``; ``q`` may be a 4-vector or a 4 x N array.
+
+    Examples
+    --------
+    >>> float(pointing_error_deg([np.cos(0.05), np.sin(0.05), 0, 0]).round(6))
+    5.729578
+    """
+    q = np.asarray(q, dtype=float)
+    cos_angle = 1.0 - 2.0 * (q[1] ** 2 + q[2] ** 2)
+    return np.rad2deg(np.arccos(np.clip(cos_angle, -1.0, 1.0)))
+
+
+def decoupling_matrix(q, J_m_inv, b1, b2) -> np.ndarray:
+    """``dh/dq g(q)`` of eq. (11) for ``h = [q1, q2]`` (a 2x2 matrix).
+
+    ``g_l(q) = -Q(q) J_m^-1 J_wl v_l`` (eq. 7-8); ``dh/dq`` picks rows 1 and 2.
+
+    Examples
+    --------
+    >>> decoupling_matrix([1, 0, 0, 0], np.eye(3), V1, V2)
+    array([[-0.5, -0. ],
+           [-0. , -0.5]])
+    """
+    rows = quaternion_rate_matrix(q)[1:3]
+    return -rows @ (J_m_inv @ np.column_stack([b1, b2]))
+
+
+# --- Block factories ---------------------------------------------------------------
+
+_Q_SIGNALS = [f"q[{i}]" for i in range(4)]
+_U_SIGNALS = ["u[0]", "u[1]"]
+
+
+def spacecraft_plant(
+    J_b=J_BN, J_w1=J_W1, J_w2=J_W2, v1=V1, v2=V2, H0=(0.0, 0.0, 0.0), *, name="plant"
+) -> ct.NonlinearIOSystem:
+    """Two-wheel spacecraft, continuous time (eq. 1-8).
+
+    ``q' = Q(q) J_t^-1 (R_bs(q)^T H0(t) - J_w1 v1 u1 - J_w2 v2 u2)``, with
+    ``J_t = J_b + J_w1 + J_w2`` (eq. 2-5). The wheel speeds are the inputs
+    (a kinematic model); the total angular momentum ``H0`` (eq. 1) is given.
+
+    Parameters
+    ----------
+    J_b : array_like
+        Body inertia, 3x3 symmetric positive definite or its diagonal (kg m^2).
+        Default: the nominal ``J_bn`` of Table 2.
+    J_w1, J_w2 : array_like
+        Wheel inertias (kg m^2), Table 2 by default.
+    v1, v2 : array_like
+        Wheel axes in the body frame (normalised; must not be zero or parallel).
+    H0 : array_like or callable
+        Total angular momentum in the inertial frame (N m s): a constant
+        3-vector or a function ``t -> 3-vector``. Default zero.
+    name : str
+        System name.
+
+    Returns
+    -------
+    control.NonlinearIOSystem
+        Inputs ``u[0], u[1]`` (wheel speeds, rad/s); states and outputs
+        ``q[0]..q[3]``. Extra attributes: ``J_t``, ``H0`` (a callable),
+        ``body_rate(t, q, u)`` (eq. 2) and ``momentum(t, q, u)`` (left side of eq. 1).
+
+    Examples
+    --------
+    >>> plant = spacecraft_plant()
+    >>> plant.dynamics(0.0, [1, 0, 0, 0], [0, 0]).tolist()
+    [0.0, 0.0, 0.0, 0.0]
+    """
+    J_b = _checks.inertia("J_b", J_b)
+    J_w1 = _checks.inertia("J_w1", J_w1)
+    J_w2 = _checks.inertia("J_w2", J_w2)
+    v1, v2 = _checks.wheel_axes(v1, v2)
+    H0_of_t = _checks.momentum("H0", H0)
+    J_t = J_b + J_w1 + J_w2
+    J_t_inv = np.linalg.inv(J_t)
+    b1, b2 = J_w1 @ v1, J_w2 @ v2
+
+    def rate(t, q, u):
+        return body_rate(q, u, H0_of_t(t), J_t_inv, b1, b2)
+
+    def updfcn(t, x, u, params):
+        return quaternion_rate_matrix(x) @ rate(t, x, u)
+
+    def outfcn(t, x, u, params):
+        return x
+
+    sys = ct.nlsys(
+        updfcn, outfcn, inputs=_U_SIGNALS, outputs=_Q_SIGNALS, states=_Q_SIGNALS, name=name
+    )
+    sys.J_t, sys.H0 = J_t, H0_of_t
+    sys.body_rate = rate
+    sys.momentum = lambda t, q, u: total_momentum(q, rate(t, q, u), u, J_b, J_w1, J_w2, v1, v2)
+    return sys
+
+
+class SingularDecouplingError(ValueError):
+    """The decoupling matrix ``dh/dq g(q)`` of eq. (11) is singular at the current attitude."""
+
+
+def io_linearizer(
+    J_m=J_M, H0n=(0.0, 0.0, 0.0), J_w1=J_W1, J_w2=J_W2, v1=V1, v2=V2,
+    *, singular_tol=1e-6, name="linearizer",
+) -> ct.NonlinearIOSystem:
+    """Input-output linearizing controller of eq. (11), computed from the nominal model.
+
+    ``u = -alpha(q) + beta(q) mu`` with ``beta = (dh/dq g(q))^-1`` and
+    ``alpha = beta dh/dq f(q)``, ``f(q) = Q(q) J_m^-1 R_bs(q)^T H0n`` (eq. 6),
+    ``g_l(q) = -Q(q) J_m^-1 J_wl v_l`` (eq. 7-8), ``h(q) = [q1, q2]`` (eq. 9).
+    With an exact model the map ``mu -> h'`` is the identity (Fig. 2).
+
+    Parameters
+    ----------
+    J_m : array_like
+        Nominal *total* inertia (bodies and wheels, eq. 3), kg m^2.
+        Default ``J_bn + J_w1 + J_w2`` of Table 2 (erratum E4).
+    H0n : array_like or callable
+        Nominal total angular momentum (N m s); the paper uses 0 (so alpha = 0).
+    J_w1, J_w2, v1, v2 : array_like
+        Nominal wheel inertias and axes.
+    singular_tol : float
+        The decoupling matrix is declared singular when its smallest singular
+        value falls below ``singular_tol`` times its largest possible value.
+        For the paper's wheels this is ``q0^2 + q3^2 < singular_tol^2``: a
+        180 degree rotation about an axis in the body x-y plane.
+    name : str
+        System name.
+
+    Returns
+    -------
+    control.NonlinearIOSystem
+        Static (``dt=None``). Inputs ``mu[0], mu[1], q[0]..q[3]``; outputs
+        ``u[0], u[1]``.
+
+    Raises
+    ------
+    SingularDecouplingError
+        (a ``ValueError``) during simulation, naming the attitude, when the
+        decoupling matrix is singular. An all-zero ``q``, which python-control
+        feeds in its first feedthrough sweep (erratum E6), is not an attitude:
+        the block returns ``u = 0`` for it.
+
+    Examples
+    --------
+    >>> lin = io_linearizer()
+    >>> lin.output(0.0, [], [0.001, 0, 1, 0, 0, 0]).round(6).tolist()
+    [-23.340444, 0.0]
+    """
+    J_m = _checks.inertia("J_m", J_m)
+    J_w1 = _checks.inertia("J_w1", J_w1)
+    J_w2 = _checks.inertia("J_w2", J_w2)
+    v1, v2 = _checks.wheel_axes(v1, v2)
+    H0n_of_t = _checks.momentum("H0n", H0n)
+    singular_tol = _checks.positive_scalar("singular_tol", singular_tol)
+    J_m_inv = np.linalg.inv(J_m)
+    b1, b2 = J_w1 @ v1, J_w2 @ v2
+    # |Q(q) x| <= |q| |x| / 2, so this bounds the largest singular value of dh/dq g.
+    scale = 0.5 * np.linalg.norm(J_m_inv @ np.column_stack([b1, b2]), 2)
+
+    def outfcn(t, x, u, params):
+        mu, q = u[:2], u[2:6]
+        q_norm = np.linalg.norm(q)
+        if q_norm == 0.0:
+            return np.zeros(2)  # python-control's trial sweep, not an attitude
+        A = decoupling_matrix(q, J_m_inv, b1, b2)
+        smallest = np.linalg.svd(A, compute_uv=False)[-1]
+        if smallest < singular_tol * scale * q_norm:
+            raise SingularDecouplingError(
+                f"input-output linearization (eq. 11) is undefined at attitude "
+                f"q = {np.round(q, 9).tolist()} (t = {t:g} s): the decoupling matrix "
+                f"dh/dq g(q) is singular (q0^2 + q3^2 = {q[0] ** 2 + q[3] ** 2:.3g} for the "
+                f"paper's wheels: a 180 deg rotation about an axis in the body x-y plane)"
+            )
+        f = quaternion_rate_matrix(q) @ (J_m_inv @ (rotation_matrix(q).T @ H0n_of_t(t)))
+        return np.linalg.solve(A, mu - f[1:3])  # = -alpha + beta mu
+
+    sys = ct.nlsys(
+        None, outfcn, inputs=["mu[0]", "mu[1]", *_Q_SIGNALS], outputs=_U_SIGNALS,
+        dt=None, name=name,
+    )
+    return sys
+
+
+def attitude_output(*, name="output") -> ct.NonlinearIOSystem:
+    """Controlled output ``y = h(q) = [q1, q2]`` of eq. (9).
+
+    Zeroing ``q1`` and ``q2`` points body z (the antenna) along inertial z.
+
+    Returns
+    -------
+    control.NonlinearIOSystem
+        Static. Inputs ``q[0]..q[3]``; outputs ``h[0], h[1]``.
+
+    Examples
+    --------
+    >>> attitude_output().output(0.0, [], [0.9, 0.1, 0.2, 0.3]).tolist()
+    [0.1, 0.2]
+    """
+
+    def outfcn(t, x, u, params):
+        return u[1:3]
+
+    return ct.nlsys(
+        None, outfcn, inputs=_Q_SIGNALS, outputs=["h[0]", "h[1]"], dt=None, name=name
+    )
+
+
+def outer_controller(F=F_PAPER, *, output="mu", name="controller") -> ct.NonlinearIOSystem:
+    """Outer loop of the linearized plant, ``mu = F (r - h)`` (eq. 12).
+
+    With ``r = 0`` (an unconnected input) this is the paper's output zeroing
+    ``mu = -F y``. In the MEC diagrams (Fig. 3-4) its output is ``mu_n``.
+
+    Parameters
+    ----------
+    F : float or array_like
+        ``diag(F1, F2)`` as a scalar, two values or a diagonal matrix; each >= 0
+        (1/s). Default 0.0009 (Table 3).
+    output : str
+        Base name of the output signal, ``"mu"`` (Fig. 2) or ``"mu_n"`` (Fig. 3-4).
+    name : str
+        System name.
+
+    Returns
+    -------
+    control.NonlinearIOSystem
+        Static. Inputs ``r[0], r[1], h[0], h[1]``; outputs ``<output>[0], <output>[1]``.
+
+    Examples
+    --------
+    >>> outer_controller(0.5).output(0.0, [], [0, 0, 1.0, -2.0]).tolist()
+    [-0.5, 1.0]
+    """
+    F = _checks.gain_pair("F", F)
+
+    def outfcn(t, x, u, params):
+        return F * (u[0:2] - u[2:4])
+
+    sys = ct.nlsys(
+        None, outfcn, inputs=["r[0]", "r[1]", "h[0]", "h[1]"],
+        outputs=[f"{output}[0]", f"{output}[1]"], dt=None, name=name,
+    )
+    sys.F = F
+    return sys

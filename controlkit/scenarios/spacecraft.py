@@ -1,0 +1,158 @@
+"""The spacecraft paper's scenario (Tables 2-3) and its cases.
+
+Each case is one entry of :data:`CASES`: how the true plant differs from the
+controller's model and which compensator closes the loop. :func:`build_loop`
+turns a case into a diagram; :func:`run` simulates it and returns
+``control.TimeResponseData``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import _checks
+from ..blocks import spacecraft as sc
+from ..diagrams import spacecraft as diagrams
+from ..sampling import time_grid
+from ..simulation import initial_state, simulate
+
+#: Horizon of the paper's figures (not printed in the paper: two periods of H0), s.
+HORIZON = 20_000.0
+
+
+@dataclass(frozen=True)
+class SpacecraftCase:
+    """One curve of the paper's Fig. 5-10.
+
+    Attributes
+    ----------
+    name : str
+        Identifier used on the command line and in file names.
+    label : str
+        Legend text.
+    color : str
+        Line colour (the paper: blue ideal, green without MEC, red proposed).
+    model_error : bool
+        True plant with ``J_t = J_m + Delta J`` and the true ``H0(t)`` (Table 2);
+        otherwise the plant equals the controller's model.
+    compensator : str
+        ``"none"`` (Fig. 2 loop).
+    """
+
+    name: str
+    label: str
+    color: str
+    model_error: bool
+    compensator: str
+
+
+CASES: dict[str, SpacecraftCase] = {
+    "ideal": SpacecraftCase("ideal", "Ideal (no model error)", "tab:blue", False, "none"),
+    "without_mec": SpacecraftCase("without_mec", "w/o MEC", "tab:green", True, "none"),
+}
+#: Cases run by ``controlkit reproduce spacecraft`` when none is named.
+DEFAULT_CASES = ("ideal", "without_mec")
+
+
+def initial_attitude() -> np.ndarray:
+    """Initial attitude of Table 2: 30 degrees about ``[1, 2, 3]`` (normalised).
+
+    Examples
+    --------
+    >>> initial_attitude().round(4).tolist()
+    [0.9659, 0.0692, 0.1383, 0.2075]
+    """
+    return sc.quaternion_from_axis_angle([1.0, 2.0, 3.0], 30.0)
+
+
+def true_plant(model_error: bool, *, name="plant"):
+    """The plant the controller faces.
+
+    Without model error it is the nominal model (``J_b = J_bn``, ``H0 = 0``);
+    with it, ``J_b = J_bn + Delta J`` (so that ``J_t = J_m + Delta J``, eq. 31 and
+    erratum E4) and ``H0(t)`` of Table 2.
+
+    Examples
+    --------
+    >>> float(true_plant(True).J_t[0, 0])
+    4020.678
+    """
+    if model_error:
+        return sc.spacecraft_plant(J_b=sc.J_BN + sc.DELTA_J, H0=sc.paper_momentum, name=name)
+    return sc.spacecraft_plant(name=name)
+
+
+def _case(case) -> SpacecraftCase:
+    if isinstance(case, SpacecraftCase):
+        return case
+    if case not in CASES:
+        raise ValueError(f"case must be one of {sorted(CASES)}, got {case!r}")
+    return CASES[case]
+
+
+def build_loop(case="ideal", *, Ts=sc.TS_PAPER, F=sc.F_PAPER):
+    """The closed loop of one case, sampled at ``Ts``.
+
+    Parameters
+    ----------
+    case : str or SpacecraftCase
+        A key of :data:`CASES`.
+    Ts : float
+        Sampling period (s).
+    F : float or array_like
+        Outer-loop gain ``diag(F1, F2)``.
+
+    Returns
+    -------
+    control.InterconnectedSystem
+        With outputs ``h[0], h[1], u[0], u[1], q[0]..q[3]`` among others.
+
+    Examples
+    --------
+    >>> build_loop("without_mec").name
+    'without_mec'
+    """
+    case = _case(case)
+    plant = true_plant(case.model_error)
+    return diagrams.output_zeroing_loop(
+        plant, sc.io_linearizer(), sc.outer_controller(F), Ts=Ts, name=case.name
+    )
+
+
+def run(case="ideal", *, horizon=HORIZON, Ts=sc.TS_PAPER, F=sc.F_PAPER, q_initial=None,
+        progress=None):
+    """Simulate one case from the initial attitude of Table 2.
+
+    Parameters
+    ----------
+    case : str or SpacecraftCase
+        A key of :data:`CASES`.
+    horizon : float
+        Simulated time (s), a multiple of ``Ts``. Default 20 000 s.
+    Ts : float
+        Sampling period (s).
+    F : float or array_like
+        Outer-loop gain.
+    q_initial : array_like, optional
+        Initial unit quaternion; default :func:`initial_attitude`.
+    progress : callable, optional
+        Called with the fraction done.
+
+    Returns
+    -------
+    control.TimeResponseData
+        Outputs labelled as in :func:`build_loop`.
+
+    Examples
+    --------
+    >>> resp = run("ideal", horizon=1.0)
+    >>> resp.outputs.shape
+    (10, 11)
+    """
+    q0 = initial_attitude() if q_initial is None else _checks.unit_quaternion("q_initial", q_initial)
+    loop = build_loop(case, Ts=Ts, F=F)
+    X0 = initial_state(loop, plant=q0)
+    T = time_grid(horizon, Ts)
+    return simulate(loop, T, X0, 0.0, progress=progress, chunks=20 if len(T) > 20_000 else 1)
