@@ -11,10 +11,9 @@ from __future__ import annotations
 
 import math
 
+import control as ct
 import numpy as np
 import scipy.integrate
-
-import control as ct
 
 from . import _checks
 

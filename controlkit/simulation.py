@@ -8,9 +8,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-import numpy as np
-
 import control as ct
+import numpy as np
 
 
 def initial_state(sys, **by_block) -> np.ndarray:
@@ -95,7 +94,7 @@ def simulate(
     >>> import numpy as np, control as ct
     >>> sys = ct.nlsys(lambda t, x, u, p: 0.5 * x, inputs=0, states=1, outputs=1, dt=1)
     >>> simulate(sys, np.arange(4), [1.0], chunks=2).outputs.tolist()
-    [1.0, 0.5, 0.25, 0.125]
+    [[1.0, 0.5, 0.25, 0.125]]
     """
     T = np.asarray(T, dtype=float)
     U = np.asarray(U, dtype=float)
@@ -108,11 +107,12 @@ def simulate(
         Uk = U[..., i0 : i1 + 1] if U.ndim == 2 else U
         resp = ct.input_output_response(sys, T[i0 : i1 + 1], Uk, x, squeeze=False)
         first = 0 if k == 0 else 1  # the previous chunk already holds this sample
-        pieces.append([a[..., first:] for a in (resp.time, resp.outputs, resp.states, resp.inputs)])
+        arrays = (resp.time, resp.outputs, resp.states, resp.inputs)
+        pieces.append([a[..., first:] for a in arrays])
         x = resp.states[:, -1]
         if progress is not None:
             progress(i1 / (len(T) - 1))
-    time, outputs, states, inputs = (np.concatenate(a, axis=-1) for a in zip(*pieces))
+    time, outputs, states, inputs = (np.concatenate(a, axis=-1) for a in zip(*pieces, strict=True))
     return ct.TimeResponseData(
         time, outputs, states, inputs,
         output_labels=sys.output_labels, state_labels=sys.state_labels,

@@ -12,9 +12,8 @@ convention under which eq. (4) reads ``q' = Q(q) w_b`` with body rates.
 
 from __future__ import annotations
 
-import numpy as np
-
 import control as ct
+import numpy as np
 
 from .. import _checks
 
@@ -146,7 +145,10 @@ def total_momentum(q, w_b, u, J_b, J_w1, J_w2, v1, v2) -> np.ndarray:
 def pointing_error_deg(q) -> np.ndarray:
     """Angle between body z (antenna) and inertial z, in degrees.
 
-    ``arccos(1 - 2 (q1^2 + q2^2))``; ``q`` may be a 4-vector or a 4 x N array.
+    ``arccos(1 - 2 (q1^2 + q2^2))``, evaluated as the equal
+    ``2 arcsin(sqrt(q1^2 + q2^2))``, which keeps its precision for the tiny
+    angles of a converged loop (the arccos form rounds below about 1e-6 deg to 0).
+    ``q`` may be a 4-vector or a 4 x N array.
 
     Examples
     --------
@@ -154,8 +156,8 @@ def pointing_error_deg(q) -> np.ndarray:
     5.729578
     """
     q = np.asarray(q, dtype=float)
-    cos_angle = 1.0 - 2.0 * (q[1] ** 2 + q[2] ** 2)
-    return np.rad2deg(np.arccos(np.clip(cos_angle, -1.0, 1.0)))
+    half_sine = np.sqrt(q[1] ** 2 + q[2] ** 2)
+    return np.rad2deg(2.0 * np.arcsin(np.clip(half_sine, 0.0, 1.0)))
 
 
 def decoupling_matrix(q, J_m_inv, b1, b2) -> np.ndarray:
@@ -165,9 +167,8 @@ def decoupling_matrix(q, J_m_inv, b1, b2) -> np.ndarray:
 
     Examples
     --------
-    >>> decoupling_matrix([1, 0, 0, 0], np.eye(3), V1, V2)
-    array([[-0.5, -0. ],
-           [-0. , -0.5]])
+    >>> decoupling_matrix([1, 0, 0, 0], np.eye(3), V1, V2).tolist()
+    [[-0.5, 0.0], [0.0, -0.5]]
     """
     rows = quaternion_rate_matrix(q)[1:3]
     return -rows @ (J_m_inv @ np.column_stack([b1, b2]))
@@ -292,8 +293,9 @@ def io_linearizer(
     Examples
     --------
     >>> lin = io_linearizer()
+    >>> # u1 = mu1 / A11 with A11 = -0.5 * 0.45 / J_m,x
     >>> lin.output(0.0, [], [0.001, 0, 1, 0, 0, 0]).round(6).tolist()
-    [-23.340444, 0.0]
+    [-17.780778, -0.0]
     """
     J_m = _checks.inertia("J_m", J_m)
     J_w1 = _checks.inertia("J_w1", J_w1)

@@ -143,7 +143,10 @@ def figures(tables: dict[str, dict[str, np.ndarray]], outdir) -> list[Path]:
             bottom = axes[1, 0]
             bottom.axhline(POINTING_REQUIREMENT_DEG, color="k", linestyle="--", linewidth=1,
                            label=f"requirement {POINTING_REQUIREMENT_DEG} deg")
-            bottom.set_ylim(0, 4 * POINTING_REQUIREMENT_DEG)
+            late = [c["pointing_error_deg"][c["time"] >= c["time"][-1] / 2]
+                    for c in tables.values()]
+            top = max([4 * POINTING_REQUIREMENT_DEG] + [1.15 * v.max() for v in late if v.size])
+            bottom.set_ylim(0, top)
             bottom.set_title("detail around the 0.05 deg requirement", fontsize=9)
             bottom.legend(loc="upper right", fontsize=8)
         axes[0, 0].set_title(title)

@@ -151,7 +151,10 @@ def run(case="ideal", *, horizon=HORIZON, Ts=sc.TS_PAPER, F=sc.F_PAPER, q_initia
     >>> resp.outputs.shape
     (10, 11)
     """
-    q0 = initial_attitude() if q_initial is None else _checks.unit_quaternion("q_initial", q_initial)
+    if q_initial is None:
+        q0 = initial_attitude()
+    else:
+        q0 = _checks.unit_quaternion("q_initial", q_initial)
     loop = build_loop(case, Ts=Ts, F=F)
     X0 = initial_state(loop, plant=q0)
     T = time_grid(horizon, Ts)

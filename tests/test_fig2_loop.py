@@ -1,0 +1,69 @@
+"""The Fig. 2 loop: exact linearization, and what model error does to it."""
+
+import control as ct
+import numpy as np
+import pytest
+
+from controlkit.blocks import spacecraft as sc
+from controlkit.diagrams.spacecraft import linearized_plant, output_zeroing_loop
+from controlkit.outputs.spacecraft import metrics, signal
+from controlkit.scenarios import spacecraft as scenario
+from controlkit.simulation import initial_state, simulate
+
+F, TS = sc.F_PAPER, sc.TS_PAPER
+
+
+def check_exact_linearization(resp):
+    h = np.vstack([signal(resp, "h[0]"), signal(resp, "h[1]")])
+    h0 = scenario.initial_attitude()[1:3]
+    k = np.arange(h.shape[1])
+    discrete_ideal = np.outer(h0, (1 - F * TS) ** k)
+    continuous_ideal = np.outer(h0, np.exp(-F * resp.time))
+    assert np.abs(h - discrete_ideal).max() < 1e-7
+    assert np.abs(h - continuous_ideal).max() < 1e-5
+
+
+def test_linearized_plant_is_an_integrator_per_sample():
+    sys = linearized_plant()
+    q0 = scenario.initial_attitude()
+    mu = np.array([[2e-5], [-1e-5]]) * np.ones((1, 11))
+    resp = ct.input_output_response(sys, np.arange(11) * TS, mu,
+                                    initial_state(sys, plant=q0))
+    h = resp.outputs[:2]
+    np.testing.assert_allclose(h[:, -1] - h[:, 0], 10 * TS * mu[:, 0], rtol=1e-6)
+
+
+def test_ideal_loop_follows_exact_linear_model_over_2000_s():
+    check_exact_linearization(scenario.run("ideal", horizon=2000.0))
+
+
+def test_chunked_run_equals_single_run_bit_for_bit():
+    loop = output_zeroing_loop(scenario.true_plant(True))
+    T = np.arange(301) * TS
+    X0 = initial_state(loop, plant=scenario.initial_attitude())
+    whole = simulate(loop, T, X0)
+    chunked = simulate(loop, T, X0, chunks=7)
+    np.testing.assert_array_equal(whole.outputs, chunked.outputs)
+    np.testing.assert_array_equal(whole.states, chunked.states)
+    assert list(chunked.output_labels) == list(loop.output_labels)
+
+
+def test_model_error_spoils_the_linearization_early():
+    ideal = scenario.run("ideal", horizon=500.0)
+    error = scenario.run("without_mec", horizon=500.0)
+    gap = np.abs(signal(error, "h[0]") - signal(ideal, "h[0]")).max()
+    assert gap > 1e-4
+
+
+@pytest.mark.slow
+def test_ideal_full_horizon_meets_linear_model_and_points_exactly():
+    resp = scenario.run("ideal")
+    check_exact_linearization(resp)
+    assert metrics(resp)["final_pointing_error_deg"] < 1e-3
+
+
+@pytest.mark.slow
+def test_without_mec_oscillates_and_misses_requirement():
+    m = metrics(scenario.run("without_mec"))
+    assert 0.4 < m["final_pointing_error_deg"] < 0.7
+    assert not m["requirement_met_last_half"]
