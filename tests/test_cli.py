@@ -10,20 +10,20 @@ import pytest
 from controlkit.cli import main
 from controlkit.outputs.spacecraft import COLUMNS
 
-FIGS = ["fig05_h1", "fig06_h2", "fig07_pointing_error", "fig09_u1", "fig10_u2"]
+FIGS = ["fig05_h1", "fig06_h2", "fig07_pointing_error", "fig08_K", "fig09_u1", "fig10_u2"]
 
 
 def test_reproduce_spacecraft_short_horizon_writes_files(tmp_path):
     assert main(["reproduce", "spacecraft", "--horizon", "20", "--out", str(tmp_path)]) == 0
     folder = tmp_path / "spacecraft"
-    for case in ("ideal", "without_mec"):
+    for case in ("ideal", "without_mec", "proposed"):
         with open(folder / f"{case}.csv") as f:
             rows = list(csv.reader(f))
         assert rows[0] == list(COLUMNS)
         assert len(rows) == 1 + 21  # 0..20 s every 1 s (stride 10 at 0.1 s)
         assert float(rows[-1][0]) == pytest.approx(20.0)
     m = json.loads((folder / "metrics.json").read_text())
-    assert set(m) == {"ideal", "without_mec"}
+    assert set(m) == {"ideal", "without_mec", "proposed"}
     for key in ("final_pointing_error_deg", "max_pointing_error_last_half_deg",
                 "peak_abs_u1_rad_s", "peak_abs_u2_rad_s"):
         assert m["ideal"][key] > 0

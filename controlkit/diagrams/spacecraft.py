@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import control as ct
 
+from ..blocks import mec
 from ..blocks import spacecraft as sc
 from ..sampling import sample_nlsys
 
@@ -123,5 +124,98 @@ def output_zeroing_loop(
         [plant, output, controller, linearizer],
         inputs=R,
         outputs=H + U + Q + MU,
+        name=name,
+    )
+
+
+def mec_loop(
+    plant=None, linearizer=None, controller=None, *, K="frit", nominal=None, h0=(0.0, 0.0),
+    Ts=sc.TS_PAPER, name="mec_loop",
+):
+    """Fig. 3 / Fig. 4: the linearized loop with a model error compensator.
+
+    ``mu_n = F (r - h)`` drives the ideal model ``hn' = mu_n`` (erratum E3) and
+    the compensator adds ``K (hn - h)``: ``mu = mu_n + K (hn - h)`` (eq. 13-15).
+    The gain comes from a source block chosen by ``K``:
+
+    - a number or 2x2 matrix: a :func:`~controlkit.blocks.mec.constant_gain` (Fig. 3);
+    - ``"frit"``: the on-line FRIT tuner with the paper's settings (Fig. 4);
+    - a block with outputs ``K[0]..K[3]`` (e.g. a :func:`~controlkit.blocks.mec.frit_tuner`
+      with other settings, or your own tuner).
+
+    For the loop without MEC use :func:`output_zeroing_loop`.
+
+    Parameters
+    ----------
+    plant, linearizer : control.NonlinearIOSystem, optional
+        As in :func:`linearized_plant`.
+    controller : control.NonlinearIOSystem, optional
+        Outer controller with output ``mu_n``; default
+        ``outer_controller(F=0.0009, output="mu_n")``.
+    K : float, array_like, "frit" or control.NonlinearIOSystem
+        The gain source (see above).
+    nominal : control.NonlinearIOSystem, optional
+        Ideal model; default :func:`~controlkit.blocks.mec.nominal_model` at ``Ts``.
+    h0 : array_like
+        Initial output, used by the default tuner (``K="frit"``).
+    Ts : float
+        Sampling period (s).
+    name : str
+        System name.
+
+    Returns
+    -------
+    control.InterconnectedSystem
+        Discrete at ``Ts``. Inputs ``r[0], r[1]``; outputs ``h[0], h[1], u[0], u[1],
+        q[0]..q[3], mu[0], mu[1], mu_n[0], mu_n[1], hn[0], hn[1], K[0]..K[3]``.
+
+    Examples
+    --------
+    >>> loop = mec_loop(K=0.1)
+    >>> [s.name for s in loop.syslist]
+    ['plant', 'output', 'nominal', 'gain', 'controller', 'mec', 'linearizer']
+    """
+    plant = _sampled(plant if plant is not None else sc.spacecraft_plant(), Ts)
+    linearizer = linearizer if linearizer is not None else sc.io_linearizer()
+    controller = controller if controller is not None else sc.outer_controller(output="mu_n")
+    nominal = nominal if nominal is not None else mec.nominal_model(Ts)
+    if isinstance(K, str):
+        if K != "frit":
+            raise ValueError(f'K must be a gain, "frit" or a gain-source block, got {K!r}')
+        gain = mec.frit_tuner(controller.F if hasattr(controller, "F") else sc.F_PAPER, Ts,
+                              h0=h0)
+    elif isinstance(K, ct.InputOutputSystem):
+        gain = K
+    else:
+        gain = mec.constant_gain(K)
+    if gain.output_labels != mec.K_SIGNALS:
+        raise ValueError(f"the gain source must output {mec.K_SIGNALS}, got {gain.output_labels}")
+    for block in (nominal, gain):
+        if block.dt not in (None, True) and block.dt != Ts:
+            raise ValueError(
+                f"block {block.name!r} runs at dt = {block.dt:g} s but the loop runs at "
+                f"Ts = {Ts:g} s; build it with Ts={Ts:g}"
+            )
+    compensator = mec.mec_compensator()
+    MU_N, HN = ["mu_n[0]", "mu_n[1]"], ["hn[0]", "hn[1]"]
+
+    #                          +---------+  hn
+    #               +--------->| nominal |-------------------+
+    #               |   mu_n   | hn'=mu_n|                   |
+    #               |          +---------+                   v
+    #          +------------+  mu_n                     +---------+  mu  +------------+  u
+    #  r=0 -->o| controller |-------------------------->|   MEC   |----->| linearizer |---+
+    #        -^| F (r - h)  |                           | mu_n +  |  |   +------------+   |
+    #         | +------------+        +--------------+ K| K(hn-h) |  |         ^ q        |
+    #         |                       | gain source  |-->|        |  |         |          v
+    #         |                       | constant (3) |   +---------+  |   +-----+-----+ +-------------+
+    #         |                       | or FRIT (4)  |<-- mu, h, hn ---+   |  h(q) eq.9 |<| plant (ZOH) |
+    #         |                       +--------------+                     +-----------+ +-------------+
+    #         +------------------------------- h ---------------------------------+
+    return ct.interconnect(
+        [plant, sc.attitude_output(), nominal, gain, controller, compensator,
+         linearizer],
+        inputs=R,
+        outputs=H + U + Q + MU + MU_N + HN + mec.K_SIGNALS,
         name=name,
     )

@@ -91,6 +91,7 @@ FIGURES = (
     ("fig06_h2", "Fig. 6  Output h2", "h2 = q2 [-]", ("h2",)),
     ("fig07_pointing_error", "Fig. 7  Pointing error of antenna", "pointing error [deg]",
      ("pointing_error_deg",)),
+    ("fig08_K", "Fig. 8  Compensation gain K", "K [1/s]", ("K11", "K12", "K21", "K22")),
     ("fig09_u1", "Fig. 9  Input u1", "u1 [rad/s]", ("u1",)),
     ("fig10_u2", "Fig. 10  Input u2", "u2 [rad/s]", ("u2",)),
 )
@@ -98,6 +99,8 @@ FIGURES = (
 
 def figures(tables: dict[str, dict[str, np.ndarray]], outdir) -> list[Path]:
     """Draw the paper's figures for the cases in ``tables`` and save them as PNG.
+
+    Fig. 8 (``K``) is drawn only when a case with a compensator is present.
 
     Parameters
     ----------
@@ -126,16 +129,23 @@ def figures(tables: dict[str, dict[str, np.ndarray]], outdir) -> list[Path]:
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
     written = []
+    styles = {"K11": "-", "K12": "--", "K21": "-.", "K22": ":"}
     for stem, title, ylabel, cols in FIGURES:
+        shown = tables
+        if stem == "fig08_K":  # only the cases that have a compensator
+            shown = {n: c for n, c in tables.items() if scenario.CASES[n].compensator != "none"}
+            if not shown:
+                continue
         zoom = stem == "fig07_pointing_error"
         fig, axes = plt.subplots(2 if zoom else 1, 1, figsize=(7, 6.5 if zoom else 4),
                                  squeeze=False)
         for ax in axes[:, 0]:
-            for name, columns in tables.items():
+            for name, columns in shown.items():
                 case = scenario.CASES[name]
                 for col in cols:
-                    ax.plot(columns["time"], columns[col], color=case.color, label=case.label,
-                            linewidth=1.2)
+                    label = case.label if len(cols) == 1 else f"{case.label}: {col}"
+                    ax.plot(columns["time"], columns[col], color=case.color, label=label,
+                            linestyle=styles.get(col, "-"), linewidth=1.2)
             ax.set_xlabel("Time [s]")
             ax.set_ylabel(ylabel)
             ax.grid(True, alpha=0.3)

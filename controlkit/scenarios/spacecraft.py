@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import _checks
+from ..blocks import mec
 from ..blocks import spacecraft as sc
 from ..diagrams import spacecraft as diagrams
 from ..sampling import time_grid
@@ -38,7 +39,8 @@ class SpacecraftCase:
         True plant with ``J_t = J_m + Delta J`` and the true ``H0(t)`` (Table 2);
         otherwise the plant equals the controller's model.
     compensator : str
-        ``"none"`` (Fig. 2 loop).
+        ``"none"`` (Fig. 2 loop), ``"fixed"`` (Fig. 3, constant ``K``) or
+        ``"frit"`` (Fig. 4, on-line FRIT tuning of ``K``).
     """
 
     name: str
@@ -51,9 +53,13 @@ class SpacecraftCase:
 CASES: dict[str, SpacecraftCase] = {
     "ideal": SpacecraftCase("ideal", "Ideal (no model error)", "tab:blue", False, "none"),
     "without_mec": SpacecraftCase("without_mec", "w/o MEC", "tab:green", True, "none"),
+    "proposed": SpacecraftCase("proposed", "Proposed (MEC + FRIT)", "tab:red", True, "frit"),
+    "mec_fixed": SpacecraftCase("mec_fixed", "MEC, fixed K", "tab:purple", True, "fixed"),
 }
 #: Cases run by ``controlkit reproduce spacecraft`` when none is named.
-DEFAULT_CASES = ("ideal", "without_mec")
+DEFAULT_CASES = ("ideal", "without_mec", "proposed")
+#: Constant gain of the ``mec_fixed`` case.
+K_FIXED = 0.1
 
 
 def initial_attitude() -> np.ndarray:
@@ -92,7 +98,8 @@ def _case(case) -> SpacecraftCase:
     return CASES[case]
 
 
-def build_loop(case="ideal", *, Ts=sc.TS_PAPER, F=sc.F_PAPER):
+def build_loop(case="ideal", *, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXED, h0=None,
+               tuner_options=None):
     """The closed loop of one case, sampled at ``Ts``.
 
     Parameters
@@ -103,6 +110,13 @@ def build_loop(case="ideal", *, Ts=sc.TS_PAPER, F=sc.F_PAPER):
         Sampling period (s).
     F : float or array_like
         Outer-loop gain ``diag(F1, F2)``.
+    K : float or array_like
+        Gain of the ``"fixed"`` compensator (default ``0.1 I``).
+    h0 : array_like, optional
+        Initial output (for the FRIT tuner's filters); default that of Table 2.
+    tuner_options : dict, optional
+        Keywords for :func:`~controlkit.blocks.mec.frit_tuner` (``lambda_``,
+        ``gamma``, ``kappa``, ``psi``, ``K0``) in the ``"frit"`` case.
 
     Returns
     -------
@@ -116,13 +130,21 @@ def build_loop(case="ideal", *, Ts=sc.TS_PAPER, F=sc.F_PAPER):
     """
     case = _case(case)
     plant = true_plant(case.model_error)
-    return diagrams.output_zeroing_loop(
-        plant, sc.io_linearizer(), sc.outer_controller(F), Ts=Ts, name=case.name
-    )
+    if case.compensator == "none":
+        return diagrams.output_zeroing_loop(
+            plant, sc.io_linearizer(), sc.outer_controller(F), Ts=Ts, name=case.name
+        )
+    h0 = initial_attitude()[1:3] if h0 is None else h0
+    if case.compensator == "fixed":
+        gain = mec.constant_gain(K)
+    else:
+        gain = mec.frit_tuner(F, Ts, h0=h0, **(tuner_options or {}))
+    return diagrams.mec_loop(plant, sc.io_linearizer(), sc.outer_controller(F, output="mu_n"),
+                             K=gain, nominal=mec.nominal_model(Ts), Ts=Ts, name=case.name)
 
 
-def run(case="ideal", *, horizon=HORIZON, Ts=sc.TS_PAPER, F=sc.F_PAPER, q_initial=None,
-        progress=None):
+def run(case="ideal", *, horizon=HORIZON, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXED,
+        q_initial=None, tuner_options=None, progress=None):
     """Simulate one case from the initial attitude of Table 2.
 
     Parameters
@@ -135,8 +157,12 @@ def run(case="ideal", *, horizon=HORIZON, Ts=sc.TS_PAPER, F=sc.F_PAPER, q_initia
         Sampling period (s).
     F : float or array_like
         Outer-loop gain.
+    K : float or array_like
+        Gain of the ``mec_fixed`` case.
     q_initial : array_like, optional
         Initial unit quaternion; default :func:`initial_attitude`.
+    tuner_options : dict, optional
+        Keywords for the FRIT tuner (``proposed`` case).
     progress : callable, optional
         Called with the fraction done.
 
@@ -155,7 +181,11 @@ def run(case="ideal", *, horizon=HORIZON, Ts=sc.TS_PAPER, F=sc.F_PAPER, q_initia
         q0 = initial_attitude()
     else:
         q0 = _checks.unit_quaternion("q_initial", q_initial)
-    loop = build_loop(case, Ts=Ts, F=F)
-    X0 = initial_state(loop, plant=q0)
+    h0 = q0[1:3]
+    loop = build_loop(case, Ts=Ts, F=F, K=K, h0=h0, tuner_options=tuner_options)
+    by_block = {"plant": q0}
+    if "nominal" in {s.name for s in loop.syslist}:
+        by_block["nominal"] = h0  # the ideal model starts where the plant does
+    X0 = initial_state(loop, **by_block)
     T = time_grid(horizon, Ts)
     return simulate(loop, T, X0, 0.0, progress=progress, chunks=20 if len(T) > 20_000 else 1)

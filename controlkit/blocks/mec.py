@@ -1,0 +1,309 @@
+"""Model error compensator (MEC) and its on-line FRIT tuner (spacecraft paper, eq. 13-30).
+
+The MEC (Fig. 3) compares the actual output ``h`` with the output ``hn`` of
+an ideal model driven by the outer controller, and adds ``K (hn - h)`` at
+the virtual input. The gain source is a block of its own, so the same
+compensator takes a constant gain (:func:`constant_gain`, Fig. 3) or the
+on-line FRIT tuner (:func:`frit_tuner`, Fig. 4): swapping one block swaps
+the method. Errata E1-E3 of the project spec apply (see each docstring).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+import control as ct
+
+from .. import _checks
+from .spacecraft import F_PAPER, TS_PAPER
+
+#: Table 3: forgetting factor, P(0) = gamma I, low-pass coefficient, threshold.
+LAMBDA_PAPER = 0.995
+GAMMA_PAPER = 100.0
+KAPPA_PAPER = 0.45
+PSI_PAPER = 0.00012
+
+K_SIGNALS = [f"K[{i}]" for i in range(4)]
+
+
+def nominal_model(Ts=TS_PAPER, *, h0=(0.0, 0.0), name="nominal") -> ct.NonlinearIOSystem:
+    """Ideal linearized model ``L_n``: ``hn' = mu_n``, exact under ZOH at ``Ts``.
+
+    ``hn[k+1] = hn[k] + Ts mu_n[k]`` (the ZOH discretisation of an integrator
+    is exact). Driven by the outer controller's ``mu_n``, not by the
+    compensated ``mu`` (erratum E3, after Okajima et al. 2013).
+
+    Parameters
+    ----------
+    Ts : float
+        Sampling period (s), > 0.
+    h0 : array_like
+        Initial nominal output; the paper's loop starts with ``hn(0) = h(0)``.
+    name : str
+        System name.
+
+    Returns
+    -------
+    control.NonlinearIOSystem
+        Discrete. Inputs ``mu_n[0], mu_n[1]``; states and outputs ``hn[0], hn[1]``;
+        attribute ``x0`` (= ``h0``).
+
+    Examples
+    --------
+    >>> nominal_model(0.1).dynamics(0.0, [1.0, 2.0], [0.5, -1.0]).tolist()
+    [1.05, 1.9]
+    """
+    Ts = _checks.positive_scalar("Ts", Ts)
+    h0 = _checks.vector("h0", h0, 2)
+
+    def updfcn(t, x, u, params):
+        return x + Ts * u
+
+    def outfcn(t, x, u, params):
+        return x
+
+    sys = ct.nlsys(updfcn, outfcn, inputs=["mu_n[0]", "mu_n[1]"], outputs=["hn[0]", "hn[1]"],
+                   states=["hn[0]", "hn[1]"], dt=Ts, name=name)
+    sys.x0 = h0
+    return sys
+
+
+def mec_compensator(*, name="mec") -> ct.NonlinearIOSystem:
+    """Model error compensator, ``mu = mu_n + K (hn - h)`` (eq. 13-15).
+
+    ``K`` (2x2) arrives as the signal ``K[0..3]`` (row-major: K11, K12, K21, K22)
+    from a gain source: :func:`constant_gain` (Fig. 3) or :func:`frit_tuner` (Fig. 4).
+
+    Returns
+    -------
+    control.NonlinearIOSystem
+        Static. Inputs ``mu_n[0], mu_n[1], hn[0], hn[1], h[0], h[1], K[0]..K[3]``;
+        outputs ``mu[0], mu[1]``.
+
+    Examples
+    --------
+    >>> mec = mec_compensator()
+    >>> mec.output(0.0, [], [1, 1, 0.5, 0, 0, 0, 2, 0, 0, 2]).tolist()
+    [2.0, 1.0]
+    """
+
+    def outfcn(t, x, u, params):
+        K = u[6:10].reshape(2, 2)
+        return u[0:2] + K @ (u[2:4] - u[4:6])
+
+    return ct.nlsys(
+        None, outfcn,
+        inputs=["mu_n[0]", "mu_n[1]", "hn[0]", "hn[1]", "h[0]", "h[1]", *K_SIGNALS],
+        outputs=["mu[0]", "mu[1]"], dt=None, name=name,
+    )
+
+
+def constant_gain(K=0.1, *, name="gain") -> ct.NonlinearIOSystem:
+    """Constant compensation gain as a source block (Fig. 3).
+
+    Parameters
+    ----------
+    K : float or array_like
+        Scalar (times the identity) or 2x2 matrix. Default ``0.1 I``.
+    name : str
+        System name.
+
+    Returns
+    -------
+    control.NonlinearIOSystem
+        Static, no inputs; outputs ``K[0]..K[3]`` (row-major); attribute ``K``.
+
+    Examples
+    --------
+    >>> constant_gain([[1, 2], [3, 4]]).output(0.0, [], []).tolist()
+    [1.0, 2.0, 3.0, 4.0]
+    """
+    K = _checks.gain_matrix("K", K)
+    flat = K.reshape(-1).copy()
+
+    def outfcn(t, x, u, params):
+        return flat
+
+    sys = ct.nlsys(None, outfcn, inputs=0, outputs=K_SIGNALS, dt=None, name=name)
+    sys.K = K
+    return sys
+
+
+# --- FRIT tuner ------------------------------------------------------------------------
+
+#: State layout of the tuner, in order (24 states).
+TUNER_STATES = (
+    [f"Mxi1[{i}]" for i in range(2)]      # M_1 (hn - h): regressor of row 1
+    + [f"Mxi2[{i}]" for i in range(2)]    # M_2 (hn - h): regressor of row 2
+    + [f"Mmu[{i}]" for i in range(2)]     # M_j mu_j
+    + [f"Mh[{i}]" for i in range(2)]      # M_j h_j
+    + [f"Khat[{i}]" for i in range(4)]    # RLS estimate, row-major
+    + [f"P1[{i}]" for i in range(4)]      # covariance of row 1, row-major
+    + [f"P2[{i}]" for i in range(4)]      # covariance of row 2
+    + [f"K[{i}]" for i in range(4)]       # implemented (low-pass) gain
+)
+
+
+def frit_regressors(x, h, F):
+    """Regressors of the row-wise FRIT least squares at the current step.
+
+    ``xi_j = M_j (hn - h)`` (eq. 24 with erratum E2) and
+    ``eta = M mu - F (h - M h)`` (eq. 20; erratum E1: eq. 25 prints ``+``).
+
+    Parameters
+    ----------
+    x : array_like
+        Tuner state (:data:`TUNER_STATES` layout).
+    h : array_like
+        Current actual output.
+    F : array_like
+        ``(F1, F2)``.
+
+    Returns
+    -------
+    xi : ndarray (2, 2)
+        Row ``j`` is the regressor of row ``j`` of ``K``.
+    eta : ndarray (2,)
+
+    Examples
+    --------
+    >>> x = np.zeros(24); x[6:8] = [0.1, 0.2]  # M h
+    >>> frit_regressors(x, [0.1, 0.2], [1.0, 1.0])[1].tolist()
+    [0.0, 0.0]
+    """
+    xi = np.array([x[0:2], x[2:4]])
+    eta = x[4:6] - F * (np.asarray(h) - x[6:8])
+    return xi, eta
+
+
+def rls_row_update(Khat_j, P_j, xi_j, eta_j, lambda_):
+    """One step of recursive least squares with forgetting (eq. 27-28) for one row of K.
+
+    ``Khat_j += (eta_j - Khat_j xi_j) (P_j xi_j)^T / (lambda + xi_j^T P_j xi_j)``,
+    ``P_j = (P_j - P_j xi_j xi_j^T P_j / (lambda + xi_j^T P_j xi_j)) / lambda``.
+
+    Examples
+    --------
+    >>> K, P = rls_row_update(np.zeros(2), 100 * np.eye(2), np.array([1.0, 0]), 2.0, 1.0)
+    >>> K.round(6).tolist(), P.round(6).tolist()
+    ([1.980198, 0.0], [[0.990099, 0.0], [0.0, 100.0]])
+    """
+    P_xi = P_j @ xi_j
+    denominator = lambda_ + xi_j @ P_xi
+    Khat_j = Khat_j + (eta_j - Khat_j @ xi_j) * P_xi / denominator
+    P_j = (P_j - np.outer(P_xi, P_xi) / denominator) / lambda_
+    return Khat_j, P_j
+
+
+def frit_tuner(
+    F=F_PAPER, Ts=TS_PAPER, *, lambda_=LAMBDA_PAPER, gamma=GAMMA_PAPER, kappa=KAPPA_PAPER,
+    psi=PSI_PAPER, K0=0.0, h0=(0.0, 0.0), name="tuner",
+) -> ct.NonlinearIOSystem:
+    """On-line FRIT tuner of the MEC gain ``K`` by recursive least squares (eq. 15-30).
+
+    At each step ``i`` (period ``Ts``), for each row ``j`` of ``K``:
+
+    1. regressors ``xi_j(i) = M_j (hn - h)`` and ``eta(i) = M mu - F (h - M h)``,
+       where ``M = diag(F_j / (s + F_j))`` is the ideal closed loop, discretised
+       exactly under ZOH (``M_j``: ``m[i+1] = a_j m[i] + (1 - a_j) v[i]``,
+       ``a_j = exp(-F_j Ts)``, output ``m[i]``);
+    2. unless ``|hn_j - h_j| < psi_j`` (updates of row ``j`` are then frozen),
+       RLS with forgetting ``lambda_`` (eq. 27-28) updates ``Khat_j`` and ``P_j``,
+       and the implemented gain follows the low-pass law
+       ``K_j(i) = (1 - kappa) K_j(i-1) + kappa Khat_j(i)`` (eq. 30).
+
+    The least squares minimises ``sum lambda^(N-i) eps^2`` with
+    ``eps = K xi - eta`` (eq. 21-26), which for ``lambda_ = 1`` has the same
+    minimiser as the FRIT criterion ``J(K) = sum (h - M r~(K))^2`` (eq. 17),
+    since ``h - M r~(K) = F^-1 eps`` row by row.
+
+    Where the printed paper differs: eq. (25) prints ``eta = M mu + F(h - M h)``;
+    eq. (20), from which it is derived, and the derivation give ``-`` (E1).
+    Eq. (20) writes ``K M (hn - h)``, equal to ``M K (hn - h)`` only when ``M``
+    and ``K`` commute; this block uses the exact row-wise form (E2).
+
+    The output is the gain of the previous update (the state), so the MEC and
+    the tuner form no algebraic loop: ``K`` acts one sample after the data
+    that produced it.
+
+    Parameters
+    ----------
+    F : float or array_like
+        Outer-loop gain ``diag(F1, F2)``, each > 0 (it defines ``M``).
+    Ts : float
+        Period, must equal the loop's (0.1 s in the paper).
+    lambda_ : float
+        Forgetting factor in ``(0, 1]``; 1 is ordinary least squares. Default 0.995.
+    gamma : float
+        ``P_j(0) = gamma I`` (eq. 29), > 0. Default 100.
+    kappa : float
+        Low-pass coefficient in ``(0, 1]`` (eq. 30); 1 applies ``Khat`` directly.
+        Default 0.45.
+    psi : float or array_like
+        Thresholds ``(psi1, psi2)`` >= 0 on ``|hn_j - h_j|``. Default 0.00012.
+    K0 : float or array_like
+        Initial gain ``K(0) = Khat(0)``, scalar or 2x2. Default 0.
+    h0 : array_like
+        Initial output ``h(0)``: the ``M h`` filters start there, as if the loop
+        had rested at ``h(0)`` (then ``h - M r~ = 0`` holds from the first step).
+    name : str
+        System name.
+
+    Returns
+    -------
+    control.NonlinearIOSystem
+        Discrete at ``Ts``. Inputs ``mu[0], mu[1], h[0], h[1], hn[0], hn[1]``;
+        outputs ``K[0]..K[3]`` (row-major); 24 states (:data:`TUNER_STATES`);
+        attribute ``x0`` (the initial state).
+
+    Examples
+    --------
+    >>> tuner = frit_tuner()
+    >>> tuner.nstates, tuner.output(0.0, tuner.x0, np.zeros(6)).tolist()
+    (24, [0.0, 0.0, 0.0, 0.0])
+    """
+    F = _checks.gain_pair("F", F)
+    if np.any(F == 0):
+        raise ValueError(f"F must be > 0 for the FRIT tuner (it defines M = F/(s+F)), got {F}")
+    Ts = _checks.positive_scalar("Ts", Ts)
+    lambda_ = _checks.in_interval("lambda_", lambda_, 0.0, 1.0)
+    gamma = _checks.positive_scalar("gamma", gamma)
+    kappa = _checks.in_interval("kappa", kappa, 0.0, 1.0)
+    psi_values = np.broadcast_to(np.asarray(psi, dtype=float), (2,)) if np.ndim(psi) == 0 \
+        else np.asarray(psi, dtype=float)
+    if psi_values.shape != (2,) or not np.all(np.isfinite(psi_values)) or np.any(psi_values < 0):
+        raise ValueError(f"psi must be >= 0 (one value or two), got {psi!r}")
+    K0 = _checks.gain_matrix("K0", K0)
+    h0 = _checks.vector("h0", h0, 2)
+    a = np.exp(-F * Ts)
+    b = 1.0 - a
+
+    def updfcn(t, x, u, params):
+        mu, h, hn = u[0:2], u[2:4], u[4:6]
+        xi, eta = frit_regressors(x, h, F)
+        Khat = x[8:12].reshape(2, 2).copy()
+        P = [x[12:16].reshape(2, 2), x[16:20].reshape(2, 2)]
+        K = x[20:24].reshape(2, 2).copy()
+        e = hn - h
+        for j in range(2):
+            if abs(e[j]) < psi_values[j]:
+                continue  # eq. (30) and RLS frozen for this row
+            Khat[j], P[j] = rls_row_update(Khat[j], P[j], xi[j], eta[j], lambda_)
+            K[j] = (1 - kappa) * K[j] + kappa * Khat[j]
+        filters = np.concatenate([
+            a[0] * x[0:2] + b[0] * e,
+            a[1] * x[2:4] + b[1] * e,
+            a * x[4:6] + b * mu,
+            a * x[6:8] + b * h,
+        ])
+        return np.concatenate([filters, Khat.ravel(), P[0].ravel(), P[1].ravel(), K.ravel()])
+
+    def outfcn(t, x, u, params):
+        return x[20:24]
+
+    sys = ct.nlsys(updfcn, outfcn, inputs=["mu[0]", "mu[1]", "h[0]", "h[1]", "hn[0]", "hn[1]"],
+                   outputs=K_SIGNALS, states=TUNER_STATES, dt=Ts, name=name)
+    P0 = (gamma * np.eye(2)).ravel()
+    sys.x0 = np.concatenate([np.zeros(6), h0, K0.ravel(), P0, P0, K0.ravel()])
+    sys.F, sys.lambda_, sys.gamma, sys.kappa, sys.psi = F, lambda_, gamma, kappa, psi_values
+    return sys

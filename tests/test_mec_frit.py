@@ -1,0 +1,221 @@
+"""MEC and on-line FRIT tuning (eq. 13-30): RLS, FRIT identity, compensation, errors."""
+
+import numpy as np
+import pytest
+import scipy.optimize
+
+import control as ct
+from controlkit.blocks import mec
+from controlkit.blocks import spacecraft as sc
+from controlkit.diagrams.spacecraft import mec_loop, output_zeroing_loop
+from controlkit.outputs.spacecraft import metrics, signal
+from controlkit.scenarios import spacecraft as scenario
+from controlkit.simulation import initial_state, simulate
+
+RNG = np.random.default_rng(3)
+F, TS = sc.F_PAPER, sc.TS_PAPER
+K_TRUE = np.array([[0.3, -0.1], [0.05, 0.2]])
+
+
+def synthetic(n, noise):
+    xi = RNG.normal(size=(n, 2))  # persistently exciting
+    eta = xi @ K_TRUE.T + noise * RNG.normal(size=(n, 2))
+    return xi, eta
+
+
+def run_rls(xi, eta, lambda_, gamma):
+    Khat, P = np.zeros((2, 2)), [gamma * np.eye(2), gamma * np.eye(2)]
+    for x, y in zip(xi, eta, strict=True):
+        for j in range(2):
+            Khat[j], P[j] = mec.rls_row_update(Khat[j], P[j], x, y[j], lambda_)
+    return Khat
+
+
+def test_rls_with_forgetting_converges_to_true_gain():
+    xi, eta = synthetic(3000, noise=1e-3)
+    Khat = run_rls(xi, eta, lambda_=0.995, gamma=100.0)
+    assert np.abs(Khat - K_TRUE).max() < 5e-4  # noise 1e-3, ~200 effective samples
+
+
+def test_rls_without_forgetting_is_batch_least_squares():
+    xi, eta = synthetic(500, noise=0.05)
+    gamma = 100.0
+    Khat = run_rls(xi, eta, lambda_=1.0, gamma=gamma)
+    # RLS from P(0) = gamma I, Khat(0) = 0 solves the least squares with prior 1/gamma |K_j|^2
+    batch = np.linalg.solve(xi.T @ xi + np.eye(2) / gamma, xi.T @ eta).T
+    np.testing.assert_allclose(Khat, batch, rtol=0, atol=1e-9)
+    # a weak prior (gamma = 1e6) is ordinary least squares up to a bias of ~|K| / (gamma n)
+    plain = np.linalg.lstsq(xi, eta, rcond=None)[0].T
+    np.testing.assert_allclose(run_rls(xi, eta, 1.0, 1e6), plain, rtol=0, atol=1e-8)
+
+
+def drive_tuner(tuner, inputs):
+    """Step the tuner block alone through a sequence of input vectors; return its states."""
+    x = tuner.x0.copy()
+    states = [x]
+    for k, u in enumerate(inputs):
+        x = tuner.dynamics(k * TS, x, u)
+        states.append(x)
+    return np.array(states)
+
+
+def tuner_inputs(n, error_scale):
+    t = np.arange(n) * TS
+    h = np.vstack([1e-3 * np.cos(0.01 * t), 1e-3 * np.sin(0.013 * t)]).T
+    e = error_scale * np.vstack([np.sin(0.05 * t), np.cos(0.031 * t)]).T
+    mu = -F * h + 0.2 * e + 1e-6 * RNG.normal(size=(n, 2))
+    return np.hstack([mu, h, h + e])
+
+
+def test_threshold_freezes_updates_exactly_while_error_is_small():
+    tuner = mec.frit_tuner(psi=1e-4)
+    inputs = tuner_inputs(1000, error_scale=5e-4)
+    states = drive_tuner(tuner, inputs)
+    e = inputs[:, 4:6] - inputs[:, 2:4]
+    for j, (khat, p, k) in enumerate([(slice(8, 10), slice(12, 16), slice(20, 22)),
+                                      (slice(10, 12), slice(16, 20), slice(22, 24))]):
+        frozen = np.abs(e[:, j]) < 1e-4
+        assert frozen.any() and (~frozen).any()
+        for cols in (khat, p, k):
+            changed = np.any(states[1:, cols] != states[:-1, cols], axis=1)
+            np.testing.assert_array_equal(changed[frozen], False)
+        assert np.any(states[1:, khat][~frozen] != states[:-1, khat][~frozen])
+
+
+def test_low_pass_law_eq30_holds_step_by_step():
+    kappa = 0.3
+    tuner = mec.frit_tuner(kappa=kappa, psi=0.0)
+    states = drive_tuner(tuner, tuner_inputs(300, error_scale=5e-4))
+    Khat, K = states[:, 8:12], states[:, 20:24]
+    np.testing.assert_allclose(K[1:], (1 - kappa) * K[:-1] + kappa * Khat[1:], rtol=0, atol=1e-15)
+
+
+def ideal_filter(v, a, start):
+    """M_j under ZOH: m[i+1] = a m[i] + (1 - a) v[i], output m[i]."""
+    m = np.empty_like(v)
+    m[0] = start
+    for i in range(len(v) - 1):
+        m[i + 1] = a * m[i] + (1 - a) * v[i]
+    return m
+
+
+def test_rls_target_minimises_the_frit_criterion():
+    # record a closed loop with model error and a fixed compensator
+    resp = scenario.run("mec_fixed", horizon=3000.0, K=[[0.08, 0.02], [-0.01, 0.12]])
+    h = np.vstack([signal(resp, "h[0]"), signal(resp, "h[1]")])
+    hn = np.vstack([signal(resp, "hn[0]"), signal(resp, "hn[1]")])
+    mu = np.vstack([signal(resp, "mu[0]"), signal(resp, "mu[1]")])
+    e = hn - h
+    a = np.exp(-F * TS)
+    # batch least squares of eq. (21) on the tuner's own regressors
+    tuner = mec.frit_tuner(h0=h[:, 0], psi=0.0, lambda_=1.0, gamma=1e6)
+    states = drive_tuner(tuner, np.vstack([mu, h, hn]).T[:-1])
+    pairs = [mec.frit_regressors(x, h[:, i], tuner.F) for i, x in enumerate(states)]
+    xi = np.array([p[0][0] for p in pairs])  # F1 = F2: both rows share one regressor
+    eta = np.array([p[1] for p in pairs])
+    K_ls = np.linalg.lstsq(xi, eta, rcond=None)[0].T
+
+    # direct minimisation of J(K) = sum (h - M r~(K))^2, eq. (16)-(18), with M filters
+    # started as the tuner's (M r~ at rest at h(0))
+    def residual(k):
+        K = k.reshape(2, 2)
+        r_tilde = (mu - K @ e) / F + h
+        return np.concatenate([h[j] - ideal_filter(r_tilde[j], a, h[j, 0]) for j in range(2)])
+
+    K_direct = scipy.optimize.least_squares(residual, np.zeros(4), xtol=1e-15, ftol=1e-15,
+                                            gtol=1e-15, x_scale=0.1).x.reshape(2, 2)
+    np.testing.assert_allclose(K_ls, K_direct, rtol=1e-6, atol=1e-12)  # optimizer tolerance
+    # the on-line tuner (lambda = 1) is that least squares with its prior 1/gamma |K_j|^2
+    used = slice(0, -1)  # the last state has not been through an update yet
+    K_prior = np.linalg.solve(xi[used].T @ xi[used] + np.eye(2) / tuner.gamma,
+                              xi[used].T @ eta[used]).T
+    np.testing.assert_allclose(states[-1, 8:12].reshape(2, 2), K_prior, rtol=1e-6)
+
+
+def test_mec_with_exact_model_changes_almost_nothing():
+    q0 = scenario.initial_attitude()
+    T = np.arange(30001) * TS
+    plain = output_zeroing_loop(scenario.true_plant(False))
+    with_mec = mec_loop(scenario.true_plant(False), K=0.1)
+    a = simulate(plain, T, initial_state(plain, plant=q0))
+    b = simulate(with_mec, T, initial_state(with_mec, plant=q0, nominal=q0[1:3]))
+    gap = max(np.abs(signal(a, s) - signal(b, s)).max() for s in ("h[0]", "h[1]"))
+    assert gap < 1e-6
+
+
+def test_fixed_mec_brings_the_loop_back_to_the_ideal_one():
+    ideal = scenario.run("ideal", horizon=3000.0)
+    without = scenario.run("without_mec", horizon=3000.0)
+    fixed = scenario.run("mec_fixed", horizon=3000.0)
+    gap = {name: np.abs(signal(r, "h[0]") - signal(ideal, "h[0]")).max()
+           for name, r in (("without", without), ("fixed", fixed))}
+    assert gap["fixed"] < 0.01 * gap["without"]
+
+
+def test_frit_tuner_moves_K_away_from_zero_under_model_error():
+    resp = scenario.run("proposed", horizon=3000.0)
+    K = np.vstack([signal(resp, f"K[{i}]") for i in range(4)])
+    assert np.all(np.isfinite(K))
+    assert np.abs(K[:, -1]).max() > 1e-3
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"lambda_": 0.0}, r"lambda_ must lie in \(0, 1\]"),
+    ({"lambda_": 1.01}, r"lambda_ must lie in \(0, 1\]"),
+    ({"kappa": 0.0}, r"kappa must lie in \(0, 1\]"),
+    ({"kappa": 1.5}, r"kappa must lie in \(0, 1\]"),
+    ({"psi": -1e-4}, r"psi must be >= 0"),
+    ({"psi": [1e-4, -1e-4]}, r"psi must be >= 0"),
+    ({"gamma": 0.0}, r"gamma must be finite and > 0"),
+    ({"gamma": -100.0}, r"gamma must be finite and > 0"),
+    ({"K0": [1.0, 2.0, 3.0]}, r"K0 must be a scalar or a 2x2 matrix"),
+    ({"F": 0.0}, r"F must be > 0 for the FRIT tuner"),
+    ({"Ts": 0.0}, r"Ts must be finite and > 0"),
+])
+def test_tuner_rejects_bad_settings(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        mec.frit_tuner(**kwargs)
+
+
+@pytest.mark.parametrize("K", [[1.0, 2.0, 3.0], np.ones((3, 3)), [[np.nan, 0], [0, 1]]])
+def test_constant_gain_rejects_wrong_shape(K):
+    with pytest.raises(ValueError, match=r"K must be"):
+        mec.constant_gain(K)
+
+
+def test_tuner_period_must_match_the_loop():
+    with pytest.raises(ValueError, match=r"block 'tuner' runs at dt = 0.2 s but the loop runs "
+                                         r"at Ts = 0.1 s"):
+        mec_loop(K=mec.frit_tuner(Ts=0.2), Ts=0.1)
+
+
+def test_gain_source_must_output_K():
+    wrong = ct.nlsys(None, lambda t, x, u, p: [0, 0], inputs=0, outputs=2, dt=None, name="g")
+    with pytest.raises(ValueError, match=r"the gain source must output"):
+        mec_loop(K=wrong)
+
+
+def test_unknown_gain_keyword():
+    with pytest.raises(ValueError, match=r'K must be a gain, "frit" or a gain-source block'):
+        mec_loop(K="rls")
+
+
+def test_removing_fixing_and_tuning_are_one_argument_each():
+    names = {k: [s.name for s in mec_loop(K=k).syslist] for k in (0.1, "frit")}
+    assert "gain" in names[0.1] and "tuner" in names["frit"]
+    assert [s.name for s in output_zeroing_loop().syslist] == [
+        "plant", "output", "controller", "linearizer"]
+
+
+@pytest.mark.slow
+def test_fixed_mec_meets_requirement_over_last_half():
+    m = metrics(scenario.run("mec_fixed"))
+    assert m["requirement_met_last_half"]
+
+
+@pytest.mark.slow
+def test_paper_claim_proposed_meets_requirement_without_mec_does_not():
+    proposed = metrics(scenario.run("proposed"))
+    without = metrics(scenario.run("without_mec"))
+    assert proposed["max_pointing_error_last_half_deg"] < sc.POINTING_REQUIREMENT_DEG
+    assert without["max_pointing_error_last_half_deg"] > sc.POINTING_REQUIREMENT_DEG
