@@ -1,10 +1,10 @@
 """MEC and on-line FRIT tuning (eq. 13-30): RLS, FRIT identity, compensation, errors."""
 
+import control as ct
 import numpy as np
 import pytest
 import scipy.optimize
 
-import control as ct
 from controlkit.blocks import mec
 from controlkit.blocks import spacecraft as sc
 from controlkit.diagrams.spacecraft import mec_loop, output_zeroing_loop

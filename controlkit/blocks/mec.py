@@ -10,9 +10,8 @@ the method. Errata E1-E3 of the project spec apply (see each docstring).
 
 from __future__ import annotations
 
-import numpy as np
-
 import control as ct
+import numpy as np
 
 from .. import _checks
 from .spacecraft import F_PAPER, TS_PAPER
