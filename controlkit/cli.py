@@ -13,8 +13,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from .outputs import cmg as cmg_out
 from .outputs import spacecraft as sc_out
 from .outputs.export import write_csv, write_json
+from .scenarios import cmg as cmg_scenario
 from .scenarios import spacecraft as sc_scenario
 
 
@@ -43,6 +45,8 @@ class Study:
         CSV row stride when ``--stride`` is not given.
     csv_stem : callable
         Case name to CSV file stem.
+    csv_columns : callable
+        Table to the columns written to CSV (default: all).
     """
 
     name: str
@@ -54,16 +58,27 @@ class Study:
     figures: Callable
     default_stride: int = 1
     csv_stem: Callable[[str], str] = str
+    csv_columns: Callable[[dict], dict] = lambda columns: columns
 
 
 def _spacecraft_run(case, horizon, progress):
     return sc_scenario.run(case, horizon=horizon or sc_scenario.HORIZON, progress=progress)
 
 
+def _cmg_run(case, horizon, progress):
+    return cmg_scenario.run(case, horizon=horizon or cmg_scenario.HORIZON, progress=progress)
+
+
 STUDIES: dict[str, Study] = {
     "spacecraft": Study(
         "spacecraft", tuple(sc_scenario.CASES), sc_scenario.DEFAULT_CASES, _spacecraft_run,
         sc_out.table, sc_out.metrics, sc_out.figures, default_stride=10,
+    ),
+    "cmg": Study(
+        "cmg", tuple(cmg_scenario.CASES), cmg_scenario.DEFAULT_CASES, _cmg_run,
+        cmg_out.table, cmg_out.metrics, cmg_out.figures,
+        csv_stem=lambda case: "run" if case == "thesis" else case,
+        csv_columns=cmg_out.csv_columns,
     ),
 }
 
@@ -145,7 +160,8 @@ def reproduce(study="all", *, out="results", cases=None, horizon=None, stride=No
             elapsed = time.perf_counter() - started
             tables[case] = s.table(resp)
             step = stride if stride is not None else s.default_stride
-            write_csv(folder / f"{s.csv_stem(case)}.csv", tables[case], stride=step)
+            write_csv(folder / f"{s.csv_stem(case)}.csv", s.csv_columns(tables[case]),
+                      stride=step)
             study_metrics[case] = {**s.metrics(resp), "wall_time_s": round(elapsed, 3)}
         write_json(folder / "metrics.json", study_metrics)
         for path in s.figures(tables, folder):

@@ -214,6 +214,10 @@ def test_fixed_mec_meets_requirement_over_last_half():
 
 
 @pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason=(
+    "not reproduced yet: with Table 3's settings the FRIT tuner's covariance winds up "
+    "(xi ~ 1e-4, lambda = 0.995) and K bursts to ~1e2; measured last-half max 0.28 deg "
+    "(see issue 3)"))
 def test_paper_claim_proposed_meets_requirement_without_mec_does_not():
     proposed = metrics(scenario.run("proposed"))
     without = metrics(scenario.run("without_mec"))

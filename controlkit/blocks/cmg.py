@@ -1,0 +1,467 @@
+"""Control moment gyroscope (ECP Model 750): plant, references, adaptive SMC, saturation.
+
+Equations are those of the thesis "Robust control of a control moment
+gyroscope using sliding mode control and adaptive control" (2017), cited
+as eq. (n), with the misprints corrected in the project spec (``cmg.md``):
+the ``q2d`` middle segment, ``C4 s2`` in eq. (45), and the ``w1 w2`` term of ``f4``.
+
+Bodies: rotor 1 (angle ``q1``, torque ``T1``), gimbal 2 (``q2``, torque ``T2``),
+gimbal 3 locked, gimbal 4 (``q4``, no motor, driven through the rotor).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import control as ct
+import numpy as np
+
+from .. import _checks
+
+STATES = ["q1", "q2", "q4", "w1", "w2", "w4"]
+REFERENCE_SIGNALS = ["q2d", "q2d_dot", "q2d_ddot", "q4d", "q4d_dot", "q4d_ddot"]
+#: Motor torque ranges (N m): ``|T1| <= 0.6``, ``|T2| <= 2.4`` (section 6).
+T1_MAX, T2_MAX = 0.6, 2.4
+#: Sampling period of the controller (s); the ECP controller runs at about 9 ms.
+TS_CMG = 0.001
+
+
+@dataclass(frozen=True)
+class Inertias:
+    """The seven inertias of eq. (1)-(3), ECP Model 750 values by default (kg m^2).
+
+    Attributes
+    ----------
+    IR1y, IR1x : float
+        Rotor about its spin axis (ECP ``J_D``) and transverse (``I_D``).
+    IG2x, IG2y, IG2z : float
+        Inner gimbal 2 (ECP ``I_C``, ``J_C``, ``K_C``).
+    IG3x : float
+        Outer gimbal 3 (ECP ``K_B``).
+    IG4x : float
+        Gimbal 4, the frame (ECP ``K_A``).
+
+    Examples
+    --------
+    >>> round(Inertias().I1, 4), round(Inertias().I2, 4)
+    (0.0167, 0.1303)
+    """
+
+    IR1y: float = 0.0273
+    IR1x: float = 0.0148
+    IG2x: float = 0.0092
+    IG2y: float = 0.0230
+    IG2z: float = 0.0188
+    IG3x: float = 0.0297
+    IG4x: float = 0.0670
+
+    def __post_init__(self):
+        for f in fields(self):
+            _checks.positive_scalar(f.name, getattr(self, f.name))
+
+    @property
+    def I1(self) -> float:
+        """``I1 = IG2y + IR1y - IR1x - IG2z`` (eq. 3)."""
+        return self.IG2y + self.IR1y - self.IR1x - self.IG2z
+
+    @property
+    def I2(self) -> float:
+        """``I2 = IR1x + IG2z + IG3x + IG4x`` (eq. 3)."""
+        return self.IR1x + self.IG2z + self.IG3x + self.IG4x
+
+    @property
+    def J2(self) -> float:
+        """``IG2x + IR1x``, the inertia of gimbal 2's axis (eq. 2)."""
+        return self.IG2x + self.IR1x
+
+
+@dataclass(frozen=True)
+class Friction:
+    """Friction torques ``F_i = -b_i w_i - c_i tanh(w_i / w_c)`` on axes 1, 2, 4.
+
+    Viscous ``b_i`` (N m s/rad) plus a smooth Coulomb term ``c_i`` (N m); the
+    tanh keeps the plant smooth for the integrator (it is the sign function
+    for ``|w| >> w_c``). The thesis writes ``F_i = F_iv w_i + d_i`` (eq. 5):
+    ``F_iv = -b_i`` and ``|d_i| <= c_i``. All zero by default.
+
+    Examples
+    --------
+    >>> Friction(b2=0.005).torques([0.0, 2.0, 0.0]).tolist()
+    [-0.0, -0.01, -0.0]
+    """
+
+    b1: float = 0.0
+    b2: float = 0.0
+    b4: float = 0.0
+    c1: float = 0.0
+    c2: float = 0.0
+    c4: float = 0.0
+    w_c: float = 0.01
+
+    def __post_init__(self):
+        for f in fields(self):
+            _checks.positive_scalar(f.name, getattr(self, f.name), allow_zero=f.name != "w_c")
+
+    def torques(self, w) -> np.ndarray:
+        """``[F1, F2, F4]`` at the rates ``w = [w1, w2, w4]``."""
+        w = np.asarray(w, dtype=float)
+        b = np.array([self.b1, self.b2, self.b4])
+        c = np.array([self.c1, self.c2, self.c4])
+        return -b * w - c * np.tanh(w / self.w_c)
+
+
+def mass_matrix(q2, inertias: Inertias, delta_IG4x=0.0) -> np.ndarray:
+    """Mass matrix of eq. (1)-(3) acting on ``[w1', w2', w4']``.
+
+    Examples
+    --------
+    >>> mass_matrix(0.0, Inertias()).round(4).tolist()
+    [[0.0273, 0.0, 0.0], [0.0, 0.024, 0.0], [0.0, 0.0, 0.1303]]
+    """
+    s = np.sin(q2)
+    J = inertias
+    return np.array([
+        [J.IR1y, 0.0, J.IR1y * s],
+        [0.0, J.J2, 0.0],
+        [J.IR1y * s, 0.0, J.I2 + delta_IG4x + J.I1 * s * s],
+    ])
+
+
+def accelerations(x, torque, inertias: Inertias, delta_IG4x=0.0, friction_torque=(0, 0, 0)):
+    """``[w1', w2', w4']`` solving eq. (1)-(3) for the state ``x`` and torques ``[T1, T2]``.
+
+    Examples
+    --------
+    >>> accelerations([0, 0.5, 0, 0, 0, 0], [0.0, 0.24], Inertias()).round(6).tolist()
+    [0.0, 10.0, 0.0]
+    """
+    _, q2, _, w1, w2, w4 = x
+    s, c = np.sin(q2), np.cos(q2)
+    J = inertias
+    F1, F2, F4 = friction_torque
+    rhs = np.array([
+        torque[0] + F1 - J.IR1y * w2 * w4 * c,
+        torque[1] + F2 + J.IR1y * w1 * w4 * c + J.I1 * w4 * w4 * s * c,
+        F4 - J.I1 * w2 * w4 * np.sin(2 * q2) - J.IR1y * w1 * w2 * c,
+    ])
+    return np.linalg.solve(mass_matrix(q2, J, delta_IG4x), rhs)
+
+
+def axis4_momentum(x, inertias: Inertias, delta_IG4x=0.0):
+    """Angular momentum about axis 4, ``p4 = IR1y sin(q2) w1 + (I2 + I1 sin^2 q2) w4``.
+
+    Constant when axis 4 has no friction (eq. 3 is ``p4' = F4``); ``I2``
+    includes ``delta_IG4x``.
+
+    Examples
+    --------
+    >>> round(axis4_momentum([0, np.pi / 2, 0, 1.0, 0, 0], Inertias()), 6)
+    0.0273
+    """
+    _, q2, _, w1, _, w4 = x
+    s = np.sin(q2)
+    J = inertias
+    return J.IR1y * s * w1 + (J.I2 + delta_IG4x + J.I1 * s * s) * w4
+
+
+def cmg_plant(inertias=None, *, delta_IG4x=0.0, friction=None, name="cmg") -> ct.NonlinearIOSystem:
+    """ECP Model 750 gyroscope with gimbal 3 locked, continuous time (eq. 1-3).
+
+    ``M(q2) [w1', w2', w4']^T = [T1 + F1 - IR1y w2 w4 cos q2,
+    T2 + F2 + IR1y w1 w4 cos q2 + I1 w4^2 sin q2 cos q2,
+    F4 - I1 w2 w4 sin 2q2 - IR1y w1 w2 cos q2]``, with the full 3x3 mass matrix
+    (not the reduced form 4), and ``q_i' = w_i``.
+
+    Parameters
+    ----------
+    inertias : Inertias, optional
+        The seven inertias (ECP Model 750 by default).
+    delta_IG4x : float
+        Change of gimbal 4's inertia (docking), kg m^2; the true inertia is
+        ``IG4x + delta_IG4x`` (eq. 8). Must keep ``IG4x + delta_IG4x > 0``.
+    friction : Friction, optional
+        Friction on axes 1, 2 and 4; none by default.
+    name : str
+        System name.
+
+    Returns
+    -------
+    control.NonlinearIOSystem
+        Inputs ``T1, T2`` (N m); states and outputs ``q1, q2, q4, w1, w2, w4``.
+        Attributes ``inertias``, ``delta_IG4x``, ``friction``.
+
+    Examples
+    --------
+    >>> cmg_plant().dynamics(0.0, [0, 0.5, 0, 0, 0, 0], [0.0, 0.24]).round(6).tolist()
+    [0.0, 0.0, 0.0, 0.0, 10.0, 0.0]
+    """
+    inertias = inertias if inertias is not None else Inertias()
+    friction = friction if friction is not None else Friction()
+    delta_IG4x = float(delta_IG4x)
+    if not np.isfinite(delta_IG4x) or inertias.IG4x + delta_IG4x <= 0:
+        raise ValueError(
+            f"delta_IG4x must keep IG4x + delta_IG4x > 0 (IG4x = {inertias.IG4x}), "
+            f"got {delta_IG4x}"
+        )
+
+    def updfcn(t, x, u, params):
+        w = x[3:6]
+        acc = accelerations(x, u, inertias, delta_IG4x, friction.torques(w))
+        return np.concatenate([w, acc])
+
+    def outfcn(t, x, u, params):
+        return x
+
+    sys = ct.nlsys(updfcn, outfcn, inputs=["T1", "T2"], outputs=STATES, states=STATES,
+                   name=name)
+    sys.inertias, sys.delta_IG4x, sys.friction = inertias, delta_IG4x, friction
+    return sys
+
+
+def reference(t):
+    """Commanded gimbal angles of section 6 (corrected) with two derivatives.
+
+    ``q2d``: pi/18 until 2 s, ``-(5 pi/36) sin(pi t/6 + pi/6) + 7 pi/36`` on
+    ``2 < t <= 8``, then pi/3. ``q4d``: 0, ``-(1/2) sin(pi t/6 + pi/6) + 1/2``, then 1.
+    Both are C^1 cosine blends.
+
+    Returns
+    -------
+    ndarray
+        ``[q2d, q2d', q2d'', q4d, q4d', q4d'']``.
+
+    Examples
+    --------
+    >>> reference(8.0).round(6).tolist()
+    [1.047198, -0.0, 0.479798, 1.0, -0.0, 0.137078]
+    """
+    if t <= 2.0:
+        return np.array([np.pi / 18, 0.0, 0.0, 0.0, 0.0, 0.0])
+    if t > 8.0:
+        return np.array([np.pi / 3, 0.0, 0.0, 1.0, 0.0, 0.0])
+    phase = np.pi * t / 6 + np.pi / 6
+    w = np.pi / 6
+    s, c = np.sin(phase), np.cos(phase)
+    A2, A4 = 5 * np.pi / 36, 0.5
+    return np.array([
+        -A2 * s + 7 * np.pi / 36, -A2 * w * c, A2 * w * w * s,
+        -A4 * s + 0.5, -A4 * w * c, A4 * w * w * s,
+    ])
+
+
+def reference_generator(*, name="reference") -> ct.NonlinearIOSystem:
+    """Source block of the gimbal commands :func:`reference` (section 6).
+
+    Returns
+    -------
+    control.NonlinearIOSystem
+        Static (``dt=None``), no inputs; outputs ``q2d, q2d_dot, q2d_ddot,
+        q4d, q4d_dot, q4d_ddot``.
+
+    Examples
+    --------
+    >>> reference_generator().output(0.0, [], []).round(4).tolist()
+    [0.1745, 0.0, 0.0, 0.0, 0.0, 0.0]
+    """
+    return ct.nlsys(None, lambda t, x, u, params: reference(t), inputs=0,
+                    outputs=REFERENCE_SIGNALS, dt=None, name=name)
+
+
+#: Gains of eq. (47).
+GAINS_THESIS = {"C1": 3.0, "C2": 4.0, "eta1": 1.0, "gamma1": 0.01,
+                "C3": 3.0, "C4": 4.0, "eta2": 1.0, "gamma2": 0.001, "gamma3": 0.01,
+                "gamma4": 0.01}
+
+
+def _switch(s, boundary_layer):
+    if boundary_layer == 0.0:
+        return np.sign(s)
+    return np.clip(s / boundary_layer, -1.0, 1.0)
+
+
+def smc_law(x, ref, a_hat, inertias: Inertias, gains, boundary_layer=0.0, min_sin_q2=1e-3):
+    """Adaptive backstepping sliding-mode law (eq. 20-45): torques and estimate rates.
+
+    Parameters
+    ----------
+    x : array_like
+        Measured ``[q1, q2, q4, w1, w2, w4]``.
+    ref : array_like
+        ``[q2d, q2d', q2d'', q4d, q4d', q4d'']``.
+    a_hat : array_like
+        Estimates ``[a1, a2, a3, a4]``.
+    inertias : Inertias
+        Nominal inertias (``IG4x`` without its change).
+    gains : dict
+        ``C1..C4, eta1, eta2, gamma1..gamma4``.
+    boundary_layer : float
+        0 for ``sgn(s)``; ``phi > 0`` replaces it with ``sat(s / phi)``.
+    min_sin_q2 : float
+        ``u1`` divides by ``g4 = -sin(q2)/D``: below this ``|sin q2|`` the law refuses.
+
+    Returns
+    -------
+    torque : ndarray
+        ``[u1, u2] = [T1, T2]`` commanded (eq. 45 and 31).
+    a_hat_dot : ndarray
+        Adaptation laws (eq. 30, 42-44).
+
+    Examples
+    --------
+    >>> u, _ = smc_law([0, np.pi/18, 0, 0, 0, 0], [np.pi/18, 0, 0, 0, 0, 0], np.zeros(4),
+    ...                Inertias(), GAINS_THESIS)
+    >>> u.round(6).tolist()  # on both sliding surfaces: sgn(0) = 0, nothing to do
+    [0.0, 0.0]
+    """
+    _, q2, q4, w1, w2, w4 = x
+    q2d, q2d_dot, q2d_ddot, q4d, q4d_dot, q4d_ddot = ref
+    a1, a2, a3, a4 = a_hat
+    g = gains
+    J = inertias
+    s, c = np.sin(q2), np.cos(q2)
+    if abs(s) < min_sin_q2:
+        raise ValueError(
+            f"the CMG controller divides by sin(q2) (g4 = -sin(q2)/D, eq. 45) and "
+            f"q2 = {q2:.6g} rad makes it vanish; keep gimbal 2 in 0 < q2 < pi/2"
+        )
+    D = J.I2 + (J.I1 - J.IR1y) * s * s
+    f2 = (J.IR1y * w1 * w4 * c + J.I1 * w4 * w4 * s * c) / J.J2
+    g2 = 1.0 / J.J2
+    f4 = (J.IR1y * w2 * w4 * s * c - J.I1 * w2 * w4 * np.sin(2 * q2) - J.IR1y * w1 * w2 * c) / D
+    g4 = -s / D
+
+    z1 = q2 - q2d                                   # eq. (10)
+    s1 = w2 - (-g["C1"] * z1 + q2d_dot)             # eq. (22), (24)
+    u2 = -(a1 * w2 + z1 + f2 - q2d_ddot + g["C1"] * (w2 - q2d_dot) + g["C2"] * s1
+           + g["eta1"] * _switch(s1, boundary_layer)) / g2   # eq. (31)
+
+    z2 = q4 - q4d
+    s2 = w4 - (-g["C3"] * z2 + q4d_dot)             # eq. (33), (34)
+    w4s_dot = -g["C3"] * (w4 - q4d_dot) + q4d_ddot  # derivative of w4*
+    u1 = -(z2 + f4 - (1 + a4 / D) * w4s_dot + g["C4"] * s2
+           + g["eta2"] * _switch(s2, boundary_layer)
+           + a2 * w1 * s / D + a3 * w4 / D) / g4     # eq. (45), C4 s2 (erratum)
+
+    a_hat_dot = np.array([
+        w2 * s1 / g["gamma1"],                      # eq. (30)
+        w1 * s2 * s / D / g["gamma2"],              # eq. (42)
+        w4 * s2 / D / g["gamma3"],                  # eq. (43)
+        -w4s_dot * s2 / D / g["gamma4"],            # eq. (44)
+    ])
+    return np.array([u1, u2]), a_hat_dot
+
+
+def adaptive_smc(
+    inertias=None, *, Ts=TS_CMG, boundary_layer=0.0, a_hat0=(0.0, 0.0, 0.0, 0.0),
+    name="smc", **gains,
+) -> ct.NonlinearIOSystem:
+    """Adaptive backstepping sliding-mode controller of the CMG (eq. 20-45), sampled at ``Ts``.
+
+    Gimbal 2 (``u2 = T2``, eq. 31) and gimbal 4 (``u1 = T1``, eq. 45, through the
+    rotor's reaction) each get a backstepping virtual rate ``w*``, a sliding
+    surface ``s = w - w*`` and a switching term ``eta sgn(s)`` that rejects the
+    bounded friction remainder ``|D_i| < eta_i``. Four estimates adapt by
+    eq. (30), (42)-(44): ``a1`` (gimbal-2 viscous friction), ``a2`` (rotor viscous),
+    ``a3`` (gimbal-4 viscous) and ``a4`` (the change ``delta IG4x`` of gimbal 4's inertia).
+    They are integrated by forward Euler at ``Ts``; the torques are computed from
+    the sampled state and held.
+
+    Chattering: with ``sgn`` (``boundary_layer=0``) the switching term flips
+    sign every sample once on the surface, so the torque chatters at the sampling
+    rate with amplitude ``eta_i / g_i`` (0.024 N m on gimbal 2) and the estimates
+    keep integrating that noise. A boundary layer ``phi > 0`` replaces ``sgn(s)``
+    by ``sat(s / phi)``: the torque is smooth, the estimates drift less, and the
+    surface is reached only to within ``phi`` (a small steady tracking error).
+
+    Parameters
+    ----------
+    inertias : Inertias, optional
+        Nominal inertias the controller uses (ECP Model 750 by default).
+    Ts : float
+        Sampling period (s), default 1 ms.
+    boundary_layer : float
+        0 (``sgn``) or the width ``phi > 0`` of a saturation boundary layer.
+    a_hat0 : array_like
+        Initial estimates ``[a1, a2, a3, a4]``.
+    name : str
+        System name.
+    **gains : float
+        Any of ``C1, C2, C3, C4, eta1, eta2, gamma1, gamma2, gamma3, gamma4``
+        (default eq. 47); the ``C``s and ``eta``s >= 0, the ``gamma``s > 0.
+
+    Returns
+    -------
+    control.NonlinearIOSystem
+        Discrete. Inputs ``q1, q2, q4, w1, w2, w4, q2d, q2d_dot, q2d_ddot, q4d,
+        q4d_dot, q4d_ddot``; outputs ``T1_cmd, T2_cmd, a1, a2, a3, a4``;
+        states ``a1..a4`` (attribute ``x0``).
+
+    Raises
+    ------
+    ValueError
+        During simulation, if ``sin(q2)`` vanishes (the law divides by it).
+        python-control's first feedthrough sweep feeds all-zero measurements
+        (erratum E6 of the spacecraft spec applies here too): the block returns
+        zero torque for that exact input instead of raising.
+
+    Examples
+    --------
+    >>> smc = adaptive_smc()
+    >>> smc.nstates, smc.output_labels[:2]
+    (4, ['T1_cmd', 'T2_cmd'])
+    """
+    inertias = inertias if inertias is not None else Inertias()
+    unknown = set(gains) - set(GAINS_THESIS)
+    if unknown:
+        raise ValueError(f"unknown gain(s) {sorted(unknown)}; gains: {sorted(GAINS_THESIS)}")
+    g = {**GAINS_THESIS, **gains}
+    for key, value in g.items():
+        g[key] = _checks.positive_scalar(key, value, allow_zero=not key.startswith("gamma"))
+    Ts = _checks.positive_scalar("Ts", Ts)
+    boundary_layer = _checks.positive_scalar("boundary_layer", boundary_layer, allow_zero=True)
+    a_hat0 = _checks.vector("a_hat0", a_hat0, 4)
+
+    def law(x, u):
+        if not np.any(u[:6]):
+            return np.zeros(2), np.zeros(4)  # python-control's trial sweep, not a state
+        return smc_law(u[:6], u[6:12], x, inertias, g, boundary_layer)
+
+    def updfcn(t, x, u, params):
+        return x + Ts * law(x, u)[1]
+
+    def outfcn(t, x, u, params):
+        return np.concatenate([law(x, u)[0], x])
+
+    sys = ct.nlsys(updfcn, outfcn, inputs=STATES + REFERENCE_SIGNALS,
+                   outputs=["T1_cmd", "T2_cmd", "a1", "a2", "a3", "a4"],
+                   states=["a1", "a2", "a3", "a4"], dt=Ts, name=name)
+    sys.x0, sys.gains, sys.inertias = a_hat0, g, inertias
+    return sys
+
+
+def torque_saturation(T1_max=T1_MAX, T2_max=T2_MAX, *, name="saturation") -> ct.NonlinearIOSystem:
+    """Motor torque limits: ``T_i = clip(T_i_cmd, -T_i_max, T_i_max)``.
+
+    Parameters
+    ----------
+    T1_max, T2_max : float
+        Limits (N m), > 0; default 0.6 and 2.4 (section 6).
+    name : str
+        System name.
+
+    Returns
+    -------
+    control.NonlinearIOSystem
+        Static. Inputs ``T1_cmd, T2_cmd``; outputs ``T1, T2``.
+
+    Examples
+    --------
+    >>> torque_saturation().output(0.0, [], [1.0, -1.0]).tolist()
+    [0.6, -1.0]
+    """
+    limits = np.array([_checks.positive_scalar("T1_max", T1_max),
+                       _checks.positive_scalar("T2_max", T2_max)])
+    sys = ct.nlsys(None, lambda t, x, u, params: np.clip(u, -limits, limits),
+                   inputs=["T1_cmd", "T2_cmd"], outputs=["T1", "T2"], dt=None, name=name)
+    sys.limits = limits
+    return sys
