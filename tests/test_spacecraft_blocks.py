@@ -138,7 +138,8 @@ def test_non_unit_initial_quaternion_is_refused(q):
 
 
 def test_unknown_case_is_refused():
-    with pytest.raises(ValueError, match=r"case must be one of \['ideal', 'without_mec'"):
+    allowed = r"\['ideal', 'mec_fixed', 'proposed', 'without_mec'\]"
+    with pytest.raises(ValueError, match=r"case must be one of " + allowed):
         scenario.build_loop("with_mec_typo")
 
 

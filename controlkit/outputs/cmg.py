@@ -41,7 +41,7 @@ def metrics(resp) -> dict:
     --------
     >>> from controlkit.scenarios.cmg import run
     >>> sorted(metrics(run(horizon=0.01)))[:2]
-    ['final_estimates', 'horizon_s']
+    ['final_estimates', 'final_q2_error_rad']
     """
     c = table(resp)
     after = c["time"] >= min(1.0, c["time"][-1])
