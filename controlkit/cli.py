@@ -33,7 +33,7 @@ class Study:
     default_cases : tuple of str
         Cases run when none is named.
     run : callable
-        ``run(case, horizon, progress) -> TimeResponseData``; ``horizon=None``
+        ``run(case, horizon, progress, engine) -> TimeResponseData``; ``horizon=None``
         means the published one.
     table : callable
         Response to CSV columns (dict of arrays).
@@ -61,12 +61,14 @@ class Study:
     csv_columns: Callable[[dict], dict] = lambda columns: columns
 
 
-def _spacecraft_run(case, horizon, progress):
-    return sc_scenario.run(case, horizon=horizon or sc_scenario.HORIZON, progress=progress)
+def _spacecraft_run(case, horizon, progress, engine):
+    return sc_scenario.run(case, horizon=horizon or sc_scenario.HORIZON, progress=progress,
+                           engine=engine)
 
 
-def _cmg_run(case, horizon, progress):
-    return cmg_scenario.run(case, horizon=horizon or cmg_scenario.HORIZON, progress=progress)
+def _cmg_run(case, horizon, progress, engine):
+    return cmg_scenario.run(case, horizon=horizon or cmg_scenario.HORIZON, progress=progress,
+                            engine=engine)
 
 
 STUDIES: dict[str, Study] = {
@@ -109,7 +111,7 @@ def _select_cases(studies: list[Study], requested: list[str] | None) -> dict[str
 
 
 def reproduce(study="all", *, out="results", cases=None, horizon=None, stride=None,
-              log=None) -> dict:
+              engine="fast", log=None) -> dict:
     """Run studies and write their CSV, metrics and figures (the CLI's main job).
 
     Parameters
@@ -125,6 +127,8 @@ def reproduce(study="all", *, out="results", cases=None, horizon=None, stride=No
     stride : int, optional
         Keep every ``stride``-th sample in the CSV (default 10 for the
         spacecraft, i.e. 1 s; 1 for the CMG).
+    engine : {"fast", "python-control"}
+        Simulator; both give the same numbers, the fast one in seconds.
     log : file-like, optional
         Where progress goes (default stderr).
 
@@ -156,12 +160,13 @@ def reproduce(study="all", *, out="results", cases=None, horizon=None, stride=No
         for case in selection[s.name]:
             log.write(f"{s.name}/{case}\n")
             started = time.perf_counter()
-            resp = s.run(case, horizon, _progress_printer(f"{s.name}/{case}", log))
+            resp = s.run(case, horizon, _progress_printer(f"{s.name}/{case}", log), engine)
             elapsed = time.perf_counter() - started
-            tables[case] = s.table(resp)
             step = stride if stride is not None else s.default_stride
-            write_csv(folder / f"{s.csv_stem(case)}.csv", s.csv_columns(tables[case]),
-                      stride=step)
+            columns = s.table(resp)
+            # figures are drawn from the CSV's samples: 20 001 points per curve is plenty
+            tables[case] = {name: values[::step] for name, values in columns.items()}
+            write_csv(folder / f"{s.csv_stem(case)}.csv", s.csv_columns(columns), stride=step)
             study_metrics[case] = {**s.metrics(resp), "wall_time_s": round(elapsed, 3)}
         write_json(folder / "metrics.json", study_metrics)
         for path in s.figures(tables, folder):
@@ -192,13 +197,16 @@ def main(argv=None) -> int:
     rep.add_argument("--stride", type=int, metavar="N",
                      help="keep every N-th sample in the CSV (default: 10 = 1 s for the "
                           "spacecraft, 1 for the CMG)")
+    rep.add_argument("--engine", choices=["fast", "python-control"], default="fast",
+                     help="simulator: fast (compiled, default) or python-control (the "
+                          "reference; same numbers, minutes instead of seconds)")
     args = parser.parse_args(argv)
     if args.stride is not None and args.stride < 1:
         parser.error("--stride must be >= 1")
     if args.horizon is not None and args.horizon <= 0:
         parser.error("--horizon must be > 0")
     summary = reproduce(args.study, out=args.out, cases=args.cases, horizon=args.horizon,
-                        stride=args.stride)
+                        stride=args.stride, engine=args.engine)
     for study, per_case in summary.items():
         for case, m in per_case.items():
             shown = {k: v for k, v in m.items() if isinstance(v, float | bool)}

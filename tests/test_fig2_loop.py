@@ -2,7 +2,6 @@
 
 import control as ct
 import numpy as np
-import pytest
 
 from controlkit.blocks import spacecraft as sc
 from controlkit.diagrams.spacecraft import linearized_plant, output_zeroing_loop
@@ -55,14 +54,12 @@ def test_model_error_spoils_the_linearization_early():
     assert gap > 1e-4
 
 
-@pytest.mark.slow
 def test_ideal_full_horizon_meets_linear_model_and_points_exactly():
     resp = scenario.run("ideal")
     check_exact_linearization(resp)
     assert metrics(resp)["final_pointing_error_deg"] < 1e-3
 
 
-@pytest.mark.slow
 def test_without_mec_oscillates_and_misses_requirement():
     m = metrics(scenario.run("without_mec"))
     assert 0.4 < m["final_pointing_error_deg"] < 0.7

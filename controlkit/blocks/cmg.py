@@ -16,7 +16,8 @@ from dataclasses import dataclass, fields
 import control as ct
 import numpy as np
 
-from .. import _checks
+from .. import _checks, kernels
+from .._block import kernel_block
 
 STATES = ["q1", "q2", "q4", "w1", "w2", "w4"]
 REFERENCE_SIGNALS = ["q2d", "q2d_dot", "q2d_ddot", "q4d", "q4d_dot", "q4d_ddot"]
@@ -58,6 +59,10 @@ class Inertias:
     def __post_init__(self):
         for f in fields(self):
             _checks.positive_scalar(f.name, getattr(self, f.name))
+
+    def packed(self) -> np.ndarray:
+        """The seven inertias in field order, as the kernels read them."""
+        return np.array([getattr(self, f.name) for f in fields(self)], dtype=float)
 
     @property
     def I1(self) -> float:
@@ -102,6 +107,10 @@ class Friction:
         for f in fields(self):
             _checks.positive_scalar(f.name, getattr(self, f.name), allow_zero=f.name != "w_c")
 
+    def packed(self) -> np.ndarray:
+        """``[b1, b2, b4, c1, c2, c4, w_c]`` as the kernels read them."""
+        return np.array([getattr(self, f.name) for f in fields(self)], dtype=float)
+
     def torques(self, w) -> np.ndarray:
         """``[F1, F2, F4]`` at the rates ``w = [w1, w2, w4]``."""
         w = np.asarray(w, dtype=float)
@@ -127,24 +136,20 @@ def mass_matrix(q2, inertias: Inertias, delta_IG4x=0.0) -> np.ndarray:
     ])
 
 
-def accelerations(x, torque, inertias: Inertias, delta_IG4x=0.0, friction_torque=(0, 0, 0)):
+def _plant_parameters(inertias: Inertias, delta_IG4x, friction: Friction) -> np.ndarray:
+    return np.concatenate([inertias.packed(), [delta_IG4x], friction.packed()])
+
+
+def accelerations(x, torque, inertias: Inertias, delta_IG4x=0.0, friction=None):
     """``[w1', w2', w4']`` solving eq. (1)-(3) for the state ``x`` and torques ``[T1, T2]``.
 
     Examples
     --------
-    >>> accelerations([0, 0.5, 0, 0, 0, 0], [0.0, 0.24], Inertias()).round(6).tolist()
+    >>> (accelerations([0, 0.5, 0, 0, 0, 0], [0.0, 0.24], Inertias()) + 0.0).round(6).tolist()
     [0.0, 10.0, 0.0]
     """
-    _, q2, _, w1, w2, w4 = x
-    s, c = np.sin(q2), np.cos(q2)
-    J = inertias
-    F1, F2, F4 = friction_torque
-    rhs = np.array([
-        torque[0] + F1 - J.IR1y * w2 * w4 * c,
-        torque[1] + F2 + J.IR1y * w1 * w4 * c + J.I1 * w4 * w4 * s * c,
-        F4 - J.I1 * w2 * w4 * np.sin(2 * q2) - J.IR1y * w1 * w2 * c,
-    ])
-    return np.linalg.solve(mass_matrix(q2, J, delta_IG4x), rhs)
+    p = _plant_parameters(inertias, delta_IG4x, friction or Friction())
+    return kernels.cmg_rhs(0.0, np.asarray(x, float), np.asarray(torque, float), p)[3:]
 
 
 def axis4_momentum(x, inertias: Inertias, delta_IG4x=0.0):
@@ -204,16 +209,10 @@ def cmg_plant(inertias=None, *, delta_IG4x=0.0, friction=None, name="cmg") -> ct
             f"got {delta_IG4x}"
         )
 
-    def updfcn(t, x, u, params):
-        w = x[3:6]
-        acc = accelerations(x, u, inertias, delta_IG4x, friction.torques(w))
-        return np.concatenate([w, acc])
-
-    def outfcn(t, x, u, params):
-        return x
-
-    sys = ct.nlsys(updfcn, outfcn, inputs=["T1", "T2"], outputs=STATES, states=STATES,
-                   name=name)
+    sys = kernel_block(kernels.state_output, kernels.cmg_rhs,
+                       params=_plant_parameters(inertias, delta_IG4x, friction),
+                       feedthrough=False, inputs=["T1", "T2"], outputs=STATES, states=STATES,
+                       name=name)
     sys.inertias, sys.delta_IG4x, sys.friction = inertias, delta_IG4x, friction
     return sys
 
@@ -235,18 +234,8 @@ def reference(t):
     >>> reference(8.0).round(6).tolist()  # C^1: the second derivatives jump at 8 s
     [1.047198, 0.0, -0.119623, 1.0, 0.0, -0.137078]
     """
-    if t <= 2.0:
-        return np.array([np.pi / 18, 0.0, 0.0, 0.0, 0.0, 0.0])
-    if t > 8.0:
-        return np.array([np.pi / 3, 0.0, 0.0, 1.0, 0.0, 0.0])
-    phase = np.pi * t / 6 + np.pi / 6
-    w = np.pi / 6
-    s, c = np.sin(phase), np.cos(phase)
-    A2, A4 = 5 * np.pi / 36, 0.5
-    return np.array([
-        -A2 * s + 7 * np.pi / 36, -A2 * w * c, A2 * w * w * s,
-        -A4 * s + 0.5, -A4 * w * c, A4 * w * w * s,
-    ])
+    empty = np.zeros(0)
+    return kernels.cmg_reference(float(t), empty, empty, empty)
 
 
 def reference_generator(*, name="reference") -> ct.NonlinearIOSystem:
@@ -263,20 +252,14 @@ def reference_generator(*, name="reference") -> ct.NonlinearIOSystem:
     >>> reference_generator().output(0.0, [], []).round(4).tolist()
     [0.1745, 0.0, 0.0, 0.0, 0.0, 0.0]
     """
-    return ct.nlsys(None, lambda t, x, u, params: reference(t), inputs=0,
-                    outputs=REFERENCE_SIGNALS, dt=None, name=name)
+    return kernel_block(kernels.cmg_reference, feedthrough=False, inputs=0,
+                        outputs=REFERENCE_SIGNALS, dt=None, name=name)
 
 
 #: Gains of eq. (47).
 GAINS_THESIS = {"C1": 3.0, "C2": 4.0, "eta1": 1.0, "gamma1": 0.01,
                 "C3": 3.0, "C4": 4.0, "eta2": 1.0, "gamma2": 0.001, "gamma3": 0.01,
                 "gamma4": 0.01}
-
-
-def _switch(s, boundary_layer):
-    if boundary_layer == 0.0:
-        return np.sign(s)
-    return np.clip(s / boundary_layer, -1.0, 1.0)
 
 
 def smc_law(x, ref, a_hat, inertias: Inertias, gains, boundary_layer=0.0, min_sin_q2=1e-3):
@@ -313,42 +296,26 @@ def smc_law(x, ref, a_hat, inertias: Inertias, gains, boundary_layer=0.0, min_si
     >>> np.abs(u).tolist()  # on both sliding surfaces: sgn(0) = 0, nothing to do
     [0.0, 0.0]
     """
-    _, q2, q4, w1, w2, w4 = x
-    q2d, q2d_dot, q2d_ddot, q4d, q4d_dot, q4d_ddot = ref
-    a1, a2, a3, a4 = a_hat
-    g = gains
-    J = inertias
-    s, c = np.sin(q2), np.cos(q2)
-    if abs(s) < min_sin_q2:
-        raise ValueError(
-            f"the CMG controller divides by sin(q2) (g4 = -sin(q2)/D, eq. 45) and "
-            f"q2 = {q2:.6g} rad makes it vanish; keep gimbal 2 in 0 < q2 < pi/2"
-        )
-    D = J.I2 + (J.I1 - J.IR1y) * s * s
-    f2 = (J.IR1y * w1 * w4 * c + J.I1 * w4 * w4 * s * c) / J.J2
-    g2 = 1.0 / J.J2
-    f4 = (J.IR1y * w2 * w4 * s * c - J.I1 * w2 * w4 * np.sin(2 * q2) - J.IR1y * w1 * w2 * c) / D
-    g4 = -s / D
+    p = _controller_parameters(inertias, gains, boundary_layer, min_sin_q2, 0.0)
+    torque, a_hat_dot = kernels.smc_law(np.asarray(a_hat, float),
+                                        np.concatenate([np.asarray(x, float),
+                                                        np.asarray(ref, float)]), p)
+    if np.isnan(torque[0]):
+        _refuse_sin_q2(x[1])
+    return torque, a_hat_dot
 
-    z1 = q2 - q2d                                   # eq. (10)
-    s1 = w2 - (-g["C1"] * z1 + q2d_dot)             # eq. (22), (24)
-    u2 = -(a1 * w2 + z1 + f2 - q2d_ddot + g["C1"] * (w2 - q2d_dot) + g["C2"] * s1
-           + g["eta1"] * _switch(s1, boundary_layer)) / g2   # eq. (31)
 
-    z2 = q4 - q4d
-    s2 = w4 - (-g["C3"] * z2 + q4d_dot)             # eq. (33), (34)
-    w4s_dot = -g["C3"] * (w4 - q4d_dot) + q4d_ddot  # derivative of w4*
-    u1 = -(z2 + f4 - (1 + a4 / D) * w4s_dot + g["C4"] * s2
-           + g["eta2"] * _switch(s2, boundary_layer)
-           + a2 * w1 * s / D + a3 * w4 / D) / g4     # eq. (45), C4 s2 (erratum)
+def _controller_parameters(inertias, gains, boundary_layer, min_sin_q2, Ts):
+    order = ("C1", "C2", "eta1", "gamma1", "C3", "C4", "eta2", "gamma2", "gamma3", "gamma4")
+    return np.concatenate([inertias.packed(), [gains[k] for k in order],
+                           [boundary_layer, min_sin_q2, Ts]])
 
-    a_hat_dot = np.array([
-        w2 * s1 / g["gamma1"],                      # eq. (30)
-        w1 * s2 * s / D / g["gamma2"],              # eq. (42)
-        w4 * s2 / D / g["gamma3"],                  # eq. (43)
-        -w4s_dot * s2 / D / g["gamma4"],            # eq. (44)
-    ])
-    return np.array([u1, u2]), a_hat_dot
+
+def _refuse_sin_q2(q2):
+    raise ValueError(
+        f"the CMG controller divides by sin(q2) (g4 = -sin(q2)/D, eq. 45) and "
+        f"q2 = {q2:.6g} rad makes it vanish; keep gimbal 2 in 0 < q2 < pi/2"
+    )
 
 
 def adaptive_smc(
@@ -425,20 +392,13 @@ def adaptive_smc(
     boundary_layer = _checks.positive_scalar("boundary_layer", boundary_layer, allow_zero=True)
     a_hat0 = _checks.vector("a_hat0", a_hat0, 4)
 
-    def law(x, u):
-        if not np.any(u[:6]):
-            return np.zeros(2), np.zeros(4)  # python-control's trial sweep, not a state
-        return smc_law(u[:6], u[6:12], x, inertias, g, boundary_layer)
-
-    def updfcn(t, x, u, params):
-        return x + Ts * law(x, u)[1]
-
-    def outfcn(t, x, u, params):
-        return np.concatenate([law(x, u)[0], x])
-
-    sys = ct.nlsys(updfcn, outfcn, inputs=STATES + REFERENCE_SIGNALS,
-                   outputs=["T1_cmd", "T2_cmd", "a1", "a2", "a3", "a4"],
-                   states=["a1", "a2", "a3", "a4"], dt=Ts, name=name)
+    sys = kernel_block(
+        kernels.smc_output, kernels.smc_update,
+        params=_controller_parameters(inertias, g, boundary_layer, 1e-3, Ts),
+        check=lambda t, x, u, y: _refuse_sin_q2(u[1]),
+        inputs=STATES + REFERENCE_SIGNALS, outputs=["T1_cmd", "T2_cmd", "a1", "a2", "a3", "a4"],
+        states=["a1", "a2", "a3", "a4"], dt=Ts, name=name,
+    )
     sys.x0, sys.gains, sys.inertias = a_hat0, g, inertias
     return sys
 
@@ -465,7 +425,7 @@ def torque_saturation(T1_max=T1_MAX, T2_max=T2_MAX, *, name="saturation") -> ct.
     """
     limits = np.array([_checks.positive_scalar("T1_max", T1_max),
                        _checks.positive_scalar("T2_max", T2_max)])
-    sys = ct.nlsys(None, lambda t, x, u, params: np.clip(u, -limits, limits),
-                   inputs=["T1_cmd", "T2_cmd"], outputs=["T1", "T2"], dt=None, name=name)
+    sys = kernel_block(kernels.saturation_output, params=limits,
+                       inputs=["T1_cmd", "T2_cmd"], outputs=["T1", "T2"], dt=None, name=name)
     sys.limits = limits
     return sys

@@ -13,7 +13,8 @@ from __future__ import annotations
 import control as ct
 import numpy as np
 
-from .. import _checks
+from .. import _checks, kernels
+from .._block import kernel_block
 from .spacecraft import F_PAPER, TS_PAPER
 
 #: Table 3: forgetting factor, P(0) = gamma I, low-pass coefficient, threshold.
@@ -54,15 +55,9 @@ def nominal_model(Ts=TS_PAPER, *, h0=(0.0, 0.0), name="nominal") -> ct.Nonlinear
     """
     Ts = _checks.positive_scalar("Ts", Ts)
     h0 = _checks.vector("h0", h0, 2)
-
-    def updfcn(t, x, u, params):
-        return x + Ts * u
-
-    def outfcn(t, x, u, params):
-        return x
-
-    sys = ct.nlsys(updfcn, outfcn, inputs=["mu_n[0]", "mu_n[1]"], outputs=["hn[0]", "hn[1]"],
-                   states=["hn[0]", "hn[1]"], dt=Ts, name=name)
+    sys = kernel_block(kernels.state_output, kernels.integrator_update, params=[Ts],
+                       feedthrough=False, inputs=["mu_n[0]", "mu_n[1]"],
+                       outputs=["hn[0]", "hn[1]"], states=["hn[0]", "hn[1]"], dt=Ts, name=name)
     sys.x0 = h0
     return sys
 
@@ -85,13 +80,8 @@ def mec_compensator(*, name="mec") -> ct.NonlinearIOSystem:
     >>> mec.output(0.0, [], [1, 1, 0.5, 0, 0, 0, 2, 0, 0, 2]).tolist()
     [2.0, 1.0]
     """
-
-    def outfcn(t, x, u, params):
-        K = u[6:10].reshape(2, 2)
-        return u[0:2] + K @ (u[2:4] - u[4:6])
-
-    return ct.nlsys(
-        None, outfcn,
+    return kernel_block(
+        kernels.mec_output,
         inputs=["mu_n[0]", "mu_n[1]", "hn[0]", "hn[1]", "h[0]", "h[1]", *K_SIGNALS],
         outputs=["mu[0]", "mu[1]"], dt=None, name=name,
     )
@@ -118,12 +108,8 @@ def constant_gain(K=0.1, *, name="gain") -> ct.NonlinearIOSystem:
     [1.0, 2.0, 3.0, 4.0]
     """
     K = _checks.gain_matrix("K", K)
-    flat = K.reshape(-1).copy()
-
-    def outfcn(t, x, u, params):
-        return flat
-
-    sys = ct.nlsys(None, outfcn, inputs=0, outputs=K_SIGNALS, dt=None, name=name)
+    sys = kernel_block(kernels.constant_output, params=K.ravel(), feedthrough=False, inputs=0,
+                       outputs=K_SIGNALS, dt=None, name=name)
     sys.K = K
     return sys
 
@@ -175,23 +161,37 @@ def frit_regressors(x, h, F):
     return xi, eta
 
 
-def rls_row_update(Khat_j, P_j, xi_j, eta_j, lambda_):
-    """One step of recursive least squares with forgetting (eq. 27-28) for one row of K.
+def rls_step(Khat, P1, P2, xi, eta, lambda_):
+    """One step of recursive least squares with forgetting (eq. 27-28), both rows of K.
 
-    ``Khat_j += (eta_j - Khat_j xi_j) (P_j xi_j)^T / (lambda + xi_j^T P_j xi_j)``,
-    ``P_j = (P_j - P_j xi_j xi_j^T P_j / (lambda + xi_j^T P_j xi_j)) / lambda``.
+    For each row ``j`` with regressor ``xi`` (shared, as with ``F1 = F2``):
+    ``Khat_j += (eta_j - Khat_j xi) (P_j xi)^T / (lambda + xi^T P_j xi)`` and
+    ``P_j = (P_j - P_j xi xi^T P_j / (lambda + xi^T P_j xi)) / lambda``.
+    Runs the tuner's own kernel on a state holding these regressors, so it is
+    the very arithmetic of :func:`frit_tuner`.
+
+    Returns
+    -------
+    Khat, P1, P2 : ndarray
 
     Examples
     --------
-    >>> K, P = rls_row_update(np.zeros(2), 100 * np.eye(2), np.array([1.0, 0]), 2.0, 1.0)
-    >>> K.round(6).tolist(), P.round(6).tolist()
+    >>> K, P1, _ = rls_step(np.zeros((2, 2)), 100 * np.eye(2), 100 * np.eye(2),
+    ...                     np.array([1.0, 0]), np.array([2.0, 0.0]), 1.0)
+    >>> K[0].round(6).tolist(), P1.round(6).tolist()
     ([1.980198, 0.0], [[0.990099, 0.0], [0.0, 100.0]])
     """
-    P_xi = P_j @ xi_j
-    denominator = lambda_ + xi_j @ P_xi
-    Khat_j = Khat_j + (eta_j - Khat_j @ xi_j) * P_xi / denominator
-    P_j = (P_j - np.outer(P_xi, P_xi) / denominator) / lambda_
-    return Khat_j, P_j
+    x = np.zeros(24)
+    x[0:2] = xi
+    x[2:4] = xi
+    x[4:6] = eta  # with h = M h below, eta = M mu
+    x[8:12] = np.ravel(Khat)
+    x[12:16] = np.ravel(P1)
+    x[16:20] = np.ravel(P2)
+    p = np.array([1.0, 1.0, 0.0, 0.0, lambda_, 1.0, 0.0, 0.0])
+    u = np.array([0.0, 0.0, 0.0, 0.0, 1.0, 1.0])  # h = 0, hn - h = 1 > psi = 0
+    xn = kernels.frit_update(0.0, x, u, p)
+    return xn[8:12].reshape(2, 2), xn[12:16].reshape(2, 2), xn[16:20].reshape(2, 2)
 
 
 def frit_tuner(
@@ -275,33 +275,11 @@ def frit_tuner(
     K0 = _checks.gain_matrix("K0", K0)
     h0 = _checks.vector("h0", h0, 2)
     a = np.exp(-F * Ts)
-    b = 1.0 - a
-
-    def updfcn(t, x, u, params):
-        mu, h, hn = u[0:2], u[2:4], u[4:6]
-        xi, eta = frit_regressors(x, h, F)
-        Khat = x[8:12].reshape(2, 2).copy()
-        P = [x[12:16].reshape(2, 2), x[16:20].reshape(2, 2)]
-        K = x[20:24].reshape(2, 2).copy()
-        e = hn - h
-        for j in range(2):
-            if abs(e[j]) < psi_values[j]:
-                continue  # eq. (30) and RLS frozen for this row
-            Khat[j], P[j] = rls_row_update(Khat[j], P[j], xi[j], eta[j], lambda_)
-            K[j] = (1 - kappa) * K[j] + kappa * Khat[j]
-        filters = np.concatenate([
-            a[0] * x[0:2] + b[0] * e,
-            a[1] * x[2:4] + b[1] * e,
-            a * x[4:6] + b * mu,
-            a * x[6:8] + b * h,
-        ])
-        return np.concatenate([filters, Khat.ravel(), P[0].ravel(), P[1].ravel(), K.ravel()])
-
-    def outfcn(t, x, u, params):
-        return x[20:24]
-
-    sys = ct.nlsys(updfcn, outfcn, inputs=["mu[0]", "mu[1]", "h[0]", "h[1]", "hn[0]", "hn[1]"],
-                   outputs=K_SIGNALS, states=TUNER_STATES, dt=Ts, name=name)
+    params = np.concatenate([F, a, [lambda_, kappa], psi_values])
+    sys = kernel_block(kernels.frit_output, kernels.frit_update, params=params,
+                       feedthrough=False,
+                       inputs=["mu[0]", "mu[1]", "h[0]", "h[1]", "hn[0]", "hn[1]"],
+                       outputs=K_SIGNALS, states=TUNER_STATES, dt=Ts, name=name)
     P0 = (gamma * np.eye(2)).ravel()
     sys.x0 = np.concatenate([np.zeros(6), h0, K0.ravel(), P0, P0, K0.ravel()])
     sys.F, sys.lambda_, sys.gamma, sys.kappa, sys.psi = F, lambda_, gamma, kappa, psi_values

@@ -12,10 +12,13 @@ convention under which eq. (4) reads ``q' = Q(q) w_b`` with body rates.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import control as ct
 import numpy as np
 
-from .. import _checks
+from .. import _checks, kernels
+from .._block import kernel_block
 
 # --- Paper values (Tables 2 and 3) -------------------------------------------------
 
@@ -43,18 +46,55 @@ TS_PAPER = 0.1
 POINTING_REQUIREMENT_DEG = 0.05
 
 
-def paper_momentum(t: float) -> np.ndarray:
-    """True total angular momentum of the paper's scenario (Table 2), N m s.
+@dataclass(frozen=True)
+class MomentumProfile:
+    """A total angular momentum ``H(t) = c + a_s sin(w t) + a_c cos(w t)`` (N m s).
 
-    ``H0(t) = 0.05 [sin(w t), cos(w t), sin(w t)]`` with ``w = 2 pi 1e-4`` rad/s.
+    Blocks given a profile (rather than an arbitrary function) run on the fast
+    engine, which compiles the profile with the rest of the block.
+
+    Attributes
+    ----------
+    constant, sine, cosine : tuple of 3 floats
+        ``c``, ``a_s`` and ``a_c``.
+    omega : float
+        Angular frequency ``w`` (rad/s).
 
     Examples
     --------
-    >>> paper_momentum(0.0)
-    array([0.  , 0.05, 0.  ])
+    >>> MomentumProfile(constant=(0, 0, 0.1))(5.0).tolist()
+    [0.0, 0.0, 0.1]
     """
-    s, c = np.sin(H0_FREQUENCY * t), np.cos(H0_FREQUENCY * t)
-    return H0_AMPLITUDE * np.array([s, c, s])
+
+    constant: tuple = (0.0, 0.0, 0.0)
+    sine: tuple = (0.0, 0.0, 0.0)
+    cosine: tuple = (0.0, 0.0, 0.0)
+    omega: float = 0.0
+
+    def packed(self) -> np.ndarray:
+        """``[c, a_s, a_c, w]`` as the kernels read it."""
+        parts = [_checks.vector(name, getattr(self, name), 3)
+                 for name in ("constant", "sine", "cosine")]
+        return np.concatenate([*parts, [float(self.omega)]])
+
+    def __call__(self, t: float) -> np.ndarray:
+        return np.array(kernels.momentum_at(t, self.packed(), 0))
+
+
+#: True total angular momentum of the paper's scenario (Table 2), N m s:
+#: ``H0(t) = 0.05 [sin(w t), cos(w t), sin(w t)]`` with ``w = 2 pi 1e-4`` rad/s.
+paper_momentum = MomentumProfile(sine=(H0_AMPLITUDE, 0.0, H0_AMPLITUDE),
+                                 cosine=(0.0, H0_AMPLITUDE, 0.0), omega=H0_FREQUENCY)
+
+
+def _momentum_parameters(name, value):
+    """Packed profile of a momentum argument, and the function itself for plain callables."""
+    if isinstance(value, MomentumProfile):
+        return value.packed(), None
+    H = _checks.momentum(name, value)
+    if callable(value):
+        return MomentumProfile().packed(), H  # evaluated in Python at each call
+    return MomentumProfile(constant=tuple(H(0.0))).packed(), None
 
 
 # --- Pure math ---------------------------------------------------------------------
@@ -198,9 +238,11 @@ def spacecraft_plant(
         Wheel inertias (kg m^2), Table 2 by default.
     v1, v2 : array_like
         Wheel axes in the body frame (normalised; must not be zero or parallel).
-    H0 : array_like or callable
+    H0 : array_like, MomentumProfile or callable
         Total angular momentum in the inertial frame (N m s): a constant
-        3-vector or a function ``t -> 3-vector``. Default zero.
+        3-vector, a :class:`MomentumProfile` (such as :data:`paper_momentum`)
+        or any function ``t -> 3-vector`` (which the fast engine cannot compile:
+        such a plant runs on the python-control path). Default zero.
     name : str
         System name.
 
@@ -214,30 +256,37 @@ def spacecraft_plant(
     Examples
     --------
     >>> plant = spacecraft_plant()
-    >>> plant.dynamics(0.0, [1, 0, 0, 0], [0, 0]).tolist()
-    [0.0, 0.0, 0.0, 0.0]
+    >>> plant.dynamics(0.0, [1, 0, 0, 0], [1.0, 0]).round(8).tolist()  # wheel 1 spins
+    [0.0, -5.624e-05, 0.0, 0.0]
     """
     J_b = _checks.inertia("J_b", J_b)
     J_w1 = _checks.inertia("J_w1", J_w1)
     J_w2 = _checks.inertia("J_w2", J_w2)
     v1, v2 = _checks.wheel_axes(v1, v2)
     H0_of_t = _checks.momentum("H0", H0)
+    profile, python_H0 = _momentum_parameters("H0", H0)
     J_t = J_b + J_w1 + J_w2
     J_t_inv = np.linalg.inv(J_t)
     b1, b2 = J_w1 @ v1, J_w2 @ v2
+    params = np.concatenate([J_t_inv.ravel(), b1, b2, profile])
 
     def rate(t, q, u):
         return body_rate(q, u, H0_of_t(t), J_t_inv, b1, b2)
 
-    def updfcn(t, x, u, params):
-        return quaternion_rate_matrix(x) @ rate(t, x, u)
+    rhs = kernels.spacecraft_rhs
+    if python_H0 is not None:  # an arbitrary function of time: packed at each call
+        def rhs(t, x, u, p):
+            local = p.copy()
+            local[15:18] = python_H0(t)
+            return kernels.spacecraft_rhs(t, x, u, local)
 
-    def outfcn(t, x, u, params):
-        return x
-
-    sys = ct.nlsys(
-        updfcn, outfcn, inputs=_U_SIGNALS, outputs=_Q_SIGNALS, states=_Q_SIGNALS, name=name
+    sys = kernel_block(
+        kernels.state_output, rhs, params=params, feedthrough=False,
+        inputs=_U_SIGNALS, outputs=_Q_SIGNALS, states=_Q_SIGNALS, name=name,
     )
+    if python_H0 is not None:
+        sys.kernel = None  # the fast engine cannot compile a Python callable
+        sys.kernel_reason = "H0 is a Python function; give a MomentumProfile to compile it"
     sys.J_t, sys.H0 = J_t, H0_of_t
     sys.body_rate = rate
     sys.momentum = lambda t, q, u: total_momentum(q, rate(t, q, u), u, J_b, J_w1, J_w2, v1, v2)
@@ -264,7 +313,7 @@ def io_linearizer(
     J_m : array_like
         Nominal *total* inertia (bodies and wheels, eq. 3), kg m^2.
         Default ``J_bn + J_w1 + J_w2`` of Table 2 (erratum E4).
-    H0n : array_like or callable
+    H0n : array_like, MomentumProfile or callable
         Nominal total angular momentum (N m s); the paper uses 0 (so alpha = 0).
     J_w1, J_w2, v1, v2 : array_like
         Nominal wheel inertias and axes.
@@ -301,34 +350,38 @@ def io_linearizer(
     J_w1 = _checks.inertia("J_w1", J_w1)
     J_w2 = _checks.inertia("J_w2", J_w2)
     v1, v2 = _checks.wheel_axes(v1, v2)
-    H0n_of_t = _checks.momentum("H0n", H0n)
     singular_tol = _checks.positive_scalar("singular_tol", singular_tol)
+    profile, python_H0n = _momentum_parameters("H0n", H0n)
     J_m_inv = np.linalg.inv(J_m)
     b1, b2 = J_w1 @ v1, J_w2 @ v2
+    G = -J_m_inv @ np.column_stack([b1, b2])
     # |Q(q) x| <= |q| |x| / 2, so this bounds the largest singular value of dh/dq g.
-    scale = 0.5 * np.linalg.norm(J_m_inv @ np.column_stack([b1, b2]), 2)
+    threshold = singular_tol * 0.5 * np.linalg.norm(G, 2)
+    params = np.concatenate([G.ravel(), J_m_inv.ravel(), profile, [threshold]])
 
-    def outfcn(t, x, u, params):
-        mu, q = u[:2], u[2:6]
-        q_norm = np.linalg.norm(q)
-        if q_norm == 0.0:
-            return np.zeros(2)  # python-control's trial sweep, not an attitude
-        A = decoupling_matrix(q, J_m_inv, b1, b2)
-        smallest = np.linalg.svd(A, compute_uv=False)[-1]
-        if smallest < singular_tol * scale * q_norm:
-            raise SingularDecouplingError(
-                f"input-output linearization (eq. 11) is undefined at attitude "
-                f"q = {np.round(q, 9).tolist()} (t = {t:g} s): the decoupling matrix "
-                f"dh/dq g(q) is singular (q0^2 + q3^2 = {q[0] ** 2 + q[3] ** 2:.3g} for the "
-                f"paper's wheels: a 180 deg rotation about an axis in the body x-y plane)"
-            )
-        f = quaternion_rate_matrix(q) @ (J_m_inv @ (rotation_matrix(q).T @ H0n_of_t(t)))
-        return np.linalg.solve(A, mu - f[1:3])  # = -alpha + beta mu
+    def refuse(t, x, u, y):
+        q = u[2:6]
+        raise SingularDecouplingError(
+            f"input-output linearization (eq. 11) is undefined at attitude "
+            f"q = {np.round(q, 9).tolist()} (t = {t:g} s): the decoupling matrix "
+            f"dh/dq g(q) is singular (q0^2 + q3^2 = {q[0] ** 2 + q[3] ** 2:.3g} for the "
+            f"paper's wheels: a 180 deg rotation about an axis in the body x-y plane)"
+        )
 
-    sys = ct.nlsys(
-        None, outfcn, inputs=["mu[0]", "mu[1]", *_Q_SIGNALS], outputs=_U_SIGNALS,
-        dt=None, name=name,
+    output = kernels.linearizer_output
+    if python_H0n is not None:
+        def output(t, x, u, p):
+            local = p.copy()
+            local[15:18] = python_H0n(t)
+            return kernels.linearizer_output(t, x, u, local)
+
+    sys = kernel_block(
+        output, params=params, feedthrough=True, check=refuse,
+        inputs=["mu[0]", "mu[1]", *_Q_SIGNALS], outputs=_U_SIGNALS, dt=None, name=name,
     )
+    if python_H0n is not None:
+        sys.kernel = None
+        sys.kernel_reason = "H0n is a Python function; give a MomentumProfile to compile it"
     return sys
 
 
@@ -348,12 +401,8 @@ def attitude_output(*, name="output") -> ct.NonlinearIOSystem:
     [0.1, 0.2]
     """
 
-    def outfcn(t, x, u, params):
-        return u[1:3]
-
-    return ct.nlsys(
-        None, outfcn, inputs=_Q_SIGNALS, outputs=["h[0]", "h[1]"], dt=None, name=name
-    )
+    return kernel_block(kernels.attitude_output_kernel, inputs=_Q_SIGNALS,
+                        outputs=["h[0]", "h[1]"], dt=None, name=name)
 
 
 def outer_controller(F=F_PAPER, *, output="mu", name="controller") -> ct.NonlinearIOSystem:
@@ -383,12 +432,8 @@ def outer_controller(F=F_PAPER, *, output="mu", name="controller") -> ct.Nonline
     [-0.5, 1.0]
     """
     F = _checks.gain_pair("F", F)
-
-    def outfcn(t, x, u, params):
-        return F * (u[0:2] - u[2:4])
-
-    sys = ct.nlsys(
-        None, outfcn, inputs=["r[0]", "r[1]", "h[0]", "h[1]"],
+    sys = kernel_block(
+        kernels.outer_controller_kernel, params=F, inputs=["r[0]", "r[1]", "h[0]", "h[1]"],
         outputs=[f"{output}[0]", f"{output}[1]"], dt=None, name=name,
     )
     sys.F = F

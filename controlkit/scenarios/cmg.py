@@ -72,7 +72,7 @@ def build_loop(case="thesis", *, Ts=cmg.TS_CMG, boundary_layer=0.0, **gains):
 
 
 def run(case="thesis", *, horizon=HORIZON, Ts=cmg.TS_CMG, x0=None, boundary_layer=0.0,
-        progress=None, **gains):
+        progress=None, engine="fast", **gains):
     """Simulate one case from the thesis's initial state.
 
     Parameters
@@ -89,6 +89,8 @@ def run(case="thesis", *, horizon=HORIZON, Ts=cmg.TS_CMG, x0=None, boundary_laye
         Switching function: 0 for ``sgn``, ``phi > 0`` for ``sat(s/phi)``.
     progress : callable, optional
         Called with the fraction done.
+    engine : {"fast", "python-control"}
+        Simulator (see :func:`controlkit.simulation.simulate`).
     **gains : float
         Controller gains overriding eq. (47).
 
@@ -110,4 +112,4 @@ def run(case="thesis", *, horizon=HORIZON, Ts=cmg.TS_CMG, x0=None, boundary_laye
     loop = build_loop(case, Ts=Ts, boundary_layer=boundary_layer, **gains)
     T = time_grid(horizon, Ts)
     return simulate(loop, T, initial_state(loop, cmg=x0), progress=progress,
-                    chunks=10 if len(T) > 5000 else 1)
+                    chunks=10 if len(T) > 5000 else 1, engine=engine)

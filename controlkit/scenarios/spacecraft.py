@@ -144,7 +144,7 @@ def build_loop(case="ideal", *, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXED, h0=None
 
 
 def run(case="ideal", *, horizon=HORIZON, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXED,
-        q_initial=None, tuner_options=None, progress=None):
+        q_initial=None, tuner_options=None, progress=None, engine="fast"):
     """Simulate one case from the initial attitude of Table 2.
 
     Parameters
@@ -165,6 +165,9 @@ def run(case="ideal", *, horizon=HORIZON, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXE
         Keywords for the FRIT tuner (``proposed`` case).
     progress : callable, optional
         Called with the fraction done.
+    engine : {"fast", "python-control"}
+        Simulator (see :func:`controlkit.simulation.simulate`); both give the
+        same numbers.
 
     Returns
     -------
@@ -188,4 +191,5 @@ def run(case="ideal", *, horizon=HORIZON, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXE
         by_block["nominal"] = h0  # the ideal model starts where the plant does
     X0 = initial_state(loop, **by_block)
     T = time_grid(horizon, Ts)
-    return simulate(loop, T, X0, 0.0, progress=progress, chunks=20 if len(T) > 20_000 else 1)
+    return simulate(loop, T, X0, 0.0, progress=progress, chunks=20 if len(T) > 20_000 else 1,
+                    engine=engine)

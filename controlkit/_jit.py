@@ -1,0 +1,37 @@
+"""Optional numba compilation of the kernels.
+
+With numba installed (``pip install controlkit[fast]``) every kernel is
+compiled once and cached on disk; without it, or with the environment
+variable ``CONTROLKIT_DISABLE_NUMBA=1``, the same functions run as plain
+Python. Both the python-control path and the fast engine call the kernels
+through this module, so both compute with the same code.
+"""
+
+from __future__ import annotations
+
+import os
+
+try:
+    if os.environ.get("CONTROLKIT_DISABLE_NUMBA", "") not in ("", "0"):
+        raise ImportError("disabled by CONTROLKIT_DISABLE_NUMBA")
+    import numba
+except ImportError:
+    numba = None
+
+#: True when kernels are compiled with numba.
+HAVE_NUMBA = numba is not None
+
+
+def kernel(function):
+    """Compile ``function`` with numba (cached) when available; else return it unchanged.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from controlkit.kernels import constant_output  # decorated with @kernel
+    >>> constant_output(0.0, np.zeros(0), np.zeros(0), np.array([1.5])).tolist()
+    [1.5]
+    """
+    if numba is None:
+        return function
+    return numba.njit(cache=True)(function)

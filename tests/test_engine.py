@@ -1,0 +1,142 @@
+"""The fast engine: same numbers as python-control, on every scenario and on rewired diagrams."""
+
+import os
+import subprocess
+import sys
+
+import control as ct
+import numpy as np
+import pytest
+
+from controlkit import engine
+from controlkit.blocks import cmg, mec
+from controlkit.blocks import spacecraft as sc
+from controlkit.diagrams.spacecraft import mec_loop, output_zeroing_loop
+from controlkit.sampling import sample_nlsys
+from controlkit.scenarios import cmg as cmg_scenario
+from controlkit.scenarios import spacecraft as scenario
+from controlkit.simulation import initial_state, simulate
+
+Q0 = scenario.initial_attitude()
+H0 = Q0[1:3]
+
+
+def start(loop):
+    names = {s.name for s in loop.syslist}
+    return initial_state(loop, plant=Q0, **({"nominal": H0} if "nominal" in names else {}))
+
+
+def assert_same(loop, T, X0):
+    ref = simulate(loop, T, X0, engine="python-control")
+    fast = simulate(loop, T, X0, engine="fast")
+    assert list(fast.output_labels) == list(ref.output_labels)
+    assert list(fast.state_labels) == list(ref.state_labels)
+    assert fast.outputs.shape == ref.outputs.shape and fast.states.shape == ref.states.shape
+    np.testing.assert_allclose(fast.outputs, ref.outputs, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(fast.states, ref.states, rtol=0, atol=1e-9)
+    return ref, fast
+
+
+@pytest.mark.parametrize("case", ["ideal", "without_mec", "mec_fixed", "proposed"])
+def test_spacecraft_scenarios_match_python_control_over_2000_s(case):
+    loop = scenario.build_loop(case, h0=H0)
+    assert_same(loop, np.arange(20001) * 0.1, start(loop))
+
+
+@pytest.mark.parametrize("case", list(cmg_scenario.CASES))
+def test_cmg_scenarios_match_python_control_over_12_s(case):
+    loop = cmg_scenario.build_loop(case)
+    assert_same(loop, np.arange(12001) * 0.001, initial_state(loop, cmg=cmg_scenario.X0_THESIS))
+
+
+def test_rewired_mec_with_other_gain_and_controller_matches():
+    # the tuner taken out for a non-diagonal constant gain, the outer loop made faster
+    faster = sc.outer_controller(0.003, output="mu_n")
+    loop = mec_loop(scenario.true_plant(True), controller=faster, K=[[0.2, 0.05], [0.0, 0.15]])
+    assert_same(loop, np.arange(5001) * 0.1, start(loop))
+
+
+def test_rewired_loop_with_saturation_and_reference_matches():
+    # a wheel-speed saturation inserted between linearizer and plant, and a nonzero reference
+    plant = scenario.true_plant(True)
+    lin = sc.io_linearizer()
+    limiter = cmg.torque_saturation(1.0, 1.0, name="wheel_limit")
+    limiter.set_inputs(["u_cmd[0]", "u_cmd[1]"])
+    limiter.set_outputs(["u[0]", "u[1]"])
+    lin.set_outputs(["u_cmd[0]", "u_cmd[1]"])
+    loop = ct.interconnect(
+        [sample_nlsys(plant, 0.1), sc.attitude_output(), sc.outer_controller(0.002), lin, limiter],
+        inputs=["r[0]", "r[1]"], outputs=["h[0]", "h[1]", "u[0]", "u[1]", "u_cmd[0]"])
+    T = np.arange(3001) * 0.1
+    U = np.vstack([0.01 * np.ones_like(T), -0.02 * np.ones_like(T)])
+    X0 = initial_state(loop, plant=Q0)
+    ref = ct.input_output_response(loop, T, U, X0)
+    fast = engine.simulate_fast(loop, T, X0, U)
+    np.testing.assert_allclose(fast.outputs, ref.outputs, rtol=0, atol=1e-9)
+    assert np.abs(ref.outputs[2]).max() == pytest.approx(1.0)  # the limiter is active
+
+
+def test_user_block_falls_back_to_python_control_with_a_warning_naming_it():
+    user = ct.nlsys(None, lambda t, x, u, p: 0.0009 * (u[0:2] - u[2:4]),
+                    inputs=["r[0]", "r[1]", "h[0]", "h[1]"], outputs=["mu[0]", "mu[1]"],
+                    dt=None, name="my_controller")
+    loop = output_zeroing_loop(controller=user)
+    T = np.arange(11) * 0.1
+    with pytest.warns(UserWarning, match=r"block 'my_controller' cannot be compiled"):
+        resp = simulate(loop, T, start(loop), engine="fast")
+    np.testing.assert_array_equal(resp.outputs, simulate(loop, T, start(loop)).outputs)
+
+
+def test_momentum_given_as_python_function_is_named_in_the_warning():
+    plant = sc.spacecraft_plant(H0=lambda t: [0.0, 0.0, 0.01])
+    loop = output_zeroing_loop(plant)
+    with pytest.warns(UserWarning, match=r"block 'plant' cannot be compiled: H0 is a Python"):
+        simulate(loop, np.arange(3) * 0.1, start(loop), engine="fast")
+
+
+def test_singular_attitude_gives_the_same_message_on_the_fast_path():
+    loop = scenario.build_loop("ideal")
+    X0 = initial_state(loop, plant=[0.0, 0.6, 0.8, 0.0])
+    with pytest.raises(sc.SingularDecouplingError, match=r"undefined at attitude q = \[0.0, 0.6"):
+        engine.simulate_fast(loop, np.arange(5) * 0.1, X0)
+
+
+def test_continuous_diagram_is_refused():
+    loop = ct.interconnect([sc.spacecraft_plant(), sc.attitude_output(), sc.outer_controller(),
+                            sc.io_linearizer()], inputs=["r[0]", "r[1]"], outputs=["h[0]"])
+    with pytest.raises(engine.UnsupportedSystem, match=r"is continuous time"):
+        engine.simulate_fast(loop, [0.0, 0.1], Q0)
+
+
+def test_algebraic_loop_is_named():
+    a = sc.outer_controller(name="a")  # mu = F (r - h)
+    a.set_inputs(["r[0]", "r[1]", "x[0]", "x[1]"])
+    a.set_outputs(["y[0]", "y[1]"])
+    b = sc.outer_controller(name="b")
+    b.set_inputs(["r[0]", "r[1]", "y[0]", "y[1]"])
+    b.set_outputs(["x[0]", "x[1]"])
+    gain = mec.nominal_model(0.1)  # makes the diagram discrete
+    loop = ct.interconnect([gain, a, b], inputs=["mu_n[0]", "mu_n[1]", "r[0]", "r[1]"],
+                           outputs=["hn[0]", "y[0]"])
+    with pytest.raises(engine.UnsupportedSystem,
+                       match=r"algebraic loop through blocks \['a', 'b'\]"):
+        engine.simulate_fast(loop, [0.0, 0.1], [0.0, 0.0])
+
+
+def test_engine_without_numba_gives_the_same_numbers(tmp_path):
+    code = (
+        "import numpy as np; from controlkit.scenarios import spacecraft as s;"
+        "r = s.run('proposed', horizon=100.0, engine='fast');"
+        "np.save(r'%s', r.outputs)" % (tmp_path / "plain.npy")
+    )
+    env = {**os.environ, "CONTROLKIT_DISABLE_NUMBA": "1",
+           "CONTROLKIT_CACHE_DIR": str(tmp_path / "cache")}
+    subprocess.run([sys.executable, "-c", code], env=env, check=True)
+    plain = np.load(tmp_path / "plain.npy")
+    compiled = scenario.run("proposed", horizon=100.0, engine="fast").outputs
+    np.testing.assert_allclose(plain, compiled, rtol=0, atol=1e-9)
+
+
+def test_unknown_engine_is_refused():
+    with pytest.raises(ValueError, match=r"engine must be one of \('fast', 'python-control'\)"):
+        simulate(scenario.build_loop("ideal"), [0.0, 0.1], Q0, engine="numba")
