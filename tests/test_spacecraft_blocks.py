@@ -78,6 +78,11 @@ def test_singular_decoupling_matrix_names_the_attitude(q):
     assert "180 deg rotation about an axis in the body x-y plane" in str(e.value)
 
 
+def test_diverged_loop_is_not_reported_as_a_singular_attitude():
+    with pytest.raises(FloatingPointError, match=r"the loop diverged upstream"):
+        sc.io_linearizer().output(0.0, [], [np.nan, 0.0, 1.0, 0.0, 0.0, 0.0])
+
+
 def test_singular_attitude_stops_simulation_with_clear_error():
     with pytest.raises(ValueError, match=r"decoupling matrix dh/dq g\(q\) is singular"):
         scenario.run("ideal", horizon=1.0, q_initial=[0.0, 0.6, 0.8, 0.0])

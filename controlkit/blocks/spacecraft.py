@@ -361,6 +361,11 @@ def io_linearizer(
 
     def refuse(t, x, u, y):
         q = u[2:6]
+        if not np.all(np.isfinite(u)):
+            raise FloatingPointError(
+                f"the linearizer received non-finite inputs at t = {t:g} s "
+                f"(mu = {u[:2].tolist()}, q = {q.tolist()}): the loop diverged upstream"
+            )
         raise SingularDecouplingError(
             f"input-output linearization (eq. 11) is undefined at attitude "
             f"q = {np.round(q, 9).tolist()} (t = {t:g} s): the decoupling matrix "
