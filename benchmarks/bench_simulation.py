@@ -26,7 +26,7 @@ import time
 
 import numpy as np
 
-from controlkit import kernels
+from controlkit import _kernels as kernels
 from controlkit.blocks import cmg as cmg_blocks
 from controlkit.scenarios import cmg as cmg_scenario
 from controlkit.scenarios import spacecraft as sc_scenario

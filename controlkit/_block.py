@@ -71,7 +71,7 @@ def kernel_block(output, update=None, *, params=(), feedthrough=True, check=None
 
     Examples
     --------
-    >>> from controlkit.kernels import constant_output
+    >>> from controlkit._kernels import constant_output
     >>> kernel_block(constant_output, params=[1.0, 2.0], feedthrough=False, inputs=0,
     ...              outputs=2, dt=None).output(0.0, [], []).tolist()
     [1.0, 2.0]

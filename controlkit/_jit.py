@@ -28,7 +28,7 @@ def kernel(function):
     Examples
     --------
     >>> import numpy as np
-    >>> from controlkit.kernels import constant_output  # decorated with @kernel
+    >>> from controlkit._kernels import constant_output  # decorated with @kernel
     >>> constant_output(0.0, np.zeros(0), np.zeros(0), np.array([1.5])).tolist()
     [1.5]
     """

@@ -47,6 +47,11 @@ class Study:
         Case name to CSV file stem.
     csv_columns : callable
         Table to the columns written to CSV (default: all).
+
+    Examples
+    --------
+    >>> STUDIES["spacecraft"].default_cases
+    ('ideal', 'without_mec', 'proposed')
     """
 
     name: str

@@ -32,7 +32,17 @@ CACHE_DIR = Path(os.environ.get("CONTROLKIT_CACHE_DIR",
 
 
 class UnsupportedSystem(ValueError):
-    """The fast engine cannot run this system (the message names the block and why)."""
+    """The fast engine cannot run this system (the message names the block and why).
+
+    Examples
+    --------
+    >>> from controlkit.blocks.spacecraft import spacecraft_plant
+    >>> try:
+    ...     compile_system(spacecraft_plant())
+    ... except UnsupportedSystem as reason:
+    ...     print(reason)
+    'plant' is a single block; the fast engine runs interconnects
+    """
 
 
 @dataclass(frozen=True)
@@ -260,8 +270,17 @@ def compile_system(sys):
 
     Returns
     -------
-    callable
-        ``run(T, X0, U, P, Y, X, status, k0, k1)``.
+    run : callable
+        ``run(T, X0, U, P, Y, X, status, k0, k1) -> state at k1``.
+    blocks : list
+        The blocks with their offsets in the stacked state, signals and parameters.
+
+    Examples
+    --------
+    >>> from controlkit.diagrams.cmg import cmg_loop
+    >>> run, blocks = compile_system(cmg_loop())
+    >>> [b.system.name for b in blocks]
+    ['reference', 'cmg', 'smc', 'saturation']
     """
     blocks = _blocks(sys)
     order = _evaluation_order(sys, blocks)

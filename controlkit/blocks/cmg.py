@@ -16,7 +16,8 @@ from dataclasses import dataclass, fields
 import control as ct
 import numpy as np
 
-from .. import _checks, kernels
+from .. import _checks
+from .. import _kernels as kernels
 from .._block import kernel_block
 
 STATES = ["q1", "q2", "q4", "w1", "w2", "w4"]
@@ -358,7 +359,7 @@ def adaptive_smc(
         System name.
     **gains : float
         Any of ``C1, C2, C3, C4, eta1, eta2, gamma1, gamma2, gamma3, gamma4``
-        (default eq. 47); the ``C``s and ``eta``s >= 0, the ``gamma``s > 0.
+        (default eq. 47); the ``C`` and ``eta`` gains >= 0, the ``gamma`` gains > 0.
 
     Returns
     -------

@@ -13,7 +13,8 @@ from __future__ import annotations
 import control as ct
 import numpy as np
 
-from .. import _checks, kernels
+from .. import _checks
+from .. import _kernels as kernels
 from .._block import kernel_block
 from .spacecraft import F_PAPER, TS_PAPER
 
@@ -27,7 +28,10 @@ K_SIGNALS = [f"K[{i}]" for i in range(4)]
 
 
 def nominal_model(Ts=TS_PAPER, *, h0=(0.0, 0.0), name="nominal") -> ct.NonlinearIOSystem:
-    """Ideal linearized model ``L_n``: ``hn' = mu_n``, exact under ZOH at ``Ts``.
+    """Ideal linearized model ``L_n`` of Fig. 3-4: ``hn' = mu_n``, exact under ZOH at ``Ts``.
+
+    ``L_n`` is what eq. (10)-(11) make of the plant when the model is exact; the
+    MEC (eq. 13-14) compares its output ``hn`` with the actual ``h``.
 
     ``hn[k+1] = hn[k] + Ts mu_n[k]`` (the ZOH discretisation of an integrator
     is exact). Driven by the outer controller's ``mu_n``, not by the
@@ -88,7 +92,7 @@ def mec_compensator(*, name="mec") -> ct.NonlinearIOSystem:
 
 
 def constant_gain(K=0.1, *, name="gain") -> ct.NonlinearIOSystem:
-    """Constant compensation gain as a source block (Fig. 3).
+    """Constant compensation gain ``K`` of eq. (13) as a source block (Fig. 3).
 
     Parameters
     ----------

@@ -17,7 +17,8 @@ from dataclasses import dataclass
 import control as ct
 import numpy as np
 
-from .. import _checks, kernels
+from .. import _checks
+from .. import _kernels as kernels
 from .._block import kernel_block
 
 # --- Paper values (Tables 2 and 3) -------------------------------------------------
@@ -294,7 +295,16 @@ def spacecraft_plant(
 
 
 class SingularDecouplingError(ValueError):
-    """The decoupling matrix ``dh/dq g(q)`` of eq. (11) is singular at the current attitude."""
+    """The decoupling matrix ``dh/dq g(q)`` of eq. (11) is singular at the current attitude.
+
+    Examples
+    --------
+    >>> try:
+    ...     io_linearizer().output(0.0, [], [1e-3, 0, 0, 1, 0, 0])  # q0 = q3 = 0
+    ... except SingularDecouplingError as error:
+    ...     print(str(error)[:48])
+    input-output linearization (eq. 11) is undefined
+    """
 
 
 def io_linearizer(

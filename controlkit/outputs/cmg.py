@@ -30,7 +30,13 @@ def table(resp) -> dict[str, np.ndarray]:
 
 
 def csv_columns(cols):
-    """The public CSV columns of a :func:`table` (drops the commanded torques)."""
+    """The public CSV columns of a :func:`table` (drops the commanded torques).
+
+    Examples
+    --------
+    >>> list(csv_columns({"time": [0.0], "_T1_cmd": [1.0]}))
+    ['time']
+    """
     return {k: v for k, v in cols.items() if not k.startswith("_")}
 
 

@@ -21,9 +21,9 @@ DELTA_IG4X = 0.005
 #: Friction of the ``thesis`` case: the apparatus's reported viscous values (mid-range),
 #: rotor Coulomb 0.03 N m, gimbal-2 Coulomb 0.01 N m (low end of 0.01-0.05) and an assumed
 #: 0.01 N m on the frame (no value is reported). The remainders then satisfy the thesis's
-#: |D1| <= c2 / (IG2x + IR1x) = 0.42 < eta1 = 1 and |D2| <= (c1 + c4) / D <= 0.31 < eta2 = 1.
+#: ``|D1| <= c2 / (IG2x + IR1x) = 0.42 < eta1 = 1`` and ``|D2| <= (c1 + c4) / D <= 0.31 < eta2``.
 FRICTION_THESIS = cmg.Friction(b1=1.8e-4, b2=5.4e-3, b4=0.0, c1=0.03, c2=0.01, c4=0.01)
-#: Gimbal-2 Coulomb friction 0.05 N m (high end reported): |D1| up to 2.1 > eta1 = 1.
+#: Gimbal-2 Coulomb friction 0.05 N m (high end reported): ``|D1|`` up to 2.1 > ``eta1 = 1``.
 FRICTION_STRONG = cmg.Friction(b1=1.8e-4, b2=5.4e-3, b4=0.0, c1=0.03, c2=0.05, c4=0.01)
 
 
@@ -39,6 +39,11 @@ class CmgCase:
         True friction of the plant.
     delta_IG4x : float
         True change of gimbal 4's inertia.
+
+    Examples
+    --------
+    >>> CASES["strong_friction"].friction.c2
+    0.05
     """
 
     name: str

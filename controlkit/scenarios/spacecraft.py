@@ -41,6 +41,11 @@ class SpacecraftCase:
     compensator : str
         ``"none"`` (Fig. 2 loop), ``"fixed"`` (Fig. 3, constant ``K``) or
         ``"frit"`` (Fig. 4, on-line FRIT tuning of ``K``).
+
+    Examples
+    --------
+    >>> CASES["proposed"].color, CASES["proposed"].compensator
+    ('tab:red', 'frit')
     """
 
     name: str

@@ -164,7 +164,7 @@ def frit_update(t, x, u, p):
     """One step of the FRIT tuner (eq. 24-30, errata E1-E2).
 
     ``p = [F1, F2, a1, a2, lambda, kappa, psi1, psi2]`` with ``a_j = exp(-F_j Ts)``;
-    state layout as :data:`controlkit.blocks.mec.TUNER_STATES`.
+    state layout as ``controlkit.blocks.mec.TUNER_STATES``.
     """
     lam, kappa = p[4], p[5]
     xn = x.copy()
