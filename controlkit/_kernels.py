@@ -58,6 +58,15 @@ def _mat3_vec(p, o, v):
 
 
 @kernel
+def _quaternion_rate(q0, q1, q2, q3, w):
+    """``Q(q) w`` of eq. (4), as a tuple."""
+    return (0.5 * (-q1 * w[0] - q2 * w[1] - q3 * w[2]),
+            0.5 * (q0 * w[0] - q3 * w[1] + q2 * w[2]),
+            0.5 * (q3 * w[0] + q0 * w[1] - q1 * w[2]),
+            0.5 * (-q2 * w[0] + q1 * w[1] + q0 * w[2]))
+
+
+@kernel
 def spacecraft_rhs(t, x, u, p):
     """Plant eq. (2)-(4); ``p = [J_t^-1 (9), J_w1 v1 (3), J_w2 v2 (3), H0 profile (10)]``."""
     v = _body_from_inertial(x, momentum_at(t, p, 15))
@@ -65,12 +74,10 @@ def spacecraft_rhs(t, x, u, p):
          v[1] - p[10] * u[0] - p[13] * u[1],
          v[2] - p[11] * u[0] - p[14] * u[1])
     w = _mat3_vec(p, 0, v)
-    q0, q1, q2, q3 = x[0], x[1], x[2], x[3]
+    rate = _quaternion_rate(x[0], x[1], x[2], x[3], w)
     dq = np.empty(4)
-    dq[0] = 0.5 * (-q1 * w[0] - q2 * w[1] - q3 * w[2])
-    dq[1] = 0.5 * (q0 * w[0] - q3 * w[1] + q2 * w[2])
-    dq[2] = 0.5 * (q3 * w[0] + q0 * w[1] - q1 * w[2])
-    dq[3] = 0.5 * (-q2 * w[0] + q1 * w[1] + q0 * w[2])
+    for i in range(4):
+        dq[i] = rate[i]
     return dq
 
 
@@ -93,10 +100,9 @@ def linearizer_output(t, x, u, p):
     norm_sq = q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3
     if norm_sq == 0.0:
         return out
-    a = 0.5 * (q0 * p[0] - q3 * p[2] + q2 * p[4])
-    b = 0.5 * (q0 * p[1] - q3 * p[3] + q2 * p[5])
-    c = 0.5 * (q3 * p[0] + q0 * p[2] - q1 * p[4])
-    d = 0.5 * (q3 * p[1] + q0 * p[3] - q1 * p[5])
+    # dh/dq g = rows 1-2 of Q(q) times the columns of G
+    _, a, c, _ = _quaternion_rate(q0, q1, q2, q3, (p[0], p[2], p[4]))
+    _, b, d, _ = _quaternion_rate(q0, q1, q2, q3, (p[1], p[3], p[5]))
     det = a * d - b * c
     frob = a * a + b * b + c * c + d * d
     largest = math.sqrt(0.5 * (frob + math.sqrt(max(frob * frob - 4.0 * det * det, 0.0))))
@@ -106,8 +112,7 @@ def linearizer_output(t, x, u, p):
         out[1] = np.nan
         return out
     w = _mat3_vec(p, 6, _body_from_inertial(u[2:6], momentum_at(t, p, 15)))
-    f1 = 0.5 * (q0 * w[0] - q3 * w[1] + q2 * w[2])
-    f2 = 0.5 * (q3 * w[0] + q0 * w[1] - q1 * w[2])
+    _, f1, f2, _ = _quaternion_rate(q0, q1, q2, q3, w)
     r0 = u[0] - f1
     r1 = u[1] - f2
     out[0] = (d * r0 - b * r1) / det

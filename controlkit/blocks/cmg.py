@@ -28,6 +28,10 @@ T1_MAX, T2_MAX = 0.6, 2.4
 TS_CMG = 0.001
 
 
+def _field_values(obj) -> np.ndarray:
+    return np.array([getattr(obj, f.name) for f in fields(obj)], dtype=float)
+
+
 @dataclass(frozen=True)
 class Inertias:
     """The seven inertias of eq. (1)-(3), ECP Model 750 values by default (kg m^2).
@@ -63,7 +67,7 @@ class Inertias:
 
     def packed(self) -> np.ndarray:
         """The seven inertias in field order, as the kernels read them."""
-        return np.array([getattr(self, f.name) for f in fields(self)], dtype=float)
+        return _field_values(self)
 
     @property
     def I1(self) -> float:
@@ -110,7 +114,7 @@ class Friction:
 
     def packed(self) -> np.ndarray:
         """``[b1, b2, b4, c1, c2, c4, w_c]`` as the kernels read them."""
-        return np.array([getattr(self, f.name) for f in fields(self)], dtype=float)
+        return _field_values(self)
 
     def torques(self, w) -> np.ndarray:
         """``[F1, F2, F4]`` at the rates ``w = [w1, w2, w4]``."""

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from ..blocks.cmg import T1_MAX, T2_MAX
+from .export import save_figure
 from .spacecraft import signal
 
 #: CSV columns of ``controlkit reproduce cmg``, in order.
@@ -112,9 +113,5 @@ def figures(tables, outdir) -> list[Path]:
         ax.set_title(title)
         ax.grid(True, alpha=0.3)
         ax.legend(loc="best", fontsize=8)
-        fig.tight_layout()
-        path = outdir / f"{stem}.png"
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-        written.append(path)
+        written.append(save_figure(fig, outdir / f"{stem}.png"))
     return written

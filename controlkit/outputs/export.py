@@ -56,6 +56,25 @@ def write_json(path, data) -> Path:
     return path
 
 
+def save_figure(fig, path, *, dpi=110) -> Path:
+    """Lay out, save and close a matplotlib figure; return its path.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib, matplotlib
+    >>> matplotlib.use("Agg")
+    >>> import matplotlib.pyplot as plt
+    >>> save_figure(plt.figure(), pathlib.Path(tempfile.mkdtemp()) / "f.png").suffix
+    '.png'
+    """
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return Path(path)
+
+
 def _to_builtin(value):
     if isinstance(value, np.ndarray):
         return value.tolist()

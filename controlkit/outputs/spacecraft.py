@@ -8,6 +8,7 @@ import numpy as np
 
 from ..blocks.spacecraft import POINTING_REQUIREMENT_DEG, pointing_error_deg
 from ..scenarios import spacecraft as scenario
+from .export import save_figure
 
 #: CSV columns of ``controlkit reproduce spacecraft``, in order.
 COLUMNS = ("time", "h1", "h2", "pointing_error_deg", "u1", "u2",
@@ -161,9 +162,5 @@ def figures(tables: dict[str, dict[str, np.ndarray]], outdir) -> list[Path]:
             bottom.legend(loc="upper right", fontsize=8)
         axes[0, 0].set_title(title)
         axes[0, 0].legend(loc="upper right", fontsize=8)
-        fig.tight_layout()
-        path = outdir / f"{stem}.png"
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-        written.append(path)
+        written.append(save_figure(fig, outdir / f"{stem}.png"))
     return written
