@@ -22,9 +22,9 @@ class Kernel:
     Attributes
     ----------
     output : callable
-        ``output(t, x, u, p) -> y``.
+        ``output(t, x, u, p, out) -> out``, writing ``y`` into ``out``.
     update : callable or None
-        ``update(t, x, u, p)``: the next state (discrete), the derivative
+        ``update(t, x, u, p, out) -> out``: the next state (discrete), the derivative
         (continuous, or continuous under ``rk4``), ``None`` for a static block.
     params : numpy.ndarray
         Packed parameters ``p``.
@@ -53,7 +53,7 @@ def kernel_block(output, update=None, *, params=(), feedthrough=True, check=None
     Parameters
     ----------
     output, update : callable
-        Kernels ``f(t, x, u, p)`` (``update`` None for a static block).
+        Kernels ``f(t, x, u, p, out)`` (``update`` None for a static block).
     params : array_like
         Packed parameters passed as ``p``.
     feedthrough : bool
@@ -77,21 +77,24 @@ def kernel_block(output, update=None, *, params=(), feedthrough=True, check=None
     [1.0, 2.0]
     """
     p = np.array(params, dtype=float).reshape(-1)
+    size = {}  # filled once the system knows its dimensions
 
     def outfcn(t, x, u, _params):
         x = np.asarray(x, dtype=float)
         u = np.asarray(u, dtype=float)
-        y = output(t, x, u, p)
-        if check is not None and np.isnan(y[0]):
+        y = output(t, x, u, p, np.empty(size["y"]))
+        if check is not None and size["y"] and np.isnan(y[0]):
             check(t, x, u, y)
         return y
 
     updfcn = None
     if update is not None:
         def updfcn(t, x, u, _params):
-            return update(t, np.asarray(x, dtype=float), np.asarray(u, dtype=float), p)
+            return update(t, np.asarray(x, dtype=float), np.asarray(u, dtype=float), p,
+                          np.empty(size["x"]))
 
     sys = ct.nlsys(updfcn, outfcn, **nlsys_kwargs)
+    size["y"], size["x"] = sys.noutputs, sys.nstates
     sys.kernel = Kernel(output, update, p, bool(feedthrough))
     sys.kernel_check = check
     return sys

@@ -29,7 +29,7 @@ def kernel(function):
     --------
     >>> import numpy as np
     >>> from controlkit._kernels import constant_output  # decorated with @kernel
-    >>> constant_output(0.0, np.zeros(0), np.zeros(0), np.array([1.5])).tolist()
+    >>> constant_output(0.0, np.zeros(0), np.zeros(0), np.array([1.5]), np.zeros(1)).tolist()
     [1.5]
     """
     if numba is None:

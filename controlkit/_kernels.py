@@ -1,7 +1,8 @@
 """Numeric kernels of the blocks: one plain function per update or output equation.
 
-Every kernel has the signature ``f(t, x, u, p) -> ndarray`` with ``p`` a
-flat float64 parameter vector packed by the block factory. They are written
+Every kernel has the signature ``f(t, x, u, p, out) -> out``: ``p`` is a flat
+float64 parameter vector packed by the block factory, and the result is
+written into the caller's ``out`` (a compiled step then allocates nothing). They are written
 in the subset of Python and NumPy that numba compiles, so the same source
 serves both paths: the python-control blocks call them as ordinary Python,
 and the fast engine (:mod:`controlkit.engine`) compiles them with numba.
@@ -67,7 +68,7 @@ def _quaternion_rate(q0, q1, q2, q3, w):
 
 
 @kernel
-def spacecraft_rhs(t, x, u, p):
+def spacecraft_rhs(t, x, u, p, out):
     """Plant eq. (2)-(4); ``p = [J_t^-1 (9), J_w1 v1 (3), J_w2 v2 (3), H0 profile (10)]``."""
     v = _body_from_inertial(x, momentum_at(t, p, 15))
     v = (v[0] - p[9] * u[0] - p[12] * u[1],
@@ -75,20 +76,20 @@ def spacecraft_rhs(t, x, u, p):
          v[2] - p[11] * u[0] - p[14] * u[1])
     w = _mat3_vec(p, 0, v)
     rate = _quaternion_rate(x[0], x[1], x[2], x[3], w)
-    dq = np.empty(4)
     for i in range(4):
-        dq[i] = rate[i]
-    return dq
+        out[i] = rate[i]
+    return out
 
 
 @kernel
-def state_output(t, x, u, p):
+def state_output(t, x, u, p, out):
     """Output equal to the state."""
-    return x.copy()
+    out[:] = x
+    return out
 
 
 @kernel
-def linearizer_output(t, x, u, p):
+def linearizer_output(t, x, u, p, out):
     """Eq. (11) for ``h = [q1, q2]``; ``p = [G (6), J_m^-1 (9), H0n profile (10), thr]``.
 
     ``G = -J_m^-1 [J_w1 v1, J_w2 v2]`` (3x2 row-major), so ``dh/dq g = Q_12(q) G``.
@@ -96,7 +97,8 @@ def linearizer_output(t, x, u, p):
     ``thr |q|``; zero input (python-control's trial sweep) gives zero.
     """
     q0, q1, q2, q3 = u[2], u[3], u[4], u[5]
-    out = np.zeros(2)
+    out[0] = 0.0
+    out[1] = 0.0
     norm_sq = q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3
     if norm_sq == 0.0:
         return out
@@ -121,58 +123,59 @@ def linearizer_output(t, x, u, p):
 
 
 @kernel
-def attitude_output_kernel(t, x, u, p):
+def attitude_output_kernel(t, x, u, p, out):
     """Eq. (9): ``h = [q1, q2]`` from the input ``q``."""
-    h = np.empty(2)
-    h[0] = u[1]
-    h[1] = u[2]
-    return h
+    out[0] = u[1]
+    out[1] = u[2]
+    return out
 
 
 @kernel
-def outer_controller_kernel(t, x, u, p):
+def outer_controller_kernel(t, x, u, p, out):
     """Eq. (12): ``mu = F (r - h)``; ``p = [F1, F2]``."""
-    mu = np.empty(2)
-    mu[0] = p[0] * (u[0] - u[2])
-    mu[1] = p[1] * (u[1] - u[3])
-    return mu
+    out[0] = p[0] * (u[0] - u[2])
+    out[1] = p[1] * (u[1] - u[3])
+    return out
 
 
 # --- MEC and FRIT (eq. 13-30) -----------------------------------------------------------
 
 
 @kernel
-def integrator_update(t, x, u, p):
+def integrator_update(t, x, u, p, out):
     """``x[k+1] = x[k] + Ts u[k]``; ``p = [Ts]``."""
-    return x + p[0] * u
+    for i in range(x.shape[0]):
+        out[i] = x[i] + p[0] * u[i]
+    return out
 
 
 @kernel
-def mec_output(t, x, u, p):
+def mec_output(t, x, u, p, out):
     """Eq. (13)-(15): ``mu = mu_n + K (hn - h)``, ``K = u[6:10]`` row-major."""
     e0 = u[2] - u[4]
     e1 = u[3] - u[5]
-    mu = np.empty(2)
-    mu[0] = u[0] + (u[6] * e0 + u[7] * e1)
-    mu[1] = u[1] + (u[8] * e0 + u[9] * e1)
-    return mu
+    out[0] = u[0] + (u[6] * e0 + u[7] * e1)
+    out[1] = u[1] + (u[8] * e0 + u[9] * e1)
+    return out
 
 
 @kernel
-def constant_output(t, x, u, p):
+def constant_output(t, x, u, p, out):
     """Output the parameters (a constant source)."""
-    return p.copy()
+    out[:] = p
+    return out
 
 
 @kernel
-def frit_update(t, x, u, p):
+def frit_update(t, x, u, p, out):
     """One step of the FRIT tuner (eq. 24-30, errata E1-E2).
 
     ``p = [F1, F2, a1, a2, lambda, kappa, psi1, psi2]`` with ``a_j = exp(-F_j Ts)``;
     state layout as ``controlkit.blocks.mec.TUNER_STATES``.
     """
     lam, kappa = p[4], p[5]
-    xn = x.copy()
+    out[:] = x
+    xn = out
     mu0, mu1, h0, h1, hn0, hn1 = u[0], u[1], u[2], u[3], u[4], u[5]
     e = (hn0 - h0, hn1 - h1)
     h = (h0, h1)
@@ -206,13 +209,14 @@ def frit_update(t, x, u, p):
     xn[5] = a1 * x[5] + (1 - a1) * mu1
     xn[6] = a0 * x[6] + (1 - a0) * h0
     xn[7] = a1 * x[7] + (1 - a1) * h1
-    return xn
+    return out
 
 
 @kernel
-def frit_output(t, x, u, p):
+def frit_output(t, x, u, p, out):
     """The implemented gain ``K`` (state, row-major)."""
-    return x[20:24].copy()
+    out[:] = x[20:24]
+    return out
 
 
 # --- CMG (thesis eq. 1-45) ------------------------------------------------------------
@@ -220,7 +224,7 @@ def frit_output(t, x, u, p):
 
 
 @kernel
-def cmg_rhs(t, x, u, p):
+def cmg_rhs(t, x, u, p, out):
     """Eq. (1)-(3) solved for the accelerations.
 
     ``p = [inertias (7), delta_IG4x, b1, b2, b4, c1, c2, c4, w_c]``.
@@ -242,20 +246,20 @@ def cmg_rhs(t, x, u, p):
     m13 = IR1y * s
     m33 = I2 + I1 * s * s
     det = m11 * m33 - m13 * m13
-    dx = np.empty(6)
-    dx[0] = w1
-    dx[1] = w2
-    dx[2] = w4
-    dx[3] = (m33 * r1 - m13 * r3) / det
-    dx[4] = r2 / (IG2x + IR1x)
-    dx[5] = (m11 * r3 - m13 * r1) / det
-    return dx
+    out[0] = w1
+    out[1] = w2
+    out[2] = w4
+    out[3] = (m33 * r1 - m13 * r3) / det
+    out[4] = r2 / (IG2x + IR1x)
+    out[5] = (m11 * r3 - m13 * r1) / det
+    return out
 
 
 @kernel
-def cmg_reference(t, x, u, p):
+def cmg_reference(t, x, u, p, out):
     """Section 6 commands with two derivatives (corrected misprints)."""
-    r = np.zeros(6)
+    r = out
+    r[:] = 0.0
     if t <= 2.0:
         r[0] = math.pi / 18
         return r
@@ -290,26 +294,23 @@ def _switch(s, phi):
 
 @kernel
 def smc_law(x, u, p):
-    """Eq. (20)-(45): torques ``[u1, u2]`` and the estimate rates.
+    """Eq. (20)-(45): ``(u1, u2, a1', a2', a3', a4')``, the torques and the estimate rates.
 
     ``x = [a1..a4]``; ``u = [q1, q2, q4, w1, w2, w4, q2d, q2d', q2d'', q4d, q4d', q4d'']``;
     ``p = [inertias (7), C1, C2, eta1, gamma1, C3, C4, eta2, gamma2, gamma3, gamma4,
     boundary_layer, min_sin_q2, Ts]``. NaN torques when ``|sin q2| < min_sin_q2``.
+    A tuple, so that a compiled call allocates nothing.
     """
     IR1y, IR1x, IG2x, IG2y, IG2z, IG3x, IG4x = p[0], p[1], p[2], p[3], p[4], p[5], p[6]
     C1, C2, eta1, gamma1 = p[7], p[8], p[9], p[10]
     C3, C4, eta2, gamma2, gamma3, gamma4 = p[11], p[12], p[13], p[14], p[15], p[16]
     phi = p[17]
-    torque = np.zeros(2)
-    rates = np.zeros(4)
     q2, q4, w1, w2, w4 = u[1], u[2], u[3], u[4], u[5]
     q2d, q2d_dot, q2d_ddot, q4d, q4d_dot, q4d_ddot = u[6], u[7], u[8], u[9], u[10], u[11]
     s = math.sin(q2)
     c = math.cos(q2)
     if abs(s) < p[18]:
-        torque[0] = np.nan
-        torque[1] = np.nan
-        return torque, rates
+        return (np.nan, np.nan, 0.0, 0.0, 0.0, 0.0)
     I1 = IG2y + IR1y - IR1x - IG2z
     I2 = IR1x + IG2z + IG3x + IG4x
     J2 = IG2x + IR1x
@@ -319,54 +320,57 @@ def smc_law(x, u, p):
     g4 = -s / D
     z1 = q2 - q2d
     s1 = w2 - (-C1 * z1 + q2d_dot)
-    torque[1] = -(x[0] * w2 + z1 + f2 - q2d_ddot + C1 * (w2 - q2d_dot) + C2 * s1
+    u2 = -(x[0] * w2 + z1 + f2 - q2d_ddot + C1 * (w2 - q2d_dot) + C2 * s1
                   + eta1 * _switch(s1, phi)) * J2
     z2 = q4 - q4d
     s2 = w4 - (-C3 * z2 + q4d_dot)
     w4s_dot = -C3 * (w4 - q4d_dot) + q4d_ddot
-    torque[0] = -(z2 + f4 - (1 + x[3] / D) * w4s_dot + C4 * s2 + eta2 * _switch(s2, phi)
+    u1 = -(z2 + f4 - (1 + x[3] / D) * w4s_dot + C4 * s2 + eta2 * _switch(s2, phi)
                   + x[1] * w1 * s / D + x[2] * w4 / D) / g4
-    rates[0] = w2 * s1 / gamma1
-    rates[1] = w1 * s2 * s / D / gamma2
-    rates[2] = w4 * s2 / D / gamma3
-    rates[3] = -w4s_dot * s2 / D / gamma4
-    return torque, rates
+    return (u1, u2,
+            w2 * s1 / gamma1,
+            w1 * s2 * s / D / gamma2,
+            w4 * s2 / D / gamma3,
+            -w4s_dot * s2 / D / gamma4)
 
 
 @kernel
-def smc_output(t, x, u, p):
+def _all_zero(u, n):
+    for i in range(n):
+        if u[i] != 0.0:
+            return False
+    return True
+
+
+@kernel
+def smc_output(t, x, u, p, out):
     """``[T1_cmd, T2_cmd, a1..a4]``; zero torque for all-zero measurements (trial sweep)."""
-    y = np.zeros(6)
-    y[2:6] = x
-    zero = True
-    for i in range(6):
-        if u[i] != 0.0:
-            zero = False
-    if zero:
-        return y
-    torque, _ = smc_law(x, u, p)
-    y[0] = torque[0]
-    y[1] = torque[1]
-    return y
+    out[2:6] = x
+    if _all_zero(u, 6):
+        out[0] = 0.0
+        out[1] = 0.0
+        return out
+    law = smc_law(x, u, p)
+    out[0] = law[0]
+    out[1] = law[1]
+    return out
 
 
 @kernel
-def smc_update(t, x, u, p):
+def smc_update(t, x, u, p, out):
     """Forward-Euler integration of the adaptation laws at ``Ts = p[19]``."""
-    zero = True
-    for i in range(6):
-        if u[i] != 0.0:
-            zero = False
-    if zero:
-        return x.copy()
-    _, rates = smc_law(x, u, p)
-    return x + p[19] * rates
+    if _all_zero(u, 6):
+        out[:] = x
+        return out
+    law = smc_law(x, u, p)
+    for i in range(4):
+        out[i] = x[i] + p[19] * law[2 + i]
+    return out
 
 
 @kernel
-def saturation_output(t, x, u, p):
+def saturation_output(t, x, u, p, out):
     """``clip(u_i, -p_i, p_i)``."""
-    y = np.empty(u.shape[0])
     for i in range(u.shape[0]):
-        y[i] = min(p[i], max(-p[i], u[i]))
-    return y
+        out[i] = min(p[i], max(-p[i], u[i]))
+    return out

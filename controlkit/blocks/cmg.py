@@ -154,7 +154,8 @@ def accelerations(x, torque, inertias: Inertias, delta_IG4x=0.0, friction=None):
     [0.0, 10.0, 0.0]
     """
     p = _plant_parameters(inertias, delta_IG4x, friction or Friction())
-    return kernels.cmg_rhs(0.0, np.asarray(x, float), np.asarray(torque, float), p)[3:]
+    return kernels.cmg_rhs(0.0, np.asarray(x, float), np.asarray(torque, float), p,
+                           np.empty(6))[3:]
 
 
 def axis4_momentum(x, inertias: Inertias, delta_IG4x=0.0):
@@ -240,7 +241,7 @@ def reference(t):
     [1.047198, 0.0, -0.119623, 1.0, 0.0, -0.137078]
     """
     empty = np.zeros(0)
-    return kernels.cmg_reference(float(t), empty, empty, empty)
+    return kernels.cmg_reference(float(t), empty, empty, empty, np.empty(6))
 
 
 def reference_generator(*, name="reference") -> ct.NonlinearIOSystem:
@@ -302,12 +303,11 @@ def smc_law(x, ref, a_hat, inertias: Inertias, gains, boundary_layer=0.0, min_si
     [0.0, 0.0]
     """
     p = _controller_parameters(inertias, gains, boundary_layer, min_sin_q2, 0.0)
-    torque, a_hat_dot = kernels.smc_law(np.asarray(a_hat, float),
-                                        np.concatenate([np.asarray(x, float),
-                                                        np.asarray(ref, float)]), p)
-    if np.isnan(torque[0]):
+    law = kernels.smc_law(np.asarray(a_hat, float),
+                          np.concatenate([np.asarray(x, float), np.asarray(ref, float)]), p)
+    if np.isnan(law[0]):
         _refuse_sin_q2(x[1])
-    return torque, a_hat_dot
+    return np.array(law[:2]), np.array(law[2:])
 
 
 def _controller_parameters(inertias, gains, boundary_layer, min_sin_q2, Ts):

@@ -194,7 +194,7 @@ def rls_step(Khat, P1, P2, xi, eta, lambda_):
     x[16:20] = np.ravel(P2)
     p = np.array([1.0, 1.0, 0.0, 0.0, lambda_, 1.0, 0.0, 0.0])
     u = np.array([0.0, 0.0, 0.0, 0.0, 1.0, 1.0])  # h = 0, hn - h = 1 > psi = 0
-    xn = kernels.frit_update(0.0, x, u, p)
+    xn = kernels.frit_update(0.0, x, u, p, np.empty(24))
     return xn[8:12].reshape(2, 2), xn[12:16].reshape(2, 2), xn[16:20].reshape(2, 2)
 
 

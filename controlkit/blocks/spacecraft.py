@@ -276,10 +276,10 @@ def spacecraft_plant(
 
     rhs = kernels.spacecraft_rhs
     if python_H0 is not None:  # an arbitrary function of time: packed at each call
-        def rhs(t, x, u, p):
+        def rhs(t, x, u, p, out):
             local = p.copy()
             local[15:18] = python_H0(t)
-            return kernels.spacecraft_rhs(t, x, u, local)
+            return kernels.spacecraft_rhs(t, x, u, local, out)
 
     sys = kernel_block(
         kernels.state_output, rhs, params=params, feedthrough=False,
@@ -385,10 +385,10 @@ def io_linearizer(
 
     output = kernels.linearizer_output
     if python_H0n is not None:
-        def output(t, x, u, p):
+        def output(t, x, u, p, out):
             local = p.copy()
             local[15:18] = python_H0n(t)
-            return kernels.linearizer_output(t, x, u, local)
+            return kernels.linearizer_output(t, x, u, local, out)
 
     sys = kernel_block(
         output, params=params, feedthrough=True, check=refuse,
