@@ -18,6 +18,7 @@ import hashlib
 import importlib.util
 import os
 import sys as pysys
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -246,8 +247,13 @@ def _load(source: str):
                          ).hexdigest()[:20]
     if key in _LOADED:
         return _LOADED[key]
-    CACHE_DIR.mkdir(parents=True, exist_ok=True)
-    path = CACHE_DIR / f"loop_{key}.py"
+    folder = CACHE_DIR
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError:  # a read-only home: keep the loops for this machine's session only
+        folder = Path(tempfile.gettempdir()) / "controlkit-engine"
+        folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"loop_{key}.py"
     if not path.exists():  # keep the file's date: numba's cache keys on it
         tmp = path.with_suffix(f".{os.getpid()}.tmp")
         tmp.write_text(source)
