@@ -198,9 +198,14 @@ def rls_step(Khat, P1, P2, xi, eta, lambda_):
     return xn[8:12].reshape(2, 2), xn[12:16].reshape(2, 2), xn[16:20].reshape(2, 2)
 
 
+#: ``output_scale`` that reads ``h`` in degrees: for small angles the rotation about body
+#: x is ``2 q1`` rad, i.e. ``(360 / pi) q1`` degrees.
+DEGREES_PER_QUATERNION_UNIT = 360.0 / np.pi
+
+
 def frit_tuner(
     F=F_PAPER, Ts=TS_PAPER, *, lambda_=LAMBDA_PAPER, gamma=GAMMA_PAPER, kappa=KAPPA_PAPER,
-    psi=PSI_PAPER, K0=0.0, h0=(0.0, 0.0), name="tuner",
+    psi=PSI_PAPER, K0=0.0, h0=(0.0, 0.0), output_scale=1.0, name="tuner",
 ) -> ct.NonlinearIOSystem:
     """On-line FRIT tuner of the MEC gain ``K`` by recursive least squares (eq. 15-30).
 
@@ -249,6 +254,13 @@ def frit_tuner(
     h0 : array_like
         Initial output ``h(0)``: the ``M h`` filters start there, as if the loop
         had rested at ``h(0)`` (then ``h - M r~ = 0`` holds from the first step).
+    output_scale : float
+        Units in which ``gamma`` and ``psi`` are read: the tuner behaves as if it
+        received ``output_scale * h`` (and ``mu``, ``hn`` alike). ``K`` does not
+        depend on units, but ``P`` and the threshold do: scaling the data by ``s``
+        is exactly ``P(0) = gamma s^2 I`` and a threshold ``psi / s``. Default 1
+        (``h = [q1, q2]``, the spec's reading of Table 3);
+        :data:`DEGREES_PER_QUATERNION_UNIT` reads them with ``h`` in degrees.
     name : str
         System name.
 
@@ -278,6 +290,8 @@ def frit_tuner(
         raise ValueError(f"psi must be >= 0 (one value or two), got {psi!r}")
     K0 = _checks.gain_matrix("K0", K0)
     h0 = _checks.vector("h0", h0, 2)
+    scale = _checks.positive_scalar("output_scale", output_scale)
+    gamma, psi_values = gamma * scale**2, psi_values / scale  # see output_scale
     a = np.exp(-F * Ts)
     params = np.concatenate([F, a, [lambda_, kappa], psi_values])
     sys = kernel_block(kernels.frit_output, kernels.frit_update, params=params,

@@ -41,6 +41,8 @@ class SpacecraftCase:
     compensator : str
         ``"none"`` (Fig. 2 loop), ``"fixed"`` (Fig. 3, constant ``K``) or
         ``"frit"`` (Fig. 4, on-line FRIT tuning of ``K``).
+    tuner_options : dict, optional
+        Keywords of :func:`~controlkit.blocks.mec.frit_tuner` that define the case.
 
     Examples
     --------
@@ -53,6 +55,7 @@ class SpacecraftCase:
     color: str
     model_error: bool
     compensator: str
+    tuner_options: dict | None = None
 
 
 CASES: dict[str, SpacecraftCase] = {
@@ -60,6 +63,10 @@ CASES: dict[str, SpacecraftCase] = {
     "without_mec": SpacecraftCase("without_mec", "w/o MEC", "tab:green", True, "none"),
     "proposed": SpacecraftCase("proposed", "Proposed (MEC + FRIT)", "tab:red", True, "frit"),
     "mec_fixed": SpacecraftCase("mec_fixed", "MEC, fixed K", "tab:purple", True, "fixed"),
+    # Table 3's P(0) and psi read with h in degrees: a hypothesis (see docs/theory/frit.md)
+    "proposed_deg": SpacecraftCase(
+        "proposed_deg", "Proposed, Table 3 in degrees", "tab:orange", True, "frit",
+        {"output_scale": mec.DEGREES_PER_QUATERNION_UNIT}),
 }
 #: Cases run by ``controlkit reproduce spacecraft`` when none is named.
 DEFAULT_CASES = ("ideal", "without_mec", "proposed")
@@ -143,7 +150,8 @@ def build_loop(case="ideal", *, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXED, h0=None
     if case.compensator == "fixed":
         gain = mec.constant_gain(K)
     else:
-        gain = mec.frit_tuner(F, Ts, h0=h0, **(tuner_options or {}))
+        gain = mec.frit_tuner(F, Ts, h0=h0, **{**(case.tuner_options or {}),
+                                               **(tuner_options or {})})
     return diagrams.mec_loop(plant, sc.io_linearizer(), sc.outer_controller(F, output="mu_n"),
                              K=gain, nominal=mec.nominal_model(Ts), Ts=Ts, name=case.name)
 
