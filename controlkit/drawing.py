@@ -104,16 +104,19 @@ def diagram_graph(sys):
             "unconnected_inputs": dict(unconnected), "unused_outputs": dict(unused)}
 
 
-def _layers(nodes, edges):
-    """Longest-path layers after removing the back edges of a depth-first search."""
+def _layers(nodes, edges, entries=()):
+    """Longest-path layers after removing the back edges of a depth-first search.
+
+    The search starts where the signals enter (``entries``, the blocks fed by external
+    inputs), then at blocks nothing feeds: the diagram reads from the reference on.
+    """
     succ = defaultdict(list)
     indeg = defaultdict(int)
     for (a, b) in edges:
         if a != b:
             succ[a].append(b)
             indeg[b] += 1
-    roots = [n for n in nodes if indeg[n] == 0 and n != _OUT]
-    roots = sorted(roots, key=lambda n: (n != _IN, nodes.index(n)))
+    roots = list(entries) + [n for n in nodes if indeg[n] == 0 and n not in entries]
     state, back = {}, set()
 
     def visit(n):
@@ -176,7 +179,8 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None):
     graph = diagram_graph(sys)
     blocks, edges = graph["blocks"], graph["edges"]
     internal = {k: v for k, v in edges.items() if _IN not in k and _OUT not in k}
-    layer, back = _layers(blocks, internal)
+    entries = [b for (a, b) in edges if a == _IN]
+    layer, back = _layers(blocks, internal, list(dict.fromkeys(entries)))
     systems = {s.name: s for s in sys.syslist}
 
     # columns in signal order; a column holds blocks that do not feed each other
