@@ -144,9 +144,9 @@ def reproduce(study="all", *, out="results", cases=None, horizon=None, stride=No
 
     Examples
     --------
-    >>> import tempfile
+    >>> import io, tempfile
     >>> m = reproduce("spacecraft", out=tempfile.mkdtemp(), cases=["ideal"], horizon=1.0,
-    ...               log=open("/dev/null", "w"))
+    ...               log=io.StringIO())
     >>> sorted(m["spacecraft"])
     ['ideal']
     """
