@@ -124,23 +124,6 @@ class Friction:
         return -b * w - c * np.tanh(w / self.w_c)
 
 
-def mass_matrix(q2, inertias: Inertias, delta_IG4x=0.0) -> np.ndarray:
-    """Mass matrix of eq. (1)-(3) acting on ``[w1', w2', w4']``.
-
-    Examples
-    --------
-    >>> mass_matrix(0.0, Inertias()).round(4).tolist()
-    [[0.0273, 0.0, 0.0], [0.0, 0.024, 0.0], [0.0, 0.0, 0.1303]]
-    """
-    s = np.sin(q2)
-    J = inertias
-    return np.array([
-        [J.IR1y, 0.0, J.IR1y * s],
-        [0.0, J.J2, 0.0],
-        [J.IR1y * s, 0.0, J.I2 + delta_IG4x + J.I1 * s * s],
-    ])
-
-
 def _plant_parameters(inertias: Inertias, delta_IG4x, friction: Friction) -> np.ndarray:
     return np.concatenate([inertias.packed(), [delta_IG4x], friction.packed()])
 

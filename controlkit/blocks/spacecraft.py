@@ -89,13 +89,30 @@ paper_momentum = MomentumProfile(sine=(H0_AMPLITUDE, 0.0, H0_AMPLITUDE),
 
 
 def _momentum_parameters(name, value):
-    """Packed profile of a momentum argument, and the function itself for plain callables."""
-    if isinstance(value, MomentumProfile):
-        return value.packed(), None
+    """Check a momentum argument once: its packed profile, ``H(t)``, and whether it is Python.
+
+    A plain callable cannot be packed; its profile slots are filled at each call
+    (:func:`_repacked`) and the block cannot be compiled.
+    """
     H = _checks.momentum(name, value)
+    if isinstance(value, MomentumProfile):
+        return value.packed(), H, False
     if callable(value):
-        return MomentumProfile().packed(), H  # evaluated in Python at each call
-    return MomentumProfile(constant=tuple(H(0.0))).packed(), None
+        return MomentumProfile().packed(), H, True
+    return MomentumProfile(constant=tuple(H(0.0))).packed(), H, False
+
+
+def _repacked(kernel, H):
+    """``kernel`` with the momentum constant ``p[15:18]`` set to the Python ``H(t)`` per call.
+
+    Both the plant's and the linearizer's parameter vectors hold their momentum profile at 15.
+    """
+    def function(t, x, u, p, out):
+        local = p.copy()
+        local[15:18] = H(t)
+        return kernel(t, x, u, local, out)
+
+    return function
 
 
 # --- Pure math ---------------------------------------------------------------------
@@ -201,20 +218,6 @@ def pointing_error_deg(q) -> np.ndarray:
     return np.rad2deg(2.0 * np.arcsin(np.clip(half_sine, 0.0, 1.0)))
 
 
-def decoupling_matrix(q, J_m_inv, b1, b2) -> np.ndarray:
-    """``dh/dq g(q)`` of eq. (11) for ``h = [q1, q2]`` (a 2x2 matrix).
-
-    ``g_l(q) = -Q(q) J_m^-1 J_wl v_l`` (eq. 7-8); ``dh/dq`` picks rows 1 and 2.
-
-    Examples
-    --------
-    >>> decoupling_matrix([1, 0, 0, 0], np.eye(3), V1, V2).tolist()
-    [[-0.5, 0.0], [0.0, -0.5]]
-    """
-    rows = quaternion_rate_matrix(q)[1:3]
-    return -rows @ (J_m_inv @ np.column_stack([b1, b2]))
-
-
 # --- Block factories ---------------------------------------------------------------
 
 _Q_SIGNALS = [f"q[{i}]" for i in range(4)]
@@ -264,8 +267,7 @@ def spacecraft_plant(
     J_w1 = _checks.inertia("J_w1", J_w1)
     J_w2 = _checks.inertia("J_w2", J_w2)
     v1, v2 = _checks.wheel_axes(v1, v2)
-    H0_of_t = _checks.momentum("H0", H0)
-    profile, python_H0 = _momentum_parameters("H0", H0)
+    profile, H0_of_t, python_H0 = _momentum_parameters("H0", H0)
     J_t = J_b + J_w1 + J_w2
     J_t_inv = np.linalg.inv(J_t)
     b1, b2 = J_w1 @ v1, J_w2 @ v2
@@ -274,18 +276,12 @@ def spacecraft_plant(
     def rate(t, q, u):
         return body_rate(q, u, H0_of_t(t), J_t_inv, b1, b2)
 
-    rhs = kernels.spacecraft_rhs
-    if python_H0 is not None:  # an arbitrary function of time: packed at each call
-        def rhs(t, x, u, p, out):
-            local = p.copy()
-            local[15:18] = python_H0(t)
-            return kernels.spacecraft_rhs(t, x, u, local, out)
-
+    rhs = _repacked(kernels.spacecraft_rhs, H0_of_t) if python_H0 else kernels.spacecraft_rhs
     sys = kernel_block(
         kernels.state_output, rhs, params=params, feedthrough=False,
         inputs=_U_SIGNALS, outputs=_Q_SIGNALS, states=_Q_SIGNALS, name=name,
     )
-    if python_H0 is not None:
+    if python_H0:
         sys.kernel = None  # the fast engine cannot compile a Python callable
         sys.kernel_reason = "H0 is a Python function; give a MomentumProfile to compile it"
     sys.J_t, sys.H0 = J_t, H0_of_t
@@ -361,7 +357,7 @@ def io_linearizer(
     J_w2 = _checks.inertia("J_w2", J_w2)
     v1, v2 = _checks.wheel_axes(v1, v2)
     singular_tol = _checks.positive_scalar("singular_tol", singular_tol)
-    profile, python_H0n = _momentum_parameters("H0n", H0n)
+    profile, H0n_of_t, python_H0n = _momentum_parameters("H0n", H0n)
     J_m_inv = np.linalg.inv(J_m)
     b1, b2 = J_w1 @ v1, J_w2 @ v2
     G = -J_m_inv @ np.column_stack([b1, b2])
@@ -384,17 +380,13 @@ def io_linearizer(
         )
 
     output = kernels.linearizer_output
-    if python_H0n is not None:
-        def output(t, x, u, p, out):
-            local = p.copy()
-            local[15:18] = python_H0n(t)
-            return kernels.linearizer_output(t, x, u, local, out)
-
+    if python_H0n:
+        output = _repacked(kernels.linearizer_output, H0n_of_t)
     sys = kernel_block(
         output, params=params, feedthrough=True, check=refuse,
         inputs=["mu[0]", "mu[1]", *_Q_SIGNALS], outputs=_U_SIGNALS, dt=None, name=name,
     )
-    if python_H0n is not None:
+    if python_H0n:
         sys.kernel = None
         sys.kernel_reason = "H0n is a Python function; give a MomentumProfile to compile it"
     return sys
