@@ -37,7 +37,8 @@ def assert_same(loop, T, X0):
     return ref, fast
 
 
-@pytest.mark.parametrize("case", ["ideal", "without_mec", "mec_fixed", "proposed"])
+@pytest.mark.parametrize("case", [
+    "ideal", "without_mec", "mec_fixed", "proposed", "proposed_literal"])
 def test_spacecraft_scenarios_match_python_control_over_2000_s(case):
     loop = scenario.build_loop(case, h0=H0)
     assert_same(loop, np.arange(20001) * 0.1, start(loop))

@@ -201,11 +201,14 @@ def rls_step(Khat, P1, P2, xi, eta, lambda_):
 #: ``output_scale`` that reads ``h`` in degrees: for small angles the rotation about body
 #: x is ``2 q1`` rad, i.e. ``(360 / pi) q1`` degrees.
 DEGREES_PER_QUATERNION_UNIT = 360.0 / np.pi
+#: Units in which controlkit reads Table 3's ``P(0)`` and ``psi``: ``h`` in degrees (decision
+#: D1 in ``docs/theory/errata.md``; the paper does not state them).
+TABLE3_OUTPUT_SCALE = DEGREES_PER_QUATERNION_UNIT
 
 
 def frit_tuner(
     F=F_PAPER, Ts=TS_PAPER, *, lambda_=LAMBDA_PAPER, gamma=GAMMA_PAPER, kappa=KAPPA_PAPER,
-    psi=PSI_PAPER, K0=0.0, h0=(0.0, 0.0), output_scale=1.0, name="tuner",
+    psi=PSI_PAPER, K0=0.0, h0=(0.0, 0.0), output_scale=TABLE3_OUTPUT_SCALE, name="tuner",
 ) -> ct.NonlinearIOSystem:
     """On-line FRIT tuner of the MEC gain ``K`` by recursive least squares (eq. 15-30).
 
@@ -258,9 +261,11 @@ def frit_tuner(
         Units in which ``gamma`` and ``psi`` are read: the tuner behaves as if it
         received ``output_scale * h`` (and ``mu``, ``hn`` alike). ``K`` does not
         depend on units, but ``P`` and the threshold do: scaling the data by ``s``
-        is exactly ``P(0) = gamma s^2 I`` and a threshold ``psi / s``. Default 1
-        (``h = [q1, q2]``, the spec's reading of Table 3);
-        :data:`DEGREES_PER_QUATERNION_UNIT` reads them with ``h`` in degrees.
+        is exactly ``P(0) = gamma s^2 I`` and a threshold ``psi / s``. Default
+        :data:`TABLE3_OUTPUT_SCALE` ``= 360/pi``: Table 3's values with ``h`` in
+        degrees of rotation, the reading that reproduces the paper's Fig. 7-8
+        (decision D1). ``1`` reads ``gamma`` and ``psi`` in the units of ``h``
+        itself (``h = [q1, q2]``: the literal reading, whose gain drifts in bursts).
     name : str
         System name.
 
@@ -276,6 +281,8 @@ def frit_tuner(
     >>> tuner = frit_tuner()
     >>> tuner.nstates, tuner.output(0.0, tuner.x0, np.zeros(6)).tolist()
     (24, [0.0, 0.0, 0.0, 0.0])
+    >>> round(tuner.gamma), tuner.psi.round(8).tolist()  # in units of h = [q1, q2]
+    (1313123, [1.05e-06, 1.05e-06])
     """
     F = _checks.gain_pair("F", F)
     if np.any(F == 0):

@@ -63,10 +63,10 @@ CASES: dict[str, SpacecraftCase] = {
     "without_mec": SpacecraftCase("without_mec", "w/o MEC", "tab:green", True, "none"),
     "proposed": SpacecraftCase("proposed", "Proposed (MEC + FRIT)", "tab:red", True, "frit"),
     "mec_fixed": SpacecraftCase("mec_fixed", "MEC, fixed K", "tab:purple", True, "fixed"),
-    # Table 3's P(0) and psi read with h in degrees: a hypothesis (see docs/theory/frit.md)
-    "proposed_deg": SpacecraftCase(
-        "proposed_deg", "Proposed, Table 3 in degrees", "tab:orange", True, "frit",
-        {"output_scale": mec.DEGREES_PER_QUATERNION_UNIT}),
+    # Table 3's P(0) and psi read in the units of h = [q1, q2] instead of degrees (decision D1)
+    "proposed_literal": SpacecraftCase(
+        "proposed_literal", "Proposed, Table 3 in units of q", "tab:orange", True, "frit",
+        {"output_scale": 1.0}),
 }
 #: Cases run by ``controlkit reproduce spacecraft`` when none is named.
 DEFAULT_CASES = ("ideal", "without_mec", "proposed")
