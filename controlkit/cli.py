@@ -195,8 +195,10 @@ def main(argv=None) -> int:
     rep.add_argument("study", nargs="?", default="all", choices=["all", *STUDIES],
                      help="which study (default: all)")
     rep.add_argument("--out", default="results", help="output folder (default: results)")
+    known = "; ".join(f"{name}: {', '.join(study.cases)}" for name, study in STUDIES.items())
     rep.add_argument("--case", action="append", dest="cases", metavar="NAME",
-                     help="case to run (repeatable; default: each study's published cases)")
+                     help="case to run (repeatable; default: each study's published cases). "
+                          f"Known cases - {known}")
     rep.add_argument("--horizon", type=float, metavar="SECONDS",
                      help="simulated time (default: the published horizon)")
     rep.add_argument("--stride", type=int, metavar="N",

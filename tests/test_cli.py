@@ -56,3 +56,12 @@ def test_console_script_runs_as_module(tmp_path):
                           "--case", "ideal", "--horizon", "1", "--out", str(tmp_path)],
                          capture_output=True, text=True, check=True)
     assert "spacecraft/ideal:" in out.stdout
+
+
+def test_help_lists_every_case(capsys):
+    with pytest.raises(SystemExit):
+        main(["reproduce", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    for case in ("ideal", "without_mec", "proposed", "mec_fixed", "proposed_literal", "thesis",
+                 "strong_friction"):
+        assert case in text
