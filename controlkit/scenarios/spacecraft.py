@@ -125,7 +125,8 @@ def build_loop(case="ideal", *, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXED, h0=None
     K : float or array_like
         Gain of the ``"fixed"`` compensator (default ``0.1 I``).
     h0 : array_like, optional
-        Initial output (for the FRIT tuner's filters); default that of Table 2.
+        Initial output: where the ideal model starts (``hn(0) = h(0)``) and the
+        FRIT tuner's filters rest; default that of Table 2.
     tuner_options : dict, optional
         Keywords for :func:`~controlkit.blocks.mec.frit_tuner` (``lambda_``,
         ``gamma``, ``kappa``, ``psi``, ``K0``) in the ``"frit"`` case.
@@ -153,7 +154,8 @@ def build_loop(case="ideal", *, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXED, h0=None
         gain = mec.frit_tuner(F, Ts, h0=h0, **{**(case.tuner_options or {}),
                                                **(tuner_options or {})})
     return diagrams.mec_loop(plant, sc.io_linearizer(), sc.outer_controller(F, output="mu_n"),
-                             K=gain, nominal=mec.nominal_model(Ts), Ts=Ts, name=case.name)
+                             K=gain, nominal=mec.nominal_model(Ts, h0=h0), Ts=Ts,
+                             name=case.name)
 
 
 def run(case="ideal", *, horizon=HORIZON, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXED,
@@ -199,10 +201,7 @@ def run(case="ideal", *, horizon=HORIZON, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXE
         q0 = _checks.unit_quaternion("q_initial", q_initial)
     h0 = q0[1:3]
     loop = build_loop(case, Ts=Ts, F=F, K=K, h0=h0, tuner_options=tuner_options)
-    by_block = {"plant": q0}
-    if "nominal" in {s.name for s in loop.syslist}:
-        by_block["nominal"] = h0  # the ideal model starts where the plant does
-    X0 = initial_state(loop, **by_block)
+    X0 = initial_state(loop, plant=q0)  # the ideal model and the tuner start from h0 already
     T = time_grid(horizon, Ts)
     return simulate(loop, T, X0, 0.0, progress=progress, chunks=20 if len(T) > 20_000 else 1,
                     engine=engine)
