@@ -117,6 +117,12 @@ def _gather(target, row_map, input_row):
     return lines
 
 
+def _gather_inputs(sys, b):
+    """Source lines filling block ``b``'s input buffer from the interconnect's maps."""
+    rows = slice(b.u0, b.u0 + b.system.ninputs)
+    return _gather(f"ui_{b.index}", sys.connect_map[rows], sys.input_map[rows])
+
+
 def _function_ref(function):
     py = getattr(function, "py_func", function)
     return py.__module__, py.__name__
@@ -164,8 +170,7 @@ def _generate(sys, blocks, order):
         s = b.system
         body.append(f"# {s.name}: output")
         if b.kernel.feedthrough:  # otherwise the output reads the state only
-            body += _gather(f"ui_{i}", sys.connect_map[b.u0:b.u0 + s.ninputs],
-                            sys.input_map[b.u0:b.u0 + s.ninputs])
+            body += _gather_inputs(sys, b)
         body.append(f"{names[('out', i)]}(t, x[{b.x0}:{b.x0 + s.nstates}], ui_{i}, "
                     f"P[{b.p0}:{b.p0 + b.kernel.params.size}], ys[{b.y0}:{b.y0 + s.noutputs}])")
         if s.noutputs:
@@ -174,9 +179,7 @@ def _generate(sys, blocks, order):
     # inputs of state-only blocks, now that every output is known
     for b in blocks:
         if not b.kernel.feedthrough:
-            s = b.system
-            body += _gather(f"ui_{b.index}", sys.connect_map[b.u0:b.u0 + s.ninputs],
-                            sys.input_map[b.u0:b.u0 + s.ninputs])
+            body += _gather_inputs(sys, b)
     # system outputs: output_map over [subsystem outputs, subsystem inputs]
     for r, row in enumerate(sys.output_map):
         terms = []
@@ -232,11 +235,13 @@ def _generate(sys, blocks, order):
     return "\n".join(L) + "\n"
 
 
-
+#: Loops loaded in this process, by generated source (the kernels imported here are fixed).
 _LOADED: dict[str, object] = {}
 
 
 def _load(source: str):
+    if source in _LOADED:  # no need to read and hash the kernels' files again
+        return _LOADED[source]
     # numba caches the loop with the kernels inlined but keys on the loop's file alone:
     # the kernels' source goes into the file name so that editing them recompiles
     modules = sorted({line.split()[1] for line in source.splitlines()
@@ -245,8 +250,6 @@ def _load(source: str):
                              for m in modules)
     key = hashlib.sha256((source + kernel_sources + str(_jit.HAVE_NUMBA)).encode()
                          ).hexdigest()[:20]
-    if key in _LOADED:
-        return _LOADED[key]
     folder = CACHE_DIR
     try:
         folder.mkdir(parents=True, exist_ok=True)
@@ -265,7 +268,7 @@ def _load(source: str):
     run = module.run
     if _jit.HAVE_NUMBA:
         run = _jit.numba.njit(cache=True)(run)
-    _LOADED[key] = run
+    _LOADED[source] = run
     return run
 
 
@@ -338,7 +341,7 @@ def simulate_fast(sys, T, X0, U=0.0, *, progress=None, chunks=1) -> ct.TimeRespo
     for k0, k1 in zip(bounds[:-1], bounds[1:], strict=True):
         x = run(T, x, U, P, Y, X, status, k0, k1)
         if status[0] >= 0:
-            _explain_failure(sys, T, X, U, status)
+            _explain_failure(sys, blocks, T, X, U, status)
         if progress is not None:
             progress(k1 / N)
     return ct.TimeResponseData(
@@ -348,13 +351,12 @@ def simulate_fast(sys, T, X0, U=0.0, *, progress=None, chunks=1) -> ct.TimeRespo
     )
 
 
-def _explain_failure(sys, T, X, U, status):
+def _explain_failure(sys, blocks, T, X, U, status):
     """A kernel returned NaN: let the block's Python wrapper say why, in its own words."""
-    k, index = int(status[0]), int(status[1])
-    block = sys.syslist[index]
+    k = int(status[0])
+    b = blocks[int(status[1])]
+    block = b.system
     sys._update_params(None)
     ulist, _ = sys._compute_static_io(T[k], X[:, k], U[:, k])
-    u0 = sum(s.ninputs for s in sys.syslist[:index])
-    x0 = sum(s.nstates for s in sys.syslist[:index])
-    block.output(T[k], X[x0:x0 + block.nstates, k], ulist[u0:u0 + block.ninputs])
+    block.output(T[k], X[b.x0:b.x0 + block.nstates, k], ulist[b.u0:b.u0 + block.ninputs])
     raise FloatingPointError(f"block {block.name!r} returned NaN at t = {T[k]:g} s")
