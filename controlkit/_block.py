@@ -47,7 +47,7 @@ class Kernel:
 
 
 def kernel_block(output, update=None, *, params=(), feedthrough=True, check=None,
-                 **nlsys_kwargs) -> ct.NonlinearIOSystem:
+                 uncompiled=None, **nlsys_kwargs) -> ct.NonlinearIOSystem:
     """A ``NonlinearIOSystem`` whose equations are the given kernels.
 
     Parameters
@@ -61,13 +61,16 @@ def kernel_block(output, update=None, *, params=(), feedthrough=True, check=None
     check : callable, optional
         ``check(t, x, u, y)`` called on each output on the python-control path;
         raises a ``ValueError`` with a clear message where the kernel returned NaN.
+    uncompiled : str, optional
+        Why the fast engine cannot compile this block (its kernels call Python
+        objects); the block then has ``kernel = None`` and ``kernel_reason``.
     **nlsys_kwargs
         ``inputs``, ``outputs``, ``states``, ``dt``, ``name`` for :func:`control.nlsys`.
 
     Returns
     -------
     control.NonlinearIOSystem
-        With attribute ``kernel`` (a :class:`Kernel`).
+        With attribute ``kernel`` (a :class:`Kernel`, or None if ``uncompiled``).
 
     Examples
     --------
@@ -95,6 +98,8 @@ def kernel_block(output, update=None, *, params=(), feedthrough=True, check=None
 
     sys = ct.nlsys(updfcn, outfcn, **nlsys_kwargs)
     size["y"], size["x"] = sys.noutputs, sys.nstates
-    sys.kernel = Kernel(output, update, p, bool(feedthrough))
+    sys.kernel = None if uncompiled else Kernel(output, update, p, bool(feedthrough))
     sys.kernel_check = check
+    if uncompiled:
+        sys.kernel_reason = uncompiled
     return sys

@@ -88,31 +88,28 @@ paper_momentum = MomentumProfile(sine=(H0_AMPLITUDE, 0.0, H0_AMPLITUDE),
                                  cosine=(0.0, H0_AMPLITUDE, 0.0), omega=H0_FREQUENCY)
 
 
-def _momentum_parameters(name, value):
-    """Check a momentum argument once: its packed profile, ``H(t)``, and whether it is Python.
+def _momentum_kernel(name, value, kernel):
+    """Check a momentum argument once and fit ``kernel`` to it.
 
-    A plain callable cannot be packed; its profile slots are filled at each call
-    (:func:`_repacked`) and the block cannot be compiled.
+    Returns the packed profile, ``H(t)``, the kernel to call and, for a plain
+    callable (which cannot be packed), why the block cannot be compiled: the
+    kernel then gets its momentum constant ``p[15:18]`` set to ``H(t)`` at each
+    call. Both the plant's and the linearizer's parameter vectors hold their
+    momentum profile at 15.
     """
     H = _checks.momentum(name, value)
     if isinstance(value, MomentumProfile):
-        return value.packed(), H, False
-    if callable(value):
-        return MomentumProfile().packed(), H, True
-    return MomentumProfile(constant=tuple(H(0.0))).packed(), H, False
+        return value.packed(), H, kernel, None
+    if not callable(value):
+        return MomentumProfile(constant=tuple(H(0.0))).packed(), H, kernel, None
 
-
-def _repacked(kernel, H):
-    """``kernel`` with the momentum constant ``p[15:18]`` set to the Python ``H(t)`` per call.
-
-    Both the plant's and the linearizer's parameter vectors hold their momentum profile at 15.
-    """
-    def function(t, x, u, p, out):
+    def repacked(t, x, u, p, out):
         local = p.copy()
         local[15:18] = H(t)
         return kernel(t, x, u, local, out)
 
-    return function
+    reason = f"{name} is a Python function; give a MomentumProfile to compile it"
+    return MomentumProfile().packed(), H, repacked, reason
 
 
 # --- Pure math ---------------------------------------------------------------------
@@ -267,7 +264,7 @@ def spacecraft_plant(
     J_w1 = _checks.inertia("J_w1", J_w1)
     J_w2 = _checks.inertia("J_w2", J_w2)
     v1, v2 = _checks.wheel_axes(v1, v2)
-    profile, H0_of_t, python_H0 = _momentum_parameters("H0", H0)
+    profile, H0_of_t, rhs, uncompiled = _momentum_kernel("H0", H0, kernels.spacecraft_rhs)
     J_t = J_b + J_w1 + J_w2
     J_t_inv = np.linalg.inv(J_t)
     b1, b2 = J_w1 @ v1, J_w2 @ v2
@@ -276,14 +273,10 @@ def spacecraft_plant(
     def rate(t, q, u):
         return body_rate(q, u, H0_of_t(t), J_t_inv, b1, b2)
 
-    rhs = _repacked(kernels.spacecraft_rhs, H0_of_t) if python_H0 else kernels.spacecraft_rhs
     sys = kernel_block(
-        kernels.state_output, rhs, params=params, feedthrough=False,
+        kernels.state_output, rhs, params=params, feedthrough=False, uncompiled=uncompiled,
         inputs=_U_SIGNALS, outputs=_Q_SIGNALS, states=_Q_SIGNALS, name=name,
     )
-    if python_H0:
-        sys.kernel = None  # the fast engine cannot compile a Python callable
-        sys.kernel_reason = "H0 is a Python function; give a MomentumProfile to compile it"
     sys.J_t, sys.H0 = J_t, H0_of_t
     sys.body_rate = rate
     sys.momentum = lambda t, q, u: total_momentum(q, rate(t, q, u), u, J_b, J_w1, J_w2, v1, v2)
@@ -357,7 +350,7 @@ def io_linearizer(
     J_w2 = _checks.inertia("J_w2", J_w2)
     v1, v2 = _checks.wheel_axes(v1, v2)
     singular_tol = _checks.positive_scalar("singular_tol", singular_tol)
-    profile, H0n_of_t, python_H0n = _momentum_parameters("H0n", H0n)
+    profile, _, output, uncompiled = _momentum_kernel("H0n", H0n, kernels.linearizer_output)
     J_m_inv = np.linalg.inv(J_m)
     b1, b2 = J_w1 @ v1, J_w2 @ v2
     G = -J_m_inv @ np.column_stack([b1, b2])
@@ -379,17 +372,10 @@ def io_linearizer(
             f"paper's wheels: a 180 deg rotation about an axis in the body x-y plane)"
         )
 
-    output = kernels.linearizer_output
-    if python_H0n:
-        output = _repacked(kernels.linearizer_output, H0n_of_t)
-    sys = kernel_block(
-        output, params=params, feedthrough=True, check=refuse,
+    return kernel_block(
+        output, params=params, feedthrough=True, check=refuse, uncompiled=uncompiled,
         inputs=["mu[0]", "mu[1]", *_Q_SIGNALS], outputs=_U_SIGNALS, dt=None, name=name,
     )
-    if python_H0n:
-        sys.kernel = None
-        sys.kernel_reason = "H0n is a Python function; give a MomentumProfile to compile it"
-    return sys
 
 
 def attitude_output(*, name="output") -> ct.NonlinearIOSystem:
