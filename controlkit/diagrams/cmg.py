@@ -5,7 +5,7 @@ from __future__ import annotations
 import control as ct
 
 from ..blocks import cmg
-from ..sampling import sample_nlsys
+from ._period import require_period, sampled
 
 
 def cmg_loop(plant=None, controller=None, *, reference=None, saturation=None, Ts=cmg.TS_CMG,
@@ -41,16 +41,11 @@ def cmg_loop(plant=None, controller=None, *, reference=None, saturation=None, Ts
     >>> [s.name for s in cmg_loop().syslist]
     ['reference', 'cmg', 'smc', 'saturation']
     """
-    plant = plant if plant is not None else cmg.cmg_plant()
-    if plant.isctime(strict=True):
-        plant = sample_nlsys(plant, Ts)
-    controller = controller if controller is not None else cmg.adaptive_smc(Ts=Ts)
+    plant = sampled(plant if plant is not None else cmg.cmg_plant(), Ts)
+    controller = require_period(
+        controller if controller is not None else cmg.adaptive_smc(Ts=Ts), Ts)
     reference = reference if reference is not None else cmg.reference_generator()
     saturation = saturation if saturation is not None else cmg.torque_saturation()
-    for block in (plant, controller):
-        if block.dt != Ts:
-            raise ValueError(f"block {block.name!r} runs at dt = {block.dt} s but the loop "
-                             f"runs at Ts = {Ts} s")
 
     #  +-----------+ q2d, q4d  +-----------------+ T_cmd +------------+ T1, T2 +-----------+
     #  | reference |---------->|  adaptive SMC   |------>| saturation |------->| CMG (ZOH) |--+

@@ -11,22 +11,13 @@ import control as ct
 
 from ..blocks import mec
 from ..blocks import spacecraft as sc
-from ..sampling import sample_nlsys
+from ._period import require_period, sampled
 
 Q = [f"q[{i}]" for i in range(4)]
 U = ["u[0]", "u[1]"]
 H = ["h[0]", "h[1]"]
 MU = ["mu[0]", "mu[1]"]
 R = ["r[0]", "r[1]"]
-
-
-def _sampled(plant, Ts):
-    """The plant as a discrete block: continuous plants are put under ZOH at ``Ts``."""
-    if plant.isctime(strict=True):
-        return sample_nlsys(plant, Ts)
-    if plant.dt != Ts:
-        raise ValueError(f"plant is discrete with dt = {plant.dt}, but the loop runs at Ts = {Ts}")
-    return plant
 
 
 def linearized_plant(plant=None, linearizer=None, *, Ts=sc.TS_PAPER, name="linearized_plant"):
@@ -58,7 +49,7 @@ def linearized_plant(plant=None, linearizer=None, *, Ts=sc.TS_PAPER, name="linea
     >>> sys.input_labels, sys.output_labels[:2]
     (['mu[0]', 'mu[1]'], ['h[0]', 'h[1]'])
     """
-    plant = _sampled(plant if plant is not None else sc.spacecraft_plant(), Ts)
+    plant = sampled(plant if plant is not None else sc.spacecraft_plant(), Ts)
     linearizer = linearizer if linearizer is not None else sc.io_linearizer()
     output = sc.attitude_output()
 
@@ -108,7 +99,7 @@ def output_zeroing_loop(
     >>> loop.nstates, loop.dt
     (4, 0.1)
     """
-    plant = _sampled(plant if plant is not None else sc.spacecraft_plant(), Ts)
+    plant = sampled(plant if plant is not None else sc.spacecraft_plant(), Ts)
     linearizer = linearizer if linearizer is not None else sc.io_linearizer()
     controller = controller if controller is not None else sc.outer_controller()
     output = sc.attitude_output()
@@ -175,7 +166,7 @@ def mec_loop(
     >>> [s.name for s in loop.syslist]
     ['plant', 'output', 'nominal', 'gain', 'controller', 'mec', 'linearizer']
     """
-    plant = _sampled(plant if plant is not None else sc.spacecraft_plant(), Ts)
+    plant = sampled(plant if plant is not None else sc.spacecraft_plant(), Ts)
     linearizer = linearizer if linearizer is not None else sc.io_linearizer()
     controller = controller if controller is not None else sc.outer_controller(output="mu_n")
     nominal = nominal if nominal is not None else mec.nominal_model(Ts)
@@ -191,11 +182,7 @@ def mec_loop(
     if gain.output_labels != mec.K_SIGNALS:
         raise ValueError(f"the gain source must output {mec.K_SIGNALS}, got {gain.output_labels}")
     for block in (nominal, gain):
-        if block.dt not in (None, True) and block.dt != Ts:
-            raise ValueError(
-                f"block {block.name!r} runs at dt = {block.dt:g} s but the loop runs at "
-                f"Ts = {Ts:g} s; build it with Ts={Ts:g}"
-            )
+        require_period(block, Ts, static_ok=True)
     compensator = mec.mec_compensator()
     MU_N, HN = ["mu_n[0]", "mu_n[1]"], ["hn[0]", "hn[1]"]
 
