@@ -66,23 +66,22 @@ class Study:
     csv_columns: Callable[[dict], dict] = lambda columns: columns
 
 
-def _spacecraft_run(case, horizon, progress, engine):
-    return sc_scenario.run(case, horizon=horizon or sc_scenario.HORIZON, progress=progress,
-                           engine=engine)
-
-
-def _cmg_run(case, horizon, progress, engine):
-    return cmg_scenario.run(case, horizon=horizon or cmg_scenario.HORIZON, progress=progress,
+def _runner(scenario):
+    """``run(case, horizon, progress, engine)`` of a scenarios module (``HORIZON`` if None)."""
+    def run(case, horizon, progress, engine):
+        return scenario.run(case, horizon=horizon or scenario.HORIZON, progress=progress,
                             engine=engine)
+
+    return run
 
 
 STUDIES: dict[str, Study] = {
     "spacecraft": Study(
-        "spacecraft", tuple(sc_scenario.CASES), sc_scenario.DEFAULT_CASES, _spacecraft_run,
+        "spacecraft", tuple(sc_scenario.CASES), sc_scenario.DEFAULT_CASES, _runner(sc_scenario),
         sc_out.table, sc_out.metrics, sc_out.figures, default_stride=10,
     ),
     "cmg": Study(
-        "cmg", tuple(cmg_scenario.CASES), cmg_scenario.DEFAULT_CASES, _cmg_run,
+        "cmg", tuple(cmg_scenario.CASES), cmg_scenario.DEFAULT_CASES, _runner(cmg_scenario),
         cmg_out.table, cmg_out.metrics, cmg_out.figures,
         csv_stem=lambda case: "run" if case == "thesis" else case,
         csv_columns=cmg_out.csv_columns,
