@@ -237,6 +237,12 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None):
         ax.text(x, y, text, ha="center", va=va, fontsize=8, color=color,
                 bbox={"facecolor": "white", "edgecolor": "none", "pad": 0.8, "alpha": 0.9})
 
+    def lane(start, end, y, inset, text, color):
+        """An arrow out of ``start``, along the lane at height ``y``, into ``end``."""
+        xa, xb = start[0] + inset, end[0] - inset
+        arrow([start, (xa, start[1]), (xa, y), (xb, y), (xb, end[1]), end], color)
+        label((xa + xb) / 2, y, text, color, va="center")
+
     top = max(y for _, y in centre.values()) + box_h / 2 + 0.95
     bottom = min(y for _, y in centre.values()) - box_h / 2 - 0.35
     up = down = 0
@@ -245,22 +251,16 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None):
         if a == _IN or b == _OUT:
             continue
         start, end = attach(a, +1, key), attach(b, -1, key)
-        if key in back or a == b:
+        if key in back or a == b:  # feedback: lanes below, red
             down += 1
-            y = bottom - 0.42 * down
-            xa, xb = start[0] + 0.25 + 0.08 * down, end[0] - 0.25 - 0.08 * down
-            arrow([start, (xa, start[1]), (xa, y), (xb, y), (xb, end[1]), end], "#b03a2e")
-            label((xa + xb) / 2, y, text, "#b03a2e", va="center")
+            lane(start, end, bottom - 0.42 * down, 0.25 + 0.08 * down, text, "#b03a2e")
         elif layer[b] == layer[a] + 1:  # neighbours: straight, or a step halfway
             xm = (start[0] + end[0]) / 2
             arrow([start, (xm, start[1]), (xm, end[1]), end], "#1f3b6e")
             label(xm, max(start[1], end[1]) + 0.05, text, "#1f3b6e")
-        else:
+        else:  # skips blocks: lanes above
             up += 1
-            y = top + 0.42 * (up - 1)
-            xa, xb = start[0] + 0.2 + 0.06 * up, end[0] - 0.2 - 0.06 * up
-            arrow([start, (xa, start[1]), (xa, y), (xb, y), (xb, end[1]), end], "#1f3b6e")
-            label((xa + xb) / 2, y, text, "#1f3b6e", va="center")
+            lane(start, end, top + 0.42 * (up - 1), 0.2 + 0.06 * up, text, "#1f3b6e")
 
     for key, text in labels.items():  # external inputs and outputs: labelled stubs
         a, b = key
