@@ -24,9 +24,11 @@ def layout(title: str, **sizes: int):
     The result is a named tuple of the fields' integer offsets, so a kernel
     reads ``p[PLANT.H0]`` or ``x[TUNER_STATE.K + 1]``: numba freezes a global
     named tuple of ints as compile-time constants, so a name costs nothing
-    over a literal index. The same object packs the vector with size checks
-    (:meth:`pack`), reads it back (:meth:`unpack`, :meth:`slice`) and names its
-    entries as python-control signals (:meth:`labels`).
+    over a literal index (inside a kernel only the offsets can be read: a size
+    the kernel needs goes into a module-level int, ``_N = STATE.size``).
+    The same object packs the vector with size checks (:meth:`pack`), reads it
+    back (:meth:`unpack`, :meth:`slice`) and names its entries as
+    python-control signals (:meth:`labels`).
 
     Parameters
     ----------

@@ -20,17 +20,28 @@ from .. import _checks
 from .._block import kernel_block
 from ..kernels import cmg as kernels
 from ..kernels import common
+from ..kernels.cmg import (
+    INERTIAS,
+    PLANT,
+    REFERENCE,
+    SMC,
+    SMC_INPUTS,
+    SMC_OUTPUTS,
+    SMC_STATE,
+    STATE,
+    TORQUES,
+)
 
-STATES = ["q1", "q2", "q4", "w1", "w2", "w4"]
-REFERENCE_SIGNALS = ["q2d", "q2d_dot", "q2d_ddot", "q4d", "q4d_dot", "q4d_ddot"]
+STATES = STATE.labels()
+REFERENCE_SIGNALS = REFERENCE.labels()
 #: Motor torque ranges (N m): ``|T1| <= 0.6``, ``|T2| <= 2.4`` (section 6).
 T1_MAX, T2_MAX = 0.6, 2.4
 #: Sampling period of the controller (s); the ECP controller runs at about 9 ms.
 TS_CMG = 0.001
 
 
-def _field_values(obj) -> np.ndarray:
-    return np.array([getattr(obj, f.name) for f in fields(obj)], dtype=float)
+def _field_values(obj) -> dict:
+    return {f.name: getattr(obj, f.name) for f in fields(obj)}
 
 
 @dataclass(frozen=True)
@@ -67,23 +78,23 @@ class Inertias:
             _checks.positive_scalar(f.name, getattr(self, f.name))
 
     def packed(self) -> np.ndarray:
-        """The seven inertias in field order, as the kernels read them."""
-        return _field_values(self)
+        """The seven inertias packed as :data:`controlkit.kernels.cmg.INERTIAS`."""
+        return INERTIAS.pack(**_field_values(self))
 
     @property
     def I1(self) -> float:
         """``I1 = IG2y + IR1y - IR1x - IG2z`` (eq. 3)."""
-        return self.IG2y + self.IR1y - self.IR1x - self.IG2z
+        return kernels.inertia_terms(self.packed(), 0)[0]
 
     @property
     def I2(self) -> float:
         """``I2 = IR1x + IG2z + IG3x + IG4x`` (eq. 3)."""
-        return self.IR1x + self.IG2z + self.IG3x + self.IG4x
+        return kernels.inertia_terms(self.packed(), 0)[1]
 
     @property
     def J2(self) -> float:
         """``IG2x + IR1x``, the inertia of gimbal 2's axis (eq. 2)."""
-        return self.IG2x + self.IR1x
+        return kernels.inertia_terms(self.packed(), 0)[2]
 
 
 @dataclass(frozen=True)
@@ -113,20 +124,17 @@ class Friction:
         for f in fields(self):
             _checks.positive_scalar(f.name, getattr(self, f.name), allow_zero=f.name != "w_c")
 
-    def packed(self) -> np.ndarray:
-        """``[b1, b2, b4, c1, c2, c4, w_c]`` as the kernels read them."""
-        return _field_values(self)
-
     def torques(self, w) -> np.ndarray:
-        """``[F1, F2, F4]`` at the rates ``w = [w1, w2, w4]``."""
-        w = np.asarray(w, dtype=float)
-        b = np.array([self.b1, self.b2, self.b4])
-        c = np.array([self.c1, self.c2, self.c4])
-        return -b * w - c * np.tanh(w / self.w_c)
+        """``[F1, F2, F4]`` at the rates ``w = [w1, w2, w4]`` (the plant kernel's law)."""
+        w = _checks.vector("w", w, 3)
+        return np.array([kernels.friction(wi, b, c, self.w_c) for wi, b, c in
+                         zip(w, (self.b1, self.b2, self.b4), (self.c1, self.c2, self.c4),
+                             strict=True)])
 
 
 def _plant_parameters(inertias: Inertias, delta_IG4x, friction: Friction) -> np.ndarray:
-    return np.concatenate([inertias.packed(), [delta_IG4x], friction.packed()])
+    return PLANT.pack(**_field_values(inertias), delta_IG4x=delta_IG4x,
+                      **_field_values(friction))
 
 
 def accelerations(x, torque, inertias: Inertias, delta_IG4x=0.0, friction=None):
@@ -201,7 +209,7 @@ def cmg_plant(inertias=None, *, delta_IG4x=0.0, friction=None, name="cmg") -> ct
 
     sys = kernel_block(common.state_output, kernels.plant_rhs,
                        params=_plant_parameters(inertias, delta_IG4x, friction),
-                       feedthrough=False, inputs=["T1", "T2"], outputs=STATES, states=STATES,
+                       feedthrough=False, inputs=TORQUES.labels(), outputs=STATES, states=STATES,
                        name=name)
     sys.inertias, sys.delta_IG4x, sys.friction = inertias, delta_IG4x, friction
     return sys
@@ -295,9 +303,8 @@ def smc_law(x, ref, a_hat, inertias: Inertias, gains, boundary_layer=0.0, min_si
 
 
 def _controller_parameters(inertias, gains, boundary_layer, min_sin_q2, Ts):
-    order = ("C1", "C2", "eta1", "gamma1", "C3", "C4", "eta2", "gamma2", "gamma3", "gamma4")
-    return np.concatenate([inertias.packed(), [gains[k] for k in order],
-                           [boundary_layer, min_sin_q2, Ts]])
+    return SMC.pack(**_field_values(inertias), **gains, boundary_layer=boundary_layer,
+                    min_sin_q2=min_sin_q2, Ts=Ts)
 
 
 def _refuse_sin_q2(q2):
@@ -385,8 +392,8 @@ def adaptive_smc(
         kernels.smc_output, kernels.smc_update,
         params=_controller_parameters(inertias, g, boundary_layer, 1e-3, Ts),
         check=lambda t, x, u, y: _refuse_sin_q2(u[1]),
-        inputs=STATES + REFERENCE_SIGNALS, outputs=["T1_cmd", "T2_cmd", "a1", "a2", "a3", "a4"],
-        states=["a1", "a2", "a3", "a4"], dt=Ts, name=name,
+        inputs=SMC_INPUTS.labels(), outputs=SMC_OUTPUTS.labels(),
+        states=SMC_STATE.labels(), dt=Ts, name=name,
     )
     sys.x0, sys.gains, sys.inertias = a_hat0, g, inertias
     return sys

@@ -61,7 +61,8 @@ def nominal_model(Ts=TS_PAPER, *, h0=(0.0, 0.0), name="nominal") -> ct.Nonlinear
     """
     Ts = _checks.positive_scalar("Ts", Ts)
     h0 = _checks.vector("h0", h0, 2)
-    sys = kernel_block(common.state_output, common.integrator_update, params=[Ts],
+    sys = kernel_block(common.state_output, common.integrator_update,
+                       params=common.INTEGRATOR.pack(Ts=Ts),
                        feedthrough=False, inputs=["mu_n[0]", "mu_n[1]"],
                        outputs=["hn[0]", "hn[1]"], states=["hn[0]", "hn[1]"], dt=Ts, name=name)
     sys.x0 = h0
