@@ -146,8 +146,9 @@ def accelerations(x, torque, inertias: Inertias, delta_IG4x=0.0, friction=None):
     [0.0, 10.0, 0.0]
     """
     p = _plant_parameters(inertias, delta_IG4x, friction or Friction())
-    return kernels.plant_rhs(0.0, np.asarray(x, float), np.asarray(torque, float), p,
-                           np.empty(6))[3:]
+    x, torque = _checks.vector("x", x, STATE.size), _checks.vector("torque", torque, 2)
+    xdot = kernels.plant_rhs(0.0, x, torque, p, np.empty(STATE.size))
+    return xdot[[STATE.w1, STATE.w2, STATE.w4]]
 
 
 def axis4_momentum(x, inertias: Inertias, delta_IG4x=0.0):
@@ -161,7 +162,8 @@ def axis4_momentum(x, inertias: Inertias, delta_IG4x=0.0):
     >>> float(round(axis4_momentum([0, np.pi / 2, 0, 1.0, 0, 0], Inertias()), 6))
     0.0273
     """
-    _, q2, _, w1, _, w4 = x
+    x = _checks.vector("x", x, STATE.size)
+    q2, w1, w4 = x[STATE.q2], x[STATE.w1], x[STATE.w4]
     s = np.sin(q2)
     J = inertias
     return J.IR1y * s * w1 + (J.I2 + delta_IG4x + J.I1 * s * s) * w4
@@ -233,7 +235,8 @@ def reference(t):
     [1.047198, 0.0, -0.119623, 1.0, 0.0, -0.137078]
     """
     empty = np.zeros(0)
-    return kernels.reference_output(float(t), empty, empty, empty, np.empty(6))
+    return kernels.reference_output(_checks.real_scalar("t", t), empty, empty, empty,
+                                    np.empty(REFERENCE.size))
 
 
 def reference_generator(*, name="reference") -> ct.NonlinearIOSystem:
@@ -294,17 +297,38 @@ def smc_law(x, ref, a_hat, inertias: Inertias, gains, boundary_layer=0.0, min_si
     >>> np.abs(u).tolist()  # on both sliding surfaces: sgn(0) = 0, nothing to do
     [0.0, 0.0]
     """
+    x = _checks.vector("x", x, STATE.size)
+    ref = _checks.vector("ref", ref, REFERENCE.size)
+    a_hat = _checks.vector("a_hat", a_hat, SMC_STATE.size)
+    boundary_layer = _checks.positive_scalar("boundary_layer", boundary_layer, allow_zero=True)
+    min_sin_q2 = _checks.positive_scalar("min_sin_q2", min_sin_q2)
     p = _controller_parameters(inertias, gains, boundary_layer, min_sin_q2, 0.0)
-    law = kernels.smc_equations(np.asarray(a_hat, float),
-                          np.concatenate([np.asarray(x, float), np.asarray(ref, float)]), p)
+    law = kernels.smc_equations(a_hat, np.concatenate([x, ref]), p)
     if np.isnan(law[0]):
-        _refuse_sin_q2(x[1])
+        _refuse_sin_q2(x[STATE.q2])
     return np.array(law[:2]), np.array(law[2:])
 
 
 def _controller_parameters(inertias, gains, boundary_layer, min_sin_q2, Ts):
     return SMC.pack(**_field_values(inertias), **gains, boundary_layer=boundary_layer,
                     min_sin_q2=min_sin_q2, Ts=Ts)
+
+
+#: A gimbal-2 angle beyond this (rad) is not an attitude the loop can reach: the loop diverged.
+_Q2_DIVERGED = 2 * np.pi
+
+
+def _explain_smc_failure(t, x, u, y):
+    """The controller's torque is NaN: say whether the loop diverged or sin(q2) vanished."""
+    measured = u[:STATE.size]
+    if not np.all(np.isfinite(u)) or not np.all(np.isfinite(x)):
+        raise _checks.diverged(t, f"the CMG controller received non-finite signals "
+                                  f"(measurements {measured.tolist()}, estimates {x.tolist()})")
+    q2 = measured[STATE.q2]
+    if abs(q2) > _Q2_DIVERGED:
+        raise _checks.diverged(t, f"gimbal 2 is at q2 = {q2:.3g} rad, more than a turn outside "
+                                  f"its range 0 < q2 < pi/2")
+    _refuse_sin_q2(q2)
 
 
 def _refuse_sin_q2(q2):
@@ -391,7 +415,7 @@ def adaptive_smc(
     sys = kernel_block(
         kernels.smc_output, kernels.smc_update,
         params=_controller_parameters(inertias, g, boundary_layer, 1e-3, Ts),
-        check=lambda t, x, u, y: _refuse_sin_q2(u[1]),
+        check=_explain_smc_failure,
         inputs=SMC_INPUTS.labels(), outputs=SMC_OUTPUTS.labels(),
         states=SMC_STATE.labels(), dt=Ts, name=name,
     )

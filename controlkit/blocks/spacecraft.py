@@ -176,7 +176,7 @@ def quaternion_from_axis_angle(axis, angle_deg: float) -> np.ndarray:
     n = np.linalg.norm(k)
     if n == 0:
         raise ValueError("axis must be a non-zero 3-vector")
-    half = np.deg2rad(float(angle_deg)) / 2
+    half = np.deg2rad(_checks.real_scalar("angle_deg", angle_deg)) / 2
     return np.concatenate([[np.cos(half)], np.sin(half) * k / n])
 
 
@@ -206,6 +206,7 @@ def total_momentum(q, w_b, u, J_b, J_w1, J_w2, v1, v2) -> np.ndarray:
     >>> total_momentum([1, 0, 0, 0], np.zeros(3), [1.0, 0.0], J_BN, J_W1, J_W2, V1, V2)
     array([0.45, 0.  , 0.  ])
     """
+    w_b, u = _checks.vector("w_b", w_b, 3), _checks.vector("u", u, 2)
     body = J_b @ w_b + J_w1 @ (w_b + v1 * u[0]) + J_w2 @ (w_b + v2 * u[1])
     return rotation_matrix(q) @ body
 
@@ -298,6 +299,11 @@ def spacecraft_plant(
     return sys
 
 
+#: How far the norm of the plant's quaternion may drift from 1 before a failure is read as
+#: divergence of the loop (the integration keeps a unit quaternion to about 1e-12).
+_UNIT_NORM_DRIFT = 1e-3
+
+
 class SingularDecouplingError(ValueError):
     """The decoupling matrix ``dh/dq g(q)`` of eq. (11) is singular at the current attitude.
 
@@ -375,12 +381,16 @@ def io_linearizer(
     params = LINEARIZER.pack(G=G, J_m_inv=J_m_inv, H0n=profile, threshold=threshold)
 
     def refuse(t, x, u, y):
-        q = u[2:6]
+        q = u[LINEARIZER_INPUTS.slice("q")]
         if not np.all(np.isfinite(u)):
-            raise FloatingPointError(
-                f"the linearizer received non-finite inputs at t = {t:g} s "
-                f"(mu = {u[:2].tolist()}, q = {q.tolist()}): the loop diverged upstream"
-            )
+            raise _checks.diverged(
+                t, f"the linearizer received non-finite inputs (mu = "
+                   f"{u[LINEARIZER_INPUTS.slice('mu')].tolist()}, q = {q.tolist()})")
+        norm = float(np.sqrt(np.sum((q / max(np.abs(q).max(), 1.0)) ** 2))
+                     * max(np.abs(q).max(), 1.0))  # no overflow for |q| ~ 1e200
+        if abs(norm - 1.0) > _UNIT_NORM_DRIFT:
+            raise _checks.diverged(
+                t, f"the plant's quaternion norm is {norm:.3g} (an attitude has norm 1)")
         raise SingularDecouplingError(
             f"input-output linearization (eq. 11) is undefined at attitude "
             f"q = {np.round(q, 9).tolist()} (t = {t:g} s): the decoupling matrix "
