@@ -7,7 +7,6 @@ from pathlib import Path
 import numpy as np
 
 from ..blocks.cmg import T1_MAX, T2_MAX
-from .export import save_figure
 from .spacecraft import signal
 
 #: CSV columns of ``controlkit reproduce cmg``, in order.
@@ -76,42 +75,162 @@ FIGURES = (
     ("fig6_T2", "Fig. 6  Motor 2 torque T2", "T2 [N m]", "T2", None, T2_MAX),
 )
 _COLORS = {"thesis": "tab:blue", "strong_friction": "tab:orange"}
+#: Legend text of each case: these curves are our simulation, not the thesis's measurements.
+LABELS = {"thesis": "simulation", "strong_friction": "simulation, strong friction"}
+#: Width of the moving window of Fig. 5 (T1 switches every sample), in seconds.
+T1_WINDOW_S = 0.05
+#: Length of Fig. 5's zoomed window on the raw switching torque, in seconds.
+T1_ZOOM_S = 0.03
+
+
+def _label(name):
+    return LABELS.get(name, f"simulation, {name}")
+
+
+def window_stats(time, values, width):
+    """Moving mean, minimum and maximum of ``values`` over consecutive windows.
+
+    Parameters
+    ----------
+    time, values : array_like
+        Equal-length samples.
+    width : float
+        Window length in the units of ``time`` (> 0).
+
+    Returns
+    -------
+    centre, mean, low, high : numpy.ndarray
+        One entry per window.
+
+    Examples
+    --------
+    >>> c, m, lo, hi = window_stats([0, 1, 2, 3], [1, -1, 1, -1], 2.0)
+    >>> m.tolist(), lo.tolist(), hi.tolist()
+    ([0.0, 0.0], [-1.0, -1.0], [1.0, 1.0])
+    """
+    time, values = np.asarray(time, dtype=float), np.asarray(values, dtype=float)
+    if not width > 0:
+        raise ValueError(f"width must be > 0, got {width!r}")
+    if time.shape != values.shape or time.size < 2:
+        raise ValueError("time and values must be equal-length 1-D arrays of >= 2 samples")
+    per = max(1, int(round(width / float(np.median(np.diff(time))))))
+    n = time.size // per
+    if n == 0:
+        return time[:1], values[:1], values[:1], values[:1]
+    blocks = values[: n * per].reshape(n, per)
+    centre = time[: n * per].reshape(n, per).mean(axis=1)
+    return centre, blocks.mean(axis=1), blocks.min(axis=1), blocks.max(axis=1)
+
+
+def figure(tables, stem):
+    """One of the thesis-style Fig. 3-6 as a slide-sized :class:`matplotlib.figure.Figure`.
+
+    - Fig. 3-4 (gimbal angles): the simulated angle with the reference dashed on top, and
+      below it ``|q - q_d|`` on a log axis, where the tracking error is visible.
+    - Fig. 5 (T1, switching every sample): the moving mean over :data:`T1_WINDOW_S` with
+      its min-max band and the motor range, and a zoomed window of the raw samples.
+    - Fig. 6 (T2): the same mean and band, scaled to the data; the motor range, far
+      outside, is stated in the title.
+
+    Parameters
+    ----------
+    tables : dict
+        Case name to its :func:`table` columns.
+    stem : str
+        A file stem of :data:`FIGURES`, e.g. ``"fig5_T1"``.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> from controlkit.scenarios.cmg import run
+    >>> fig = figure({"thesis": table(run(horizon=0.5))}, "fig3_q2")
+    >>> fig.axes[1].get_yscale()
+    'log'
+    """
+    from .style import IDEAL_STYLE, legend_outside, new_figure, slide_style
+
+    specs = {spec[0]: spec for spec in FIGURES}
+    if stem not in specs:
+        raise ValueError(f"stem must be one of {list(specs)}, got {stem!r}")
+    if not tables:
+        raise ValueError("tables must hold at least one case")
+    _, title, ylabel, col, ref, limit = specs[stem]
+    first = next(iter(tables.values()))
+    with slide_style():
+        if ref is not None:
+            fig, (ax, err_ax) = new_figure(2, height_ratios=(3, 2))
+            for name, c in tables.items():
+                color = _COLORS.get(name, "tab:green")
+                ax.plot(c["time"], c[col], color=color, label=f"{col} ({_label(name)})")
+                err = np.abs(c[col] - c[ref])
+                err_ax.semilogy(c["time"], np.where(err > 0, err, np.nan), color=color,
+                                linewidth=1.0)
+            ax.plot(first["time"], first[ref], color="k", label=f"{ref} (reference)",
+                    **IDEAL_STYLE)
+            err_ax.set_ylabel(f"|{col} - {ref}| [rad]")
+            err_ax.set_xlabel("time [s]")
+        else:  # torques switch every sample: a moving mean with its min-max band
+            if stem == "fig5_T1":
+                fig, (ax, zoom) = new_figure(2, height_ratios=(3, 2), sharex=False)
+            else:
+                fig, (ax,) = new_figure()
+            for name, c in tables.items():
+                color = _COLORS.get(name, "tab:green")
+                centre, mean, low, high = window_stats(c["time"], c[col], T1_WINDOW_S)
+                ax.fill_between(centre, low, high, color=color, alpha=0.25, linewidth=0,
+                                label=f"min-max over {1000 * T1_WINDOW_S:g} ms")
+                ax.plot(centre, mean, color=color,
+                        label=f"{col} ({_label(name)}), {1000 * T1_WINDOW_S:g} ms mean")
+            ax.set_xlabel("time [s]")
+            if stem == "fig5_T1":
+                t0 = _zoom_start(first["time"])
+                for name, c in tables.items():
+                    inside = (c["time"] >= t0) & (c["time"] <= t0 + T1_ZOOM_S)
+                    zoom.step(c["time"][inside], c[col][inside], where="post", marker=".",
+                              markersize=4, color=_COLORS.get(name, "tab:green"),
+                              linewidth=1.0)
+                zoom.set_title(f"raw samples from t = {t0:g} s: sgn(s) switches every "
+                               "sample", fontsize=12)
+                zoom.set_xlabel("time [s]")
+                zoom.set_ylabel(ylabel)
+                ax.axvspan(t0, t0 + T1_ZOOM_S, color="0.5", alpha=0.3)
+        if limit is not None:
+            peak = max(float(np.abs(c[col]).max()) for c in tables.values())
+            if peak >= 0.5 * limit:  # the range is part of the picture: draw it
+                for sign in (1, -1):
+                    ax.axhline(sign * limit, color="r", linestyle=":", linewidth=1.6,
+                               label="motor range" if sign == 1 else None)
+            else:  # far outside the data: say it instead of squashing the curve
+                title = f"{title}  (motor range +/-{limit:g} N m, off this scale)"
+        ax.set_ylabel(ylabel)
+        ax.set_title(title)
+        legend_outside(fig, [ax], ncols=2)
+    return fig
+
+
+def _zoom_start(time):
+    """Start of Fig. 5's zoomed window: half way through the run, on a sample."""
+    middle = time[0] + 0.5 * (time[-1] - time[0])
+    return float(time[np.searchsorted(time, middle)])
 
 
 def figures(tables, outdir) -> list[Path]:
-    """Draw Fig. 3-6 (response solid, reference dashed, torque limits dotted) as PNG.
+    """Save Fig. 3-6 (:func:`figure`) as PNG at 200 dpi and SVG.
 
     Examples
     --------
     >>> import tempfile
     >>> from controlkit.scenarios.cmg import run
-    >>> [p.name for p in figures({"thesis": table(run(horizon=0.01))}, tempfile.mkdtemp())]
+    >>> paths = figures({"thesis": table(run(horizon=0.1))}, tempfile.mkdtemp())
+    >>> [p.name for p in paths if p.suffix == ".png"]
     ['fig3_q2.png', 'fig4_q4.png', 'fig5_T1.png', 'fig6_T2.png']
     """
-    import matplotlib
+    from .style import save
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    outdir = Path(outdir)
-    outdir.mkdir(parents=True, exist_ok=True)
     written = []
-    for stem, title, ylabel, col, ref, limit in FIGURES:
-        fig, ax = plt.subplots(figsize=(7, 4))
-        for name, c in tables.items():
-            color = _COLORS.get(name, "tab:green")
-            ax.plot(c["time"], c[col], color=color, linewidth=1.0, label=f"{col} ({name})")
-        if ref is not None:
-            first = next(iter(tables.values()))
-            ax.plot(first["time"], first[ref], "k--", linewidth=1.2, label=f"{ref} (reference)")
-        if limit is not None:
-            for sign in (1, -1):
-                ax.axhline(sign * limit, color="r", linestyle=":", linewidth=1,
-                           label="motor range" if sign == 1 else None)
-        ax.set_xlabel("Time [s]")
-        ax.set_ylabel(ylabel)
-        ax.set_title(title)
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc="best", fontsize=8)
-        written.append(save_figure(fig, outdir / f"{stem}.png"))
+    for stem, *_ in FIGURES:
+        written += save(figure(tables, stem), Path(outdir) / f"{stem}.png")
     return written

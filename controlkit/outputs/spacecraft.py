@@ -8,7 +8,6 @@ import numpy as np
 
 from ..blocks.spacecraft import POINTING_REQUIREMENT_DEG, pointing_error_deg
 from ..scenarios import spacecraft as scenario
-from .export import save_figure
 
 #: CSV columns of ``controlkit reproduce spacecraft``, in order.
 COLUMNS = ("time", "h1", "h2", "pointing_error_deg", "u1", "u2",
@@ -96,73 +95,119 @@ FIGURES = (
     ("fig09_u1", "Fig. 9  Input u1", "u1 [rad/s]", ("u1",)),
     ("fig10_u2", "Fig. 10  Input u2", "u2 [rad/s]", ("u2",)),
 )
+#: Line style of each entry of ``K`` in Fig. 8 (the colour is the case's).
+K_STYLES = {"K11": "-", "K12": "--", "K21": "-.", "K22": ":"}
+#: Lowest pointing error shown on Fig. 7's log axis, in degrees.
+FIG7_FLOOR_DEG = 1e-4
+# ~4 000 points per curve: identical at slide size, and quick to draw
+_POINTS = 4000
+
+
+def figure(tables: dict[str, dict[str, np.ndarray]], stem: str):
+    """One of the paper's Fig. 5-10 as a slide-sized :class:`matplotlib.figure.Figure`.
+
+    The ideal case (no model error) is dashed and drawn on top; the legend sits below the
+    axes. Fig. 7 has a log axis with the 0.05 deg requirement; Fig. 8 shows only the
+    cases with a compensator, one colour per case and one line style per entry of ``K``.
+
+    Parameters
+    ----------
+    tables : dict
+        Case name (a key of ``scenarios.spacecraft.CASES``) to its :func:`table` columns.
+    stem : str
+        Which figure: a file stem of :data:`FIGURES`, e.g. ``"fig07_pointing_error"``.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Displayed inline in a notebook; :func:`figures` saves it.
+
+    Examples
+    --------
+    >>> fig = figure({"ideal": table(scenario.run("ideal", horizon=10.0))}, "fig07_pointing_error")
+    >>> fig.axes[0].get_yscale()
+    'log'
+    """
+    from .style import IDEAL_STYLE, legend_outside, new_figure, slide_style
+
+    specs = {spec[0]: spec for spec in FIGURES}
+    if stem not in specs:
+        raise ValueError(f"stem must be one of {list(specs)}, got {stem!r}")
+    _, title, ylabel, cols = specs[stem]
+    unknown = [name for name in tables if name not in scenario.CASES]
+    if unknown:
+        raise ValueError(f"tables has unknown cases {unknown}; known: {list(scenario.CASES)}")
+    shown = tables
+    if stem == "fig08_K":  # only the cases that have a compensator
+        shown = {n: c for n, c in tables.items() if scenario.CASES[n].compensator != "none"}
+    # the ideal case last, so its dashed line lies on top of the others
+    order = sorted(shown, key=lambda n: n == "ideal")
+    with slide_style():
+        fig, (ax,) = new_figure()
+        for name in order:
+            columns, case = shown[name], scenario.CASES[name]
+            every = slice(None, None, max(1, len(columns["time"]) // _POINTS))
+            style = dict(IDEAL_STYLE) if name == "ideal" else {}
+            for col in cols:
+                if len(cols) > 1:
+                    style["linestyle"] = K_STYLES[col]
+                ax.plot(columns["time"][every], columns[col][every], color=case.color,
+                        label=case.label if len(cols) == 1 else f"{col}", **style)
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel(ylabel)
+        ax.set_title(title)
+        if stem == "fig07_pointing_error":
+            ax.set_yscale("log")
+            ax.axhline(POINTING_REQUIREMENT_DEG, color="k", linestyle=":", linewidth=1.6,
+                       label=f"requirement {POINTING_REQUIREMENT_DEG} deg", zorder=6)
+            top = max([1.0] + [float(np.max(c["pointing_error_deg"])) for c in shown.values()])
+            ax.set_ylim(FIG7_FLOOR_DEG, 2 * top)
+        if stem == "fig08_K":
+            if not shown:
+                ax.text(0.5, 0.5, "no case with a compensator", transform=ax.transAxes,
+                        ha="center", va="center")
+            elif len(shown) > 1:  # one colour per case, named once
+                from matplotlib.lines import Line2D
+
+                for name in order:
+                    ax.add_line(Line2D([], [], color=scenario.CASES[name].color,
+                                       label=scenario.CASES[name].label))
+        if ax.get_legend_handles_labels()[0]:
+            legend_outside(fig, ncols=4 if stem == "fig08_K" else None)
+    return fig
 
 
 def figures(tables: dict[str, dict[str, np.ndarray]], outdir) -> list[Path]:
-    """Draw the paper's figures for the cases in ``tables`` and save them as PNG.
+    """Save the paper's Fig. 5-10 for the cases in ``tables`` (PNG at 200 dpi and SVG).
 
-    Fig. 8 (``K``) is drawn only when a case with a compensator is present.
+    Fig. 8 (``K``) is saved only when a case with a compensator is present.
 
     Parameters
     ----------
     tables : dict
         Case name to its :func:`table` columns.
     outdir : str or pathlib.Path
-        Folder for ``fig05_h1.png`` and the others.
+        Folder for ``fig05_h1.png``, ``fig05_h1.svg`` and the others.
 
     Returns
     -------
     list of pathlib.Path
-        The files written.
+        The files written, each PNG followed by its SVG.
 
     Examples
     --------
     >>> import tempfile
     >>> paths = figures({"ideal": table(scenario.run("ideal", horizon=1.0))}, tempfile.mkdtemp())
-    >>> [p.name for p in paths][:2]
-    ['fig05_h1.png', 'fig06_h2.png']
+    >>> [p.name for p in paths][:3]
+    ['fig05_h1.png', 'fig05_h1.svg', 'fig06_h2.png']
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from .style import save
 
     outdir = Path(outdir)
-    outdir.mkdir(parents=True, exist_ok=True)
     written = []
-    styles = {"K11": "-", "K12": "--", "K21": "-.", "K22": ":"}
-    for stem, title, ylabel, cols in FIGURES:
-        shown = tables
-        if stem == "fig08_K":  # only the cases that have a compensator
-            shown = {n: c for n, c in tables.items() if scenario.CASES[n].compensator != "none"}
-            if not shown:
-                continue
-        zoom = stem == "fig07_pointing_error"
-        fig, axes = plt.subplots(2 if zoom else 1, 1, figsize=(7, 6.5 if zoom else 4),
-                                 squeeze=False)
-        for ax in axes[:, 0]:
-            for name, columns in shown.items():
-                case = scenario.CASES[name]
-                # ~4 000 points per curve: identical at this size, and quick to draw
-                every = slice(None, None, max(1, len(columns["time"]) // 4000))
-                for col in cols:
-                    label = case.label if len(cols) == 1 else f"{case.label}: {col}"
-                    ax.plot(columns["time"][every], columns[col][every], color=case.color,
-                            label=label, linestyle=styles.get(col, "-"), linewidth=1.2)
-            ax.set_xlabel("Time [s]")
-            ax.set_ylabel(ylabel)
-            ax.grid(True, alpha=0.3)
-        if zoom:
-            bottom = axes[1, 0]
-            bottom.axhline(POINTING_REQUIREMENT_DEG, color="k", linestyle="--", linewidth=1,
-                           label=f"requirement {POINTING_REQUIREMENT_DEG} deg")
-            late = [c["pointing_error_deg"][c["time"] >= c["time"][-1] / 2]
-                    for c in tables.values()]
-            top = max([4 * POINTING_REQUIREMENT_DEG] + [1.15 * v.max() for v in late if v.size])
-            bottom.set_ylim(0, top)
-            bottom.set_title("detail around the 0.05 deg requirement", fontsize=9)
-            bottom.legend(loc="upper right", fontsize=8)
-        axes[0, 0].set_title(title)
-        axes[0, 0].legend(loc="upper right", fontsize=8)
-        written.append(save_figure(fig, outdir / f"{stem}.png"))
+    has_k = any(scenario.CASES[n].compensator != "none" for n in tables)
+    for stem, *_ in FIGURES:
+        if stem == "fig08_K" and not has_k:
+            continue
+        written += save(figure(tables, stem), outdir / f"{stem}.png")
     return written

@@ -1,0 +1,124 @@
+"""Result figures are slide-ready: 200 dpi PNG + SVG, 12-14 pt text, legends off the data."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from PIL import Image
+
+from controlkit.outputs import cmg as cmg_out
+from controlkit.outputs import spacecraft as sc_out
+from controlkit.outputs.style import PNG_DPI, save
+from controlkit.scenarios import cmg as cmg_scenario
+from controlkit.scenarios import spacecraft as sc_scenario
+
+
+@pytest.fixture(scope="module")
+def sc_tables():
+    return {name: sc_out.table(sc_scenario.run(name, horizon=50.0))
+            for name in ("ideal", "without_mec", "proposed")}
+
+
+@pytest.fixture(scope="module")
+def cmg_tables():
+    return {"thesis": cmg_out.table(cmg_scenario.run("thesis", horizon=3.0))}
+
+
+def _texts(fig):
+    return [t for t in fig.findobj(lambda a: hasattr(a, "get_fontsize") and hasattr(a, "get_text"))
+            if t.get_text().strip()]
+
+
+def _check_slide_ready(fig):
+    FigureCanvasAgg(fig).draw()
+    sizes = {round(t.get_fontsize(), 1) for t in _texts(fig)}
+    assert sizes and min(sizes) >= 12 and max(sizes) <= 14, sizes
+    renderer = fig.canvas.get_renderer()
+    for legend in fig.legends:  # the legend overlaps no axes
+        box = legend.get_window_extent(renderer)
+        for ax in fig.axes:
+            assert not box.overlaps(ax.get_window_extent(renderer)), ax.get_title()
+
+
+def test_pngs_are_200_dpi_with_a_vector_copy(tmp_path, sc_tables, cmg_tables):
+    paths = sc_out.figures(sc_tables, tmp_path / "sc") + cmg_out.figures(cmg_tables,
+                                                                          tmp_path / "cmg")
+    pngs = [p for p in paths if p.suffix == ".png"]
+    assert len(pngs) == 10
+    for png in pngs:
+        with Image.open(png) as image:
+            dpi = image.info["dpi"]
+            assert min(dpi) >= 199.5, (png.name, dpi)  # pHYs stores dots per metre
+            assert image.size == (1600, 900)
+        svg = png.with_suffix(".svg")
+        assert svg in paths and svg.read_text().lstrip().startswith("<?xml")
+    assert not list(tmp_path.rglob("*.partial"))
+
+
+@pytest.mark.parametrize("stem", [spec[0] for spec in sc_out.FIGURES])
+def test_spacecraft_figures_are_slide_ready(stem, sc_tables):
+    _check_slide_ready(sc_out.figure(sc_tables, stem))
+
+
+@pytest.mark.parametrize("stem", [spec[0] for spec in cmg_out.FIGURES])
+def test_cmg_figures_are_slide_ready(stem, cmg_tables):
+    fig = cmg_out.figure(cmg_tables, stem)
+    _check_slide_ready(fig)
+    labels = " ".join(t.get_text() for t in _texts(fig))
+    assert "simulation" in labels and "thesis" not in labels
+
+
+def test_fig7_is_logarithmic_with_the_requirement_and_ideal_on_top(sc_tables):
+    ax = sc_out.figure(sc_tables, "fig07_pointing_error").axes[0]
+    assert ax.get_yscale() == "log"
+    flat = [line for line in ax.get_lines() if np.ptp(line.get_ydata()) == 0]
+    assert [line.get_ydata()[0] for line in flat] == [0.05]
+    ideal = [line for line in ax.get_lines() if line.get_label().startswith("Ideal")]
+    others = [line for line in ax.get_lines() if line not in ideal + flat]
+    assert ideal[0].get_linestyle() == "--"
+    assert ideal[0].get_zorder() > max(line.get_zorder() for line in others)
+
+
+def test_fig8_legend_is_one_row_of_k_entries(sc_tables):
+    fig = sc_out.figure(sc_tables, "fig08_K")
+    assert [t.get_text() for t in fig.legends[0].get_texts()] == ["K11", "K12", "K21", "K22"]
+
+
+def test_cmg_tracking_has_a_log_error_panel_and_t2_states_its_limits(cmg_tables):
+    fig = cmg_out.figure(cmg_tables, "fig3_q2")
+    assert fig.axes[1].get_yscale() == "log" and "q2d" in fig.axes[1].get_ylabel()
+    t2 = cmg_out.figure(cmg_tables, "fig6_T2").axes[0]
+    assert "2.4 N m" in t2.get_title()
+    assert t2.get_ylim()[1] < 0.5  # scaled to the data, not to the 2.4 N m range
+    t1 = cmg_out.figure(cmg_tables, "fig5_T1")
+    assert "switches every sample" in t1.axes[1].get_title()
+
+
+def test_window_stats_bounds_the_mean():
+    t = np.arange(0, 1, 0.001)
+    x = np.sign(np.sin(2 * np.pi * 250 * t)) + t
+    _, mean, low, high = cmg_out.window_stats(t, x, 0.05)
+    assert mean.size == 20 and np.all(low <= mean) and np.all(mean <= high)
+    with pytest.raises(ValueError, match="width must be > 0"):
+        cmg_out.window_stats(t, x, 0.0)
+
+
+def test_bad_stems_and_paths_are_named(sc_tables, tmp_path):
+    with pytest.raises(ValueError, match="stem must be one of"):
+        sc_out.figure(sc_tables, "fig99")
+    with pytest.raises(ValueError, match="path must end in .png"):
+        save(sc_out.figure(sc_tables, "fig05_h1"), tmp_path / "a.pdf")
+    assert PNG_DPI >= 200
+
+
+def test_library_never_switches_the_backend():
+    code = ("import matplotlib; matplotlib.use('svg'); "
+            "from controlkit.outputs import spacecraft as o; from controlkit.scenarios import "
+            "spacecraft as s; import tempfile; "
+            "o.figures({'ideal': o.table(s.run('ideal', horizon=1.0))}, tempfile.mkdtemp()); "
+            "print(matplotlib.get_backend())")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.strip() == "svg"
