@@ -7,7 +7,10 @@ from pathlib import Path
 HERE = Path(__file__).parent
 project = "controlkit"
 author = "the controlkit developers"
-extensions = ["sphinx.ext.autodoc", "sphinx.ext.napoleon", "sphinx.ext.mathjax", "myst_nb"]
+# equations: MathJax from the sphinx-mathjax-offline wheel, copied into _static, so the pages
+# render their maths without a network (see the docs extra in pyproject.toml)
+extensions = ["sphinx.ext.autodoc", "sphinx.ext.napoleon", "sphinx.ext.mathjax",
+              "sphinx-mathjax-offline", "myst_nb"]
 napoleon_google_docstring = False
 napoleon_numpy_docstring = True
 napoleon_use_ivar = True
@@ -16,11 +19,18 @@ autodoc_typehints = "none"
 myst_enable_extensions = ["dollarmath"]
 exclude_patterns = ["_build", "**.ipynb_checkpoints"]
 html_theme = "alabaster"
+# wide enough that the notebooks' figures and code show at a readable size
+html_theme_options = {"page_width": "1240px", "sidebar_width": "240px"}
 suppress_warnings = ["mystnb.unknown_mime_type"]
+# sliders are for a live kernel: their cells' output is removed from the pages, and no
+# page loads the widget manager's scripts from the network
+nb_ipywidgets_js = {}
 
-# the notebooks live in ../notebooks; render copies of them, executed on short horizons
-os.environ.setdefault("CONTROLKIT_QUICK", "1")
-os.environ.setdefault("MPLBACKEND", "Agg")
+# the notebooks live in ../notebooks; render copies of them, executed at the papers' horizons
+# (the fast engine takes seconds) so the numbers printed on each page are the papers' ones.
+# No MPLBACKEND here: the kernel keeps its inline backend, so every figure is captured.
+os.environ.pop("CONTROLKIT_QUICK", None)
+os.environ.pop("MPLBACKEND", None)
 nb_execution_mode = os.environ.get("CONTROLKIT_DOCS_EXECUTE", "force")
 nb_execution_timeout = 300
 nb_execution_raise_on_error = True
