@@ -1,4 +1,8 @@
-"""Kernels of the generic blocks: state output, constant source, integrator, saturation."""
+"""Kernels of the generic blocks: state output, constant source, integrator, saturation,
+first-order low-pass filter.
+
+Signature and rules: see the block contract in :mod:`controlkit._block`.
+"""
 
 from __future__ import annotations
 
@@ -7,6 +11,8 @@ from .._jit import jit
 
 #: Parameters of the discrete integrator: its sampling period.
 INTEGRATOR = layout("integrator parameters", Ts=1)
+#: Parameters of the low-pass filter: its pole ``a = exp(-Ts / tau)``.
+LOWPASS = layout("low-pass filter parameters", a=1)
 
 
 @jit
@@ -36,4 +42,13 @@ def saturation_output(t, x, u, p, out):
     """``clip(u_i, -p_i, p_i)``."""
     for i in range(u.shape[0]):
         out[i] = min(p[i], max(-p[i], u[i]))
+    return out
+
+
+@jit
+def lowpass_update(t, x, u, p, out):
+    """``y[k+1] = a y[k] + (1 - a) u[k]``, the exact ZOH step of ``tau y' = u - y``."""
+    a = p[LOWPASS.a]
+    for i in range(x.shape[0]):
+        out[i] = a * x[i] + (1 - a) * u[i]
     return out
