@@ -81,11 +81,23 @@ def _signal_label(names, sizes):
     return ", ".join(parts)
 
 
-def _wrap(label, width=24):
-    """Break a long list of signals into lines of about ``width`` characters."""
+def _wrap(label, width=18):
+    """Break a long list of signals into balanced lines of at most about ``width`` characters.
+
+    Examples
+    --------
+    >>> print(_wrap("q1, q2, q4, w1, w2, w4"))
+    q1, q2, q4,
+    w1, w2, w4
+    """
+    if len(label) <= width:
+        return label
+    parts = label.split(", ")
+    n_lines = -(-len(label) // width)
+    target = len(label) / n_lines
     lines, current = [], ""
-    for part in label.split(", "):
-        if current and len(current) + len(part) + 2 > width:
+    for part in parts:
+        if current and len(current) + len(part) + 2 > target + 2 and len(lines) < n_lines - 1:
             lines.append(current + ",")
             current = part
         else:
@@ -228,8 +240,13 @@ class _Net:
         self.color = _BLUE
 
 
-def _nets(sys, nodes):
-    """Group the connection map into nets; implicit sums become virtual sum nodes."""
+def _nets(sys, nodes, sums=None):
+    """Group the connection map into nets; implicit sums become virtual sum nodes.
+
+    ``sums`` (``{block: {input base name: sign}}``) draws the sum a block computes
+    first (``F (r - h)``: ``{"controller": {"r": 1, "h": -1}}``) as a junction in front of it.
+    """
+    sums = sums or {}
     out_owner, in_owner = _owners(sys)
     sizes = defaultdict(int)
     for _, name in out_owner:
@@ -242,6 +259,14 @@ def _nets(sys, nodes):
                  for j in np.nonzero(sys.connect_map[i])[0]]
         feeds += [(_IN, sys.input_labels[e], sys.input_map[i, e])
                   for e in np.nonzero(sys.input_map[i])[0]]
+        if block in sums and _base(port) in sums[block]:  # a sum inside the block
+            virtual = f"{block}:sum"
+            nodes.setdefault(virtual, {"shape": "sum", "signs": {}, "label": "", "math": False,
+                                       "sub": "", "virtual": True})
+            for a, sig, g in feeds:
+                wires.append((a, sig, virtual, sig, g * sums[block][_base(port)]))
+            wires.append((virtual, f"sum~{port}", block, port, 1.0))
+            continue
         if len(feeds) >= 2:  # the connection map sums these signals into the port
             key = "+".join(f"{a}" for a, _, _ in feeds)
             virtual = f"{block}:{_base(port)}:{key}"
@@ -319,6 +344,11 @@ def _columns(nodes, nets, beside):
             for b in succ[a]:
                 if (a, b) not in back:
                     layer[b] = max(layer[b], layer[a] + 1)
+    fed_forward = {b for a in names for b in succ[a] if (a, b) not in back}
+    for n in names:  # a source (a constant gain) sits just before the block it feeds
+        after = [layer[b] for b in succ[n] if (n, b) not in back]
+        if n not in fed_forward and n not in entries and after:
+            layer[n] = max(layer[n], min(after) - 1)
     for n, other in beside.items():
         if other in layer:
             layer[n] = layer[other]
@@ -411,7 +441,9 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
 
     Notes
     -----
-    ``sys.drawing_hints`` may also hold ``title``, ``beside`` (``{block: other}``: put
+    ``sys.drawing_hints`` may also hold ``title``, ``sums`` (``{block: {input: sign}}``:
+    the block first adds these inputs, e.g. ``F (r - h)``; drawn as a junction in front
+    of it), ``beside`` (``{block: other}``: put
     ``block`` in the column of ``other``, on a row of its own - a branch in
     parallel), ``rows`` (``{block: row}``, 0 the main row) and ``notes``
     (``{block: text}``, a second line inside the block). External outputs that
@@ -434,6 +466,7 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
 
     _require_interconnect(sys)
     labels, groups, beside, row_hint, notes = _hints(sys, labels, groups)
+    sums = (getattr(sys, "drawing_hints", None) or {}).get("sums", {})
     hint_title = (getattr(sys, "drawing_hints", None) or {}).get("title")
     f_sig, f_name, f_sub = fontsize, fontsize + 2, fontsize - 0.5
     graph = diagram_graph(sys)
@@ -452,7 +485,7 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
                              (f"{s.name}, {_kind(s)}" if _kind(s) != "static" else s.name)
                              if label is not None else _kind(s))}
         order[s.name] = i
-    nets, _ = _nets(sys, nodes)
+    nets, _ = _nets(sys, nodes, sums)
     for n in nodes:
         order.setdefault(n, len(order))
     layer, entries = _columns(nodes, nets, beside)
@@ -541,7 +574,8 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
     for net in nets:
         src_col = layer[net.src] if net.src in nodes else -1
         w, _ = _text_size(net.label, f_sig)
-        if net.src in nodes and not nodes[net.src]["virtual"]:
+        if net.src in nodes and not nodes[net.src]["virtual"] and not (
+                net.out and not net.dangling):  # a loop output is labelled where it leaves
             label_w[src_col + 1] = max(label_w[src_col + 1], w + 0.2)
         if net.dangling:
             continue
@@ -738,7 +772,7 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
         color = net.color
         if net.src in nodes:
             sx, sy = port_xy[(net, net.src)]
-            if not nodes[net.src]["virtual"]:
+            if not nodes[net.src]["virtual"] and not (net.out and not net.dangling):
                 text(sx + 0.07, sy + 0.04, net.label, ha="left", va="bottom", color=color,
                      bbox=white, zorder=6)
         else:
@@ -869,7 +903,9 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
         if not members:
             continue
         inside = [net for net in local_nets if net.src in members]
-        x0 = min(nodes[m]["x"] - nodes[m]["w"] / 2 for m in members) - 0.2
+        x0 = min([nodes[m]["x"] - nodes[m]["w"] / 2 for m in members]
+                 + [track_x[(net, layer[b])] for net in inside for b in net.kinds
+                    if (net, layer[b]) in track_x]) - 0.08
         x1 = max(nodes[m]["x"] + nodes[m]["w"] / 2 for m in members) + 0.2
         y1 = max(nodes[m]["y"] + nodes[m]["h"] / 2 for m in members) + 0.4
         y0 = min([nodes[m]["y"] - nodes[m]["h"] / 2 for m in members]

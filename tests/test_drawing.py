@@ -195,7 +195,7 @@ def test_a_signal_with_three_destinations_is_one_branching_line():
 
     fig = draw_block_diagram(mec_loop(K="frit"))
     ax = fig.axes[0]
-    assert [t.get_text() for t in ax.texts].count("h") == 2  # where it leaves, and as output
+    assert [t.get_text() for t in ax.texts].count("h") == 1  # labelled once, as the output
     # h goes to the controller, the compensator and the tuner, and out of the loop
     segments = [list(zip(line.get_xdata(), line.get_ydata(), strict=True))
                 for line in ax.lines if line.get_gid() == "net:output:h"]

@@ -29,8 +29,9 @@ def _drawing_hints(plant, linearizer, output, controller=None, nominal=None, gai
     hints = {"labels": labels, "title": "Fig. 2: the linearized plant closed by the outer loop",
              "groups": {r"$L_a$: linearized plant (Fig. 2)": [linearizer.name, plant.name,
                                                                 output.name]}}
-    if controller is not None:
-        labels[controller.name] = r"$F\,(r - h)$"
+    if controller is not None:  # eq. 12, mu = F (r - h): the junction, then the gain F
+        labels[controller.name] = "$F$"
+        hints["sums"] = {controller.name: {"r": 1, "h": -1}}
     if nominal is not None:
         hints["title"] = ("Fig. 4: MEC with the on-line FRIT tuner" if gain.nstates
                           else "Fig. 3: MEC with a constant gain K")
