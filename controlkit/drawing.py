@@ -207,7 +207,8 @@ def _shape(s):
 
 def _kind(s):
     if isinstance(s, ct.InterconnectedSystem):
-        return f"{len(s.syslist)} blocks"
+        names = ", ".join(sub.name for sub in s.syslist)
+        return names if len(names) <= 20 else f"{len(s.syslist)} blocks"
     if not s.nstates:
         return "static"
     return "continuous" if s.isctime(strict=True) else f"dt = {s.dt:g}"

@@ -123,6 +123,10 @@ def test_paper_diagrams_fit_a_slide_with_readable_separate_text(name):
     smallest = min(t.get_fontsize() for t in texts) / 72 * px_per_inch
     assert smallest >= 10.0, smallest
     boxes = [(t.get_text(), t.get_window_extent(renderer)) for t in texts]
+    page = fig.bbox
+    for label, box in boxes:  # nothing cut off at the edges
+        inside = page.x0 <= box.x0 <= box.x1 <= page.x1 and page.y0 <= box.y0 <= box.y1 <= page.y1
+        assert inside, label
     for i, (a, box_a) in enumerate(boxes):
         for b, box_b in boxes[i + 1:]:
             assert not box_a.overlaps(box_b), (a, b)
