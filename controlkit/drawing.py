@@ -459,8 +459,8 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
     >>> error = ct.summing_junction(inputs=["w_ref", "-w"], output="e", name="error")
     >>> loop = ct.interconnect([error, pi, motor], inputs="w_ref", outputs="w")
     >>> fig = draw_block_diagram(loop, labels={"pi": "$C(s)$"})
-    >>> sorted(t.get_text() for t in fig.axes[0].texts if t.get_text() in "+-")
-    ['+', '-']
+    >>> [t.get_text() for t in fig.axes[0].texts if t.get_text() in ("+", "\u2212")]
+    ['+', '−']
     """
     import matplotlib.pyplot as plt
     from matplotlib.patches import Circle, FancyBboxPatch, Polygon, Rectangle
