@@ -30,8 +30,10 @@ import time
 
 import numpy as np
 
-from controlkit import _kernels as kernels
 from controlkit.blocks import cmg as cmg_blocks
+from controlkit.kernels import cmg as cmg_kernels
+from controlkit.kernels import mec as mec_kernels
+from controlkit.kernels import spacecraft as sc_kernels
 from controlkit.scenarios import cmg as cmg_scenario
 from controlkit.scenarios import spacecraft as sc_scenario
 from controlkit.simulation import initial_state, simulate
@@ -59,10 +61,10 @@ def plain_spacecraft(case, steps):
     """(c): the spacecraft loop of ``case`` written out by hand."""
     loop = sc_scenario.build_loop(case)
     blocks = {s.name: s for s in loop.syslist}
-    P = {name: s.kernel.params for name, s in blocks.items()}
-    rhs, lin = plain(kernels.spacecraft_rhs), plain(kernels.linearizer_output)
+    P = {name: s.kernels.params for name, s in blocks.items()}
+    rhs, lin = plain(sc_kernels.plant_rhs), plain(sc_kernels.linearizer_output)
     mec = "tuner" in blocks or "gain" in blocks
-    tuner_update = plain(kernels.frit_update)
+    tuner_update = plain(mec_kernels.tuner_update)
     q = sc_scenario.initial_attitude()
     hn = q[1:3].copy()
     xt = blocks["tuner"].x0.copy() if "tuner" in blocks else None
@@ -88,8 +90,9 @@ def plain_spacecraft(case, steps):
 def plain_cmg(steps):
     """(c): the CMG loop written out by hand."""
     loop = cmg_scenario.build_loop("thesis")
-    P = {s.name: s.kernel.params for s in loop.syslist}
-    rhs, law, ref = plain(kernels.cmg_rhs), plain(kernels.smc_law), plain(kernels.cmg_reference)
+    P = {s.name: s.kernels.params for s in loop.syslist}
+    rhs, law, ref = (plain(cmg_kernels.plant_rhs), plain(cmg_kernels.smc_equations),
+                    plain(cmg_kernels.reference_output))
     x = cmg_scenario.X0_THESIS.copy()
     a = np.zeros(4)
     Ts, empty = 0.001, np.zeros(0)
@@ -124,7 +127,7 @@ def marginal_per_step(loop, X0, dt, steps):
     run, blocks = engine.compile_system(loop)
     T = np.arange(steps) * dt
     U = np.zeros((loop.ninputs, steps))
-    P = np.concatenate([b.kernel.params for b in blocks])
+    P = np.concatenate([b.kernels.params for b in blocks])
     Y, X = np.zeros((loop.noutputs, steps)), np.zeros((loop.nstates, steps))
     status = np.array([-1, -1])
     run(T, np.asarray(X0, float), U, P, Y, X, status, 0, 10)  # compile or load

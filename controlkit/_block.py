@@ -1,6 +1,6 @@
 """Building ``NonlinearIOSystem`` blocks from kernels, and remembering the kernels.
 
-A block built here carries a :class:`Kernel` in its ``kernel`` attribute: the
+A block built here carries a :class:`BlockKernels` in its ``kernels`` attribute: the
 plain functions and packed parameters that the fast engine compiles. The
 python-control path calls the very same functions, so both paths compute
 the same equations.
@@ -16,7 +16,7 @@ import numpy as np
 
 
 @dataclass(frozen=True)
-class Kernel:
+class BlockKernels:
     """What the fast engine needs to run a block without python-control.
 
     Attributes
@@ -41,7 +41,7 @@ class Kernel:
     feedthrough: bool
     rk4: tuple[float, int] | None = None
 
-    def sampled(self, Ts: float, substeps: int) -> Kernel:
+    def sampled(self, Ts: float, substeps: int) -> BlockKernels:
         """The same kernel under ZOH with ``substeps`` RK4 steps per period ``Ts``."""
         return replace(self, rk4=(float(Ts), int(substeps)))
 
@@ -63,18 +63,18 @@ def kernel_block(output, update=None, *, params=(), feedthrough=True, check=None
         raises a ``ValueError`` with a clear message where the kernel returned NaN.
     uncompiled : str, optional
         Why the fast engine cannot compile this block (its kernels call Python
-        objects); the block then has ``kernel = None`` and ``kernel_reason``.
+        objects); the block then has ``kernels = None`` and ``kernel_reason``.
     **nlsys_kwargs
         ``inputs``, ``outputs``, ``states``, ``dt``, ``name`` for :func:`control.nlsys`.
 
     Returns
     -------
     control.NonlinearIOSystem
-        With attribute ``kernel`` (a :class:`Kernel`, or None if ``uncompiled``).
+        With attribute ``kernels`` (a :class:`BlockKernels`, or None if ``uncompiled``).
 
     Examples
     --------
-    >>> from controlkit._kernels import constant_output
+    >>> from controlkit.kernels.common import constant_output
     >>> kernel_block(constant_output, params=[1.0, 2.0], feedthrough=False, inputs=0,
     ...              outputs=2, dt=None).output(0.0, [], []).tolist()
     [1.0, 2.0]
@@ -98,7 +98,7 @@ def kernel_block(output, update=None, *, params=(), feedthrough=True, check=None
 
     sys = ct.nlsys(updfcn, outfcn, **nlsys_kwargs)
     size["y"], size["x"] = sys.noutputs, sys.nstates
-    sys.kernel = None if uncompiled else Kernel(output, update, p, bool(feedthrough))
+    sys.kernels = None if uncompiled else BlockKernels(output, update, p, bool(feedthrough))
     sys.kernel_check = check
     if uncompiled:
         sys.kernel_reason = uncompiled

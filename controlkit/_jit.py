@@ -22,13 +22,15 @@ except ImportError:
 HAVE_NUMBA = numba is not None
 
 
-def kernel(function):
+def jit(function):
     """Compile ``function`` with numba (cached) when available; else return it unchanged.
+
+    Every kernel and every helper a kernel calls is decorated with ``@jit``.
 
     Examples
     --------
     >>> import numpy as np
-    >>> from controlkit._kernels import constant_output  # decorated with @kernel
+    >>> from controlkit.kernels.common import constant_output  # decorated with @jit
     >>> constant_output(0.0, np.zeros(0), np.zeros(0), np.array([1.5]), np.zeros(1)).tolist()
     [1.5]
     """

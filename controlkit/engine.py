@@ -67,7 +67,7 @@ def _blocks(sys):
             f"with controlkit.sampling.sample_nlsys so that the diagram is discrete")
     blocks, xs, us, ys, ps = [], 0, 0, 0, 0
     for i, block in enumerate(sys.syslist):
-        kernel = getattr(block, "kernel", None)
+        kernel = getattr(block, "kernels", None)
         if kernel is None:
             reason = getattr(block, "kernel_reason", None) or "not a controlkit block"
             raise UnsupportedSystem(f"block {block.name!r} cannot be compiled: {reason}")

@@ -67,7 +67,7 @@ def sample_nlsys(
         Discrete (``dt = Ts``) with the same inputs, outputs, states and
         parameters. Attributes ``continuous`` (the original system) and
         ``sampling`` (a dict of the method settings) record what was done;
-        ``kernel`` lets the fast engine run it (``"rk4"`` on a controlkit block).
+        ``kernels`` lets the fast engine run it (``"rk4"`` on a controlkit block).
 
     Examples
     --------
@@ -122,12 +122,12 @@ def sample_nlsys(
     )
     sampled.continuous = sys
     sampled.sampling = {"method": method, "substeps": substeps, "rtol": rtol, "atol": atol}
-    kernel = getattr(sys, "kernel", None)
+    kernel = getattr(sys, "kernels", None)
     if method == "rk4" and kernel is not None and kernel.update is not None:
-        sampled.kernel = kernel.sampled(Ts, substeps)  # the fast engine inlines the same RK4
+        sampled.kernels = kernel.sampled(Ts, substeps)  # the fast engine inlines the same RK4
         sampled.kernel_check = getattr(sys, "kernel_check", None)
     else:
-        sampled.kernel = None
+        sampled.kernels = None
         sampled.kernel_reason = getattr(sys, "kernel_reason", None) or (
             "sampled with solve_ivp" if method == "solve_ivp" else "not a controlkit block")
     return sampled

@@ -17,8 +17,9 @@ import control as ct
 import numpy as np
 
 from .. import _checks
-from .. import _kernels as kernels
 from .._block import kernel_block
+from ..kernels import cmg as kernels
+from ..kernels import common
 
 STATES = ["q1", "q2", "q4", "w1", "w2", "w4"]
 REFERENCE_SIGNALS = ["q2d", "q2d_dot", "q2d_ddot", "q4d", "q4d_dot", "q4d_ddot"]
@@ -137,7 +138,7 @@ def accelerations(x, torque, inertias: Inertias, delta_IG4x=0.0, friction=None):
     [0.0, 10.0, 0.0]
     """
     p = _plant_parameters(inertias, delta_IG4x, friction or Friction())
-    return kernels.cmg_rhs(0.0, np.asarray(x, float), np.asarray(torque, float), p,
+    return kernels.plant_rhs(0.0, np.asarray(x, float), np.asarray(torque, float), p,
                            np.empty(6))[3:]
 
 
@@ -198,7 +199,7 @@ def cmg_plant(inertias=None, *, delta_IG4x=0.0, friction=None, name="cmg") -> ct
             f"got {delta_IG4x}"
         )
 
-    sys = kernel_block(kernels.state_output, kernels.cmg_rhs,
+    sys = kernel_block(common.state_output, kernels.plant_rhs,
                        params=_plant_parameters(inertias, delta_IG4x, friction),
                        feedthrough=False, inputs=["T1", "T2"], outputs=STATES, states=STATES,
                        name=name)
@@ -224,7 +225,7 @@ def reference(t):
     [1.047198, 0.0, -0.119623, 1.0, 0.0, -0.137078]
     """
     empty = np.zeros(0)
-    return kernels.cmg_reference(float(t), empty, empty, empty, np.empty(6))
+    return kernels.reference_output(float(t), empty, empty, empty, np.empty(6))
 
 
 def reference_generator(*, name="reference") -> ct.NonlinearIOSystem:
@@ -241,7 +242,7 @@ def reference_generator(*, name="reference") -> ct.NonlinearIOSystem:
     >>> reference_generator().output(0.0, [], []).round(4).tolist()
     [0.1745, 0.0, 0.0, 0.0, 0.0, 0.0]
     """
-    return kernel_block(kernels.cmg_reference, feedthrough=False, inputs=0,
+    return kernel_block(kernels.reference_output, feedthrough=False, inputs=0,
                         outputs=REFERENCE_SIGNALS, dt=None, name=name)
 
 
@@ -286,7 +287,7 @@ def smc_law(x, ref, a_hat, inertias: Inertias, gains, boundary_layer=0.0, min_si
     [0.0, 0.0]
     """
     p = _controller_parameters(inertias, gains, boundary_layer, min_sin_q2, 0.0)
-    law = kernels.smc_law(np.asarray(a_hat, float),
+    law = kernels.smc_equations(np.asarray(a_hat, float),
                           np.concatenate([np.asarray(x, float), np.asarray(ref, float)]), p)
     if np.isnan(law[0]):
         _refuse_sin_q2(x[1])
@@ -413,7 +414,7 @@ def torque_saturation(T1_max=T1_MAX, T2_max=T2_MAX, *, name="saturation") -> ct.
     """
     limits = np.array([_checks.positive_scalar("T1_max", T1_max),
                        _checks.positive_scalar("T2_max", T2_max)])
-    sys = kernel_block(kernels.saturation_output, params=limits,
+    sys = kernel_block(common.saturation_output, params=limits,
                        inputs=["T1_cmd", "T2_cmd"], outputs=["T1", "T2"], dt=None, name=name)
     sys.limits = limits
     return sys

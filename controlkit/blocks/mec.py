@@ -14,8 +14,9 @@ import control as ct
 import numpy as np
 
 from .. import _checks
-from .. import _kernels as kernels
 from .._block import kernel_block
+from ..kernels import common
+from ..kernels import mec as kernels
 from .spacecraft import F_PAPER, TS_PAPER
 
 #: Table 3: forgetting factor, P(0) = gamma I, low-pass coefficient, threshold.
@@ -59,7 +60,7 @@ def nominal_model(Ts=TS_PAPER, *, h0=(0.0, 0.0), name="nominal") -> ct.Nonlinear
     """
     Ts = _checks.positive_scalar("Ts", Ts)
     h0 = _checks.vector("h0", h0, 2)
-    sys = kernel_block(kernels.state_output, kernels.integrator_update, params=[Ts],
+    sys = kernel_block(common.state_output, common.integrator_update, params=[Ts],
                        feedthrough=False, inputs=["mu_n[0]", "mu_n[1]"],
                        outputs=["hn[0]", "hn[1]"], states=["hn[0]", "hn[1]"], dt=Ts, name=name)
     sys.x0 = h0
@@ -112,7 +113,7 @@ def constant_gain(K=0.1, *, name="gain") -> ct.NonlinearIOSystem:
     [1.0, 2.0, 3.0, 4.0]
     """
     K = _checks.gain_matrix("K", K)
-    sys = kernel_block(kernels.constant_output, params=K.ravel(), feedthrough=False, inputs=0,
+    sys = kernel_block(common.constant_output, params=K.ravel(), feedthrough=False, inputs=0,
                        outputs=K_SIGNALS, dt=None, name=name)
     sys.K = K
     return sys
@@ -194,7 +195,7 @@ def rls_step(Khat, P1, P2, xi, eta, lambda_):
     x[16:20] = np.ravel(P2)
     p = np.array([1.0, 1.0, 0.0, 0.0, lambda_, 1.0, 0.0, 0.0])
     u = np.array([0.0, 0.0, 0.0, 0.0, 1.0, 1.0])  # h = 0, hn - h = 1 > psi = 0
-    xn = kernels.frit_update(0.0, x, u, p, np.empty(24))
+    xn = kernels.tuner_update(0.0, x, u, p, np.empty(24))
     return xn[8:12].reshape(2, 2), xn[12:16].reshape(2, 2), xn[16:20].reshape(2, 2)
 
 
@@ -301,7 +302,7 @@ def frit_tuner(
     gamma, psi_values = gamma * scale**2, psi_values / scale  # see output_scale
     a = np.exp(-F * Ts)
     params = np.concatenate([F, a, [lambda_, kappa], psi_values])
-    sys = kernel_block(kernels.frit_output, kernels.frit_update, params=params,
+    sys = kernel_block(kernels.tuner_output, kernels.tuner_update, params=params,
                        feedthrough=False,
                        inputs=["mu[0]", "mu[1]", "h[0]", "h[1]", "hn[0]", "hn[1]"],
                        outputs=K_SIGNALS, states=TUNER_STATES, dt=Ts, name=name)

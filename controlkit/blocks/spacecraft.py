@@ -18,8 +18,9 @@ import control as ct
 import numpy as np
 
 from .. import _checks
-from .. import _kernels as kernels
 from .._block import kernel_block
+from ..kernels import common
+from ..kernels import spacecraft as kernels
 
 # --- Paper values (Tables 2 and 3) -------------------------------------------------
 
@@ -264,7 +265,7 @@ def spacecraft_plant(
     J_w1 = _checks.inertia("J_w1", J_w1)
     J_w2 = _checks.inertia("J_w2", J_w2)
     v1, v2 = _checks.wheel_axes(v1, v2)
-    profile, H0_of_t, rhs, uncompiled = _momentum_kernel("H0", H0, kernels.spacecraft_rhs)
+    profile, H0_of_t, rhs, uncompiled = _momentum_kernel("H0", H0, kernels.plant_rhs)
     J_t = J_b + J_w1 + J_w2
     J_t_inv = np.linalg.inv(J_t)
     b1, b2 = J_w1 @ v1, J_w2 @ v2
@@ -274,7 +275,7 @@ def spacecraft_plant(
         return body_rate(q, u, H0_of_t(t), J_t_inv, b1, b2)
 
     sys = kernel_block(
-        kernels.state_output, rhs, params=params, feedthrough=False, uncompiled=uncompiled,
+        common.state_output, rhs, params=params, feedthrough=False, uncompiled=uncompiled,
         inputs=_U_SIGNALS, outputs=_Q_SIGNALS, states=_Q_SIGNALS, name=name,
     )
     sys.J_t, sys.H0 = J_t, H0_of_t
@@ -394,7 +395,7 @@ def attitude_output(*, name="output") -> ct.NonlinearIOSystem:
     [0.1, 0.2]
     """
 
-    return kernel_block(kernels.attitude_output_kernel, inputs=_Q_SIGNALS,
+    return kernel_block(kernels.attitude_output, inputs=_Q_SIGNALS,
                         outputs=["h[0]", "h[1]"], dt=None, name=name)
 
 
@@ -426,7 +427,7 @@ def outer_controller(F=F_PAPER, *, output="mu", name="controller") -> ct.Nonline
     """
     F = _checks.gain_pair("F", F)
     sys = kernel_block(
-        kernels.outer_controller_kernel, params=F, inputs=["r[0]", "r[1]", "h[0]", "h[1]"],
+        kernels.controller_output, params=F, inputs=["r[0]", "r[1]", "h[0]", "h[1]"],
         outputs=[f"{output}[0]", f"{output}[1]"], dt=None, name=name,
     )
     sys.F = F
