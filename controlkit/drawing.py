@@ -535,6 +535,8 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
     last = ncol - 1
     for net in nets:
         internal = [b for b, _, _ in net.dests if b != _OUT]
+        net.out_ports = [p for b, ports, _ in net.dests if b == _OUT for p in ports]
+        net.far = False
         net.out = any(b == _OUT for b, _, _ in net.dests) and (
             not internal or layer.get(net.src, -1) == last)
         net.dests = [d for d in net.dests if d[0] != _OUT]
@@ -542,6 +544,11 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
         net.kinds = {b: kind_of(net, b) for b, _, _ in net.dests}
         net.virtual_src = nodes.get(net.src, {}).get("virtual", False)
     nets = [n for n in nets if n.dests or n.out]
+    if sys.noutputs and not any(n.out and not n.dangling for n in nets):
+        # the loop's first output leaves on the right even when its block is not last
+        for net in nets:
+            if sys.output_labels[0] in net.out_ports and net.dests:
+                net.out, net.far, net.dangling = True, True, False
 
     # --- column x, row y
     col_w = [max(nodes[n]["w"] for n in nodes if layer[n] == c) for c in range(ncol)]
@@ -694,7 +701,7 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
                                                    else 0.0]
         return max(xs) - min(xs)
 
-    top_nets = sorted([n for n in nets if "skip" in n.kinds.values()],
+    top_nets = sorted([n for n in nets if "skip" in n.kinds.values() or n.far],
                       key=lambda n: (inner(n), span(n)))
     local_nets = {net for nets_r in local.values() for net in nets_r}
     bottom_nets = sorted([n for n in nets if "back" in n.kinds.values()
@@ -804,9 +811,11 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
         ys = [sy]
         seg(net, [(sx, sy), (xt, sy)], color)
         if net.out:
-            seg(net, [(xt, sy), (x_right, sy)], color)
-            head((x_right, sy), "right", color, f"net:{net.src}:{net.label}")
-            text(x_right + 0.08, sy, net.label, ha="left", va="center", color=_GREY,
+            y_out = lane_top[net] if net.far else sy
+            ys.append(y_out)
+            seg(net, [(xt, y_out), (x_right, y_out)], color)
+            head((x_right, y_out), "right", color, f"net:{net.src}:{net.label}")
+            text(x_right + 0.08, y_out, net.label, ha="left", va="center", color=_GREY,
                  style="italic")
         for b, k in net.kinds.items():
             px, py, side = in_xy[(net, b)]
