@@ -491,6 +491,13 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
         order.setdefault(n, len(order))
     layer, entries = _columns(nodes, nets, beside)
     row = _rows(nodes, nets, layer, entries, order, row_hint)
+    for n, feeder in _feedback_elements(nodes, nets, layer, row, entries).items():
+        # a sensor or gain in the feedback path: under its feeder, pointing back
+        nodes[n]["flip"], nodes[n]["feeder"] = True, feeder
+        layer[n] = layer[feeder]
+        row[n] = max(row[m] for m in nodes if layer[m] == layer[n] and m != n) + 1
+    used = sorted(set(layer.values()))
+    layer = {n: used.index(c) for n, c in layer.items()}
     ncol = max(layer.values()) + 1
 
     # --- node sizes (inches)
@@ -528,7 +535,7 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
         if b == _OUT:
             return "out"
         ls = layer[net.src] if net.src in nodes else -1
-        if layer[b] == ls + 1:
+        if layer[b] == ls + 1 or nodes[b].get("feeder") == net.src:
             return "next"
         return "skip" if layer[b] > ls + 1 else "back"
 
@@ -582,7 +589,8 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
     for net in nets:
         src_col = layer[net.src] if net.src in nodes else -1
         w, _ = _text_size(net.label, f_sig)
-        if net.src in nodes and not nodes[net.src]["virtual"] and not (
+        flip = nodes.get(net.src, {}).get("flip", False)
+        if net.src in nodes and not nodes[net.src]["virtual"] and not flip and not (
                 net.out and not net.dangling):  # a loop output is labelled where it leaves
             label_w[src_col + 1] = max(label_w[src_col + 1], w + 0.2)
         if net.dangling:
@@ -592,7 +600,7 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
         net.track_gap = src_col + 1
         if needs_track or net.src in nodes and any(
                 row[b] != row[net.src] for b in net.kinds):
-            exits[src_col + 1].append(net)
+            exits[src_col if flip else src_col + 1].append(net)
         for b, k in net.kinds.items():
             if k in ("skip", "back") and not (nodes[b]["shape"] == "sum" and
                                               _vertical_ok(b, k, nodes, layer, row)):
@@ -645,8 +653,9 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
         outs = sorted(out_ports[n], key=lambda net: -towards(net))
         extra_out = 1 if n in graph["unused_outputs"] else 0
         k = len(outs) + extra_out
+        side = -1 if node.get("flip") else 1
         for i, net in enumerate(outs):
-            port_xy[(net, n)] = (node["x"] + node["w"] / 2,
+            port_xy[(net, n)] = (node["x"] + side * node["w"] / 2,
                                  node["y"] + pitch * ((k - 1) / 2 - i))
         node["unused_xy"] = (node["x"] + node["w"] / 2, node["y"] + pitch * ((k - 1) / 2 - k + 1))
         ins = sorted(in_ports[n], key=lambda p: -(1e3 if p[1] == "skip" else -1e3
@@ -654,23 +663,14 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
         extra_in = 1 if n in graph["unconnected_inputs"] else 0
         k = len(ins) + extra_in
         if node["shape"] == "sum":
-            left = [p for p in ins if not (p[1] in ("skip", "back")
-                                           and _vertical_ok(n, p[1], nodes, layer, row))]
-            for net, kd in ins:
-                r = node["w"] / 2
-                if (net, kd) in left:
-                    j, m = left.index((net, kd)), len(left)
-                    dy = 0.0 if m == 1 else r * 0.7 * (1 - 2 * j / (m - 1))
-                    in_xy[(net, n)] = (node["x"] - np.sqrt(r * r - dy * dy), node["y"] + dy,
-                                       "left")
-                else:
-                    side = +1 if kd == "skip" else -1
-                    in_xy[(net, n)] = (node["x"], node["y"] + side * r, "top" if side > 0
-                                       else "bottom")
+            _sum_ports(n, node, ins, source_y, in_xy, nodes, layer, row)
             continue
         xl = node["x"] - node["w"] / 2
+        if node.get("flip"):
+            xl = node["x"] + node["w"] / 2
         for i, (net, _) in enumerate(ins):
-            in_xy[(net, n)] = (xl, node["y"] + pitch * ((k - 1) / 2 - i), "left")
+            in_xy[(net, n)] = (xl, node["y"] + pitch * ((k - 1) / 2 - i),
+                               "right" if node.get("flip") else "left")
         node["spare_xy"] = (xl, node["y"] + pitch * ((k - 1) / 2 - k + 1))
 
     # --- tracks and lanes
@@ -704,8 +704,15 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
     top_nets = sorted([n for n in nets if "skip" in n.kinds.values() or n.far],
                       key=lambda n: (inner(n), span(n)))
     local_nets = {net for nets_r in local.values() for net in nets_r}
+    # the output of a feedback element runs back along its own row when that row is free
+    own_row = {net for net in nets if nodes.get(net.src, {}).get("flip")
+               and all(k == "back" for k in net.kinds.values())
+               and not any(row[m] == row[net.src] and m != net.src
+                           and min(layer[b] for b in net.kinds) <= layer[m] <= layer[net.src]
+                           for m in nodes)}
     bottom_nets = sorted([n for n in nets if "back" in n.kinds.values()
-                          and n not in local_nets], key=lambda n: (inner(n), span(n)))
+                          and n not in local_nets and n not in own_row],
+                         key=lambda n: (inner(n), span(n)))
     frame_pad = 0.45 if groups else 0.0
     lane_top = {net: top_rows + frame_pad + 0.3 + lane_pitch * i
                 for i, net in enumerate(top_nets)}
@@ -713,6 +720,8 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
     start = bottom_rows - 0.3 - (lane_pitch * len(local[last_row]) + 0.15 if local[last_row]
                                  else 0.0)
     lane_bottom = {net: start - lane_pitch * i for i, net in enumerate(bottom_nets)}
+    for net in own_row:
+        lane_bottom[net] = port_xy[(net, net.src)][1]
     for r, nets_r in local.items():
         low = min(nodes[n]["y"] - nodes[n]["h"] / 2 for n in nodes if row[n] == r)
         for i, net in enumerate(sorted(nets_r, key=span)):
@@ -721,7 +730,7 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
     # --- figure
     title = title if title is not None else hint_title or sys.name
     y_top = (max(lane_top.values()) if lane_top else top_rows + frame_pad) + 0.25
-    y_bottom = (min(lane_bottom.values()) if lane_bottom else bottom_rows) - 0.2
+    y_bottom = min([bottom_rows] + list(lane_bottom.values())) - 0.2
     x_left = -max([_text_size(n.label, f_sig)[0] + 0.1 for n in nets if n.src == _IN] + [0])
     x_right_text = x_right + max([_text_size(n.label, f_sig)[0] + 0.1 for n in nets
                                   if n.out and not n.dangling] + [0])
@@ -752,7 +761,8 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
         ax.plot(*zip(*points, strict=True), color=color, gid=gid, **line)
 
     def head(tip, direction, color, gid=None):
-        dx, dy = {"left": (1, 0), "top": (0, -1), "bottom": (0, 1), "right": (1, 0)}[direction]
+        dx, dy = {"left": (1, 0), "top": (0, -1), "bottom": (0, 1), "right": (-1, 0),
+                  "out": (1, 0)}[direction]
         a, b = 0.13, 0.05
         x0, y0 = tip
         pts = [(x0, y0), (x0 - dx * a - dy * b, y0 - dy * a + dx * b),
@@ -771,7 +781,7 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
 
     def arrive(net, b, x_track, color):
         px, py, side = in_xy[(net, b)]
-        if side == "left":
+        if side in ("left", "right"):
             seg(net, [(x_track, py), (px, py)], color)
         head((px, py), side, color, f"net:{net.src}:{net.label}")
         return py
@@ -780,7 +790,10 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
         color = net.color
         if net.src in nodes:
             sx, sy = port_xy[(net, net.src)]
-            if not nodes[net.src]["virtual"] and not (net.out and not net.dangling):
+            if nodes[net.src].get("flip"):
+                text(sx - 0.07, sy + 0.04, net.label, ha="right", va="bottom", color=color,
+                     bbox=white, zorder=6)
+            elif not nodes[net.src]["virtual"] and not (net.out and not net.dangling):
                 text(sx + 0.07, sy + 0.04, net.label, ha="left", va="bottom", color=color,
                      bbox=white, zorder=6)
         else:
@@ -792,12 +805,12 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
         if net.dangling:
             w, _ = _text_size(net.label, f_sig)
             seg(net, [(sx, sy), (sx + w + 0.15, sy)], _GREY)
-            head((sx + w + 0.15, sy), "right", _GREY)
+            head((sx + w + 0.15, sy), "out", _GREY)
             continue
         xt = track_x.get((net, "exit"))
         if xt is None and not net.kinds:  # an output of the last column: out to the right
             seg(net, [(sx, sy), (x_right, sy)], color)
-            head((x_right, sy), "right", color, f"net:{net.src}:{net.label}")
+            head((x_right, sy), "out", color, f"net:{net.src}:{net.label}")
             text(x_right + 0.08, sy, net.label, ha="left", va="center", color=_GREY,
                  style="italic")
             continue
@@ -814,18 +827,22 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
             y_out = lane_top[net] if net.far else sy
             ys.append(y_out)
             seg(net, [(xt, y_out), (x_right, y_out)], color)
-            head((x_right, y_out), "right", color, f"net:{net.src}:{net.label}")
+            head((x_right, y_out), "out", color, f"net:{net.src}:{net.label}")
             text(x_right + 0.08, y_out, net.label, ha="left", va="center", color=_GREY,
                  style="italic")
         for b, k in net.kinds.items():
             px, py, side = in_xy[(net, b)]
+            if k == "next" and side in ("top", "bottom"):  # into a junction from its row
+                seg(net, [(xt, sy), (px, sy), (px, py)], color)
+                head((px, py), side, color, f"net:{net.src}:{net.label}")
+                continue
             if k == "next":
                 ys.append(py)
                 arrive(net, b, xt, color)
                 continue
             lane_y = lane_top[net] if k == "skip" else lane_bottom[net]
             ys.append(lane_y)
-            if side == "left":
+            if side in ("left", "right"):
                 xe = track_x[(net, layer[b])]
                 seg(net, [(xe, lane_y), (xe, py)], color)
                 arrive(net, b, xe, color)
@@ -874,10 +891,11 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
                      color=_BLUE, weight="bold")
             continue
         if node["shape"] == "gain":
-            ax.add_patch(Polygon([(x - w / 2, y - h / 2), (x - w / 2, y + h / 2),
-                                  (x + w / 2, y)], closed=True, facecolor=_FILL,
+            f = -1 if node.get("flip") else 1
+            ax.add_patch(Polygon([(x - f * w / 2, y - h / 2), (x - f * w / 2, y + h / 2),
+                                  (x + f * w / 2, y)], closed=True, facecolor=_FILL,
                                  edgecolor=_BLUE, linewidth=1.4, zorder=4))
-            text(x - w / 6, y, node["text"], size=f_name, math=node["math"], ha="center",
+            text(x - f * w / 6, y, node["text"], size=f_name, math=node["math"], ha="center",
                  va="center", zorder=5)
             continue
         ax.add_patch(FancyBboxPatch((x - w / 2, y - h / 2), w, h,
@@ -932,6 +950,55 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
         with mpl.rc_context({"svg.fonttype": "none"}):
             fig.savefig(Path(filename), dpi=160)
     return fig
+
+
+def _sum_ports(n, node, ins, source_y, in_xy, nodes, layer, row):
+    """Where signals enter a junction: one from the left, those from other rows and
+    lanes from above or below (lanes outermost), so no two entries share a line."""
+    r, x, y = node["w"] / 2, node["x"], node["y"]
+    vertical = [p for p in ins if p[1] in ("skip", "back")
+                and _vertical_ok(n, p[1], nodes, layer, row)]
+    rest = [p for p in ins if p not in vertical]
+    left = sorted(rest, key=lambda p: abs(source_y(p[0]) - y))[:1]
+    below = sorted([p for p in rest if p not in left and p[1] == "next"
+                    and source_y(p[0]) < y - r], key=lambda p: -source_y(p[0]))
+    above = sorted([p for p in rest if p not in left and p[1] == "next"
+                    and source_y(p[0]) > y + r], key=lambda p: source_y(p[0]))
+    left = [p for p in rest if p not in below and p not in above]
+    sides = (("left", left), ("bottom", below + [p for p in vertical if p[1] == "back"]),
+             ("top", above + [p for p in vertical if p[1] == "skip"]))
+    for side, ports in sides:
+        m = len(ports)
+        for j, (net, _) in enumerate(ports):
+            t = 0.0 if m == 1 else 0.7 * (2 * j / (m - 1) - 1)
+            if side == "left":
+                in_xy[(net, n)] = (x - r * np.sqrt(1 - t * t), y - r * t, side)
+            else:
+                s = -1 if side == "bottom" else 1
+                in_xy[(net, n)] = (x + r * t, y + s * r * np.sqrt(1 - t * t), side)
+
+
+def _feedback_elements(nodes, nets, layer, row, entries):
+    """Blocks at the end of the main row whose outputs only feed back: ``{block: feeder}``.
+
+    A sensor or a gain in the feedback path of a textbook loop. Such a block is drawn
+    under the block that feeds it, pointing back.
+    """
+    found = {}
+    last = max(layer.values())
+    for n, node in nodes.items():
+        outs = [net for net in nets if net.src == n]
+        ins = [net for net in nets if any(b == n for b, _, _ in net.dests)]
+        if (node["virtual"] or node["shape"] == "sum" or n in entries or row[n] != 0
+                or layer[n] != last or not outs or len(ins) != 1 or ins[0].src not in nodes):
+            continue
+        feeder = ins[0].src
+        if layer[feeder] != layer[n] - 1 or row[feeder] != 0:
+            continue
+        dests = [b for net in outs for b, _, _ in net.dests]
+        if all(b in nodes and layer[b] < layer[feeder] for b in dests):
+            found[n] = feeder
+    return found
 
 
 def _vertical_ok(n, kind, nodes, layer, row):

@@ -228,3 +228,36 @@ def test_a_signal_with_three_destinations_is_one_branching_line():
     dots = [line for line in ax.lines if line.get_gid() == "dot:output:h"]
     assert len(dots) >= 2  # it branches (at least twice for four ends)
     plt.close(fig)
+
+
+def test_a_sensor_in_the_feedback_path_is_drawn_under_the_plant():
+    import matplotlib.pyplot as plt
+
+    P = ct.tf2ss(ct.tf([1], [1, 2, 1]), name="P", inputs="u", outputs="y")
+    C = ct.tf2ss(ct.tf([5, 1], [1, 0]), name="C", inputs="e", outputs="u")
+    H = ct.tf2ss(ct.tf([1], [0.1, 1]), name="H", inputs="y", outputs="ym")
+    err = ct.summing_junction(inputs=["r", "-ym"], output="e", name="err")
+    fig = draw_block_diagram(ct.interconnect([err, C, P, H], inputs="r", outputs="y"))
+    pos = {t.get_text(): t.get_position() for t in fig.axes[0].texts}
+    assert pos["H"][0] == pytest.approx(pos["P"][0]) and pos["H"][1] < pos["P"][1] - 0.5
+    assert pos["y"][0] > pos["P"][0]  # the loop output leaves on the right
+    plt.close(fig)
+
+
+def test_parallel_branches_get_rows_of_their_own():
+    import matplotlib.pyplot as plt
+
+    Kp = ct.ss([], [], [], [[2.0]], inputs="e", outputs="up", name="Kp")
+    Ki = ct.tf2ss(ct.tf([0.5], [1, 0]), name="I", inputs="e", outputs="ui")
+    D = ct.tf2ss(ct.tf([0.1, 0], [0.01, 1]), name="D", inputs="e", outputs="ud")
+    pid = ct.summing_junction(inputs=["up", "ui", "ud"], output="u", name="pid")
+    P = ct.tf2ss(ct.tf([1], [1, 2, 1]), name="P", inputs="u", outputs="y")
+    err = ct.summing_junction(inputs=["r", "-y"], output="e", name="err")
+    fig = draw_block_diagram(ct.interconnect([err, Kp, Ki, D, pid, P], inputs="r", outputs="y"))
+    texts = fig.axes[0].texts
+    pos = {t.get_text(): t.get_position() for t in texts}
+    ys = [pos["I"][1], pos["D"][1]]
+    assert pos["I"][0] == pytest.approx(pos["D"][0])  # one column
+    assert len({round(y, 6) for y in ys + [pos["2"][1]]}) == 3  # three rows
+    assert [t.get_text() for t in texts].count("+") == 4  # r and the three branches
+    plt.close(fig)
