@@ -728,13 +728,14 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
             lane_bottom[net] = low - 0.3 - lane_pitch * i
 
     # --- figure
+    title_math = title is not None or bool(hint_title)  # the system's own name is literal
     title = title if title is not None else hint_title or sys.name
     y_top = (max(lane_top.values()) if lane_top else top_rows + frame_pad) + 0.25
     y_bottom = min([bottom_rows] + list(lane_bottom.values())) - 0.2
     x_left = -max([_text_size(n.label, f_sig)[0] + 0.1 for n in nets if n.src == _IN] + [0])
     x_right_text = x_right + max([_text_size(n.label, f_sig)[0] + 0.1 for n in nets
                                   if n.out and not n.dangling] + [0])
-    tw, th = _text_size(title, f_name + 1)
+    tw, th = _text_size(title, f_name + 1, title_math and title.count("$") >= 2)
     y_title = y_top + th * 0.6
     y_top = y_title + th * 0.6
     width = max(x_right_text - x_left, tw + 0.4) + 0.3
@@ -943,7 +944,7 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
         text(x0 + 0.08, y1 - 0.05, glabel, size=f_sig + 1, math=True, ha="left", va="top",
              color=_RED, weight="bold")
 
-    text(x_mid, y_title, title, size=f_name + 1, math=True, ha="center", va="center")
+    text(x_mid, y_title, title, size=f_name + 1, math=title_math, ha="center", va="center")
     if filename is not None:
         import matplotlib as mpl
 

@@ -170,6 +170,7 @@ def test_dollar_names_are_literal_and_implicit_sums_and_gains_have_their_shapes(
     assert not texts["p$sampled"].get_parse_math()  # drawn as written, not as maths
     assert texts["$C(z)$"].get_parse_math()  # an explicit label is TeX
     assert ">p$sampled<" in (tmp_path / "sampled.svg").read_text()
+    assert not texts["sampled"].get_parse_math()  # the default title is the name, literal
     ax = fig.axes[0]
     circles = [p for p in ax.patches if isinstance(p, Circle)]
     triangles = [p for p in ax.patches if isinstance(p, Polygon) and len(p.get_xy()) == 4
