@@ -262,3 +262,23 @@ def test_parallel_branches_get_rows_of_their_own():
     assert len({round(y, 6) for y in ys + [pos["2"][1]]}) == 3  # three rows
     assert [t.get_text() for t in texts].count("+") == 4  # r and the three branches
     plt.close(fig)
+
+
+def test_two_external_inputs_into_a_junction_keep_their_own_arrows_and_signs():
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Polygon
+
+    g = ct.tf2ss(ct.tf([1], [1, 1]), name="g", inputs="u", outputs="y")
+    diff = ct.summing_junction(inputs=["a", "-b"], output="c", name="diff")
+    sys = ct.interconnect([diff, g], connections=[["g.u", "diff.c"]],
+                          inplist=["diff.a", "diff.b"], inputs=["a", "b"], outlist=["g.y"],
+                          outputs="y")
+    fig = draw_block_diagram(sys)
+    ax = fig.axes[0]
+    texts = [t.get_text() for t in ax.texts]
+    assert "a" in texts and "b" in texts and "a, b" not in texts
+    assert sorted(t for t in texts if t in ("+", "\u2212")) == ["+", "\u2212"]
+    into_junction = [p for p in ax.patches if isinstance(p, Polygon)
+                     and (p.get_gid() or "").startswith("net:inputs:")]
+    assert len(into_junction) == 2
+    plt.close(fig)

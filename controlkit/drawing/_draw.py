@@ -214,7 +214,8 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
                                           else node["signs"].get(ports[0], 1.0))
                             for b, ports, g in feed.dests if b == n)
                 mark = "+" if sign > 0 else "\u2212"
-                dx, dy = {"left": (-0.1, 0.13), "bottom": (-0.13, -0.12),
+                below = side == "left" and py < y - 1e-9  # a lower entry: its sign below
+                dx, dy = {"left": (-0.1, -0.13 if below else 0.13), "bottom": (-0.13, -0.12),
                           "top": (-0.13, 0.12)}[side]
                 text(px + dx, py + dy, mark, size=f_sig + 1, ha="center", va="center",
                      color=_BLUE, weight="bold")

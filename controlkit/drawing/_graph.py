@@ -248,7 +248,11 @@ def _nets(sys, nodes, sums=None):
     bundles = {}
     for (a, sig), dests in by_signal.items():
         where = tuple(sorted({(b, np.sign(g)) for b, _, g in dests if b != _OUT}))
-        net = bundles.setdefault((a, where), _Net(a, []))
+        # separate external inputs, and separate signals into a junction, keep their own
+        # arrows (and signs); a vector's elements always travel together
+        apart = a == _IN or any(nodes.get(b, {}).get("shape") == "sum" for b, _, _ in dests)
+        key = (a, where, _base(sig.split("~")[-1]) if apart else None)
+        net = bundles.setdefault(key, _Net(a, []))
         net.signals.append(sig)
         for b, port, g in dests:
             net.dests.append((b, port, g))
