@@ -50,15 +50,38 @@ def in_interval(name: str, value, low: float, high: float, *, low_open: bool = T
     return x
 
 
-def nonnegative_gain(name: str, value) -> float:
-    """Return a controller gain as a float, refusing negative values.
+def real_scalar(name: str, value) -> float:
+    """Return ``value`` as a finite float (any sign).
 
     Examples
     --------
-    >>> nonnegative_gain("C1", 3)
-    3.0
+    >>> real_scalar("angle_deg", -30)
+    -30.0
     """
-    return positive_scalar(name, value, allow_zero=True)
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a real number, got {value!r}") from None
+    if not math.isfinite(x):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return x
+
+
+def diverged(t: float, detail: str) -> FloatingPointError:
+    """The error a block raises when the loop feeding it has diverged.
+
+    ``detail`` says what was seen, in the block's terms. A diverged loop is
+    reported as such, not as a singularity of the equation it reached.
+
+    Examples
+    --------
+    >>> print(diverged(12.5, "the plant's quaternion norm is 3.1e+92"))
+    the loop diverged at t = 12.5 s: the plant's quaternion norm is 3.1e+92; \
+likely a gain too high for the sample time (or an unstable loop)
+    """
+    return FloatingPointError(
+        f"the loop diverged at t = {t:g} s: {detail}; likely a gain too high for the "
+        f"sample time (or an unstable loop)")
 
 
 def vector(name: str, value, size: int) -> np.ndarray:

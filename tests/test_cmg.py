@@ -160,3 +160,35 @@ def test_controller_ignores_the_all_zero_trial_sweep():
 def test_loop_refuses_mismatched_periods():
     with pytest.raises(ValueError, match=r"block 'smc' runs at dt = 0.002 s"):
         cmg_loop(controller=cmg.adaptive_smc(Ts=0.002), Ts=0.001)
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda: cmg.cmg_plant().dynamics(0.0, [0, 0.5, 0], [0.0, 0.0]),
+     r"block 'cmg': the state x must have 6 values \(q1, q2, q4, w1, w2, w4\), got shape \(3,\)"),
+    (lambda: cmg.adaptive_smc().output(0.0, np.zeros(4), np.zeros(6)),
+     r"block 'smc': the input u must have 12 values \(q1, q2, \.\.\., q4d_ddot\)"),
+    (lambda: cmg.accelerations([0, 0.5, 0], [0.0, 0.0], J), r"x must be a vector of length 6"),
+    (lambda: cmg.accelerations([0, 0.5, 0, 0, 0, np.nan], [0.0, 0.0], J), r"x must be finite"),
+    (lambda: cmg.smc_law([0, 0.5, 0], cmg.reference(0.0), np.zeros(4), J, cmg.GAINS_THESIS),
+     r"x must be a vector of length 6"),
+    (lambda: cmg.smc_law([0, 0.5, 0, 0, 0, 0], cmg.reference(0.0), np.zeros(3), J,
+                         cmg.GAINS_THESIS), r"a_hat must be a vector of length 4"),
+    (lambda: cmg.smc_law([0, 0.5, 0, 0, 0, 0], cmg.reference(0.0), np.zeros(4), J, {"C1": 1}),
+     r"adaptive SMC parameters: missing \['C2'"),
+    (lambda: cmg.reference(np.nan), r"t must be finite"),
+    (lambda: cmg.axis4_momentum([0, 0.5, 0], J), r"x must be a vector of length 6"),
+    (lambda: cmg.Friction(b1=1.0).torques([0.0, 1.0]), r"w must be a vector of length 3"),
+])
+def test_wrong_sizes_and_values_are_refused(call, message):
+    with pytest.raises(ValueError, match=message):
+        call()
+
+
+@pytest.mark.parametrize("measured, seen", [
+    ([0, np.nan, 0, 0, 0, 0], r"the CMG controller received non-finite signals"),
+    ([0, 100 * np.pi, 0, 0, 0, 0], r"gimbal 2 is at q2 = 314 rad"),  # sin q2 ~ 1e-14
+])
+def test_diverged_loop_is_not_reported_as_vanishing_sin_q2(measured, seen):
+    smc = cmg.adaptive_smc()
+    with pytest.raises(FloatingPointError, match=r"the loop diverged at t = 2 s: " + seen):
+        smc.output(2.0, smc.x0, np.concatenate([measured, cmg.reference(2.0)]))

@@ -8,6 +8,7 @@ import scipy.optimize
 from controlkit.blocks import mec
 from controlkit.blocks import spacecraft as sc
 from controlkit.diagrams.spacecraft import mec_loop, output_zeroing_loop
+from controlkit.kernels.mec import TUNER_STATE
 from controlkit.outputs.spacecraft import metrics, signal
 from controlkit.scenarios import spacecraft as scenario
 from controlkit.simulation import initial_state, simulate
@@ -71,8 +72,10 @@ def test_threshold_freezes_updates_exactly_while_error_is_small():
     inputs = tuner_inputs(1000, error_scale=5e-4)
     states = drive_tuner(tuner, inputs)
     e = inputs[:, 4:6] - inputs[:, 2:4]
-    for j, (khat, p, k) in enumerate([(slice(8, 10), slice(12, 16), slice(20, 22)),
-                                      (slice(10, 12), slice(16, 20), slice(22, 24))]):
+    S = TUNER_STATE
+    rows = [(slice(S.Khat, S.Khat + 2), S.slice("P1"), slice(S.K, S.K + 2)),
+            (slice(S.Khat + 2, S.Khat + 4), S.slice("P2"), slice(S.K + 2, S.K + 4))]
+    for j, (khat, p, k) in enumerate(rows):
         frozen = np.abs(e[:, j]) < 1e-4
         assert frozen.any() and (~frozen).any()
         for cols in (khat, p, k):
@@ -85,7 +88,7 @@ def test_low_pass_law_eq30_holds_step_by_step():
     kappa = 0.3
     tuner = mec.frit_tuner(kappa=kappa, psi=0.0)
     states = drive_tuner(tuner, tuner_inputs(300, error_scale=5e-4))
-    Khat, K = states[:, 8:12], states[:, 20:24]
+    Khat, K = states[:, TUNER_STATE.slice("Khat")], states[:, TUNER_STATE.slice("K")]
     np.testing.assert_allclose(K[1:], (1 - kappa) * K[:-1] + kappa * Khat[1:], rtol=0, atol=1e-15)
 
 
@@ -235,8 +238,9 @@ def test_output_scale_is_the_tuner_seeing_scaled_data():
     h0 = inputs[0, 2:4]
     scaled = drive_tuner(mec.frit_tuner(output_scale=s, h0=h0), inputs)
     plain = drive_tuner(mec.frit_tuner(h0=s * h0, output_scale=1.0), s * inputs)
-    np.testing.assert_allclose(scaled[:, 20:24], plain[:, 20:24], rtol=1e-9, atol=1e-12)
-    assert np.abs(scaled[-1, 20:24]).max() > 1e-3  # the gain did move
+    K = TUNER_STATE.slice("K")
+    np.testing.assert_allclose(scaled[:, K], plain[:, K], rtol=1e-9, atol=1e-12)
+    assert np.abs(scaled[-1, K]).max() > 1e-3  # the gain did move
 
 
 def test_output_scale_must_be_positive():

@@ -78,9 +78,54 @@ def test_singular_decoupling_matrix_names_the_attitude(q):
     assert "180 deg rotation about an axis in the body x-y plane" in str(e.value)
 
 
-def test_diverged_loop_is_not_reported_as_a_singular_attitude():
-    with pytest.raises(FloatingPointError, match=r"the loop diverged upstream"):
-        sc.io_linearizer().output(0.0, [], [np.nan, 0.0, 1.0, 0.0, 0.0, 0.0])
+@pytest.mark.parametrize("u, seen", [
+    ([np.nan, 0.0, 1.0, 0.0, 0.0, 0.0],
+     r"the linearizer received non-finite inputs \(mu = \[nan, 0.0\]"),
+    ([1e-3, 0.0, 0.0, 1e92, 0.0, 0.0], r"the plant's quaternion norm is 1e\+92"),
+])
+def test_diverged_loop_is_not_reported_as_a_singular_attitude(u, seen):
+    with pytest.raises(FloatingPointError, match=r"the loop diverged at t = 4 s: " + seen):
+        sc.io_linearizer().output(4.0, [], u)
+
+
+@pytest.mark.parametrize("engine", ["fast", "python-control"])
+def test_unstable_gain_is_reported_as_divergence_on_both_engines(engine):
+    # F Ts = 5: the sampled outer loop multiplies h by 1 - F Ts = -4 each step
+    with pytest.raises(FloatingPointError, match=r"the loop diverged at t = 1 s: the plant's "
+                                                 r"quaternion norm is .*likely a gain too high"):
+        scenario.run("ideal", horizon=5.0, F=50.0, engine=engine)
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda: sc.io_linearizer().output(0, [], [1e-3, 0, 1]),
+     r"block 'linearizer': the input u must have 6 values \(mu\[0\], mu\[1\], q\[0\]"),
+    (lambda: sc.spacecraft_plant().dynamics(0, [1, 0, 0, 0], [1.0]),
+     r"block 'plant': the input u must have 2 values \(u\[0\], u\[1\]\), got shape \(1,\)"),
+    (lambda: sc.spacecraft_plant().dynamics(0, [1, 0, 0], [1.0, 0.0]),
+     r"block 'plant': the state x must have 4 values"),
+    (lambda: sc.outer_controller().output(0, [], [0, 0, 1]),
+     r"block 'controller': the input u must have 4 values \(r\[0\], r\[1\], h\[0\], h\[1\]\)"),
+    (lambda: sc.quaternion_from_axis_angle([0, 0, 1], np.nan), r"angle_deg must be finite"),
+    (lambda: sc.rotation_matrix([1, 0, 0]), r"q must be a vector of length 4"),
+    (lambda: sc.body_rate([1, 0, 0, 0], [0.0], np.zeros(3), np.eye(3), sc.V1, sc.V2),
+     r"u must be a vector of length 2"),
+])
+def test_wrong_sizes_and_values_are_refused_at_the_block_boundary(call, message):
+    with pytest.raises(ValueError, match=message):
+        call()
+
+
+def test_body_rate_attribute_is_the_integrated_equation():
+    plant = sc.spacecraft_plant(H0=sc.paper_momentum)
+    q, u, t = random_quaternion(), np.array([3.0, -2.0]), 1234.5
+    w = plant.body_rate(t, q, u)
+    # oracle: eq. (2) written out with numpy
+    b1, b2 = sc.J_W1 @ sc.V1, sc.J_W2 @ sc.V2
+    expected = np.linalg.solve(sc.J_M, sc.rotation_matrix(q).T @ sc.paper_momentum(t)
+                               - b1 * u[0] - b2 * u[1])
+    np.testing.assert_allclose(w, expected, rtol=1e-12)
+    np.testing.assert_allclose(plant.dynamics(t, q, u), sc.quaternion_rate_matrix(q) @ w,
+                               rtol=1e-12, atol=1e-18)
 
 
 def test_singular_attitude_stops_simulation_with_clear_error():

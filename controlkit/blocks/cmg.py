@@ -20,17 +20,28 @@ from .. import _checks
 from .._block import kernel_block
 from ..kernels import cmg as kernels
 from ..kernels import common
+from ..kernels.cmg import (
+    INERTIAS,
+    PLANT,
+    REFERENCE,
+    SMC,
+    SMC_INPUTS,
+    SMC_OUTPUTS,
+    SMC_STATE,
+    STATE,
+    TORQUES,
+)
 
-STATES = ["q1", "q2", "q4", "w1", "w2", "w4"]
-REFERENCE_SIGNALS = ["q2d", "q2d_dot", "q2d_ddot", "q4d", "q4d_dot", "q4d_ddot"]
+STATES = STATE.labels()
+REFERENCE_SIGNALS = REFERENCE.labels()
 #: Motor torque ranges (N m): ``|T1| <= 0.6``, ``|T2| <= 2.4`` (section 6).
 T1_MAX, T2_MAX = 0.6, 2.4
 #: Sampling period of the controller (s); the ECP controller runs at about 9 ms.
 TS_CMG = 0.001
 
 
-def _field_values(obj) -> np.ndarray:
-    return np.array([getattr(obj, f.name) for f in fields(obj)], dtype=float)
+def _field_values(obj) -> dict:
+    return {f.name: getattr(obj, f.name) for f in fields(obj)}
 
 
 @dataclass(frozen=True)
@@ -67,23 +78,23 @@ class Inertias:
             _checks.positive_scalar(f.name, getattr(self, f.name))
 
     def packed(self) -> np.ndarray:
-        """The seven inertias in field order, as the kernels read them."""
-        return _field_values(self)
+        """The seven inertias packed as :data:`controlkit.kernels.cmg.INERTIAS`."""
+        return INERTIAS.pack(**_field_values(self))
 
     @property
     def I1(self) -> float:
         """``I1 = IG2y + IR1y - IR1x - IG2z`` (eq. 3)."""
-        return self.IG2y + self.IR1y - self.IR1x - self.IG2z
+        return kernels.inertia_terms(self.packed(), 0)[0]
 
     @property
     def I2(self) -> float:
         """``I2 = IR1x + IG2z + IG3x + IG4x`` (eq. 3)."""
-        return self.IR1x + self.IG2z + self.IG3x + self.IG4x
+        return kernels.inertia_terms(self.packed(), 0)[1]
 
     @property
     def J2(self) -> float:
         """``IG2x + IR1x``, the inertia of gimbal 2's axis (eq. 2)."""
-        return self.IG2x + self.IR1x
+        return kernels.inertia_terms(self.packed(), 0)[2]
 
 
 @dataclass(frozen=True)
@@ -113,20 +124,17 @@ class Friction:
         for f in fields(self):
             _checks.positive_scalar(f.name, getattr(self, f.name), allow_zero=f.name != "w_c")
 
-    def packed(self) -> np.ndarray:
-        """``[b1, b2, b4, c1, c2, c4, w_c]`` as the kernels read them."""
-        return _field_values(self)
-
     def torques(self, w) -> np.ndarray:
-        """``[F1, F2, F4]`` at the rates ``w = [w1, w2, w4]``."""
-        w = np.asarray(w, dtype=float)
-        b = np.array([self.b1, self.b2, self.b4])
-        c = np.array([self.c1, self.c2, self.c4])
-        return -b * w - c * np.tanh(w / self.w_c)
+        """``[F1, F2, F4]`` at the rates ``w = [w1, w2, w4]`` (the plant kernel's law)."""
+        w = _checks.vector("w", w, 3)
+        return np.array([kernels.friction(wi, b, c, self.w_c) for wi, b, c in
+                         zip(w, (self.b1, self.b2, self.b4), (self.c1, self.c2, self.c4),
+                             strict=True)])
 
 
 def _plant_parameters(inertias: Inertias, delta_IG4x, friction: Friction) -> np.ndarray:
-    return np.concatenate([inertias.packed(), [delta_IG4x], friction.packed()])
+    return PLANT.pack(**_field_values(inertias), delta_IG4x=delta_IG4x,
+                      **_field_values(friction))
 
 
 def accelerations(x, torque, inertias: Inertias, delta_IG4x=0.0, friction=None):
@@ -138,8 +146,9 @@ def accelerations(x, torque, inertias: Inertias, delta_IG4x=0.0, friction=None):
     [0.0, 10.0, 0.0]
     """
     p = _plant_parameters(inertias, delta_IG4x, friction or Friction())
-    return kernels.plant_rhs(0.0, np.asarray(x, float), np.asarray(torque, float), p,
-                           np.empty(6))[3:]
+    x, torque = _checks.vector("x", x, STATE.size), _checks.vector("torque", torque, 2)
+    xdot = kernels.plant_rhs(0.0, x, torque, p, np.empty(STATE.size))
+    return xdot[[STATE.w1, STATE.w2, STATE.w4]]
 
 
 def axis4_momentum(x, inertias: Inertias, delta_IG4x=0.0):
@@ -153,7 +162,8 @@ def axis4_momentum(x, inertias: Inertias, delta_IG4x=0.0):
     >>> float(round(axis4_momentum([0, np.pi / 2, 0, 1.0, 0, 0], Inertias()), 6))
     0.0273
     """
-    _, q2, _, w1, _, w4 = x
+    x = _checks.vector("x", x, STATE.size)
+    q2, w1, w4 = x[STATE.q2], x[STATE.w1], x[STATE.w4]
     s = np.sin(q2)
     J = inertias
     return J.IR1y * s * w1 + (J.I2 + delta_IG4x + J.I1 * s * s) * w4
@@ -201,7 +211,7 @@ def cmg_plant(inertias=None, *, delta_IG4x=0.0, friction=None, name="cmg") -> ct
 
     sys = kernel_block(common.state_output, kernels.plant_rhs,
                        params=_plant_parameters(inertias, delta_IG4x, friction),
-                       feedthrough=False, inputs=["T1", "T2"], outputs=STATES, states=STATES,
+                       feedthrough=False, inputs=TORQUES.labels(), outputs=STATES, states=STATES,
                        name=name)
     sys.inertias, sys.delta_IG4x, sys.friction = inertias, delta_IG4x, friction
     return sys
@@ -225,7 +235,8 @@ def reference(t):
     [1.047198, 0.0, -0.119623, 1.0, 0.0, -0.137078]
     """
     empty = np.zeros(0)
-    return kernels.reference_output(float(t), empty, empty, empty, np.empty(6))
+    return kernels.reference_output(_checks.real_scalar("t", t), empty, empty, empty,
+                                    np.empty(REFERENCE.size))
 
 
 def reference_generator(*, name="reference") -> ct.NonlinearIOSystem:
@@ -286,18 +297,38 @@ def smc_law(x, ref, a_hat, inertias: Inertias, gains, boundary_layer=0.0, min_si
     >>> np.abs(u).tolist()  # on both sliding surfaces: sgn(0) = 0, nothing to do
     [0.0, 0.0]
     """
+    x = _checks.vector("x", x, STATE.size)
+    ref = _checks.vector("ref", ref, REFERENCE.size)
+    a_hat = _checks.vector("a_hat", a_hat, SMC_STATE.size)
+    boundary_layer = _checks.positive_scalar("boundary_layer", boundary_layer, allow_zero=True)
+    min_sin_q2 = _checks.positive_scalar("min_sin_q2", min_sin_q2)
     p = _controller_parameters(inertias, gains, boundary_layer, min_sin_q2, 0.0)
-    law = kernels.smc_equations(np.asarray(a_hat, float),
-                          np.concatenate([np.asarray(x, float), np.asarray(ref, float)]), p)
+    law = kernels.smc_equations(a_hat, np.concatenate([x, ref]), p)
     if np.isnan(law[0]):
-        _refuse_sin_q2(x[1])
+        _refuse_sin_q2(x[STATE.q2])
     return np.array(law[:2]), np.array(law[2:])
 
 
 def _controller_parameters(inertias, gains, boundary_layer, min_sin_q2, Ts):
-    order = ("C1", "C2", "eta1", "gamma1", "C3", "C4", "eta2", "gamma2", "gamma3", "gamma4")
-    return np.concatenate([inertias.packed(), [gains[k] for k in order],
-                           [boundary_layer, min_sin_q2, Ts]])
+    return SMC.pack(**_field_values(inertias), **gains, boundary_layer=boundary_layer,
+                    min_sin_q2=min_sin_q2, Ts=Ts)
+
+
+#: A gimbal-2 angle beyond this (rad) is not an attitude the loop can reach: the loop diverged.
+_Q2_DIVERGED = 2 * np.pi
+
+
+def _explain_smc_failure(t, x, u, y):
+    """The controller's torque is NaN: say whether the loop diverged or sin(q2) vanished."""
+    measured = u[:STATE.size]
+    if not np.all(np.isfinite(u)) or not np.all(np.isfinite(x)):
+        raise _checks.diverged(t, f"the CMG controller received non-finite signals "
+                                  f"(measurements {measured.tolist()}, estimates {x.tolist()})")
+    q2 = measured[STATE.q2]
+    if abs(q2) > _Q2_DIVERGED:
+        raise _checks.diverged(t, f"gimbal 2 is at q2 = {q2:.3g} rad, more than a turn outside "
+                                  f"its range 0 < q2 < pi/2")
+    _refuse_sin_q2(q2)
 
 
 def _refuse_sin_q2(q2):
@@ -384,9 +415,9 @@ def adaptive_smc(
     sys = kernel_block(
         kernels.smc_output, kernels.smc_update,
         params=_controller_parameters(inertias, g, boundary_layer, 1e-3, Ts),
-        check=lambda t, x, u, y: _refuse_sin_q2(u[1]),
-        inputs=STATES + REFERENCE_SIGNALS, outputs=["T1_cmd", "T2_cmd", "a1", "a2", "a3", "a4"],
-        states=["a1", "a2", "a3", "a4"], dt=Ts, name=name,
+        check=_explain_smc_failure,
+        inputs=SMC_INPUTS.labels(), outputs=SMC_OUTPUTS.labels(),
+        states=SMC_STATE.labels(), dt=Ts, name=name,
     )
     sys.x0, sys.gains, sys.inertias = a_hat0, g, inertias
     return sys

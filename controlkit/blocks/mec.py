@@ -17,6 +17,7 @@ from .. import _checks
 from .._block import kernel_block
 from ..kernels import common
 from ..kernels import mec as kernels
+from ..kernels.mec import MEC_INPUTS, TUNER, TUNER_INPUTS, TUNER_STATE
 from .spacecraft import F_PAPER, TS_PAPER
 
 #: Table 3: forgetting factor, P(0) = gamma I, low-pass coefficient, threshold.
@@ -25,7 +26,7 @@ GAMMA_PAPER = 100.0
 KAPPA_PAPER = 0.45
 PSI_PAPER = 0.00012
 
-K_SIGNALS = [f"K[{i}]" for i in range(4)]
+K_SIGNALS = [f"K[{i}]" for i in range(4)]  # the gain signal, row-major
 
 
 def nominal_model(Ts=TS_PAPER, *, h0=(0.0, 0.0), name="nominal") -> ct.NonlinearIOSystem:
@@ -60,7 +61,8 @@ def nominal_model(Ts=TS_PAPER, *, h0=(0.0, 0.0), name="nominal") -> ct.Nonlinear
     """
     Ts = _checks.positive_scalar("Ts", Ts)
     h0 = _checks.vector("h0", h0, 2)
-    sys = kernel_block(common.state_output, common.integrator_update, params=[Ts],
+    sys = kernel_block(common.state_output, common.integrator_update,
+                       params=common.INTEGRATOR.pack(Ts=Ts),
                        feedthrough=False, inputs=["mu_n[0]", "mu_n[1]"],
                        outputs=["hn[0]", "hn[1]"], states=["hn[0]", "hn[1]"], dt=Ts, name=name)
     sys.x0 = h0
@@ -87,7 +89,7 @@ def mec_compensator(*, name="mec") -> ct.NonlinearIOSystem:
     """
     return kernel_block(
         kernels.mec_output,
-        inputs=["mu_n[0]", "mu_n[1]", "hn[0]", "hn[1]", "h[0]", "h[1]", *K_SIGNALS],
+        inputs=MEC_INPUTS.labels(),
         outputs=["mu[0]", "mu[1]"], dt=None, name=name,
     )
 
@@ -121,17 +123,11 @@ def constant_gain(K=0.1, *, name="gain") -> ct.NonlinearIOSystem:
 
 # --- FRIT tuner ------------------------------------------------------------------------
 
-#: State layout of the tuner, in order (24 states).
-TUNER_STATES = (
-    [f"Mxi1[{i}]" for i in range(2)]      # M_1 (hn - h): regressor of row 1
-    + [f"Mxi2[{i}]" for i in range(2)]    # M_2 (hn - h): regressor of row 2
-    + [f"Mmu[{i}]" for i in range(2)]     # M_j mu_j
-    + [f"Mh[{i}]" for i in range(2)]      # M_j h_j
-    + [f"Khat[{i}]" for i in range(4)]    # RLS estimate, row-major
-    + [f"P1[{i}]" for i in range(4)]      # covariance of row 1, row-major
-    + [f"P2[{i}]" for i in range(4)]      # covariance of row 2
-    + [f"K[{i}]" for i in range(4)]       # implemented (low-pass) gain
-)
+#: Names of the tuner's 24 states, in order (declared by :data:`TUNER_STATE`):
+#: ``Mxi1``, ``Mxi2`` (``M_j (hn - h)``, the regressors of rows 1 and 2), ``Mmu``
+#: (``M_j mu_j``), ``Mh`` (``M_j h_j``), ``Khat`` (RLS estimate), ``P1``, ``P2``
+#: (covariances), ``K`` (implemented, low-passed gain), matrices row-major.
+TUNER_STATES = TUNER_STATE.labels()
 
 
 def frit_regressors(x, h, F):
@@ -157,12 +153,14 @@ def frit_regressors(x, h, F):
 
     Examples
     --------
-    >>> x = np.zeros(24); x[6:8] = [0.1, 0.2]  # M h
+    >>> x = np.zeros(24); x[TUNER_STATE.slice("Mh")] = [0.1, 0.2]
     >>> frit_regressors(x, [0.1, 0.2], [1.0, 1.0])[1].tolist()
     [0.0, 0.0]
     """
-    xi = np.array([x[0:2], x[2:4]])
-    eta = x[4:6] - F * (np.asarray(h) - x[6:8])
+    x = np.asarray(x, dtype=float)
+    state = TUNER_STATE.unpack(x)
+    xi = np.array([state["Mxi1"], state["Mxi2"]])
+    eta = np.array([kernels.frit_eta(x, float(F[j]), float(h[j]), j) for j in range(2)])
     return xi, eta
 
 
@@ -186,17 +184,13 @@ def rls_step(Khat, P1, P2, xi, eta, lambda_):
     >>> K[0].round(6).tolist(), P1.round(6).tolist()
     ([1.980198, 0.0], [[0.990099, 0.0], [0.0, 100.0]])
     """
-    x = np.zeros(24)
-    x[0:2] = xi
-    x[2:4] = xi
-    x[4:6] = eta  # with h = M h below, eta = M mu
-    x[8:12] = np.ravel(Khat)
-    x[12:16] = np.ravel(P1)
-    x[16:20] = np.ravel(P2)
-    p = np.array([1.0, 1.0, 0.0, 0.0, lambda_, 1.0, 0.0, 0.0])
-    u = np.array([0.0, 0.0, 0.0, 0.0, 1.0, 1.0])  # h = 0, hn - h = 1 > psi = 0
-    xn = kernels.tuner_update(0.0, x, u, p, np.empty(24))
-    return xn[8:12].reshape(2, 2), xn[12:16].reshape(2, 2), xn[16:20].reshape(2, 2)
+    # with M h = h = 0, eta = M mu; hn - h = 1 > psi = 0 updates both rows
+    x = TUNER_STATE.pack(Mxi1=xi, Mxi2=xi, Mmu=eta, Mh=np.zeros(2), Khat=Khat, P1=P1, P2=P2,
+                         K=np.zeros(4))
+    p = TUNER.pack(F=[1.0, 1.0], a=[0.0, 0.0], lambda_=lambda_, kappa=1.0, psi=[0.0, 0.0])
+    u = TUNER_INPUTS.pack(mu=[0.0, 0.0], h=[0.0, 0.0], hn=[1.0, 1.0])
+    xn = TUNER_STATE.unpack(kernels.tuner_update(0.0, x, u, p, np.empty(TUNER_STATE.size)))
+    return xn["Khat"].reshape(2, 2), xn["P1"].reshape(2, 2), xn["P2"].reshape(2, 2)
 
 
 #: ``output_scale`` that reads ``h`` in degrees: for small angles the rotation about body
@@ -301,12 +295,13 @@ def frit_tuner(
     scale = _checks.positive_scalar("output_scale", output_scale)
     gamma, psi_values = gamma * scale**2, psi_values / scale  # see output_scale
     a = np.exp(-F * Ts)
-    params = np.concatenate([F, a, [lambda_, kappa], psi_values])
+    params = TUNER.pack(F=F, a=a, lambda_=lambda_, kappa=kappa, psi=psi_values)
     sys = kernel_block(kernels.tuner_output, kernels.tuner_update, params=params,
                        feedthrough=False,
-                       inputs=["mu[0]", "mu[1]", "h[0]", "h[1]", "hn[0]", "hn[1]"],
+                       inputs=TUNER_INPUTS.labels(),
                        outputs=K_SIGNALS, states=TUNER_STATES, dt=Ts, name=name)
     P0 = (gamma * np.eye(2)).ravel()
-    sys.x0 = np.concatenate([np.zeros(6), h0, K0.ravel(), P0, P0, K0.ravel()])
+    sys.x0 = TUNER_STATE.pack(Mxi1=np.zeros(2), Mxi2=np.zeros(2), Mmu=np.zeros(2), Mh=h0,
+                              Khat=K0, P1=P0, P2=P0, K=K0)
     sys.F, sys.lambda_, sys.gamma, sys.kappa, sys.psi = F, lambda_, gamma, kappa, psi_values
     return sys

@@ -21,6 +21,14 @@ from .. import _checks
 from .._block import kernel_block
 from ..kernels import common
 from ..kernels import spacecraft as kernels
+from ..kernels.spacecraft import (
+    CONTROLLER,
+    CONTROLLER_INPUTS,
+    LINEARIZER,
+    LINEARIZER_INPUTS,
+    MOMENTUM,
+    PLANT,
+)
 
 # --- Paper values (Tables 2 and 3) -------------------------------------------------
 
@@ -75,9 +83,9 @@ class MomentumProfile:
 
     def packed(self) -> np.ndarray:
         """``[c, a_s, a_c, w]`` as the kernels read it."""
-        parts = [_checks.vector(name, getattr(self, name), 3)
-                 for name in ("constant", "sine", "cosine")]
-        return np.concatenate([*parts, [float(self.omega)]])
+        parts = {name: _checks.vector(name, getattr(self, name), 3)
+                 for name in ("constant", "sine", "cosine")}
+        return MOMENTUM.pack(**parts, omega=float(self.omega))
 
     def __call__(self, t: float) -> np.ndarray:
         return np.array(kernels.momentum_at(t, self.packed(), 0))
@@ -89,28 +97,36 @@ paper_momentum = MomentumProfile(sine=(H0_AMPLITUDE, 0.0, H0_AMPLITUDE),
                                  cosine=(0.0, H0_AMPLITUDE, 0.0), omega=H0_FREQUENCY)
 
 
-def _momentum_kernel(name, value, kernel):
+def _momentum_kernel(name, value, kernel, offset):
     """Check a momentum argument once and fit ``kernel`` to it.
 
-    Returns the packed profile, ``H(t)``, the kernel to call and, for a plain
-    callable (which cannot be packed), why the block cannot be compiled: the
-    kernel then gets its momentum constant ``p[15:18]`` set to ``H(t)`` at each
-    call. Both the plant's and the linearizer's parameter vectors hold their
-    momentum profile at 15.
+    ``offset`` is where the block's parameter layout holds the profile. Returns
+    the packed profile, ``H(t)``, ``fit(t, p)`` (the parameters to use at time
+    ``t``), the kernel to call and, for a plain callable (which cannot be
+    packed), why the block cannot be compiled: ``fit`` then sets the profile's
+    constant to ``H(t)`` in a copy of ``p`` at each call.
     """
     H = _checks.momentum(name, value)
     if isinstance(value, MomentumProfile):
-        return value.packed(), H, kernel, None
+        return value.packed(), H, _as_is, kernel, None
     if not callable(value):
-        return MomentumProfile(constant=tuple(H(0.0))).packed(), H, kernel, None
+        return MomentumProfile(constant=tuple(H(0.0))).packed(), H, _as_is, kernel, None
+    constant = slice(offset + MOMENTUM.constant, offset + MOMENTUM.constant + 3)
+
+    def fit(t, p):
+        local = p.copy()
+        local[constant] = H(t)
+        return local
 
     def repacked(t, x, u, p, out):
-        local = p.copy()
-        local[15:18] = H(t)
-        return kernel(t, x, u, local, out)
+        return kernel(t, x, u, fit(t, p), out)
 
     reason = f"{name} is a Python function; give a MomentumProfile to compile it"
-    return MomentumProfile().packed(), H, repacked, reason
+    return MomentumProfile().packed(), H, fit, repacked, reason
+
+
+def _as_is(t, p):
+    return p
 
 
 # --- Pure math ---------------------------------------------------------------------
@@ -126,31 +142,24 @@ def rotation_matrix(q) -> np.ndarray:
            [0., 1., 0.],
            [0., 0., 1.]])
     """
-    q0, q1, q2, q3 = q
-    return np.array(
-        [
-            [1 - 2 * (q2 * q2 + q3 * q3), 2 * (q1 * q2 - q0 * q3), 2 * (q1 * q3 + q0 * q2)],
-            [2 * (q1 * q2 + q0 * q3), 1 - 2 * (q1 * q1 + q3 * q3), 2 * (q2 * q3 - q0 * q1)],
-            [2 * (q1 * q3 - q0 * q2), 2 * (q2 * q3 + q0 * q1), 1 - 2 * (q1 * q1 + q2 * q2)],
-        ]
-    )
+    return np.array(kernels.rotation(_checks.vector("q", q, 4))).reshape(3, 3)
 
 
 def quaternion_rate_matrix(q) -> np.ndarray:
     """Kinematic matrix ``Q(q)`` of eq. (4): ``q' = Q(q) w_b``.
 
+    Its columns are ``Q(q) e_j``, computed by the kernel the plant integrates.
+
     Examples
     --------
-    >>> quaternion_rate_matrix([1.0, 0.0, 0.0, 0.0])
-    array([[-0. , -0. , -0. ],
-           [ 0.5, -0. ,  0. ],
-           [ 0. ,  0.5, -0. ],
-           [-0. ,  0. ,  0.5]])
+    >>> quaternion_rate_matrix([1.0, 0.0, 0.0, 0.0]) + 0.0
+    array([[0. , 0. , 0. ],
+           [0.5, 0. , 0. ],
+           [0. , 0.5, 0. ],
+           [0. , 0. , 0.5]])
     """
-    q0, q1, q2, q3 = q
-    return 0.5 * np.array(
-        [[-q1, -q2, -q3], [q0, -q3, q2], [q3, q0, -q1], [-q2, q1, q0]]
-    )
+    q0, q1, q2, q3 = _checks.vector("q", q, 4)
+    return np.column_stack([kernels.quaternion_rate(q0, q1, q2, q3, e) for e in np.eye(3)])
 
 
 def quaternion_from_axis_angle(axis, angle_deg: float) -> np.ndarray:
@@ -167,7 +176,7 @@ def quaternion_from_axis_angle(axis, angle_deg: float) -> np.ndarray:
     n = np.linalg.norm(k)
     if n == 0:
         raise ValueError("axis must be a non-zero 3-vector")
-    half = np.deg2rad(float(angle_deg)) / 2
+    half = np.deg2rad(_checks.real_scalar("angle_deg", angle_deg)) / 2
     return np.concatenate([[np.cos(half)], np.sin(half) * k / n])
 
 
@@ -181,7 +190,10 @@ def body_rate(q, u, H0, J_t_inv, b1, b2) -> np.ndarray:
     >>> body_rate([1, 0, 0, 0], [0, 0], np.zeros(3), np.eye(3), V1, V2)
     array([0., 0., 0.])
     """
-    return J_t_inv @ (rotation_matrix(q).T @ H0 - b1 * u[0] - b2 * u[1])
+    p = PLANT.pack(J_t_inv=J_t_inv, b1=b1, b2=b2,
+                   H0=MomentumProfile(constant=tuple(_checks.vector("H0", H0, 3))).packed())
+    return np.array(kernels.body_rate(0.0, _checks.vector("q", q, 4), _checks.vector("u", u, 2),
+                                      p))
 
 
 def total_momentum(q, w_b, u, J_b, J_w1, J_w2, v1, v2) -> np.ndarray:
@@ -194,6 +206,7 @@ def total_momentum(q, w_b, u, J_b, J_w1, J_w2, v1, v2) -> np.ndarray:
     >>> total_momentum([1, 0, 0, 0], np.zeros(3), [1.0, 0.0], J_BN, J_W1, J_W2, V1, V2)
     array([0.45, 0.  , 0.  ])
     """
+    w_b, u = _checks.vector("w_b", w_b, 3), _checks.vector("u", u, 2)
     body = J_b @ w_b + J_w1 @ (w_b + v1 * u[0]) + J_w2 @ (w_b + v2 * u[1])
     return rotation_matrix(q) @ body
 
@@ -265,14 +278,16 @@ def spacecraft_plant(
     J_w1 = _checks.inertia("J_w1", J_w1)
     J_w2 = _checks.inertia("J_w2", J_w2)
     v1, v2 = _checks.wheel_axes(v1, v2)
-    profile, H0_of_t, rhs, uncompiled = _momentum_kernel("H0", H0, kernels.plant_rhs)
+    profile, H0_of_t, fit, rhs, uncompiled = _momentum_kernel("H0", H0, kernels.plant_rhs,
+                                                              PLANT.H0)
     J_t = J_b + J_w1 + J_w2
     J_t_inv = np.linalg.inv(J_t)
     b1, b2 = J_w1 @ v1, J_w2 @ v2
-    params = np.concatenate([J_t_inv.ravel(), b1, b2, profile])
+    params = PLANT.pack(J_t_inv=J_t_inv, b1=b1, b2=b2, H0=profile)
 
-    def rate(t, q, u):
-        return body_rate(q, u, H0_of_t(t), J_t_inv, b1, b2)
+    def rate(t, q, u):  # the very equation plant_rhs integrates
+        q, u = _checks.vector("q", q, 4), _checks.vector("u", u, 2)
+        return np.array(kernels.body_rate(t, q, u, fit(t, params)))
 
     sys = kernel_block(
         common.state_output, rhs, params=params, feedthrough=False, uncompiled=uncompiled,
@@ -282,6 +297,11 @@ def spacecraft_plant(
     sys.body_rate = rate
     sys.momentum = lambda t, q, u: total_momentum(q, rate(t, q, u), u, J_b, J_w1, J_w2, v1, v2)
     return sys
+
+
+#: How far the norm of the plant's quaternion may drift from 1 before a failure is read as
+#: divergence of the loop (the integration keeps a unit quaternion to about 1e-12).
+_UNIT_NORM_DRIFT = 1e-3
 
 
 class SingularDecouplingError(ValueError):
@@ -351,21 +371,26 @@ def io_linearizer(
     J_w2 = _checks.inertia("J_w2", J_w2)
     v1, v2 = _checks.wheel_axes(v1, v2)
     singular_tol = _checks.positive_scalar("singular_tol", singular_tol)
-    profile, _, output, uncompiled = _momentum_kernel("H0n", H0n, kernels.linearizer_output)
+    profile, _, _, output, uncompiled = _momentum_kernel("H0n", H0n, kernels.linearizer_output,
+                                                         LINEARIZER.H0n)
     J_m_inv = np.linalg.inv(J_m)
     b1, b2 = J_w1 @ v1, J_w2 @ v2
     G = -J_m_inv @ np.column_stack([b1, b2])
     # |Q(q) x| <= |q| |x| / 2, so this bounds the largest singular value of dh/dq g.
     threshold = singular_tol * 0.5 * np.linalg.norm(G, 2)
-    params = np.concatenate([G.ravel(), J_m_inv.ravel(), profile, [threshold]])
+    params = LINEARIZER.pack(G=G, J_m_inv=J_m_inv, H0n=profile, threshold=threshold)
 
     def refuse(t, x, u, y):
-        q = u[2:6]
+        q = u[LINEARIZER_INPUTS.slice("q")]
         if not np.all(np.isfinite(u)):
-            raise FloatingPointError(
-                f"the linearizer received non-finite inputs at t = {t:g} s "
-                f"(mu = {u[:2].tolist()}, q = {q.tolist()}): the loop diverged upstream"
-            )
+            raise _checks.diverged(
+                t, f"the linearizer received non-finite inputs (mu = "
+                   f"{u[LINEARIZER_INPUTS.slice('mu')].tolist()}, q = {q.tolist()})")
+        norm = float(np.sqrt(np.sum((q / max(np.abs(q).max(), 1.0)) ** 2))
+                     * max(np.abs(q).max(), 1.0))  # no overflow for |q| ~ 1e200
+        if abs(norm - 1.0) > _UNIT_NORM_DRIFT:
+            raise _checks.diverged(
+                t, f"the plant's quaternion norm is {norm:.3g} (an attitude has norm 1)")
         raise SingularDecouplingError(
             f"input-output linearization (eq. 11) is undefined at attitude "
             f"q = {np.round(q, 9).tolist()} (t = {t:g} s): the decoupling matrix "
@@ -375,7 +400,7 @@ def io_linearizer(
 
     return kernel_block(
         output, params=params, feedthrough=True, check=refuse, uncompiled=uncompiled,
-        inputs=["mu[0]", "mu[1]", *_Q_SIGNALS], outputs=_U_SIGNALS, dt=None, name=name,
+        inputs=LINEARIZER_INPUTS.labels(), outputs=_U_SIGNALS, dt=None, name=name,
     )
 
 
@@ -427,7 +452,7 @@ def outer_controller(F=F_PAPER, *, output="mu", name="controller") -> ct.Nonline
     """
     F = _checks.gain_pair("F", F)
     sys = kernel_block(
-        kernels.controller_output, params=F, inputs=["r[0]", "r[1]", "h[0]", "h[1]"],
+        kernels.controller_output, params=CONTROLLER.pack(F=F), inputs=CONTROLLER_INPUTS.labels(),
         outputs=[f"{output}[0]", f"{output}[1]"], dt=None, name=name,
     )
     sys.F = F

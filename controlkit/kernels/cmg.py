@@ -1,6 +1,8 @@
 """Kernels of the control moment gyroscope blocks (thesis eq. 1-45).
 
-Signature and rules: see the block contract in :mod:`controlkit._block`.
+Signature and rules: see the block contract in :mod:`controlkit._block`. The
+packed vectors are declared here, once, by name; the blocks pack them and
+the kernels read them through these layouts.
 """
 
 from __future__ import annotations
@@ -9,71 +11,112 @@ import math
 
 import numpy as np
 
+from .._block import layout
 from .._jit import jit
 
-# inertias packed as [IR1y, IR1x, IG2x, IG2y, IG2z, IG3x, IG4x]
+#: Angles and rates of rotor 1, gimbal 2 and gimbal 4: the plant's state and outputs.
+STATE = layout("CMG state", q1=1, q2=1, q4=1, w1=1, w2=1, w4=1)
+#: Motor torques, the plant's inputs.
+TORQUES = layout("CMG torques", T1=1, T2=1)
+#: The commanded gimbal angles with two derivatives (section 6).
+REFERENCE = layout("CMG reference", q2d=1, q2d_dot=1, q2d_ddot=1, q4d=1, q4d_dot=1, q4d_ddot=1)
+#: The seven inertias of eq. (1)-(3), in the order of ``controlkit.blocks.cmg.Inertias``.
+INERTIAS = layout("CMG inertias", IR1y=1, IR1x=1, IG2x=1, IG2y=1, IG2z=1, IG3x=1, IG4x=1)
+#: Plant parameters: inertias, the change ``delta_IG4x`` and the friction coefficients.
+PLANT = layout("CMG plant parameters", **INERTIAS.sizes, delta_IG4x=1,
+               b1=1, b2=1, b4=1, c1=1, c2=1, c4=1, w_c=1)
+#: Controller parameters: nominal inertias, the gains of eq. (47), the boundary layer,
+#: the smallest ``|sin q2|`` it accepts and its sampling period.
+SMC = layout("adaptive SMC parameters", **INERTIAS.sizes,
+             C1=1, C2=1, eta1=1, gamma1=1, C3=1, C4=1, eta2=1, gamma2=1, gamma3=1, gamma4=1,
+             boundary_layer=1, min_sin_q2=1, Ts=1)
+#: The controller's inputs (measurements, then commands), states and outputs.
+SMC_INPUTS = layout("adaptive SMC inputs", **STATE.sizes, **REFERENCE.sizes)
+SMC_STATE = layout("adaptive SMC state", a1=1, a2=1, a3=1, a4=1)
+SMC_OUTPUTS = layout("adaptive SMC outputs", T1_cmd=1, T2_cmd=1, **SMC_STATE.sizes)
+# numba reads a layout's offsets only: sizes the kernels need are plain module ints
+_N_MEASURED = STATE.size
+_N_ESTIMATES = SMC_STATE.size
+
+
+@jit
+def inertia_terms(p, o):
+    """``(I1, I2, J2)`` of eq. (2)-(3) from the :data:`INERTIAS` packed at ``p[o:]``.
+
+    ``I1 = IG2y + IR1y - IR1x - IG2z``, ``I2 = IR1x + IG2z + IG3x + IG4x`` and
+    ``J2 = IG2x + IR1x`` (the inertia about gimbal 2's axis).
+    """
+    IR1y, IR1x = p[o + INERTIAS.IR1y], p[o + INERTIAS.IR1x]
+    IG2x, IG2y, IG2z = p[o + INERTIAS.IG2x], p[o + INERTIAS.IG2y], p[o + INERTIAS.IG2z]
+    IG3x, IG4x = p[o + INERTIAS.IG3x], p[o + INERTIAS.IG4x]
+    return (IG2y + IR1y - IR1x - IG2z, IR1x + IG2z + IG3x + IG4x, IG2x + IR1x)
+
+
+@jit
+def friction(w, b, c, w_c):
+    """Friction torque ``F = -b w - c tanh(w / w_c)`` on an axis turning at ``w``."""
+    return -b * w - c * math.tanh(w / w_c)
 
 
 @jit
 def plant_rhs(t, x, u, p, out):
-    """Eq. (1)-(3) solved for the accelerations.
-
-    ``p = [inertias (7), delta_IG4x, b1, b2, b4, c1, c2, c4, w_c]``.
-    """
-    IR1y, IR1x, IG2x, IG2y, IG2z, IG3x, IG4x = p[0], p[1], p[2], p[3], p[4], p[5], p[6]
-    I1 = IG2y + IR1y - IR1x - IG2z
-    I2 = IR1x + IG2z + IG3x + IG4x + p[7]
-    q2, w1, w2, w4 = x[1], x[3], x[4], x[5]
+    """Eq. (1)-(3) solved for the accelerations; parameters :data:`PLANT`, state :data:`STATE`."""
+    IR1y = p[PLANT.IR1y]
+    I1, I2, J2 = inertia_terms(p, PLANT.IR1y)
+    I2 = I2 + p[PLANT.delta_IG4x]
+    q2, w1, w2, w4 = x[STATE.q2], x[STATE.w1], x[STATE.w2], x[STATE.w4]
     s = math.sin(q2)
     c = math.cos(q2)
-    wc = p[14]
-    F1 = -p[8] * w1 - p[11] * math.tanh(w1 / wc)
-    F2 = -p[9] * w2 - p[12] * math.tanh(w2 / wc)
-    F4 = -p[10] * w4 - p[13] * math.tanh(w4 / wc)
-    r1 = u[0] + F1 - IR1y * w2 * w4 * c
-    r2 = u[1] + F2 + IR1y * w1 * w4 * c + I1 * w4 * w4 * s * c
+    wc = p[PLANT.w_c]
+    F1 = friction(w1, p[PLANT.b1], p[PLANT.c1], wc)
+    F2 = friction(w2, p[PLANT.b2], p[PLANT.c2], wc)
+    F4 = friction(w4, p[PLANT.b4], p[PLANT.c4], wc)
+    r1 = u[TORQUES.T1] + F1 - IR1y * w2 * w4 * c
+    r2 = u[TORQUES.T2] + F2 + IR1y * w1 * w4 * c + I1 * w4 * w4 * s * c
     r3 = F4 - I1 * w2 * w4 * math.sin(2 * q2) - IR1y * w1 * w2 * c
     m11 = IR1y
     m13 = IR1y * s
     m33 = I2 + I1 * s * s
     det = m11 * m33 - m13 * m13
-    out[0] = w1
-    out[1] = w2
-    out[2] = w4
-    out[3] = (m33 * r1 - m13 * r3) / det
-    out[4] = r2 / (IG2x + IR1x)
-    out[5] = (m11 * r3 - m13 * r1) / det
+    out[STATE.q1] = w1
+    out[STATE.q2] = w2
+    out[STATE.q4] = w4
+    out[STATE.w1] = (m33 * r1 - m13 * r3) / det
+    out[STATE.w2] = r2 / J2
+    out[STATE.w4] = (m11 * r3 - m13 * r1) / det
     return out
 
 
 @jit
 def reference_output(t, x, u, p, out):
-    """Section 6 commands with two derivatives (corrected misprints)."""
+    """Section 6 commands with two derivatives (corrected misprints), :data:`REFERENCE`."""
     r = out
+    R = REFERENCE
     r[:] = 0.0
     if t <= 2.0:
-        r[0] = math.pi / 18
+        r[R.q2d] = math.pi / 18
         return r
     if t > 8.0:
-        r[0] = math.pi / 3
-        r[3] = 1.0
+        r[R.q2d] = math.pi / 3
+        r[R.q4d] = 1.0
         return r
     phase = math.pi * t / 6 + math.pi / 6
     w = math.pi / 6
     s = math.sin(phase)
     c = math.cos(phase)
     A2 = 5 * math.pi / 36
-    r[0] = -A2 * s + 7 * math.pi / 36
-    r[1] = -A2 * w * c
-    r[2] = A2 * w * w * s
-    r[3] = -0.5 * s + 0.5
-    r[4] = -0.5 * w * c
-    r[5] = 0.5 * w * w * s
+    r[R.q2d] = -A2 * s + 7 * math.pi / 36
+    r[R.q2d_dot] = -A2 * w * c
+    r[R.q2d_ddot] = A2 * w * w * s
+    r[R.q4d] = -0.5 * s + 0.5
+    r[R.q4d_dot] = -0.5 * w * c
+    r[R.q4d_ddot] = 0.5 * w * w * s
     return r
 
 
 @jit
 def switch(s, phi):
+    """``sgn(s)`` for ``phi = 0``, else the boundary layer ``sat(s / phi)``."""
     if phi == 0.0:
         if s > 0.0:
             return 1.0
@@ -87,37 +130,38 @@ def switch(s, phi):
 def smc_equations(x, u, p):
     """Eq. (20)-(45): ``(u1, u2, a1', a2', a3', a4')``, the torques and the estimate rates.
 
-    ``x = [a1..a4]``; ``u = [q1, q2, q4, w1, w2, w4, q2d, q2d', q2d'', q4d, q4d', q4d'']``;
-    ``p = [inertias (7), C1, C2, eta1, gamma1, C3, C4, eta2, gamma2, gamma3, gamma4,
-    boundary_layer, min_sin_q2, Ts]``. NaN torques when ``|sin q2| < min_sin_q2``.
-    A tuple, so that a compiled call allocates nothing.
+    State :data:`SMC_STATE`, inputs :data:`SMC_INPUTS`, parameters :data:`SMC`.
+    NaN torques when ``|sin q2| < min_sin_q2``. A tuple, so that a compiled
+    call allocates nothing.
     """
-    IR1y, IR1x, IG2x, IG2y, IG2z, IG3x, IG4x = p[0], p[1], p[2], p[3], p[4], p[5], p[6]
-    C1, C2, eta1, gamma1 = p[7], p[8], p[9], p[10]
-    C3, C4, eta2, gamma2, gamma3, gamma4 = p[11], p[12], p[13], p[14], p[15], p[16]
-    phi = p[17]
-    q2, q4, w1, w2, w4 = u[1], u[2], u[3], u[4], u[5]
-    q2d, q2d_dot, q2d_ddot, q4d, q4d_dot, q4d_ddot = u[6], u[7], u[8], u[9], u[10], u[11]
+    IR1y = p[SMC.IR1y]
+    C1, C2, eta1, gamma1 = p[SMC.C1], p[SMC.C2], p[SMC.eta1], p[SMC.gamma1]
+    C3, C4, eta2 = p[SMC.C3], p[SMC.C4], p[SMC.eta2]
+    gamma2, gamma3, gamma4 = p[SMC.gamma2], p[SMC.gamma3], p[SMC.gamma4]
+    phi = p[SMC.boundary_layer]
+    U = SMC_INPUTS
+    q2, q4, w1, w2, w4 = u[U.q2], u[U.q4], u[U.w1], u[U.w2], u[U.w4]
+    q2d, q2d_dot, q2d_ddot = u[U.q2d], u[U.q2d_dot], u[U.q2d_ddot]
+    q4d, q4d_dot, q4d_ddot = u[U.q4d], u[U.q4d_dot], u[U.q4d_ddot]
+    a1, a2, a3, a4 = x[SMC_STATE.a1], x[SMC_STATE.a2], x[SMC_STATE.a3], x[SMC_STATE.a4]
     s = math.sin(q2)
     c = math.cos(q2)
-    if abs(s) < p[18]:
+    if abs(s) < p[SMC.min_sin_q2]:
         return (np.nan, np.nan, 0.0, 0.0, 0.0, 0.0)
-    I1 = IG2y + IR1y - IR1x - IG2z
-    I2 = IR1x + IG2z + IG3x + IG4x
-    J2 = IG2x + IR1x
+    I1, I2, J2 = inertia_terms(p, SMC.IR1y)
     D = I2 + (I1 - IR1y) * s * s
     f2 = (IR1y * w1 * w4 * c + I1 * w4 * w4 * s * c) / J2
     f4 = (IR1y * w2 * w4 * s * c - I1 * w2 * w4 * math.sin(2 * q2) - IR1y * w1 * w2 * c) / D
     g4 = -s / D
     z1 = q2 - q2d
     s1 = w2 - (-C1 * z1 + q2d_dot)
-    u2 = -(x[0] * w2 + z1 + f2 - q2d_ddot + C1 * (w2 - q2d_dot) + C2 * s1
-                  + eta1 * switch(s1, phi)) * J2
+    u2 = -(a1 * w2 + z1 + f2 - q2d_ddot + C1 * (w2 - q2d_dot) + C2 * s1
+           + eta1 * switch(s1, phi)) * J2
     z2 = q4 - q4d
     s2 = w4 - (-C3 * z2 + q4d_dot)
     w4s_dot = -C3 * (w4 - q4d_dot) + q4d_ddot
-    u1 = -(z2 + f4 - (1 + x[3] / D) * w4s_dot + C4 * s2 + eta2 * switch(s2, phi)
-                  + x[1] * w1 * s / D + x[2] * w4 / D) / g4
+    u1 = -(z2 + f4 - (1 + a4 / D) * w4s_dot + C4 * s2 + eta2 * switch(s2, phi)
+           + a2 * w1 * s / D + a3 * w4 / D) / g4
     return (u1, u2,
             w2 * s1 / gamma1,
             w1 * s2 * s / D / gamma2,
@@ -127,6 +171,7 @@ def smc_equations(x, u, p):
 
 @jit
 def all_zero(u, n):
+    """Whether ``u[0:n]`` is all zeros (python-control's first trial sweep)."""
     for i in range(n):
         if u[i] != 0.0:
             return False
@@ -135,25 +180,26 @@ def all_zero(u, n):
 
 @jit
 def smc_output(t, x, u, p, out):
-    """``[T1_cmd, T2_cmd, a1..a4]``; zero torque for all-zero measurements (trial sweep)."""
-    out[2:6] = x
-    if all_zero(u, 6):
-        out[0] = 0.0
-        out[1] = 0.0
+    """:data:`SMC_OUTPUTS`; zero torque for all-zero measurements (the trial sweep)."""
+    a = SMC_OUTPUTS.a1
+    out[a:a + _N_ESTIMATES] = x
+    if all_zero(u, _N_MEASURED):
+        out[SMC_OUTPUTS.T1_cmd] = 0.0
+        out[SMC_OUTPUTS.T2_cmd] = 0.0
         return out
     law = smc_equations(x, u, p)
-    out[0] = law[0]
-    out[1] = law[1]
+    out[SMC_OUTPUTS.T1_cmd] = law[0]
+    out[SMC_OUTPUTS.T2_cmd] = law[1]
     return out
 
 
 @jit
 def smc_update(t, x, u, p, out):
-    """Forward-Euler integration of the adaptation laws at ``Ts = p[19]``."""
-    if all_zero(u, 6):
+    """Forward-Euler integration of the adaptation laws at the period ``p[SMC.Ts]``."""
+    if all_zero(u, _N_MEASURED):
         out[:] = x
         return out
     law = smc_equations(x, u, p)
-    for i in range(4):
-        out[i] = x[i] + p[19] * law[2 + i]
+    for i in range(_N_ESTIMATES):
+        out[i] = x[i] + p[SMC.Ts] * law[2 + i]
     return out

@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+from .._block import layout
 from .._jit import jit
+
+#: Parameters of the discrete integrator: its sampling period.
+INTEGRATOR = layout("integrator parameters", Ts=1)
 
 
 @jit
@@ -21,9 +25,9 @@ def constant_output(t, x, u, p, out):
 
 @jit
 def integrator_update(t, x, u, p, out):
-    """``x[k+1] = x[k] + Ts u[k]``; ``p = [Ts]``."""
+    """``x[k+1] = x[k] + Ts u[k]``; parameters :data:`INTEGRATOR`."""
     for i in range(x.shape[0]):
-        out[i] = x[i] + p[0] * u[i]
+        out[i] = x[i] + p[INTEGRATOR.Ts] * u[i]
     return out
 
 

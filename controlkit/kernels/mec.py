@@ -1,43 +1,68 @@
 """Kernels of the model error compensator and the FRIT tuner (spacecraft paper, eq. 13-30).
 
-Signature and rules: see the block contract in :mod:`controlkit._block`.
+Signature and rules: see the block contract in :mod:`controlkit._block`. The
+packed vectors are declared here, once, by name; the blocks pack them and
+the kernels read them through these layouts.
 """
 
 from __future__ import annotations
 
+from .._block import layout
 from .._jit import jit
+
+#: Inputs of the compensator, in order: ``mu_n, hn, h, K`` (``K`` row-major).
+MEC_INPUTS = layout("MEC inputs", mu_n=2, hn=2, h=2, K=4)
+#: Inputs of the tuner, in order: ``mu, h, hn``.
+TUNER_INPUTS = layout("FRIT tuner inputs", mu=2, h=2, hn=2)
+#: Parameters of the tuner: ``F = (F1, F2)``, ``a_j = exp(-F_j Ts)``, forgetting
+#: factor ``lambda_``, low-pass coefficient ``kappa`` and thresholds ``psi``.
+TUNER = layout("FRIT tuner parameters", F=2, a=2, lambda_=1, kappa=1, psi=2)
+#: State of the tuner: the filtered regressors ``M_1 (hn - h)``, ``M_2 (hn - h)``,
+#: ``M_j mu_j`` and ``M_j h_j``; the RLS estimate ``Khat`` and covariances ``P1``,
+#: ``P2`` (row-major); the implemented, low-passed gain ``K``.
+TUNER_STATE = layout("FRIT tuner state", Mxi1=2, Mxi2=2, Mmu=2, Mh=2, Khat=4, P1=4, P2=4,
+                     K=4)
 
 
 @jit
 def mec_output(t, x, u, p, out):
-    """Eq. (13)-(15): ``mu = mu_n + K (hn - h)``, ``K = u[6:10]`` row-major."""
-    e0 = u[2] - u[4]
-    e1 = u[3] - u[5]
-    out[0] = u[0] + (u[6] * e0 + u[7] * e1)
-    out[1] = u[1] + (u[8] * e0 + u[9] * e1)
+    """Eq. (13)-(15): ``mu = mu_n + K (hn - h)``, ``K`` row-major (:data:`MEC_INPUTS`)."""
+    e0 = u[MEC_INPUTS.hn] - u[MEC_INPUTS.h]
+    e1 = u[MEC_INPUTS.hn + 1] - u[MEC_INPUTS.h + 1]
+    k = MEC_INPUTS.K
+    out[0] = u[MEC_INPUTS.mu_n] + (u[k] * e0 + u[k + 1] * e1)
+    out[1] = u[MEC_INPUTS.mu_n + 1] + (u[k + 2] * e0 + u[k + 3] * e1)
     return out
+
+
+@jit
+def frit_eta(x, F_j, h_j, j):
+    """Row ``j`` of ``eta = M mu - F (h - M h)`` (eq. 20; erratum E1: eq. 25 prints ``+``)."""
+    return x[TUNER_STATE.Mmu + j] - F_j * (h_j - x[TUNER_STATE.Mh + j])
 
 
 @jit
 def tuner_update(t, x, u, p, out):
     """One step of the FRIT tuner (eq. 24-30, errata E1-E2).
 
-    ``p = [F1, F2, a1, a2, lambda, kappa, psi1, psi2]`` with ``a_j = exp(-F_j Ts)``;
-    state layout as ``controlkit.blocks.mec.TUNER_STATES``.
+    Parameters :data:`TUNER`, state :data:`TUNER_STATE`, inputs :data:`TUNER_INPUTS`.
     """
-    lam, kappa = p[4], p[5]
+    S = TUNER_STATE
+    lam, kappa = p[TUNER.lambda_], p[TUNER.kappa]
     out[:] = x
     xn = out
-    mu0, mu1, h0, h1, hn0, hn1 = u[0], u[1], u[2], u[3], u[4], u[5]
+    mu0, mu1 = u[TUNER_INPUTS.mu], u[TUNER_INPUTS.mu + 1]
+    h0, h1 = u[TUNER_INPUTS.h], u[TUNER_INPUTS.h + 1]
+    hn0, hn1 = u[TUNER_INPUTS.hn], u[TUNER_INPUTS.hn + 1]
     e = (hn0 - h0, hn1 - h1)
     h = (h0, h1)
     for j in range(2):
-        if abs(e[j]) < p[6 + j]:
+        if abs(e[j]) < p[TUNER.psi + j]:
             continue  # threshold: row j frozen
-        xi0, xi1 = x[2 * j], x[2 * j + 1]
-        eta = x[4 + j] - p[j] * (h[j] - x[6 + j])
-        k0 = 8 + 2 * j   # Khat row j
-        pk = 12 + 4 * j  # P_j
+        xi0, xi1 = x[S.Mxi1 + 2 * j], x[S.Mxi1 + 2 * j + 1]  # Mxi2 follows Mxi1
+        eta = frit_eta(x, p[TUNER.F + j], h[j], j)
+        k0 = S.Khat + 2 * j  # Khat row j
+        pk = S.P1 + 4 * j    # P_j (P2 follows P1)
         P00, P01, P10, P11 = x[pk], x[pk + 1], x[pk + 2], x[pk + 3]
         Px0 = P00 * xi0 + P01 * xi1
         Px1 = P10 * xi0 + P11 * xi1
@@ -49,23 +74,23 @@ def tuner_update(t, x, u, p, out):
         xn[pk + 1] = (P01 - Px0 * Px1 / den) / lam
         xn[pk + 2] = (P10 - Px1 * Px0 / den) / lam
         xn[pk + 3] = (P11 - Px1 * Px1 / den) / lam
-        kk = 20 + 2 * j
+        kk = S.K + 2 * j
         xn[kk] = (1 - kappa) * x[kk] + kappa * xn[k0]
         xn[kk + 1] = (1 - kappa) * x[kk + 1] + kappa * xn[k0 + 1]
-    a0, a1 = p[2], p[3]
-    xn[0] = a0 * x[0] + (1 - a0) * e[0]
-    xn[1] = a0 * x[1] + (1 - a0) * e[1]
-    xn[2] = a1 * x[2] + (1 - a1) * e[0]
-    xn[3] = a1 * x[3] + (1 - a1) * e[1]
-    xn[4] = a0 * x[4] + (1 - a0) * mu0
-    xn[5] = a1 * x[5] + (1 - a1) * mu1
-    xn[6] = a0 * x[6] + (1 - a0) * h0
-    xn[7] = a1 * x[7] + (1 - a1) * h1
+    a0, a1 = p[TUNER.a], p[TUNER.a + 1]
+    xn[S.Mxi1] = a0 * x[S.Mxi1] + (1 - a0) * e[0]
+    xn[S.Mxi1 + 1] = a0 * x[S.Mxi1 + 1] + (1 - a0) * e[1]
+    xn[S.Mxi2] = a1 * x[S.Mxi2] + (1 - a1) * e[0]
+    xn[S.Mxi2 + 1] = a1 * x[S.Mxi2 + 1] + (1 - a1) * e[1]
+    xn[S.Mmu] = a0 * x[S.Mmu] + (1 - a0) * mu0
+    xn[S.Mmu + 1] = a1 * x[S.Mmu + 1] + (1 - a1) * mu1
+    xn[S.Mh] = a0 * x[S.Mh] + (1 - a0) * h0
+    xn[S.Mh + 1] = a1 * x[S.Mh + 1] + (1 - a1) * h1
     return out
 
 
 @jit
 def tuner_output(t, x, u, p, out):
-    """The implemented gain ``K`` (state, row-major)."""
-    out[:] = x[20:24]
+    """The implemented gain ``K`` (the state's ``K``, row-major)."""
+    out[:] = x[TUNER_STATE.K:TUNER_STATE.K + 4]
     return out
