@@ -130,6 +130,24 @@ def test_paper_diagrams_fit_a_slide_with_readable_separate_text(name):
     for i, (a, box_a) in enumerate(boxes):
         for b, box_b in boxes[i + 1:]:
             assert not box_a.overlaps(box_b), (a, b)
+    # no label is partly covered by a block or crossed by a line
+    ax = fig.axes[0]
+    blocks = [p.get_window_extent(renderer) for p in ax.patches
+              if type(p).__name__ in ("FancyBboxPatch", "Circle")]
+    for t in texts:
+        box = t.get_window_extent(renderer)
+        for b in blocks:
+            within = b.x0 <= box.x0 and box.x1 <= b.x1 and b.y0 <= box.y0 and box.y1 <= b.y1
+            assert within or not box.overlaps(b), t.get_text()
+        inner = box.padded(-1)
+        for line in ax.lines:
+            if line.get_marker() == "o":
+                continue
+            xy = ax.transData.transform(np.column_stack([line.get_xdata(), line.get_ydata()]))
+            for (x0, y0), (x1, y1) in zip(xy[:-1], xy[1:], strict=True):
+                crosses = (max(x0, x1) >= inner.x0 and min(x0, x1) <= inner.x1
+                           and max(y0, y1) >= inner.y0 and min(y0, y1) <= inner.y1)
+                assert not crosses, t.get_text()
     plt.close(fig)
 
 

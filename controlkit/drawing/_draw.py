@@ -264,14 +264,22 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
         x0 = min([nodes[m]["x"] - nodes[m]["w"] / 2 for m in members]
                  + [track_x[(net, layer[b])] for net in inside for b in net.kinds
                     if (net, layer[b]) in track_x]) - 0.08
-        x1 = max(nodes[m]["x"] + nodes[m]["w"] / 2 for m in members) + 0.2
+        x1 = max(nodes[m]["x"] + nodes[m]["w"] / 2 for m in members) + 0.1
         y1 = max(nodes[m]["y"] + nodes[m]["h"] / 2 for m in members) + 0.4
         y0 = min([nodes[m]["y"] - nodes[m]["h"] / 2 for m in members]
                  + [lane_bottom[net] for net in inside]) - 0.12
         ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, edgecolor=_RED,
                                linewidth=1.2, linestyle="--", zorder=1))
-        text(x0 + 0.08, y1 - 0.05, glabel, size=f_sig + 1, math=True, ha="left", va="top",
-             color=_RED, weight="bold")
+        w, h = _text_size(glabel, f_sig + 1, glabel.count("$") >= 2, "bold")
+        top, bottom = y1 - 0.05, y1 - 0.05 - h
+        crossing = sorted(a[0] for segs in segments.values() for a, b in segs
+                          if np.isclose(a[0], b[0]) and min(a[1], b[1]) < top
+                          and max(a[1], b[1]) > bottom and x0 < a[0] < x1)
+        starts = [x0 + 0.08] + [x + 0.08 for x in crossing]  # leftmost spot no line crosses
+        free = [x for x in starts if x + w <= x1 - 0.05
+                and not any(x - 0.05 < c < x + w + 0.05 for c in crossing)]
+        text(free[0] if free else x0 + 0.08, top, glabel, size=f_sig + 1, math=True,
+             ha="left", va="top", color=_RED, weight="bold")
 
     text(x_mid, y_title, title, size=f_name + 1, math=title_math, ha="center", va="center")
     if filename is not None:
