@@ -351,7 +351,7 @@ def layout(sys, *, labels=None, groups=None, fontsize=10.0, title=None):
     # --- tracks and lanes
     track_x = {}
     for g in range(ncol + 1):
-        x0 = gap_x[g] + label_w[g] + 0.1 if g > 0 else gap_x[g] + 0.15
+        x0 = gap_x[g] + max(label_w[g], 0.15) + 0.1 if g > 0 else gap_x[g] + 0.15
 
         def exit_key(net):
             y0 = port_xy[(net, net.src)][1] if net.src in nodes else 0.0
