@@ -32,17 +32,20 @@ def _drawing_hints(plant, linearizer, output, controller=None, nominal=None, gai
     if controller is not None:  # eq. 12, mu = F (r - h): the junction, then the gain F
         labels[controller.name] = "$F$"
         hints["sums"] = {controller.name: {"r": 1, "h": -1}}
+    frit = gain is not None and hasattr(gain, "lambda_") and hasattr(gain, "kappa")
     if nominal is not None:
-        hints["title"] = ("Fig. 4: MEC with the on-line FRIT tuner" if gain.nstates
-                          else "Fig. 3: MEC with a constant gain K")
+        hints["title"] = ("Fig. 4: MEC with the on-line FRIT tuner" if frit
+                          else "Fig. 3: MEC with a constant gain K" if hasattr(gain, "K")
+                          else "MEC with the gain from " + gain.name)
         labels[nominal.name] = "$L_n$"
         hints["beside"] = {nominal.name: plant.name}
     if compensator is not None:
         labels[compensator.name] = r"$\mu_n + K\,(h_n - h)$"
-    if gain is not None:
-        labels[gain.name] = "FRIT" if gain.nstates else "$K$"
-        if gain.nstates:
-            hints.setdefault("beside", {})[gain.name] = output.name
+    if frit:  # the tuner (eq. 15-30) reads mu, hn and h: drawn under the output
+        labels[gain.name] = "FRIT"
+        hints.setdefault("beside", {})[gain.name] = output.name
+    elif hasattr(gain, "K"):  # constant_gain
+        labels[gain.name] = "$K$"
     return hints
 
 
