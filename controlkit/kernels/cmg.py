@@ -76,12 +76,14 @@ def plant_rhs(t, x, u, p, out):
 
     Examples
     --------
-    >>> from controlkit.blocks.cmg import cmg_plant
-    >>> p = cmg_plant().kernels.params
-    >>> x = np.array([0, 0.5, 0, 0, 0, 0])
-    >>> x_dot = plant_rhs(0.0, x, np.array([0.0, 0.24]), p, np.empty(6))
-    >>> (x_dot + 0.0).round(6).tolist()
-    [0.0, 0.0, 0.0, 0.0, 10.0, 0.0]
+    At rest, ``T2`` alone accelerates gimbal 2 by ``T2 / (IG2x + IR1x)``:
+
+    >>> from controlkit.blocks.cmg import Friction, Inertias
+    >>> p = PLANT.pack(**vars(Inertias()), delta_IG4x=0.0, **vars(Friction()))
+    >>> x = STATE.pack(q1=0, q2=0.5, q4=0, w1=0, w2=0, w4=0)
+    >>> x_dot = plant_rhs(0.0, x, TORQUES.pack(T1=0.0, T2=0.24), p, np.empty(6))
+    >>> round(float(x_dot[STATE.w2]), 9)
+    10.0
     """
     IR1y = p[PLANT.IR1y]
     I1, I2, J2 = inertia_terms(p, PLANT.IR1y)
@@ -256,10 +258,15 @@ def smc_update(t, x, u, p, out):
 
     Examples
     --------
-    >>> from controlkit.blocks.cmg import adaptive_smc
-    >>> p = adaptive_smc().kernels.params
-    >>> smc_update(0.0, np.ones(4), np.zeros(12), p, np.empty(4)).tolist()  # trial sweep
-    [1.0, 1.0, 1.0, 1.0]
+    Gimbal 2 moving off its command (``s1 > 0``) raises the friction estimate ``a1``
+    by ``Ts w2 s1 / gamma1``:
+
+    >>> from controlkit.blocks.cmg import adaptive_smc, reference
+    >>> smc = adaptive_smc()
+    >>> u = np.concatenate([[0, 0.2, 0, 0, 0.1, 0], reference(0.0)])
+    >>> a = smc_update(0.0, smc.x0, u, smc.kernels.params, np.empty(4))
+    >>> a.round(6).tolist()
+    [0.001764, 0.0, 0.0, 0.0]
     """
     if all_zero(u, _N_MEASURED):
         out[:] = x

@@ -33,11 +33,15 @@ def state_output(t, x, u, p, out):
 def constant_output(t, x, u, p, out):
     """Output the parameters (a constant source).
 
+    The block's value is its parameter vector: a gain ``K`` row-major, say.
+
     Examples
     --------
     >>> import numpy as np
-    >>> constant_output(0.0, np.zeros(0), np.zeros(0), np.array([3.0]), np.empty(1)).tolist()
-    [3.0]
+    >>> from controlkit.blocks.mec import constant_gain
+    >>> gain = constant_gain(0.5)  # K = 0.5 I, row-major
+    >>> constant_output(0.0, np.zeros(0), np.zeros(0), gain.kernels.params, np.empty(4)).tolist()
+    [0.5, 0.0, 0.0, 0.5]
     """
     out[:] = p
     return out
@@ -46,6 +50,8 @@ def constant_output(t, x, u, p, out):
 @jit
 def integrator_update(t, x, u, p, out):
     """``x[k+1] = x[k] + Ts u[k]``; parameters :data:`INTEGRATOR`.
+
+    The exact ZOH discretisation of ``x' = u`` (the MEC's ideal model ``L_n``).
 
     Examples
     --------
@@ -61,13 +67,14 @@ def integrator_update(t, x, u, p, out):
 
 @jit
 def saturation_output(t, x, u, p, out):
-    """``clip(u_i, -p_i, p_i)``.
+    """``clip(u_i, -p_i, p_i)``: the parameters are the limits, one per input (> 0).
 
     Examples
     --------
     >>> import numpy as np
-    >>> limits = np.array([0.6, 2.4])
-    >>> saturation_output(0.0, np.zeros(0), np.array([1.0, -3.0]), limits, np.empty(2)).tolist()
+    >>> y = saturation_output(0.0, np.zeros(0), np.array([1.0, -3.0]), np.array([0.6, 2.4]),
+    ...                       np.empty(2))
+    >>> y.tolist()
     [0.6, -2.4]
     """
     for i in range(u.shape[0]):
@@ -81,10 +88,14 @@ def lowpass_update(t, x, u, p, out):
 
     Examples
     --------
+    Two steps towards a unit input with ``a = 1/2``:
+
     >>> import numpy as np
-    >>> p = LOWPASS.pack(a=0.75)
-    >>> lowpass_update(0.0, np.array([0.0]), np.array([1.0]), p, np.empty(1)).tolist()
-    [0.25]
+    >>> y = np.zeros(1)
+    >>> for k in range(2):
+    ...     y = lowpass_update(0.0, y, np.ones(1), LOWPASS.pack(a=0.5), np.empty(1))
+    >>> y.tolist()
+    [0.75]
     """
     a = p[LOWPASS.a]
     for i in range(x.shape[0]):

@@ -120,11 +120,17 @@ def tuner_update(t, x, u, p, out):
 def tuner_output(t, x, u, p, out):
     """The implemented gain ``K`` (the state's ``K``, row-major).
 
+    It reads the state only (no feedthrough): ``K`` acts one sample after the
+    data that produced it, so the MEC and the tuner form no algebraic loop.
+
     Examples
     --------
     >>> import numpy as np
-    >>> tuner_output(0.0, np.arange(24.0), np.zeros(0), np.zeros(0), np.empty(4)).tolist()
-    [20.0, 21.0, 22.0, 23.0]
+    >>> from controlkit.blocks.mec import frit_tuner
+    >>> tuner = frit_tuner(K0=0.25)  # K(0) = 0.25 I
+    >>> K = tuner_output(0.0, tuner.x0, np.zeros(6), tuner.kernels.params, np.empty(4))
+    >>> K.tolist()
+    [0.25, 0.0, 0.0, 0.25]
     """
     out[:] = x[TUNER_STATE.K:TUNER_STATE.K + 4]
     return out

@@ -129,6 +129,8 @@ def body_rate(t, q, u, p):
 def plant_rhs(t, x, u, p, out):
     """Plant eq. (2)-(4): ``q' = Q(q) w_b``; parameters :data:`PLANT`, inputs wheel speeds.
 
+    ``w_b`` is :func:`body_rate`, the function behind the plant block's ``body_rate``.
+
     Examples
     --------
     >>> from controlkit.blocks.spacecraft import spacecraft_plant
