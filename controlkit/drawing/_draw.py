@@ -185,20 +185,20 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
 
     # branch dots where one signal splits
     for net, segs in segments.items():
-        points = {p for s in segs for p in s}
-        for p in points:
+        points = {pt for s in segs for pt in s}
+        for pt in points:
             arms = set()
             for a, b in segs:
                 for end, other in ((a, b), (b, a)):
-                    if np.allclose(end, p):
-                        arms.add((np.sign(round(other[0] - p[0], 6)),
-                                  np.sign(round(other[1] - p[1], 6))))
-                if not (np.allclose(a, p) or np.allclose(b, p)) and _on(p, a, b):
-                    arms.add((np.sign(round(a[0] - p[0], 6)), np.sign(round(a[1] - p[1], 6))))
-                    arms.add((np.sign(round(b[0] - p[0], 6)), np.sign(round(b[1] - p[1], 6))))
+                    if np.allclose(end, pt):
+                        arms.add((np.sign(round(other[0] - pt[0], 6)),
+                                  np.sign(round(other[1] - pt[1], 6))))
+                if not (np.allclose(a, pt) or np.allclose(b, pt)) and _on(pt, a, b):
+                    arms.add((np.sign(round(a[0] - pt[0], 6)), np.sign(round(a[1] - pt[1], 6))))
+                    arms.add((np.sign(round(b[0] - pt[0], 6)), np.sign(round(b[1] - pt[1], 6))))
             arms.discard((0.0, 0.0))
             if len(arms) >= 3:
-                ax.plot(*p, marker="o", markersize=4.5, color=net.color, zorder=6,
+                ax.plot(*pt, marker="o", markersize=4.5, color=net.color, zorder=6,
                         gid=f"dot:{net.src}:{net.label}")
 
     # --- nodes

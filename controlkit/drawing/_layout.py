@@ -333,8 +333,8 @@ def layout(sys, *, labels=None, groups=None, fontsize=10.0, title=None):
             port_xy[(net, n)] = (node["x"] + side * node["w"] / 2,
                                  node["y"] + pitch * ((k - 1) / 2 - i))
         node["unused_xy"] = (node["x"] + node["w"] / 2, node["y"] + pitch * ((k - 1) / 2 - k + 1))
-        ins = sorted(in_ports[n], key=lambda p: -(1e3 if p[1] == "skip" else -1e3
-                                                   if p[1] == "back" else source_y(p[0])))
+        ins = sorted(in_ports[n], key=lambda port: -(1e3 if port[1] == "skip" else -1e3
+                                                   if port[1] == "back" else source_y(port[0])))
         extra_in = 1 if n in graph["unconnected_inputs"] else 0
         k = len(ins) + extra_in
         if node["shape"] == "sum":
@@ -433,17 +433,17 @@ def _sum_ports(n, node, ins, source_y, in_xy, nodes, layer, row):
     """Where signals enter a junction: one from the left, those from other rows and
     lanes from above or below (lanes outermost), so no two entries share a line."""
     r, x, y = node["w"] / 2, node["x"], node["y"]
-    vertical = [p for p in ins if p[1] in ("skip", "back")
-                and _vertical_ok(n, p[1], nodes, layer, row)]
-    rest = [p for p in ins if p not in vertical]
-    left = sorted(rest, key=lambda p: abs(source_y(p[0]) - y))[:1]
-    below = sorted([p for p in rest if p not in left and p[1] == "next"
-                    and source_y(p[0]) < y - r], key=lambda p: -source_y(p[0]))
-    above = sorted([p for p in rest if p not in left and p[1] == "next"
-                    and source_y(p[0]) > y + r], key=lambda p: source_y(p[0]))
-    left = [p for p in rest if p not in below and p not in above]
-    sides = (("left", left), ("bottom", below + [p for p in vertical if p[1] == "back"]),
-             ("top", above + [p for p in vertical if p[1] == "skip"]))
+    vertical = [port for port in ins if port[1] in ("skip", "back")
+                and _vertical_ok(n, port[1], nodes, layer, row)]
+    rest = [port for port in ins if port not in vertical]
+    left = sorted(rest, key=lambda port: abs(source_y(port[0]) - y))[:1]
+    below = sorted([port for port in rest if port not in left and port[1] == "next"
+                    and source_y(port[0]) < y - r], key=lambda port: -source_y(port[0]))
+    above = sorted([port for port in rest if port not in left and port[1] == "next"
+                    and source_y(port[0]) > y + r], key=lambda port: source_y(port[0]))
+    left = [port for port in rest if port not in below and port not in above]
+    sides = (("left", left), ("bottom", below + [port for port in vertical if port[1] == "back"]),
+             ("top", above + [port for port in vertical if port[1] == "skip"]))
     for side, ports in sides:
         m = len(ports)
         for j, (net, _) in enumerate(ports):
