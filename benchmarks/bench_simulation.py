@@ -8,9 +8,10 @@ It measures, in one process (plus one subprocess for the cold start):
 
 (a) the python-control reference path (``control.input_output_response``),
 (b) the fast engine (``controlkit.engine``, numba-compiled), warm and cold,
-(c) a plain Python/numpy loop over time of the same equations: the kernels'
-    uncompiled Python, called in signal order with the same RK4 - what a
-    student would write by hand, without python-control and without compiling,
+(c) a plain Python/numpy loop over time of the same equations: the blocks'
+    kernels, uncompiled, called in signal order with the library's RK4 step -
+    what a student would write by hand, without python-control and without
+    compiling (it calls the library's equations rather than restating them),
 
 and prints per-step costs and ratios (b)/(a), (b)/(c). Study totals for (a)
 and (c) are extrapolated from 2 000 steps per case; (b) is timed in full. The
@@ -30,10 +31,13 @@ import time
 
 import numpy as np
 
-from controlkit.blocks import cmg as cmg_blocks
 from controlkit.kernels import cmg as cmg_kernels
+from controlkit.kernels import common
 from controlkit.kernels import mec as mec_kernels
 from controlkit.kernels import spacecraft as sc_kernels
+from controlkit.kernels.mec import MEC_INPUTS, TUNER_INPUTS
+from controlkit.kernels.spacecraft import CONTROLLER_INPUTS, LINEARIZER_INPUTS
+from controlkit.sampling import _rk4_step
 from controlkit.scenarios import cmg as cmg_scenario
 from controlkit.scenarios import spacecraft as sc_scenario
 from controlkit.simulation import initial_state, simulate
@@ -49,60 +53,61 @@ def plain(f):
 
 
 def _rk4(rhs, t, x, u, p, h):
-    n = x.size
-    k1 = rhs(t, x, u, p, np.empty(n))
-    k2 = rhs(t + h / 2, x + (h / 2) * k1, u, p, np.empty(n))
-    k3 = rhs(t + h / 2, x + (h / 2) * k2, u, p, np.empty(n))
-    k4 = rhs(t + h, x + h * k3, u, p, np.empty(n))
-    return x + (h / 6) * (k1 + 2 * k2 + 2 * k3 + k4)
+    """One RK4 step of a kernel ``rhs`` with ``u`` held: the library's own RK4 step."""
+    return _rk4_step(lambda tau, xi: rhs(tau, xi, u, p, np.empty(x.size)), t, x, h)
 
 
 def plain_spacecraft(case, steps):
-    """(c): the spacecraft loop of ``case`` written out by hand."""
+    """(c): the spacecraft loop of ``case`` as a hand-written loop over the blocks' kernels."""
     loop = sc_scenario.build_loop(case)
     blocks = {s.name: s for s in loop.syslist}
     P = {name: s.kernels.params for name, s in blocks.items()}
     rhs, lin = plain(sc_kernels.plant_rhs), plain(sc_kernels.linearizer_output)
-    mec = "tuner" in blocks or "gain" in blocks
-    tuner_update = plain(mec_kernels.tuner_update)
+    attitude, controller = plain(sc_kernels.attitude_output), plain(sc_kernels.controller_output)
+    mec, nominal = plain(mec_kernels.mec_output), plain(common.integrator_update)
+    tuner_update, tuner_output = plain(mec_kernels.tuner_update), plain(mec_kernels.tuner_output)
     q = sc_scenario.initial_attitude()
-    hn = q[1:3].copy()
+    hn = blocks["nominal"].x0.copy() if "nominal" in blocks else None
     xt = blocks["tuner"].x0.copy() if "tuner" in blocks else None
-    F, Ts, empty = P["controller"], 0.1, np.zeros(0)
+    Ts, empty, r = loop.dt, np.zeros(0), np.zeros(2)
     out = np.empty((steps, 2))
     for k in range(steps):
         t = k * Ts
-        h = q[1:3]
-        mu_n = F * (0.0 - h)
-        if mec:
-            K = xt[20:24].reshape(2, 2)
-            mu = mu_n + K @ (hn - h)
-            xt = tuner_update(t, xt, np.concatenate([mu, h, hn]), P["tuner"], np.empty(24))
-            hn = hn + Ts * mu_n
+        h = attitude(t, empty, q, empty, np.empty(2))
+        mu_n = controller(t, empty, CONTROLLER_INPUTS.pack(r=r, h=h), P["controller"],
+                          np.empty(2))
+        if xt is not None:
+            K = tuner_output(t, xt, empty, P["tuner"], np.empty(4))
+            mu = mec(t, empty, MEC_INPUTS.pack(mu_n=mu_n, hn=hn, h=h, K=K), empty, np.empty(2))
+            xt = tuner_update(t, xt, TUNER_INPUTS.pack(mu=mu, h=h, hn=hn), P["tuner"],
+                              np.empty(xt.size))
+            hn = nominal(t, hn, mu_n, P["nominal"], np.empty(2))
         else:
             mu = mu_n
-        u = lin(t, empty, np.concatenate([mu, q]), P["linearizer"], np.empty(2))
+        u = lin(t, empty, LINEARIZER_INPUTS.pack(mu=mu, q=q), P["linearizer"], np.empty(2))
         out[k] = u
         q = _rk4(rhs, t, q, u, P["plant"], Ts)
     return out
 
 
 def plain_cmg(steps):
-    """(c): the CMG loop written out by hand."""
+    """(c): the CMG loop as a hand-written loop over the blocks' kernels."""
     loop = cmg_scenario.build_loop("thesis")
-    P = {s.name: s.kernels.params for s in loop.syslist}
-    rhs, law, ref = (plain(cmg_kernels.plant_rhs), plain(cmg_kernels.smc_equations),
-                    plain(cmg_kernels.reference_output))
+    blocks = {s.name: s for s in loop.syslist}
+    P = {name: s.kernels.params for name, s in blocks.items()}
+    rhs, ref = plain(cmg_kernels.plant_rhs), plain(cmg_kernels.reference_output)
+    smc_output, smc_update = plain(cmg_kernels.smc_output), plain(cmg_kernels.smc_update)
+    saturation = plain(common.saturation_output)
     x = cmg_scenario.X0_THESIS.copy()
-    a = np.zeros(4)
-    Ts, empty = 0.001, np.zeros(0)
-    limits = np.array([cmg_blocks.T1_MAX, cmg_blocks.T2_MAX])
+    a = blocks["smc"].x0.copy()
+    Ts, empty = blocks["smc"].dt, np.zeros(0)
     for k in range(steps):
         t = k * Ts
-        r = law(a, np.concatenate([x, ref(t, empty, empty, empty, np.empty(6))]), P["smc"])
-        torque, rates = np.array(r[:2]), np.array(r[2:])
-        a = a + Ts * rates
-        x = _rk4(rhs, t, x, np.clip(torque, -limits, limits), P["cmg"], Ts)
+        measured = np.concatenate([x, ref(t, empty, empty, empty, np.empty(6))])
+        command = smc_output(t, a, measured, P["smc"], np.empty(6))[:2]
+        a = smc_update(t, a, measured, P["smc"], np.empty(a.size))
+        torque = saturation(t, empty, command, P["saturation"], np.empty(2))
+        x = _rk4(rhs, t, x, torque, P["cmg"], Ts)
     return x
 
 

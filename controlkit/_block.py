@@ -7,8 +7,8 @@ A block built by :func:`kernel_block` carries its kernels and packed parameters
 in its ``kernels`` attribute (a :class:`BlockKernels`). To compile, a block
 follows these rules; the ones marked *checked* are enforced where they can be.
 
-Kernels
--------
+**Kernels.**
+
 1. A kernel is a module-level function ``f(t, x, u, p, out) -> out`` in an
    importable module (the engine writes ``from <module> import <name>`` into
    the loop it generates; a lambda or a function defined in ``__main__`` or
@@ -36,8 +36,8 @@ Kernels
    denominator), it writes NaN into ``out[0]`` instead of raising: compiled
    code cannot raise a useful message, so NaN is the failure signal.
 
-Blocks
-------
+**Blocks.**
+
 7. A block declares its signals, states and parameters once: input, output
    and state names as python-control labels (``inputs=``, ``outputs=``,
    ``states=``; a layout's ``labels()`` gives them), and the packed
@@ -56,8 +56,8 @@ Blocks
     naming itself, the argument and the expected size (*checked* by the
     wrappers of :func:`kernel_block`), so the compiled kernels can trust them.
 
-Failures
---------
+**Failures.**
+
 11. A block that can signal failure passes ``check=``: a function
     ``check(t, x, u, y)`` that the wrapper calls when ``y[0]`` is NaN and that
     raises an exception saying why in the user's terms (the attitude, the

@@ -32,8 +32,8 @@ def assert_same(loop, T, X0):
     assert list(fast.output_labels) == list(ref.output_labels)
     assert list(fast.state_labels) == list(ref.state_labels)
     assert fast.outputs.shape == ref.outputs.shape and fast.states.shape == ref.states.shape
-    np.testing.assert_allclose(fast.outputs, ref.outputs, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(fast.states, ref.states, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(fast.outputs, ref.outputs)
+    np.testing.assert_array_equal(fast.states, ref.states)
     return ref, fast
 
 
@@ -73,7 +73,7 @@ def test_rewired_loop_with_saturation_and_reference_matches():
     X0 = initial_state(loop, plant=Q0)
     ref = ct.input_output_response(loop, T, U, X0)
     fast = engine.simulate_fast(loop, T, X0, U)
-    np.testing.assert_allclose(fast.outputs, ref.outputs, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(fast.outputs, ref.outputs)
     assert np.abs(ref.outputs[2]).max() == pytest.approx(1.0)  # the limiter is active
 
 
@@ -135,7 +135,7 @@ def test_engine_without_numba_gives_the_same_numbers(tmp_path):
     subprocess.run([sys.executable, "-c", code], env=env, check=True)
     plain = np.load(tmp_path / "plain.npy")
     compiled = scenario.run("proposed", horizon=100.0, engine="fast").outputs
-    np.testing.assert_allclose(plain, compiled, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(plain, compiled)
 
 
 def test_unknown_engine_is_refused():

@@ -131,7 +131,8 @@ def test_rls_target_minimises_the_frit_criterion():
     used = slice(0, -1)  # the last state has not been through an update yet
     K_prior = np.linalg.solve(xi[used].T @ xi[used] + np.eye(2) / tuner.gamma,
                               xi[used].T @ eta[used]).T
-    np.testing.assert_allclose(states[-1, 8:12].reshape(2, 2), K_prior, rtol=1e-6)
+    Khat = states[-1, TUNER_STATE.slice("Khat")].reshape(2, 2)
+    np.testing.assert_allclose(Khat, K_prior, rtol=1e-6)
 
 
 def test_mec_with_exact_model_changes_almost_nothing():

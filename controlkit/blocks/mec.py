@@ -157,10 +157,11 @@ def frit_regressors(x, h, F):
     >>> frit_regressors(x, [0.1, 0.2], [1.0, 1.0])[1].tolist()
     [0.0, 0.0]
     """
-    x = np.asarray(x, dtype=float)
+    x = _checks.vector("x", x, TUNER_STATE.size)
+    h, F = _checks.vector("h", h, 2), _checks.vector("F", F, 2)
     state = TUNER_STATE.unpack(x)
     xi = np.array([state["Mxi1"], state["Mxi2"]])
-    eta = np.array([kernels.frit_eta(x, float(F[j]), float(h[j]), j) for j in range(2)])
+    eta = np.array([kernels.frit_eta(x, F[j], h[j], j) for j in range(2)])
     return xi, eta
 
 

@@ -53,10 +53,16 @@ def cmg_loop(plant=None, controller=None, *, reference=None, saturation=None, Ts
     #  +-----------+           +-----------------+       | |T2|<=2.4  |        +-----------+  |
     #                                   ^                +------------+                       |
     #                                   +------------ q1, q2, q4, w1, w2, w4 -----------------+
-    return ct.interconnect(
+    loop = ct.interconnect(
         [reference, plant, controller, saturation],
         inputs=[],
         outputs=cmg.STATES + ["q2d", "q4d", "T1", "T2", "T1_cmd", "T2_cmd",
                               "a1", "a2", "a3", "a4"],
         name=name,
     )
+    loop.drawing_hints = {  # how controlkit.drawing shows it: the thesis's names
+        "title": "CMG: adaptive backstepping SMC, sampled at Ts",
+        "labels": {reference.name: "references", controller.name: "adaptive SMC",
+                   saturation.name: "torque limits", plant.name: "CMG"},
+    }
+    return loop

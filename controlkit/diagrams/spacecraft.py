@@ -20,6 +20,35 @@ MU = ["mu[0]", "mu[1]"]
 R = ["r[0]", "r[1]"]
 
 
+def _drawing_hints(plant, linearizer, output, controller=None, nominal=None, gain=None,
+                   compensator=None):
+    """How :func:`~controlkit.drawing.draw_block_diagram` shows these blocks: the papers'
+    symbols, the red frame of Fig. 2 (the linearized plant ``L_a``) and, in Fig. 3-4,
+    the nominal model ``L_n`` in parallel to the plant."""
+    labels = {linearizer.name: r"$\beta(q)\,\mu - \alpha(q)$", output.name: "$h(q)$"}
+    hints = {"labels": labels, "title": "Fig. 2: the linearized plant closed by the outer loop",
+             "groups": {r"$L_a$: linearized plant (Fig. 2)": [linearizer.name, plant.name,
+                                                                output.name]}}
+    if controller is not None:  # eq. 12, mu = F (r - h): the junction, then the gain F
+        labels[controller.name] = "$F$"
+        hints["sums"] = {controller.name: {"r": 1, "h": -1}}
+    frit = gain is not None and hasattr(gain, "lambda_") and hasattr(gain, "kappa")
+    if nominal is not None:
+        hints["title"] = ("Fig. 4: MEC with the on-line FRIT tuner" if frit
+                          else "Fig. 3: MEC with a constant gain K" if hasattr(gain, "K")
+                          else "MEC with the gain from " + gain.name)
+        labels[nominal.name] = "$L_n$"
+        hints["beside"] = {nominal.name: plant.name}
+    if compensator is not None:
+        labels[compensator.name] = r"$\mu_n + K\,(h_n - h)$"
+    if frit:  # the tuner (eq. 15-30) reads mu, hn and h: drawn under the output
+        labels[gain.name] = "FRIT"
+        hints.setdefault("beside", {})[gain.name] = output.name
+    elif hasattr(gain, "K"):  # constant_gain
+        labels[gain.name] = "$K$"
+    return hints
+
+
 def linearized_plant(plant=None, linearizer=None, *, Ts=sc.TS_PAPER, name="linearized_plant"):
     """Fig. 2 (red frame): the plant made linear by the linearizer, ``mu -> h``.
 
@@ -59,12 +88,15 @@ def linearized_plant(plant=None, linearizer=None, *, Ts=sc.TS_PAPER, name="linea
     #        +------------+      +-------------+  |   +--------+
     #              ^                              |
     #              +--------------- q ------------+
-    return ct.interconnect(
+    sys = ct.interconnect(
         [plant, output, linearizer],  # listed in signal order: fewest feedthrough sweeps
         inputs=MU,
         outputs=H + U + Q,
         name=name,
     )
+    sys.drawing_hints = _drawing_hints(plant, linearizer, output)
+    sys.drawing_hints["title"] = "Fig. 2 (red frame): the linearized plant"
+    return sys
 
 
 def output_zeroing_loop(
@@ -111,12 +143,14 @@ def output_zeroing_loop(
     #         |                          ^                               |              |
     #         |                          +-------------- q --------------+              |
     #         +---------------------------------- h -----------------------------------+
-    return ct.interconnect(
+    sys = ct.interconnect(
         [plant, output, controller, linearizer],
         inputs=R,
         outputs=H + U + Q + MU,
         name=name,
     )
+    sys.drawing_hints = _drawing_hints(plant, linearizer, output, controller)
+    return sys
 
 
 def mec_loop(
@@ -198,10 +232,14 @@ def mec_loop(
     #   |                   | FRIT (4)    |<-- mu, h, hn --+   | h(q) eq.9 |<| plant (ZOH) |
     #   |                   +-------------+                    +-----------+ +-------------+
     #   +------------------------------ h --------------------------+
-    return ct.interconnect(
-        [plant, sc.attitude_output(), nominal, gain, controller, compensator,
+    output = sc.attitude_output()
+    sys = ct.interconnect(
+        [plant, output, nominal, gain, controller, compensator,
          linearizer],
         inputs=R,
         outputs=H + U + Q + MU + MU_N + HN + mec.K_SIGNALS,
         name=name,
     )
+    sys.drawing_hints = _drawing_hints(plant, linearizer, output, controller, nominal, gain,
+                                       compensator)
+    return sys

@@ -45,6 +45,12 @@ def inertia_terms(p, o):
 
     ``I1 = IG2y + IR1y - IR1x - IG2z``, ``I2 = IR1x + IG2z + IG3x + IG4x`` and
     ``J2 = IG2x + IR1x`` (the inertia about gimbal 2's axis).
+
+    Examples
+    --------
+    >>> from controlkit.blocks.cmg import Inertias
+    >>> [round(float(v), 4) for v in inertia_terms(Inertias().packed(), 0)]
+    [0.0167, 0.1303, 0.024]
     """
     IR1y, IR1x = p[o + INERTIAS.IR1y], p[o + INERTIAS.IR1x]
     IG2x, IG2y, IG2z = p[o + INERTIAS.IG2x], p[o + INERTIAS.IG2y], p[o + INERTIAS.IG2z]
@@ -54,13 +60,31 @@ def inertia_terms(p, o):
 
 @jit
 def friction(w, b, c, w_c):
-    """Friction torque ``F = -b w - c tanh(w / w_c)`` on an axis turning at ``w``."""
+    """Friction torque ``F = -b w - c tanh(w / w_c)`` on an axis turning at ``w``.
+
+    Examples
+    --------
+    >>> friction(2.0, 0.005, 0.0, 0.01)  # viscous only
+    -0.01
+    """
     return -b * w - c * math.tanh(w / w_c)
 
 
 @jit
 def plant_rhs(t, x, u, p, out):
-    """Eq. (1)-(3) solved for the accelerations; parameters :data:`PLANT`, state :data:`STATE`."""
+    """Eq. (1)-(3) solved for the accelerations; parameters :data:`PLANT`, state :data:`STATE`.
+
+    Examples
+    --------
+    At rest, ``T2`` alone accelerates gimbal 2 by ``T2 / (IG2x + IR1x)``:
+
+    >>> from controlkit.blocks.cmg import Friction, Inertias
+    >>> p = PLANT.pack(**vars(Inertias()), delta_IG4x=0.0, **vars(Friction()))
+    >>> x = STATE.pack(q1=0, q2=0.5, q4=0, w1=0, w2=0, w4=0)
+    >>> x_dot = plant_rhs(0.0, x, TORQUES.pack(T1=0.0, T2=0.24), p, np.empty(6))
+    >>> round(float(x_dot[STATE.w2]), 9)
+    10.0
+    """
     IR1y = p[PLANT.IR1y]
     I1, I2, J2 = inertia_terms(p, PLANT.IR1y)
     I2 = I2 + p[PLANT.delta_IG4x]
@@ -89,7 +113,14 @@ def plant_rhs(t, x, u, p, out):
 
 @jit
 def reference_output(t, x, u, p, out):
-    """Section 6 commands with two derivatives (corrected misprints), :data:`REFERENCE`."""
+    """Section 6 commands with two derivatives (corrected misprints), :data:`REFERENCE`.
+
+    Examples
+    --------
+    >>> e = np.zeros(0)
+    >>> reference_output(0.0, e, e, e, np.empty(6)).round(4).tolist()
+    [0.1745, 0.0, 0.0, 0.0, 0.0, 0.0]
+    """
     r = out
     R = REFERENCE
     r[:] = 0.0
@@ -116,7 +147,13 @@ def reference_output(t, x, u, p, out):
 
 @jit
 def switch(s, phi):
-    """``sgn(s)`` for ``phi = 0``, else the boundary layer ``sat(s / phi)``."""
+    """``sgn(s)`` for ``phi = 0``, else the boundary layer ``sat(s / phi)``.
+
+    Examples
+    --------
+    >>> switch(0.5, 0.0), switch(0.005, 0.01)  # sgn, then sat(s / phi)
+    (1.0, 0.5)
+    """
     if phi == 0.0:
         if s > 0.0:
             return 1.0
@@ -133,6 +170,14 @@ def smc_equations(x, u, p):
     State :data:`SMC_STATE`, inputs :data:`SMC_INPUTS`, parameters :data:`SMC`.
     NaN torques when ``|sin q2| < min_sin_q2``. A tuple, so that a compiled
     call allocates nothing.
+
+    Examples
+    --------
+    >>> from controlkit.blocks.cmg import adaptive_smc
+    >>> u = SMC_INPUTS.pack(q1=0, q2=0.5, q4=0, w1=0, w2=0, w4=0, q2d=0.5, q2d_dot=0,
+    ...                     q2d_ddot=0, q4d=0, q4d_dot=0, q4d_ddot=0)  # on target, at rest
+    >>> [abs(float(v)) for v in smc_equations(np.zeros(4), u, adaptive_smc().kernels.params)]
+    [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
     """
     IR1y = p[SMC.IR1y]
     C1, C2, eta1, gamma1 = p[SMC.C1], p[SMC.C2], p[SMC.eta1], p[SMC.gamma1]
@@ -171,7 +216,13 @@ def smc_equations(x, u, p):
 
 @jit
 def all_zero(u, n):
-    """Whether ``u[0:n]`` is all zeros (python-control's first trial sweep)."""
+    """Whether ``u[0:n]`` is all zeros (python-control's first trial sweep).
+
+    Examples
+    --------
+    >>> all_zero(np.array([0.0, 0.0, 1.0]), 2), all_zero(np.array([0.0, 0.0, 1.0]), 3)
+    (True, False)
+    """
     for i in range(n):
         if u[i] != 0.0:
             return False
@@ -180,7 +231,15 @@ def all_zero(u, n):
 
 @jit
 def smc_output(t, x, u, p, out):
-    """:data:`SMC_OUTPUTS`; zero torque for all-zero measurements (the trial sweep)."""
+    """:data:`SMC_OUTPUTS`; zero torque for all-zero measurements (the trial sweep).
+
+    Examples
+    --------
+    >>> from controlkit.blocks.cmg import adaptive_smc
+    >>> p = adaptive_smc().kernels.params
+    >>> smc_output(0.0, np.ones(4), np.zeros(12), p, np.empty(6)).tolist()  # trial sweep
+    [0.0, 0.0, 1.0, 1.0, 1.0, 1.0]
+    """
     a = SMC_OUTPUTS.a1
     out[a:a + _N_ESTIMATES] = x
     if all_zero(u, _N_MEASURED):
@@ -195,7 +254,20 @@ def smc_output(t, x, u, p, out):
 
 @jit
 def smc_update(t, x, u, p, out):
-    """Forward-Euler integration of the adaptation laws at the period ``p[SMC.Ts]``."""
+    """Forward-Euler integration of the adaptation laws at the period ``p[SMC.Ts]``.
+
+    Examples
+    --------
+    Gimbal 2 moving off its command (``s1 > 0``) raises the friction estimate ``a1``
+    by ``Ts w2 s1 / gamma1``:
+
+    >>> from controlkit.blocks.cmg import adaptive_smc, reference
+    >>> smc = adaptive_smc()
+    >>> u = np.concatenate([[0, 0.2, 0, 0, 0.1, 0], reference(0.0)])
+    >>> a = smc_update(0.0, smc.x0, u, smc.kernels.params, np.empty(4))
+    >>> a.round(6).tolist()
+    [0.001764, 0.0, 0.0, 0.0]
+    """
     if all_zero(u, _N_MEASURED):
         out[:] = x
         return out

@@ -26,7 +26,15 @@ TUNER_STATE = layout("FRIT tuner state", Mxi1=2, Mxi2=2, Mmu=2, Mh=2, Khat=4, P1
 
 @jit
 def mec_output(t, x, u, p, out):
-    """Eq. (13)-(15): ``mu = mu_n + K (hn - h)``, ``K`` row-major (:data:`MEC_INPUTS`)."""
+    """Eq. (13)-(15): ``mu = mu_n + K (hn - h)``, ``K`` row-major (:data:`MEC_INPUTS`).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> u = MEC_INPUTS.pack(mu_n=[1, 1], hn=[0.5, 0], h=[0, 0], K=[2, 0, 0, 2])
+    >>> mec_output(0.0, np.zeros(0), u, np.zeros(0), np.empty(2)).tolist()
+    [2.0, 1.0]
+    """
     e0 = u[MEC_INPUTS.hn] - u[MEC_INPUTS.h]
     e1 = u[MEC_INPUTS.hn + 1] - u[MEC_INPUTS.h + 1]
     k = MEC_INPUTS.K
@@ -37,7 +45,16 @@ def mec_output(t, x, u, p, out):
 
 @jit
 def frit_eta(x, F_j, h_j, j):
-    """Row ``j`` of ``eta = M mu - F (h - M h)`` (eq. 20; erratum E1: eq. 25 prints ``+``)."""
+    """Row ``j`` of ``eta = M mu - F (h - M h)`` (eq. 20; erratum E1: eq. 25 prints ``+``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> x = np.zeros(TUNER_STATE.size)
+    >>> x[TUNER_STATE.Mmu], x[TUNER_STATE.Mh] = 0.5, 0.25  # row 0: M mu, M h
+    >>> float(frit_eta(x, 2.0, 0.375, 0))  # 0.5 - 2 (0.375 - 0.25)
+    0.25
+    """
     return x[TUNER_STATE.Mmu + j] - F_j * (h_j - x[TUNER_STATE.Mh + j])
 
 
@@ -46,6 +63,16 @@ def tuner_update(t, x, u, p, out):
     """One step of the FRIT tuner (eq. 24-30, errata E1-E2).
 
     Parameters :data:`TUNER`, state :data:`TUNER_STATE`, inputs :data:`TUNER_INPUTS`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from controlkit.blocks.mec import frit_tuner
+    >>> tuner = frit_tuner(F=1.0, Ts=np.log(2.0))  # a = exp(-F Ts) = 1/2
+    >>> u = TUNER_INPUTS.pack(mu=[0, 0], h=[1.0, 1.0], hn=[1.0, 1.0])
+    >>> x = tuner_update(0.0, tuner.x0, u, tuner.kernels.params, np.empty(TUNER_STATE.size))
+    >>> x[TUNER_STATE.slice('Mh')].round(12).tolist()  # M h moves halfway to h
+    [0.5, 0.5]
     """
     S = TUNER_STATE
     lam, kappa = p[TUNER.lambda_], p[TUNER.kappa]
@@ -91,6 +118,19 @@ def tuner_update(t, x, u, p, out):
 
 @jit
 def tuner_output(t, x, u, p, out):
-    """The implemented gain ``K`` (the state's ``K``, row-major)."""
+    """The implemented gain ``K`` (the state's ``K``, row-major).
+
+    It reads the state only (no feedthrough): ``K`` acts one sample after the
+    data that produced it, so the MEC and the tuner form no algebraic loop.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from controlkit.blocks.mec import frit_tuner
+    >>> tuner = frit_tuner(K0=0.25)  # K(0) = 0.25 I
+    >>> K = tuner_output(0.0, tuner.x0, np.zeros(6), tuner.kernels.params, np.empty(4))
+    >>> K.tolist()
+    [0.25, 0.0, 0.0, 0.25]
+    """
     out[:] = x[TUNER_STATE.K:TUNER_STATE.K + 4]
     return out
