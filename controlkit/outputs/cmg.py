@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from ..blocks.cmg import T1_MAX, T2_MAX
-from .spacecraft import signal
+from .spacecraft import _stems, signal
 
 #: CSV columns of ``controlkit reproduce cmg``, in order.
 COLUMNS = ("time", "q1", "q2", "q4", "w1", "w2", "w4", "q2d", "q4d", "T1", "T2",
@@ -221,8 +221,10 @@ def _zoom_start(time):
     return float(time[np.searchsorted(time, middle)])
 
 
-def figures(tables, outdir) -> list[Path]:
+def figures(tables, outdir, *, stems=None) -> list[Path]:
     """Save Fig. 3-6 (:func:`figure`) as PNG at 200 dpi and SVG.
+
+    ``stems`` (file stems of :data:`FIGURES`) limits the figures drawn; default all.
 
     Examples
     --------
@@ -235,6 +237,6 @@ def figures(tables, outdir) -> list[Path]:
     from .style import save
 
     written = []
-    for stem, *_ in FIGURES:
+    for stem in _stems(FIGURES, stems):
         written += save(figure(tables, stem), Path(outdir) / f"{stem}.png")
     return written
