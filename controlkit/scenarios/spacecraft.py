@@ -66,7 +66,7 @@ CASES: dict[str, SpacecraftCase] = {
     # Table 3's P(0) and psi read in the units of h = [q1, q2] instead of degrees (decision D1)
     "proposed_literal": SpacecraftCase(
         "proposed_literal", "Proposed, Table 3 in units of q", "tab:orange", True, "frit",
-        {"output_scale": 1.0}),
+        {"units": "q"}),
 }
 #: Cases run by ``controlkit reproduce spacecraft`` when none is named.
 DEFAULT_CASES = ("ideal", "without_mec", "proposed")
