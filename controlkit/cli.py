@@ -14,10 +14,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .outputs import cmg as cmg_out
+from .outputs import frit as frit_out
 from .outputs import spacecraft as sc_out
 from .outputs.export import write_csv, write_json
 from .outputs.workers import FigureWorkers
 from .scenarios import cmg as cmg_scenario
+from .scenarios import frit as frit_scenario
 from .scenarios import spacecraft as sc_scenario
 
 
@@ -54,6 +56,13 @@ class Study:
     simulation_cost : float
         Relative time to simulate the study's cases; cheaper studies run first, so their
         figures are drawn by the workers while the costlier simulations run.
+    write : callable, optional
+        For a study whose cases are not single runs: ``write({case: result}, folder)
+        -> (metrics, paths)`` writes all its files; ``table``, ``metrics`` and
+        ``figures`` are then unused.
+    in_all : bool
+        Whether ``controlkit reproduce all`` runs it (the papers' results do; the
+        sensitivity study is asked for by name).
 
     Examples
     --------
@@ -73,6 +82,8 @@ class Study:
     csv_columns: Callable[[dict], dict] = lambda columns: columns
     figure_stems: tuple[str, ...] = ()
     simulation_cost: float = 1.0
+    write: Callable | None = None
+    in_all: bool = True
 
 
 def _runner(scenario):
@@ -97,6 +108,11 @@ STUDIES: dict[str, Study] = {
         csv_columns=cmg_out.csv_columns,
         figure_stems=tuple(spec[0] for spec in cmg_out.FIGURES),
         simulation_cost=0.05,  # 12 000 steps of a 10-state loop vs 3 x 200 000 steps
+    ),
+    "frit": Study(
+        "frit", frit_scenario.CASES, frit_scenario.DEFAULT_CASES, _runner(frit_scenario),
+        None, None, None, write=frit_out.write, in_all=False,
+        simulation_cost=16.0,  # 16 readings of the proposed loop per tuner
     ),
 }
 
@@ -168,7 +184,8 @@ def reproduce(study="all", *, out="results", cases=None, horizon=None, stride=No
     if study != "all" and study not in STUDIES:
         raise SystemExit(f"controlkit reproduce: unknown study {study!r}; "
                          f"choose from {['all', *STUDIES]}")
-    studies = list(STUDIES.values()) if study == "all" else [STUDIES[study]]
+    studies = ([s for s in STUDIES.values() if s.in_all] if study == "all"
+               else [STUDIES[study]])
     selection = _select_cases(studies, cases)
     summary = {}
     with FigureWorkers(workers) as pool:
@@ -176,6 +193,15 @@ def reproduce(study="all", *, out="results", cases=None, horizon=None, stride=No
             if not selection[s.name]:
                 continue
             folder = Path(out) / s.name
+            if s.write is not None:  # a study of many runs per case writes its own files
+                results = {}
+                for case in selection[s.name]:
+                    log.write(f"{s.name}/{case}\n")
+                    results[case] = s.run(case, horizon,
+                                          _progress_printer(f"{s.name}/{case}", log), engine)
+                summary[s.name], paths = s.write(results, folder)
+                log.writelines(f"  wrote {path}\n" for path in paths)
+                continue
             tables, study_metrics = {}, {}
             for case in selection[s.name]:
                 log.write(f"{s.name}/{case}\n")
@@ -216,7 +242,8 @@ def main(argv=None) -> int:
         "reproduce", help="run the papers' cases and write CSV, metrics.json and figures"
     )
     rep.add_argument("study", nargs="?", default="all", choices=["all", *STUDIES],
-                     help="which study (default: all)")
+                     help="which study (default: all = the papers' studies; frit = the "
+                          "sensitivity of the FRIT claim, asked for by name)")
     rep.add_argument("--out", default="results", help="output folder (default: results)")
     known = "; ".join(f"{name}: {', '.join(study.cases)}" for name, study in STUDIES.items())
     rep.add_argument("--case", action="append", dest="cases", metavar="NAME",
@@ -239,7 +266,7 @@ def main(argv=None) -> int:
                         stride=args.stride, engine=args.engine)
     for study, per_case in summary.items():
         for case, m in per_case.items():
-            shown = {k: v for k, v in m.items() if isinstance(v, float | bool)}
+            shown = {k: v for k, v in m.items() if isinstance(v, int | float)}
             print(f"{study}/{case}: " + ", ".join(f"{k}={v:.6g}" if isinstance(v, float)
                                                   else f"{k}={v}" for k, v in shown.items()))
     return 0
