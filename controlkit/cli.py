@@ -257,7 +257,13 @@ def main(argv=None) -> int:
     rep.add_argument("--engine", choices=["fast", "python-control"], default="fast",
                      help="simulator: fast (compiled, default) or python-control (the "
                           "reference; same numbers, minutes instead of seconds)")
+    from . import robustness
+
+    robustness.add_cli(sub)
     args = parser.parse_args(argv)
+    if args.command == "sweep":
+        robustness.run_cli(args)
+        return 0
     if args.stride is not None and args.stride < 1:
         parser.error("--stride must be >= 1")
     if args.horizon is not None and args.horizon <= 0:
