@@ -312,7 +312,7 @@ def figures(table, summary) -> dict:
         ax.axhline(POINTING_REQUIREMENT_DEG, color="k", linestyle=":", linewidth=1.6,
                    label=f"requirement {POINTING_REQUIREMENT_DEG} deg")
         ax.set_yscale("log")
-        labels = [f"{c}\n{100 * summary[c]['success_rate']:.0f} % met" for c in cases]
+        labels = [f"{c}\n{100 * summary[c]['success_rate']:.1f} % met" for c in cases]
         ax.set_xticks(positions, labels)
         ax.set_ylabel("worst error, last half [deg]")
         runs = summary[cases[0]]["runs"] if cases else 0
