@@ -67,6 +67,11 @@ CASES: dict[str, SpacecraftCase] = {
     "proposed_literal": SpacecraftCase(
         "proposed_literal", "Proposed, Table 3 in units of q", "tab:orange", True, "frit",
         {"units": "q"}),
+    # beyond the paper: the safeguarded tuner (normalised RLS, bounded covariance, dead
+    # zone, stable-gain projection; docs/theory/frit.md)
+    "safeguarded": SpacecraftCase(
+        "safeguarded", "MEC + safeguarded FRIT", "tab:blue", True, "frit",
+        {"safeguard": True}),
 }
 #: Cases run by ``controlkit reproduce spacecraft`` when none is named.
 DEFAULT_CASES = ("ideal", "without_mec", "proposed")
