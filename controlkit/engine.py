@@ -299,12 +299,35 @@ def compile_system(sys):
     return _load(_generate(sys, blocks, order)), blocks
 
 
-def simulate_fast(sys, T, X0, U=0.0, *, progress=None, chunks=1) -> ct.TimeResponseData:
+#: Steps simulated per chunk when a run is streamed (bounds the memory of long runs).
+STREAM_CHUNK_STEPS = 20_000
+
+
+def recorded_indices(N: int, record_every: int) -> np.ndarray:
+    """Indices kept when every ``record_every``-th of ``N`` samples is recorded (and the last).
+
+    Examples
+    --------
+    >>> recorded_indices(10, 4).tolist()
+    [0, 4, 8, 9]
+    """
+    if isinstance(record_every, bool) or not isinstance(record_every, int | np.integer) \
+            or record_every < 1:
+        raise ValueError(f"record_every must be an integer >= 1, got {record_every!r}")
+    kept = np.arange(0, N, int(record_every))
+    return kept if N == 0 or kept[-1] == N - 1 else np.append(kept, N - 1)
+
+
+def simulate_fast(sys, T, X0, U=0.0, *, progress=None, chunks=1, record_every=1,
+                  on_chunk=None) -> ct.TimeResponseData:
     """Simulate a discrete interconnect of controlkit blocks without python-control's sweeps.
 
     Same arguments and result as :func:`control.input_output_response` for
-    a discrete system (plus ``progress`` and ``chunks`` as in
-    :func:`controlkit.simulation.simulate`).
+    a discrete system (plus ``progress``, ``chunks``, ``record_every`` and
+    ``on_chunk`` as in :func:`controlkit.simulation.simulate`). With
+    ``record_every > 1`` or ``on_chunk`` the run is streamed: it proceeds in
+    chunks of :data:`STREAM_CHUNK_STEPS` steps through fixed buffers, so memory
+    does not grow with the horizon.
 
     Raises
     ------
@@ -321,18 +344,31 @@ def simulate_fast(sys, T, X0, U=0.0, *, progress=None, chunks=1) -> ct.TimeRespo
     >>> resp.outputs.shape
     (10, 3)
     """
+    from .sampling import TimeGrid
+
     run, blocks = compile_system(sys)
-    T = np.ascontiguousarray(T, dtype=float)
+    streamed = record_every != 1 or on_chunk is not None
+    if not (streamed and isinstance(T, TimeGrid)):  # a lazy grid stays lazy when streamed
+        T = np.ascontiguousarray(T, dtype=float)
     N = T.size
-    if N > 1 and not np.allclose(np.diff(T), sys.dt):
-        raise ValueError(f"time steps of T must equal the sampling time {sys.dt}")
+    if isinstance(T, TimeGrid):
+        if N > 1 and not np.isclose(T.Ts, sys.dt):
+            raise ValueError(f"time steps of T must equal the sampling time {sys.dt}")
+    for k0 in range(0, max(N - 1, 0) if not isinstance(T, TimeGrid) else 0,
+                    STREAM_CHUNK_STEPS):  # in pieces: no copy of T
+        if not np.allclose(np.diff(T[k0:k0 + STREAM_CHUNK_STEPS + 1]), sys.dt):
+            raise ValueError(f"time steps of T must equal the sampling time {sys.dt}")
     U = np.asarray(U, dtype=float)
-    U = np.ascontiguousarray(
-        np.broadcast_to(U.reshape(-1, 1) if U.ndim <= 1 else U, (sys.ninputs, N)))
+    # a view: a constant input costs no memory per step until a chunk is copied out of it
+    U = np.broadcast_to(U.reshape(-1, 1) if U.ndim <= 1 else U, (sys.ninputs, N))
     X0 = np.ascontiguousarray(np.asarray(X0, dtype=float).reshape(-1))
     if X0.size != sys.nstates:
         raise ValueError(f"X0 must have {sys.nstates} values, got {X0.size}")
     P = np.concatenate([b.kernel.params for b in blocks] + [np.zeros(0)])
+    kept = recorded_indices(N, record_every)
+    if streamed:
+        return _stream(sys, run, blocks, T, X0, U, P, kept, on_chunk, progress)
+    U = np.ascontiguousarray(U)
     Y = np.zeros((sys.noutputs, N))
     X = np.zeros((sys.nstates, N))
     status = np.array([-1, -1])
@@ -348,6 +384,37 @@ def simulate_fast(sys, T, X0, U=0.0, *, progress=None, chunks=1) -> ct.TimeRespo
         T, Y, X, U, output_labels=sys.output_labels, state_labels=sys.state_labels,
         input_labels=sys.input_labels, sysname=sys.name, issiso=sys.issiso(),
         title="Input/output response for " + sys.name,
+    )
+
+
+def _stream(sys, run, blocks, T, x, U, P, kept, on_chunk, progress):
+    """Run the compiled loop chunk by chunk on slices of ``T`` and ``U``; keep ``kept`` only.
+
+    The generated loop indexes its arrays from ``k0``, so each chunk runs on views of
+    ``T`` and ``U`` with ``k0 = 0`` into buffers reused from chunk to chunk.
+    """
+    N = T.size
+    step = min(STREAM_CHUNK_STEPS, max(N, 1))
+    Yb, Xb = np.zeros((sys.noutputs, step)), np.zeros((sys.nstates, step))
+    Y, X = np.zeros((sys.noutputs, kept.size)), np.zeros((sys.nstates, kept.size))
+    status = np.array([-1, -1])
+    for k0 in range(0, N, step):
+        k1 = min(N, k0 + step)
+        Tc, Uc = T[k0:k1], np.ascontiguousarray(U[:, k0:k1])
+        x = run(Tc, x, Uc, P, Yb, Xb, status, 0, k1 - k0)
+        if status[0] >= 0:
+            _explain_failure(sys, blocks, Tc, Xb, Uc, status)
+        if on_chunk is not None:
+            on_chunk(Tc, Yb[:, :k1 - k0], Xb[:, :k1 - k0])
+        mine = (kept >= k0) & (kept < k1)
+        Y[:, mine] = Yb[:, kept[mine] - k0]
+        X[:, mine] = Xb[:, kept[mine] - k0]
+        if progress is not None:
+            progress(k1 / N)
+    return ct.TimeResponseData(
+        T[kept], Y, X, U[:, kept], output_labels=sys.output_labels,
+        state_labels=sys.state_labels, input_labels=sys.input_labels, sysname=sys.name,
+        issiso=sys.issiso(), title="Input/output response for " + sys.name,
     )
 
 

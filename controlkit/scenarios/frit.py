@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..blocks import mec
-from ..blocks.spacecraft import POINTING_REQUIREMENT_DEG, pointing_error_deg
+from ..blocks.spacecraft import POINTING_REQUIREMENT_DEG, TS_PAPER, pointing_error_deg
 from . import spacecraft
 
 #: Horizon of the study (the paper's figures), s.
@@ -122,9 +122,13 @@ def run_reading(tuner="paper", reading=None, *, horizon=HORIZON, engine="fast",
         raise ValueError(f"reading has unknown keys {sorted(unknown)}; "
                          f"allowed: {list(mec.READINGS)}")
     options = _tuner_options(tuner, reading)
+    labels = list(spacecraft.build_loop("proposed", tuner_options=options).output_labels)
+    watch = _Watch(labels, horizon)
+    steps = int(round(horizon / TS_PAPER)) + 1
     try:
         resp = spacecraft.run("proposed", horizon=horizon, tuner_options=options,
-                              progress=progress, engine=engine)
+                              progress=progress, engine=engine, on_chunk=watch,
+                              record_every=max(1, steps // K_TRACE_POINTS))
     except FloatingPointError as error:
         metrics = {"horizon_s": float(horizon), "max_pointing_error_last_half_deg": math.nan,
                    "final_pointing_error_deg": math.nan, "max_abs_K": math.nan,
@@ -133,33 +137,46 @@ def run_reading(tuner="paper", reading=None, *, horizon=HORIZON, engine="fast",
                    "diverged_at_s": getattr(error, "time", math.nan)}
         return ReadingResult(tuner, reading, metrics, np.zeros(0), np.zeros((4, 0)),
                              str(error))
-    return ReadingResult(tuner, reading, *_summarise(resp))
+    K = resp.outputs[[labels.index(f"K[{i}]") for i in range(4)]]
+    return ReadingResult(tuner, reading, watch.metrics(), resp.time, K)
 
 
-def _summarise(resp):
-    """The CSV metrics of one run and its decimated ``K`` trace (the run is then dropped)."""
-    labels = list(resp.output_labels)
+class _Watch:
+    """The study's metrics, accumulated chunk by chunk over every step of a streamed run."""
 
-    def rows(name, n):
-        return resp.outputs[[labels.index(f"{name}[{i}]") for i in range(n)]]
+    def __init__(self, labels, horizon):
+        self.q = [labels.index(f"q[{i}]") for i in range(4)]
+        self.K = [labels.index(f"K[{i}]") for i in range(4)]
+        self.u = [labels.index(f"u[{i}]") for i in range(2)]
+        self.half, self.horizon = horizon / 2, horizon
+        self.worst = self.max_K = self.peak_u = 0.0
+        self.final, self.finite, self.t_end = math.nan, True, 0.0
 
-    t, q, K, u = resp.time, rows("q", 4), rows("K", 4), rows("u", 2)
-    error = pointing_error_deg(q)
-    finite = bool(np.all(np.isfinite(error)) and np.all(np.isfinite(K)))
-    worst = float(error[t >= t[-1] / 2].max())
-    after = t >= min(TRANSIENT_S, t[-1])
-    metrics = {
-        "horizon_s": float(t[-1]),
-        "max_pointing_error_last_half_deg": worst,
-        "final_pointing_error_deg": float(error[-1]),
-        "max_abs_K": float(np.abs(K).max()),
-        "peak_abs_u_after_1000s_rad_s": float(np.abs(u[:, after]).max()),
-        "diverged": not finite,
-        "requirement_met_last_half": bool(finite and worst <= POINTING_REQUIREMENT_DEG),
-        "diverged_at_s": math.nan,
-    }
-    every = max(1, t.size // K_TRACE_POINTS)
-    return metrics, t[::every], K[:, ::every]
+    def __call__(self, t, y, x):
+        error = pointing_error_deg(y[self.q])
+        K, u = y[self.K], y[self.u]
+        self.finite &= bool(np.all(np.isfinite(error)) and np.all(np.isfinite(K)))
+        late = t >= self.half
+        if late.any():
+            self.worst = max(self.worst, float(error[late].max()))
+        self.max_K = max(self.max_K, float(np.abs(K).max()))
+        after = t >= min(TRANSIENT_S, self.horizon)
+        if after.any():
+            self.peak_u = max(self.peak_u, float(np.abs(u[:, after]).max()))
+        self.final, self.t_end = float(error[-1]), float(t[-1])
+
+    def metrics(self) -> dict:
+        return {
+            "horizon_s": self.t_end,
+            "max_pointing_error_last_half_deg": self.worst,
+            "final_pointing_error_deg": self.final,
+            "max_abs_K": self.max_K,
+            "peak_abs_u_after_1000s_rad_s": self.peak_u,
+            "diverged": not self.finite,
+            "requirement_met_last_half": bool(self.finite
+                                              and self.worst <= POINTING_REQUIREMENT_DEG),
+            "diverged_at_s": math.nan,
+        }
 
 
 def run(case="paper", *, horizon=HORIZON, engine="fast", progress=None):
