@@ -210,3 +210,58 @@ def run(case="paper", *, horizon=HORIZON, engine="fast", progress=None):
         if progress is not None:
             progress((i + 1) / len(READINGS))
     return results
+
+
+def run_inertia_step(tuner="safeguarded", reading=None, *, horizon=HORIZON, step_at=None,
+                     factor=2.0, engine="fast"):
+    """The proposed loop whose inertia error jumps to ``factor`` times Table 2's mid-run.
+
+    Until ``step_at`` (default half the horizon) the true plant is Table 2's; from then on
+    each diagonal entry of ``Delta J`` is ``factor`` times larger. The loop continues from
+    the state it reached (the tuner keeps what it learnt), so the run shows whether the
+    tuner re-tunes. Returns the response and the recovery time: how long after the step the
+    pointing error last exceeded the 0.05 deg requirement (0 if it never did; ``inf`` if it
+    still exceeds it at the end).
+
+    Examples
+    --------
+    >>> resp, recovery = run_inertia_step("paper", horizon=20.0)  # still turning at 20 s
+    >>> float(resp.time[-1]), recovery
+    (20.0, inf)
+    """
+    from ..sampling import time_grid
+    from ..simulation import initial_state, simulate
+
+    reading = {**READINGS[0], **(reading or {})}
+    options = _tuner_options(tuner, reading)
+    step_at = horizon / 2 if step_at is None else step_at
+    if not 0 < step_at < horizon:
+        raise ValueError(f"step_at must lie inside (0, horizon = {horizon:g}) s, got {step_at!r}")
+    first = spacecraft.run("proposed", horizon=step_at, tuner_options=options, engine=engine)
+    loop = spacecraft.build_loop("proposed", tuner_options=options,
+                                 h0=spacecraft.initial_attitude()[1:3],
+                                 plant_options={"inertia_error_scale": factor})
+    if initial_state(loop).size != first.states.shape[0]:  # the same blocks, the same state
+        raise RuntimeError("the stepped loop's state does not match the first part's")
+    T = step_at + time_grid(horizon - step_at, TS_PAPER)
+    second = simulate(loop, T, first.states[:, -1], 0.0, engine=engine)
+    import control as ct
+
+    resp = ct.TimeResponseData(
+        np.concatenate([first.time, second.time[1:]]),
+        np.hstack([first.outputs, second.outputs[:, 1:]]),
+        np.hstack([first.states, second.states[:, 1:]]), np.zeros((0, first.time.size +
+                                                                      second.time.size - 1)),
+        output_labels=first.output_labels, state_labels=first.state_labels,
+        sysname="inertia_step", issiso=False, title=f"Inertia error x{factor:g} at t = {step_at:g} s")
+    labels = list(resp.output_labels)
+    error = pointing_error_deg(resp.outputs[[labels.index(f"q[{i}]") for i in range(4)]])
+    after = resp.time >= step_at
+    over = np.nonzero(after & (error > POINTING_REQUIREMENT_DEG))[0]
+    if over.size == 0:
+        recovery = 0.0
+    elif over[-1] == resp.time.size - 1:
+        recovery = math.inf
+    else:
+        recovery = float(resp.time[over[-1] + 1] - step_at)
+    return resp, recovery
