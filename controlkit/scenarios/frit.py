@@ -17,6 +17,7 @@ import itertools
 import math
 from dataclasses import dataclass, field
 
+import control as ct
 import numpy as np
 
 from ..blocks import mec
@@ -245,7 +246,6 @@ def run_inertia_step(tuner="safeguarded", reading=None, *, horizon=HORIZON, step
         raise RuntimeError("the stepped loop's state does not match the first part's")
     T = step_at + time_grid(horizon - step_at, TS_PAPER)
     second = simulate(loop, T, first.states[:, -1], 0.0, engine=engine)
-    import control as ct
 
     resp = ct.TimeResponseData(
         np.concatenate([first.time, second.time[1:]]),
@@ -253,7 +253,8 @@ def run_inertia_step(tuner="safeguarded", reading=None, *, horizon=HORIZON, step
         np.hstack([first.states, second.states[:, 1:]]), np.zeros((0, first.time.size +
                                                                       second.time.size - 1)),
         output_labels=first.output_labels, state_labels=first.state_labels,
-        sysname="inertia_step", issiso=False, title=f"Inertia error x{factor:g} at t = {step_at:g} s")
+        sysname="inertia_step", issiso=False,
+        title=f"Inertia error x{factor:g} at t = {step_at:g} s")
     labels = list(resp.output_labels)
     error = pointing_error_deg(resp.outputs[[labels.index(f"q[{i}]") for i in range(4)]])
     after = resp.time >= step_at
