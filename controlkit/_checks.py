@@ -213,7 +213,11 @@ def gain_matrix(name: str, value) -> np.ndarray:
     array([[0.1, 0. ],
            [0. , 0.1]])
     """
-    K = np.asarray(value, dtype=float)
+    try:
+        K = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number or a 2x2 matrix of numbers, "
+                         f"got {value!r}") from None
     if K.ndim == 0:
         K = float(K) * np.eye(2)
     if K.shape != (2, 2):

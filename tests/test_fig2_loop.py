@@ -6,7 +6,8 @@ import numpy as np
 from controlkit.blocks import spacecraft as sc
 from controlkit.blocks.common import lowpass_filter
 from controlkit.diagrams.spacecraft import linearized_plant, output_zeroing_loop
-from controlkit.outputs.spacecraft import metrics, signal
+from controlkit.outputs.common import signal
+from controlkit.outputs.spacecraft import metrics
 from controlkit.sampling import sample_nlsys
 from controlkit.scenarios import spacecraft as scenario
 from controlkit.simulation import initial_state, simulate

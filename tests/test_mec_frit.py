@@ -9,7 +9,8 @@ from controlkit.blocks import mec
 from controlkit.blocks import spacecraft as sc
 from controlkit.diagrams.spacecraft import mec_loop, output_zeroing_loop
 from controlkit.kernels.mec import TUNER_STATE
-from controlkit.outputs.spacecraft import metrics, signal
+from controlkit.outputs.common import signal
+from controlkit.outputs.spacecraft import metrics
 from controlkit.scenarios import spacecraft as scenario
 from controlkit.simulation import initial_state, simulate
 

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from ..blocks.cmg import T1_MAX, T2_MAX
-from .spacecraft import _stems, signal
+from .common import select_stems, signal
 
 #: CSV columns of ``controlkit reproduce cmg``, in order.
 COLUMNS = ("time", "q1", "q2", "q4", "w1", "w2", "w4", "q2d", "q4d", "T1", "T2",
@@ -49,7 +49,18 @@ def metrics(resp) -> dict:
     >>> sorted(metrics(run(horizon=0.01)))[:2]
     ['final_estimates', 'final_q2_error_rad']
     """
-    c = table(resp)
+    return metrics_from_table(table(resp))
+
+
+def metrics_from_table(c) -> dict:
+    """:func:`metrics` from the columns of :func:`table` (computed once by the caller).
+
+    Examples
+    --------
+    >>> from controlkit.scenarios.cmg import run
+    >>> metrics_from_table(table(run(horizon=0.01)))["horizon_s"]
+    0.01
+    """
     after = c["time"] >= min(1.0, c["time"][-1])
     return {
         "horizon_s": float(c["time"][-1]),
@@ -237,6 +248,6 @@ def figures(tables, outdir, *, stems=None) -> list[Path]:
     from .style import save
 
     written = []
-    for stem in _stems(FIGURES, stems):
+    for stem in select_stems(FIGURES, stems):
         written += save(figure(tables, stem), Path(outdir) / f"{stem}.png")
     return written

@@ -1,8 +1,10 @@
-"""Writing results: CSV tables and JSON metrics."""
+"""Writing results: CSV tables and JSON metrics, each file complete or absent."""
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -33,11 +35,39 @@ def write_csv(path, columns: dict[str, np.ndarray], *, stride: int = 1) -> Path:
     """
     if isinstance(stride, bool) or not isinstance(stride, int) or stride < 1:
         raise ValueError(f"stride must be an integer >= 1, got {stride!r}")
+    data = np.column_stack([np.asarray(v, dtype=float) for v in columns.values()])[::stride]
+    with atomic(path) as partial:
+        np.savetxt(partial, data, delimiter=",", header=",".join(columns), comments="",
+                   fmt="%.10g")
+    return Path(path)
+
+
+@contextlib.contextmanager
+def atomic(path):
+    """Write a file under a temporary name and rename it when complete.
+
+    Yields the temporary path (a hidden name in the same folder); on success it replaces
+    ``path`` in one step, on any error or interruption it is removed. So a reader, or a
+    run that was stopped, never sees a half-written file under the final name.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> target = pathlib.Path(tempfile.mkdtemp()) / "a.txt"
+    >>> with atomic(target) as partial:
+    ...     _ = partial.write_text("done")
+    >>> target.read_text(), sorted(p.name for p in target.parent.iterdir())
+    ('done', ['a.txt'])
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    data = np.column_stack([np.asarray(v, dtype=float) for v in columns.values()])[::stride]
-    np.savetxt(path, data, delimiter=",", header=",".join(columns), comments="", fmt="%.10g")
-    return path
+    partial = path.with_name(f".{path.name}.{os.getpid()}.partial")
+    try:
+        yield partial
+        os.replace(partial, path)
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            partial.unlink()
 
 
 def write_json(path, data) -> Path:
@@ -50,28 +80,9 @@ def write_json(path, data) -> Path:
     >>> p.read_text()
     '{\\n  "x": 1.5\\n}\\n'
     """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(data, indent=2, default=_to_builtin) + "\n")
-    return path
-
-
-def save_figure(fig, path, *, dpi=110) -> Path:
-    """Lay out, save and close a matplotlib figure; return its path.
-
-    Examples
-    --------
-    >>> import tempfile, pathlib, matplotlib
-    >>> matplotlib.use("Agg")
-    >>> import matplotlib.pyplot as plt
-    >>> save_figure(plt.figure(), pathlib.Path(tempfile.mkdtemp()) / "f.png").suffix
-    '.png'
-    """
-    import matplotlib.pyplot as plt
-
-    fig.tight_layout()
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
+    text = json.dumps(data, indent=2, default=_to_builtin) + "\n"
+    with atomic(path) as partial:
+        partial.write_text(text)
     return Path(path)
 
 

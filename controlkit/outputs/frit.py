@@ -4,14 +4,13 @@ from __future__ import annotations
 
 import csv
 import math
-import os
 from pathlib import Path
 
 import numpy as np
 
 from ..blocks.spacecraft import POINTING_REQUIREMENT_DEG
 from ..scenarios import frit as scenario
-from .export import write_json
+from .export import atomic, write_json
 
 #: Columns of ``sensitivity.csv``, in order: the required ones, then when a run diverged.
 COLUMNS = ("tuner", "filter", "start", "freeze", "units", "horizon_s",
@@ -62,15 +61,12 @@ def rows(results: dict[str, list]) -> list[dict]:
 
 
 def _atomic_csv(path: Path, table: list[dict]) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    with tmp.open("w", newline="") as handle:
+    with atomic(path) as partial, partial.open("w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=COLUMNS)
         writer.writeheader()
         for row in table:
             writer.writerow({k: (f"{v:.10g}" if isinstance(v, float) else v)
                              for k, v in row.items()})
-    os.replace(tmp, path)
     return path
 
 

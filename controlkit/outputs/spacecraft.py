@@ -8,28 +8,11 @@ import numpy as np
 
 from ..blocks.spacecraft import POINTING_REQUIREMENT_DEG, pointing_error_deg
 from ..scenarios import spacecraft as scenario
+from .common import select_stems, signal
 
 #: CSV columns of ``controlkit reproduce spacecraft``, in order.
 COLUMNS = ("time", "h1", "h2", "pointing_error_deg", "u1", "u2",
            "K11", "K12", "K21", "K22", "q0", "q1", "q2", "q3")
-
-
-def signal(resp, label: str) -> np.ndarray:
-    """One output of a response, by label (``resp.outputs[label]`` as an array).
-
-    Examples
-    --------
-    >>> resp = scenario.run("ideal", horizon=0.2)
-    >>> signal(resp, "q[0]").round(4).tolist()
-    [0.9659, 0.9659, 0.9659]
-    """
-    try:
-        index = list(resp.output_labels).index(label)
-    except ValueError:
-        raise ValueError(
-            f"the response has no output {label!r}; outputs: {list(resp.output_labels)}"
-        ) from None
-    return np.atleast_2d(resp.outputs)[index]
 
 
 def table(resp) -> dict[str, np.ndarray]:
@@ -68,7 +51,17 @@ def metrics(resp) -> dict:
     >>> round(m["horizon_s"], 6)
     1.0
     """
-    cols = table(resp)
+    return metrics_from_table(table(resp))
+
+
+def metrics_from_table(cols) -> dict:
+    """:func:`metrics` from the columns of :func:`table` (computed once by the caller).
+
+    Examples
+    --------
+    >>> metrics_from_table(table(scenario.run("ideal", horizon=1.0)))["horizon_s"]
+    1.0
+    """
     t, err = cols["time"], cols["pointing_error_deg"]
     last_half = t >= t[-1] / 2
     worst = float(err[last_half].max())
@@ -208,19 +201,56 @@ def figures(tables: dict[str, dict[str, np.ndarray]], outdir, *, stems=None) -> 
     outdir = Path(outdir)
     written = []
     has_k = any(scenario.CASES[n].compensator != "none" for n in tables)
-    for stem in _stems(FIGURES, stems):
+    for stem in select_stems(FIGURES, stems):
         if stem == "fig08_K" and not has_k:
             continue
         written += save(figure(tables, stem), outdir / f"{stem}.png")
     return written
 
 
-def _stems(specs, stems):
-    """The stems of ``specs`` to draw: all, or the requested ones (checked), in order."""
-    known = [spec[0] for spec in specs]
-    if stems is None:
-        return known
-    unknown = [stem for stem in stems if stem not in known]
-    if unknown:
-        raise ValueError(f"stems must be among {known}, got {unknown}")
-    return [stem for stem in known if stem in stems]
+class StreamingMetrics:
+    """:func:`metrics` accumulated chunk by chunk over a streamed run, every sample counted.
+
+    Pass an instance as ``on_chunk`` of :func:`controlkit.scenarios.spacecraft.run`; the
+    maxima and final values are the very ones :func:`metrics` computes from the whole run.
+
+    Parameters
+    ----------
+    labels : sequence of str
+        The loop's output labels.
+    horizon : float
+        The run's final time (for "the last half").
+
+    Examples
+    --------
+    >>> watch = StreamingMetrics(scenario.build_loop("ideal").output_labels, 10.0)
+    >>> resp = scenario.run("ideal", horizon=10.0, on_chunk=watch, record_every=10)
+    >>> watch.metrics() == metrics(scenario.run("ideal", horizon=10.0))
+    True
+    """
+
+    def __init__(self, labels, horizon):
+        self.labels, self.half = list(labels), float(horizon) / 2
+        self.worst = self.peak_u1 = self.peak_u2 = -np.inf
+        self.last = None
+
+    def __call__(self, time, outputs, states):
+        from types import SimpleNamespace
+
+        cols = table(SimpleNamespace(time=time, outputs=outputs, output_labels=self.labels))
+        late = time >= self.half
+        if late.any():
+            self.worst = max(self.worst, float(cols["pointing_error_deg"][late].max()))
+        self.peak_u1 = max(self.peak_u1, float(np.abs(cols["u1"]).max()))
+        self.peak_u2 = max(self.peak_u2, float(np.abs(cols["u2"]).max()))
+        self.last = {name: values[-1:] for name, values in cols.items()}
+
+    def metrics(self) -> dict:
+        """The metrics of the samples seen so far (the whole run once it has ended)."""
+        if self.last is None:
+            raise ValueError("no samples yet: the run has not started")
+        out = metrics_from_table(self.last)
+        out.update({"max_pointing_error_last_half_deg": self.worst,
+                    "requirement_met_last_half": bool(self.worst <= POINTING_REQUIREMENT_DEG),
+                    "peak_abs_u1_rad_s": self.peak_u1, "peak_abs_u2_rad_s": self.peak_u2})
+        return out

@@ -134,6 +134,10 @@ def true_plant(model_error: bool, *, inertia_error_scale=1.0, momentum_scale=1.0
     return sc.spacecraft_plant(name=name)
 
 
+#: Keywords of :func:`~controlkit.blocks.mec.frit_tuner` that ``tuner_options`` may set
+#: (``F``, ``Ts`` and ``h0`` come from the loop).
+TUNER_OPTIONS = tuple(name for name in __import__("inspect").signature(
+    mec.frit_tuner).parameters if name not in ("F", "Ts", "h0", "name"))
 #: Keywords of :func:`true_plant` that ``plant_options`` may set.
 PLANT_OPTIONS = ("inertia_error_scale", "momentum_scale")
 
@@ -200,8 +204,12 @@ def build_loop(case="ideal", *, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXED, h0=None
     if case.compensator == "fixed":
         gain = mec.constant_gain(K)
     else:
-        gain = mec.frit_tuner(F, Ts, h0=h0, **{**(case.tuner_options or {}),
-                                               **(tuner_options or {})})
+        options = {**(case.tuner_options or {}), **(tuner_options or {})}
+        unknown = sorted(set(options) - set(TUNER_OPTIONS))
+        if unknown:
+            raise ValueError(f"tuner_options has unknown keys {unknown}; allowed: "
+                             f"{list(TUNER_OPTIONS)}")
+        gain = mec.frit_tuner(F, Ts, h0=h0, **options)
     return diagrams.mec_loop(plant, sc.io_linearizer(), sc.outer_controller(F, output="mu_n"),
                              K=gain, nominal=mec.nominal_model(Ts, h0=h0), Ts=Ts,
                              name=case.name)
