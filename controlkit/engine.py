@@ -383,7 +383,7 @@ def simulate_fast(sys, T, X0, U=0.0, *, progress=None, chunks=1, record_every=1,
     return ct.TimeResponseData(
         T, Y, X, U, output_labels=sys.output_labels, state_labels=sys.state_labels,
         input_labels=sys.input_labels, sysname=sys.name, issiso=sys.issiso(),
-        title="Input/output response for " + sys.name,
+        title="Input/output response for " + sys.name, plot_inputs=sys.ninputs > 0,
     )
 
 
@@ -415,6 +415,7 @@ def _stream(sys, run, blocks, T, x, U, P, kept, on_chunk, progress):
         T[kept], Y, X, U[:, kept], output_labels=sys.output_labels,
         state_labels=sys.state_labels, input_labels=sys.input_labels, sysname=sys.name,
         issiso=sys.issiso(), title="Input/output response for " + sys.name,
+        plot_inputs=sys.ninputs > 0,
     )
 
 

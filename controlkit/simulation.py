@@ -158,6 +158,6 @@ def simulate(
         time, outputs, states, inputs,
         output_labels=sys.output_labels, state_labels=sys.state_labels,
         input_labels=sys.input_labels, sysname=sys.name, issiso=sys.issiso(),
-        title="Input/output response for " + sys.name,
+        title="Input/output response for " + sys.name, plot_inputs=sys.ninputs > 0,
     )
 

@@ -4,6 +4,7 @@ import csv
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -69,3 +70,35 @@ def test_help_lists_every_case(capsys):
     for case in ("ideal", "without_mec", "proposed", "mec_fixed", "proposed_literal", "thesis",
                  "strong_friction"):
         assert case in text
+
+
+def test_interrupted_run_keeps_finished_files_and_says_what_is_missing(tmp_path):
+    import json
+    import os
+    import signal
+    import time
+
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        [str(Path(__file__).resolve().parent.parent), os.environ.get("PYTHONPATH", "")])}
+    proc = subprocess.Popen([sys.executable, "-m", "controlkit", "reproduce", "spacecraft",
+                             "--horizon", "40000", "--out", str(tmp_path)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    folder = tmp_path / "spacecraft"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:  # interrupt while the second case is being written
+        if (folder / "ideal.csv").exists() and any(folder.glob(".without_mec.csv*")):
+            break
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130
+    assert err.strip().splitlines()[-1].startswith("controlkit: interrupted;")
+    assert not [p.name for p in folder.iterdir() if p.name.startswith(".")]  # no partials
+    manifest = json.loads((folder / "run.json").read_text())
+    assert manifest["interrupted"] is True and manifest["complete"] is False
+    assert manifest["cases"]["ideal"]["status"] == "done"
+    assert manifest["cases"]["without_mec"]["status"] == "interrupted"
+    assert manifest["cases"]["proposed"]["status"] == "interrupted"
+    rows = (folder / "ideal.csv").read_text().splitlines()
+    assert len(rows) == 1 + 40_001  # complete: header + every 10th of 400 001 samples
+    assert not (folder / "without_mec.csv").exists()
