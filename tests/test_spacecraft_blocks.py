@@ -188,7 +188,8 @@ def test_non_unit_initial_quaternion_is_refused(q):
 
 
 def test_unknown_case_is_refused():
-    allowed = r"\['ideal', 'mec_fixed', 'proposed', 'proposed_literal', 'without_mec'\]"
+    allowed = (r"\['ideal', 'mec_fixed', 'proposed', 'proposed_literal', 'safeguarded', "
+               r"'without_mec'\]")
     with pytest.raises(ValueError, match=r"case must be one of " + allowed):
         scenario.build_loop("with_mec_typo")
 
