@@ -162,7 +162,7 @@ def _success(table, cases, factor_bins):
             "success_rate": met / len(mine) if len(mine) else float("nan"),
             "success_rate_95ci": [low, high],
             "failed_runs": int((~ok[mine.index]).sum()),
-            "median_error_deg": float(errors.median()) if len(errors) else float("nan"),
+            "median_error": float(errors.median()) if len(errors) else float("nan"),
             "success_by_inertia_error": _binned(mine, factor_bins),
         }
     return summary
@@ -336,15 +336,16 @@ def figures(table, summary) -> dict:
     return out
 
 
-def _vary(text):
+def _vary(text, known=None):
     """``NAME=LOW:HIGH`` (drawn uniformly) or ``NAME=LOW:HIGH:N`` (an N-point grid)."""
+    known = RANGES if known is None else known
     name, _, span = text.partition("=")
     parts = span.split(":")
     if not name or len(parts) not in (2, 3):
         raise ValueError(f"--vary {text!r}: expected NAME=LOW:HIGH or NAME=LOW:HIGH:N")
-    if name not in RANGES:
+    if name not in known:
         raise ValueError(f"--vary {text!r}: unknown parameter {name!r}; known: "
-                         f"{list(RANGES)}")
+                         f"{list(known)}")
     try:
         low, high = float(parts[0]), float(parts[1])
         n = int(parts[2]) if len(parts) == 3 else None
@@ -373,18 +374,21 @@ def add_cli(subparsers) -> None:
         description="Run the robustness study of the spacecraft paper: seeded draws of the "
                     "inertia error, the amplitude of H0 and the initial attitude, each run "
                     "for every case; writes sweep.csv, summary.json and figures.")
-    p.add_argument("study", choices=["spacecraft"], help="which study")
+    p.add_argument("study", choices=["spacecraft", "cmg"],
+                   help="spacecraft (model error of the MEC paper) or cmg (friction and "
+                        "inertia of the gyroscope)")
     p.add_argument("--case", action="append", dest="cases", metavar="NAME",
-                   help="case to run (repeatable; default: without_mec, mec_fixed, "
-                        "proposed, and safeguarded where it exists)")
+                   help="case to run (repeatable; spacecraft default: without_mec, "
+                        "mec_fixed, proposed, safeguarded; cmg default: thesis)")
     p.add_argument("--samples", type=int, default=200, metavar="N",
                    help="number of draws (default 200)")
     p.add_argument("--seed", type=int, default=0, metavar="S", help="seed (default 0)")
     p.add_argument("--horizon", type=float, metavar="SECONDS",
                    help="simulated time per run (default 20000)")
     p.add_argument("--vary", action="append", default=[], metavar="NAME=LOW:HIGH[:N]",
-                   help=f"range of a drawn parameter ({', '.join(RANGES)}); with :N it is "
-                        "an N-point grid crossed with the draws")
+                   help=f"range of a drawn parameter (spacecraft: {', '.join(RANGES)}; cmg: "
+                        f"{', '.join(CMG_RANGES)}); with :N it is an N-point grid crossed "
+                        "with the draws")
     p.add_argument("--workers", type=int, metavar="N", help="workers (default: all cores)")
     p.add_argument("--executor", choices=["processes", "threads", "serial", "dask"],
                    default="processes", help="where runs go (default: local processes)")
@@ -417,14 +421,15 @@ def run_cli(args) -> dict:
         raise ValueError(f"--horizon must be finite and > 0, got {args.horizon}")
     if args.scheduler and args.executor != "dask":
         raise ValueError("--scheduler goes with --executor dask")
-    from .scenarios import spacecraft
+    from .scenarios import cmg, spacecraft
 
-    unknown = [c for c in args.cases or [] if c not in spacecraft.CASES]
+    scenario, known = (spacecraft, RANGES) if args.study == "spacecraft" else (cmg, CMG_RANGES)
+    unknown = [c for c in args.cases or [] if c not in scenario.CASES]
     if unknown:
-        raise ValueError(f"unknown --case {unknown}; known: {list(spacecraft.CASES)}")
+        raise ValueError(f"unknown --case {unknown}; known: {list(scenario.CASES)}")
     ranges, grid = {}, {}
     for text in args.vary:
-        name, span, n = _vary(text)
+        name, span, n = _vary(text, known)
         if n is None:
             ranges[name] = span
         else:
@@ -432,13 +437,131 @@ def run_cli(args) -> dict:
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out} is a file, not a folder")
-    _, summary = spacecraft_study(samples=args.samples, seed=args.seed, cases=args.cases,
-                                  horizon=args.horizon, ranges=ranges, grid=grid,
-                                  executor=args.executor, workers=args.workers,
-                                  scheduler=args.scheduler, out=out, resume=args.resume)
+    study = spacecraft_study if args.study == "spacecraft" else cmg_study
+    _, summary = study(samples=args.samples, seed=args.seed, cases=args.cases,
+                       horizon=args.horizon, ranges=ranges, grid=grid,
+                       executor=args.executor, workers=args.workers,
+                       scheduler=args.scheduler, out=out, resume=args.resume)
     for case, s in summary.items():
         low_ci, high_ci = s["success_rate_95ci"]
         print(f"sweep/{case}: runs={s['runs']}, requirement_met={s['requirement_met']}, "
               f"success_rate={s['success_rate']:.3f} (95% CI {low_ci:.3f}-{high_ci:.3f}), "
-              f"failed_runs={s['failed_runs']}, median_error_deg={s['median_error_deg']:.4g}")
+              f"failed_runs={s['failed_runs']}, median_error={s['median_error']:.4g}")
     return summary
+
+
+# --- the CMG: friction and inertia of the gyroscope ---------------------------------------
+
+#: Drawn parameters of the CMG study (uniform): a factor on every friction coefficient of
+#: the case, and a factor on the true gyroscope's inertias (the controller keeps the model).
+CMG_RANGES = {"friction_scale": (0.0, 5.0), "inertia_scale": (0.8, 1.2)}
+#: Tracking bound of the CMG study: both gimbal errors after the first second, rad.
+CMG_TRACKING_BOUND_RAD = 0.01
+
+
+def cmg_run(case="thesis", *, friction_scale=1.0, inertia_scale=1.0, horizon=None) -> dict:
+    """One run of the CMG study: tracking after 1 s under drawn friction and inertia.
+
+    Returns the metrics of :func:`controlkit.outputs.cmg.metrics` that are numbers, and
+    ``tracking_met``: both gimbal errors after 1 s within :data:`CMG_TRACKING_BOUND_RAD`.
+
+    Examples
+    --------
+    >>> cmg_run(horizon=2.0)["tracking_met"]
+    True
+    """
+    from .outputs.cmg import metrics
+    from .scenarios import cmg
+
+    kwargs = {} if horizon is None else {"horizon": horizon}
+    m = metrics(cmg.run(case, plant_options={"friction_scale": friction_scale,
+                                             "inertia_scale": inertia_scale}, **kwargs))
+    out = {k: v for k, v in m.items() if isinstance(v, int | float)}
+    out["tracking_met"] = bool(
+        max(m["max_abs_q2_error_after_1s_rad"], m["max_abs_q4_error_after_1s_rad"])
+        <= CMG_TRACKING_BOUND_RAD)
+    return out
+
+
+def cmg_study(*, samples=200, seed=0, cases=None, horizon=None, ranges=None, grid=None,
+              executor=None, workers=None, scheduler=None, out=None, resume=False,
+              progress=True):
+    """The CMG robustness study: friction and inertia draws; as :func:`spacecraft_study`.
+
+    Success is ``tracking_met`` (both gimbals within :data:`CMG_TRACKING_BOUND_RAD` after
+    1 s); the summary bins success by ``friction_scale``.
+
+    Examples
+    --------
+    >>> table, summary = cmg_study(samples=2, horizon=1.5, executor="serial", progress=False)
+    >>> len(table), summary["thesis"]["runs"]
+    (2, 2)
+    """
+    from .scenarios import cmg
+
+    cases = list(cases or cmg.DEFAULT_CASES)
+    span = {**CMG_RANGES, **(ranges or {})}
+    unknown = sorted(set(span) - set(CMG_RANGES))
+    if unknown:
+        raise ValueError(f"unknown varied parameters {unknown}; known: {list(CMG_RANGES)}")
+    grid = dict(grid or {})
+    fixed = {} if horizon is None else {"horizon": float(horizon)}
+    table = sweep(cmg_run, grid=grid or None,
+                  draws={k: tuple(map(float, v)) for k, v in span.items() if k not in grid},
+                  samples=samples, seed=seed, cases=cases, fixed=fixed, executor=executor,
+                  workers=workers, scheduler=scheduler,
+                  store=None if out is None else Path(out) / "store", resume=resume,
+                  warmup=lambda: [cmg.run(c, horizon=2 * cmg.cmg.TS_CMG) for c in cases],
+                  progress=progress)
+    bins = np.linspace(span["friction_scale"][0], span["friction_scale"][1], 6)
+    summary = {}
+    for case in cases:
+        mine = table[table["case"] == case]
+        ok = mine["error"] == ""
+        met = int((mine["tracking_met"].fillna(False).astype(bool) & ok).sum())
+        low, high = wilson_interval(met, len(mine))
+        q2 = mine.loc[ok, "max_abs_q2_error_after_1s_rad"]
+        by = []
+        for a, b in zip(bins[:-1], bins[1:], strict=True):
+            inside = (mine["friction_scale"] >= a) & (mine["friction_scale"] <= b)
+            n = int(inside.sum())
+            rate = float((mine["tracking_met"].fillna(False).astype(bool) & ok)[inside].mean())
+            by.append({"friction_scale_low": float(a), "friction_scale_high": float(b),
+                       "runs": n, "success_rate": rate if n else float("nan")})
+        summary[case] = {"runs": len(mine), "requirement_met": met,
+                         "success_rate": met / len(mine) if len(mine) else float("nan"),
+                         "success_rate_95ci": [low, high],
+                         "failed_runs": int((~ok).sum()),
+                         "median_error": float(q2.median()) if len(q2) else float("nan"),
+                         "success_by_friction": by}
+    if out is not None:
+        _write_cmg(table, summary, Path(out), seed=seed, samples=samples, horizon=horizon)
+    return table, summary
+
+
+def _write_cmg(table, summary, out, **settings):
+    from .outputs.export import atomic
+    from .outputs.style import legend_outside, new_figure, save, slide_style
+
+    out.mkdir(parents=True, exist_ok=True)
+    with atomic(out / "sweep.csv") as partial:
+        table.to_csv(partial, index=False)
+    with atomic(out / "summary.json") as partial:
+        partial.write_text(json.dumps({"settings": settings, "tracking_bound_rad":
+                                       CMG_TRACKING_BOUND_RAD, "cases": summary}, indent=2))
+    with slide_style():
+        fig, (ax,) = new_figure()
+        for case in summary:
+            mine = table[(table["case"] == case) & (table["error"] == "")]
+            for column, marker in (("max_abs_q2_error_after_1s_rad", "o"),
+                                   ("max_abs_q4_error_after_1s_rad", "s")):
+                ax.plot(mine["friction_scale"], mine[column], marker, alpha=0.6,
+                        markersize=4, label=f"{case}: {column.split('_')[2]} error")
+        ax.axhline(CMG_TRACKING_BOUND_RAD, color="k", linestyle=":", linewidth=1.6,
+                   label=f"bound {CMG_TRACKING_BOUND_RAD} rad")
+        ax.set_yscale("log")
+        ax.set_xlabel("factor on the friction of the case")
+        ax.set_ylabel("max |error| after 1 s [rad]")
+        ax.set_title("CMG tracking over drawn friction and inertia")
+        legend_outside(fig)
+        save(fig, out / "cmg_tracking_vs_friction.png")

@@ -201,3 +201,28 @@ def test_cli_bad_vary_is_refused(vary, message, tmp_path, capsys):
     assert main(["sweep", "spacecraft", "--vary", vary, "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert re.search(message, err) and len(err.strip().splitlines()) == 1
+
+
+def test_cmg_study_draws_friction_and_inertia_and_counts_tracking(tmp_path, capsys):
+    from controlkit.cli import main
+
+    assert main(["sweep", "cmg", "--samples", "3", "--horizon", "1.5", "--executor", "serial",
+                 "--vary", "friction_scale=0:1", "--out", str(tmp_path)]) == 0
+    table = pd.read_csv(tmp_path / "sweep.csv")
+    assert len(table) == 3 and table["friction_scale"].between(0, 1).all()
+    assert table["inertia_scale"].between(0.8, 1.2).all()
+    # the thesis case tracks within 0.01 rad at up to its published friction
+    assert table["tracking_met"].all()
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["cases"]["thesis"]["requirement_met"] == 3
+    assert (tmp_path / "cmg_tracking_vs_friction.png").stat().st_size > 10_000
+    assert "sweep/thesis: runs=3, requirement_met=3" in capsys.readouterr().out
+
+
+def test_cmg_plant_options_are_checked():
+    from controlkit.scenarios import cmg
+
+    with pytest.raises(ValueError, match=r"plant_options has unknown keys \['mass'\]"):
+        cmg.build_loop(plant_options={"mass": 2.0})
+    with pytest.raises(ValueError, match=r"inertia_scale must be finite and > 0"):
+        cmg.true_plant(inertia_scale=0.0)

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
+from .. import _checks
 from ..blocks import cmg
 from ..diagrams.cmg import cmg_loop
 from ..sampling import time_grid
@@ -60,8 +62,45 @@ CASES: dict[str, CmgCase] = {
 DEFAULT_CASES = ("thesis",)
 
 
-def build_loop(case="thesis", *, Ts=cmg.TS_CMG, boundary_layer=0.0, **gains):
+def true_plant(case="thesis", *, friction_scale=1.0, inertia_scale=1.0, name="cmg"):
+    """The gyroscope the controller faces in one case, optionally further from the model.
+
+    Parameters
+    ----------
+    case : str
+        A key of :data:`CASES` (its friction and ``delta IG4x``).
+    friction_scale : float
+        Factor on every friction coefficient of the case (>= 0; 1: as published).
+    inertia_scale : float
+        Factor on the seven inertias of the true plant (> 0); the controller keeps the
+        nominal ones, so this is an inertia model error.
+    name : str
+        System name.
+
+    Examples
+    --------
+    >>> true_plant(inertia_scale=1.1).name
+    'cmg'
+    """
+    if case not in CASES:
+        raise ValueError(f"case must be one of {sorted(CASES)}, got {case!r}")
+    c = CASES[case]
+    f = _checks.positive_scalar("friction_scale", friction_scale, allow_zero=True)
+    s = _checks.positive_scalar("inertia_scale", inertia_scale)
+    friction = dataclasses.replace(c.friction, **{k: f * getattr(c.friction, k) for k in
+                                                  ("b1", "b2", "b4", "c1", "c2", "c4")})
+    nominal = cmg.Inertias()
+    inertias = dataclasses.replace(nominal, **{field.name: s * getattr(nominal, field.name)
+                                               for field in dataclasses.fields(nominal)})
+    return cmg.cmg_plant(inertias, delta_IG4x=c.delta_IG4x, friction=friction, name=name)
+
+
+def build_loop(case="thesis", *, Ts=cmg.TS_CMG, boundary_layer=0.0, plant_options=None,
+               **gains):
     """The closed loop of one case (true plant with friction and ``delta IG4x``).
+
+    ``plant_options`` are keywords of :func:`true_plant` (``friction_scale``,
+    ``inertia_scale``); the controller keeps the nominal model.
 
     Examples
     --------
@@ -71,13 +110,17 @@ def build_loop(case="thesis", *, Ts=cmg.TS_CMG, boundary_layer=0.0, **gains):
     if case not in CASES:
         raise ValueError(f"case must be one of {sorted(CASES)}, got {case!r}")
     c = CASES[case]
-    plant = cmg.cmg_plant(delta_IG4x=c.delta_IG4x, friction=c.friction)
+    unknown = sorted(set(plant_options or {}) - {"friction_scale", "inertia_scale"})
+    if unknown:
+        raise ValueError(f"plant_options has unknown keys {unknown}; allowed: "
+                         "['friction_scale', 'inertia_scale']")
+    plant = true_plant(case, **(plant_options or {}))
     controller = cmg.adaptive_smc(Ts=Ts, boundary_layer=boundary_layer, **gains)
     return cmg_loop(plant, controller, Ts=Ts, name=c.name)
 
 
 def run(case="thesis", *, horizon=HORIZON, Ts=cmg.TS_CMG, x0=None, boundary_layer=0.0,
-        progress=None, engine="fast", **gains):
+        plant_options=None, progress=None, engine="fast", **gains):
     """Simulate one case from the thesis's initial state.
 
     Parameters
@@ -92,6 +135,8 @@ def run(case="thesis", *, horizon=HORIZON, Ts=cmg.TS_CMG, x0=None, boundary_laye
         Initial ``[q1, q2, q4, w1, w2, w4]``; ``q2`` must lie in ``(0, pi/2)``.
     boundary_layer : float
         Switching function: 0 for ``sgn``, ``phi > 0`` for ``sat(s/phi)``.
+    plant_options : dict, optional
+        Keywords of :func:`true_plant` (``friction_scale``, ``inertia_scale``).
     progress : callable, optional
         Called with the fraction done.
     engine : {"fast", "python-control"}
@@ -114,7 +159,8 @@ def run(case="thesis", *, horizon=HORIZON, Ts=cmg.TS_CMG, x0=None, boundary_laye
     if not 0.0 < x0[1] < np.pi / 2:
         raise ValueError(f"x0: q2 must lie in (0, pi/2) (the controller divides by sin q2), "
                          f"got q2 = {x0[1]:.6g} rad")
-    loop = build_loop(case, Ts=Ts, boundary_layer=boundary_layer, **gains)
+    loop = build_loop(case, Ts=Ts, boundary_layer=boundary_layer, plant_options=plant_options,
+                      **gains)
     T = time_grid(horizon, Ts)
     return simulate(loop, T, initial_state(loop, cmg=x0), progress=progress,
                     chunks=10 if len(T) > 5000 else 1, engine=engine)
