@@ -21,11 +21,15 @@ import sys as pysys
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import control as ct
 import numpy as np
 
-from . import _jit
+from . import _jit, _usercode
+from ._block import BlockKernels
+from .kernels import common, lti
+from .simulation import check_arguments
 
 #: Where generated simulation loops are written (and numba caches them).
 CACHE_DIR = Path(os.environ.get("CONTROLKIT_CACHE_DIR",
@@ -55,30 +59,270 @@ class _Block:
     u0: int  # offset in the list of all subsystem inputs
     y0: int  # offset in the list of all subsystem outputs
     p0: int  # parameter offset
+    tier: str = "compiled"
+    reason: str = ""
 
 
-def _blocks(sys):
+#: The tiers a block can get, fastest first (see :func:`explain`).
+TIERS = ("compiled", "python", "python-control")
+
+
+class BlockTier(NamedTuple):
+    """How the fast engine runs one block: ``tier`` is one of :data:`TIERS`."""
+
+    name: str
+    tier: str
+    reason: str
+
+
+def _local_params(sys, block, params):
+    """The parameters python-control hands ``block`` inside ``sys`` (see its _update_params)."""
+    local = dict(block.params)
+    local.update(sys.params)
+    if params:
+        local.update(params)
+    return local
+
+
+def _probe_feedthrough(output, nx, nu, ny):
+    """Whether ``output(t, x, u, out)`` moves with ``u`` at random trial points."""
+    if nu == 0 or ny == 0:
+        return False
+    rng = np.random.default_rng(1)
+    for _ in range(3):
+        x = rng.uniform(-1, 1, nx)
+        u = rng.uniform(-1, 1, nu)
+        try:
+            a = np.array(output(0.0, x, np.zeros(nu), np.empty(ny)), dtype=float)
+            b = np.array(output(0.0, x, u, np.empty(ny)), dtype=float)
+        except Exception:  # undefined at this point: assume the worst
+            return True
+        if not np.array_equal(a, b, equal_nan=True):
+            return True
+    return False
+
+
+def _python_kernels(block, local, reason):
+    """Kernels calling ``block``'s own functions from Python, inside the engine's loop."""
+    if isinstance(block, ct.InterconnectedSystem):  # a nested diagram: its own sweeps
+        def output(t, x, u, p, out):
+            block._update_params(local)
+            out[:] = block._out(t, x, u)
+            return out
+
+        def update(t, x, u, p, out):
+            block._update_params(local)
+            out[:] = block._rhs(t, x, u)
+            return out
+        feed = None
+    else:
+        output = (_usercode.python_kernel(block.outfcn, local) if block.outfcn is not None
+                  else common.state_output)
+        update = _usercode.python_kernel(block.updfcn, local) if block.nstates else None
+        feed = (_usercode.reads_input(block.outfcn) if block.outfcn is not None else False)
+    if feed is None or hasattr(block, "kernel_reason"):
+        feed = _probe_feedthrough(lambda t, x, u, out: output(t, x, u, None, out),
+                                  block.nstates, block.ninputs, block.noutputs)
+    return BlockKernels(output, update, np.zeros(0), feed), "python", reason
+
+
+def _user_kernels(block, local):
+    """A user's ``nlsys``: compiled with its parameters frozen, else called from Python."""
+    if isinstance(block, ct.InterconnectedSystem) or hasattr(block, "kernel_reason"):
+        reason = getattr(block, "kernel_reason", "a nested interconnect")
+        return _python_kernels(block, local, reason)
+    folder = _cache_folder()
+    try:
+        output = common.state_output
+        if block.outfcn is not None:
+            output, _ = _usercode.compiled_kernel(block.outfcn, local, folder, block.noutputs,
+                                                  block.nstates, block.ninputs)
+        update = None
+        if block.nstates:
+            update, _ = _usercode.compiled_kernel(block.updfcn, local, folder, block.nstates,
+                                                  block.nstates, block.ninputs)
+    except _usercode.NotCompilable as why:
+        return _python_kernels(block, local, f"user function not compiled: {why}")
+    feed = _usercode.reads_input(block.outfcn) if block.outfcn is not None else False
+    if feed is None:
+        feed = True
+    return (BlockKernels(output, update, np.zeros(0), feed), "compiled",
+            "user nlsys compiled with its parameters frozen")
+
+
+def _resolve(sys, block, params):
+    """``(BlockKernels, tier, reason)`` for one block of ``sys``."""
+    kernel = getattr(block, "kernels", None)
+    if kernel is not None:
+        _check_feedthrough(block, kernel)
+        return kernel, "compiled", "controlkit block"
+    local = _local_params(sys, block, params)
+    if isinstance(block, ct.StateSpace):  # also a transfer function, converted by interconnect
+        D = np.asarray(block.D, dtype=float)
+        return (BlockKernels(lti.lti_output, lti.lti_update if block.nstates else None,
+                             lti.pack(block.A, block.B, block.C, D), bool(D.any())),
+                "compiled", "LTI block (state space)")
+    sampling = getattr(block, "sampling", None)
+    continuous = getattr(block, "continuous", None)
+    if sampling is not None and continuous is not None:
+        if sampling["method"] != "rk4":
+            return _python_kernels(block, local, "sampled with solve_ivp")
+        inner = dict(continuous.params)
+        inner.update(local)
+        kernel, tier, reason = _resolve(sys, continuous, None) if getattr(
+            continuous, "kernels", None) is not None else _user_kernels(continuous, inner)
+        return (kernel.sampled(block.dt, sampling["substeps"]), tier,
+                f"{reason}, sampled by RK4")
+    if isinstance(block, ct.NonlinearIOSystem):
+        return _user_kernels(block, local)
+    raise UnsupportedSystem(f"block {block.name!r} cannot be compiled: "
+                            f"a {type(block).__name__}, not an I/O system the engine knows")
+
+
+def _check_feedthrough(block, kernel):
+    """Refuse a block declared without feedthrough whose output moves with its input."""
+    if kernel.feedthrough or not block.ninputs or not block.noutputs:
+        return
+    p = kernel.params
+    if _probe_feedthrough(lambda t, x, u, out: kernel.output(t, x, u, p, out),
+                          block.nstates, block.ninputs, block.noutputs):
+        raise ValueError(
+            f"block {block.name!r} is declared without feedthrough (feedthrough=False) but "
+            f"its output changes with its input; declare feedthrough=True")
+
+
+def _blocks(sys, params=None):
     if not isinstance(sys, ct.InterconnectedSystem):
+        name = getattr(sys, "name", type(sys).__name__)
         raise UnsupportedSystem(
-            f"{sys.name!r} is a single block; the fast engine runs interconnects")
+            f"{name!r} is a single block; the fast engine runs interconnects")
     if not sys.isdtime(strict=True):
         raise UnsupportedSystem(
             f"{sys.name!r} is continuous time (dt = {sys.dt}); sample its continuous blocks "
             f"with controlkit.sampling.sample_nlsys so that the diagram is discrete")
     blocks, xs, us, ys, ps = [], 0, 0, 0, 0
     for i, block in enumerate(sys.syslist):
-        kernel = getattr(block, "kernels", None)
-        if kernel is None:
-            reason = getattr(block, "kernel_reason", None) or "not a controlkit block"
-            raise UnsupportedSystem(f"block {block.name!r} cannot be compiled: {reason}")
+        kernel, tier, reason = _resolve(sys, block, params)
         if kernel.update is not None and kernel.rk4 is None and not block.isdtime(strict=True):
             raise UnsupportedSystem(f"block {block.name!r} is continuous and not sampled")
-        blocks.append(_Block(i, block, kernel, xs, us, ys, ps))
+        blocks.append(_Block(i, block, kernel, xs, us, ys, ps, tier, reason))
         xs += block.nstates
         us += block.ninputs
         ys += block.noutputs
         ps += kernel.params.size
     return blocks
+
+
+def _params_read(block):
+    """The parameter names ``block`` reads, or None where that cannot be known."""
+    if getattr(block, "kernels", None) is not None or isinstance(block, ct.StateSpace):
+        return set()  # controlkit blocks take theirs when built; LTI blocks have none
+    if isinstance(block, ct.InterconnectedSystem):
+        keys = set(block.params)
+        for sub in block.syslist:
+            more = _params_read(sub)
+            if more is None:
+                return None
+            keys |= more
+        return keys
+    continuous = getattr(block, "continuous", None)
+    if continuous is not None:
+        inner = _params_read(continuous)
+        return None if inner is None else inner | set(block.params)
+    if hasattr(block, "kernel_reason"):
+        return set()
+    keys = set(block.params)
+    for fn in (block.updfcn, block.outfcn):
+        if fn is not None:
+            more = _usercode.used_params(fn)
+            if more is None:
+                return None
+            keys |= more
+    return keys
+
+
+def check_params(sys, params):
+    """Refuse ``params`` keys that no block of ``sys`` reads (python-control ignores them).
+
+    Raises
+    ------
+    ValueError
+        Naming the unknown keys and the ones the blocks read.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> gain = ct.nlsys(None, lambda t, x, u, params: params["k"] * u, inputs=1, outputs=1,
+    ...                 params={"k": 2.0}, name="gain")
+    >>> check_params(gain, {"k": 3.0})
+    >>> try:
+    ...     check_params(gain, {"K": 3.0})
+    ... except ValueError as error:
+    ...     print(error)  # doctest: +NORMALIZE_WHITESPACE
+    params ['K'] are read by no block of 'gain' (they read ['k']); controlkit's own
+    blocks take their parameters when they are built, e.g. outer_controller(F=...)
+    """
+    if not params:
+        return
+    if not isinstance(params, dict):
+        raise ValueError(f"params must be a dict of parameter values, got "
+                         f"{type(params).__name__}")
+    keys = _params_read(sys)
+    if keys is None:  # a function without source: python-control's own behaviour
+        return
+    unknown = sorted(set(params) - keys)
+    if unknown:
+        raise ValueError(
+            f"params {unknown} are read by no block of {sys.name!r} (they read "
+            f"{sorted(keys)}); controlkit's own blocks take their parameters when they are "
+            f"built, e.g. outer_controller(F=...)")
+
+
+def explain(sys, params=None) -> list[BlockTier]:
+    """How the fast engine runs each block of ``sys``: its tier and the reason.
+
+    Tiers (:data:`TIERS`): ``"compiled"`` (numba, in the generated loop),
+    ``"python"`` (the block's own Python function called from the generated
+    loop: no python-control sweeps, but slower) and ``"python-control"``
+    (the whole diagram falls back to :func:`control.input_output_response`;
+    the reason says why).
+
+    Parameters
+    ----------
+    sys : control.InterconnectedSystem
+        The diagram.
+    params : dict, optional
+        Parameters as for :func:`controlkit.simulation.simulate` (they decide
+        the values frozen into compiled user functions).
+
+    Returns
+    -------
+    list of BlockTier
+        ``(name, tier, reason)`` per block, in ``sys.syslist`` order.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> pi = ct.sample_system(ct.tf([1.0, 0.5], [1.0, 0.0], name="pi"), 0.1)
+    >>> plant = ct.nlsys(lambda t, x, u, p: x + 0.1 * (u - p.get("a", 1.0) * x ** 3),
+    ...                  lambda t, x, u, p: x, inputs="u", outputs="y", states=1,
+    ...                  dt=0.1, name="plant")
+    >>> pi.set_inputs("e"); pi.set_outputs("u")
+    >>> sumblk = ct.summing_junction(["r", "-y"], "e")
+    >>> loop = ct.interconnect([plant, pi, sumblk], inputs="r", outputs="y")
+    >>> for row in explain(loop):
+    ...     print(row.name, "|", row.tier)
+    plant | compiled
+    pi | compiled
+    sumblk | compiled
+    """
+    try:
+        blocks = _blocks(sys, params)
+        _evaluation_order(sys, blocks)
+    except UnsupportedSystem as why:
+        return [BlockTier(s.name, "python-control", str(why))
+                for s in getattr(sys, "syslist", [sys])]
+    return [BlockTier(b.system.name, b.tier, b.reason) for b in blocks]
 
 
 def _evaluation_order(sys, blocks):
@@ -129,18 +373,23 @@ def _function_ref(function):
 
 
 def _generate(sys, blocks, order):
-    imports, names = {}, {}
+    """The loop's source and the kernels it must be handed (those not importable)."""
+    imports, names, injected = {}, {}, {}
     for b in blocks:
         for role, fn in (("out", b.kernel.output), ("upd", b.kernel.update)):
             if fn is None:
                 continue
-            module, name = _function_ref(fn)
-            if "<" in name or module is None or module == "__main__":
-                raise UnsupportedSystem(
-                    f"block {b.system.name!r}: its kernel {name} is not importable")
             alias = f"{role}_{b.index}"
-            imports[alias] = (module, name)
             names[(role, b.index)] = alias
+            module, name = _function_ref(fn)
+            if "<" in name or module is None or module == "__main__" or "<" in getattr(
+                    getattr(fn, "py_func", fn), "__qualname__", "<"):
+                if b.tier != "python":
+                    raise UnsupportedSystem(
+                        f"block {b.system.name!r}: its kernel {name} is not importable")
+                injected[alias] = fn
+                continue
+            imports[alias] = (module, name)
     nsub_out = sys.connect_map.shape[1]
     # buffers live outside the time loop: allocation is what a compiled step costs
     setup = ["x = X0.copy()", f"xn = np.empty({sys.nstates})", f"ys = np.zeros({nsub_out})"]
@@ -232,30 +481,43 @@ def _generate(sys, blocks, order):
     body.append("x[:] = xn")
     L += ["        " + line for chunk in body for line in chunk.split("\n")]
     L.append("    return x")
-    return "\n".join(L) + "\n"
+    return "\n".join(L) + "\n", injected
 
 
 #: Loops loaded in this process, by generated source (the kernels imported here are fixed).
 _LOADED: dict[str, object] = {}
 
 
-def _load(source: str):
-    if source in _LOADED:  # no need to read and hash the kernels' files again
-        return _LOADED[source]
-    # numba caches the loop with the kernels inlined but keys on the loop's file alone:
-    # the kernels' source goes into the file name so that editing them recompiles
-    modules = sorted({line.split()[1] for line in source.splitlines()
-                      if line.startswith("from ")})
-    kernel_sources = "".join(Path(importlib.util.find_spec(m).origin).read_text()
-                             for m in modules)
-    key = hashlib.sha256((source + kernel_sources + str(_jit.HAVE_NUMBA)).encode()
-                         ).hexdigest()[:20]
+def _cache_folder() -> Path:
+    """:data:`CACHE_DIR`, or a temporary folder when it cannot be written."""
     folder = CACHE_DIR
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError:  # a read-only home: keep the loops for this machine's session only
         folder = Path(tempfile.gettempdir()) / "controlkit-engine"
         folder.mkdir(parents=True, exist_ok=True)
+    return folder
+
+
+def _load(source: str, injected=None):
+    if injected:  # Python kernels in the loop: run it as plain Python, handed those kernels
+        namespace = {}
+        exec(compile(source, "<controlkit loop>", "exec"), namespace)
+        namespace.update(injected)
+        return namespace["run"]
+    if source in _LOADED:  # no need to read and hash the kernels' files again
+        return _LOADED[source]
+    # numba caches the loop with the kernels inlined but keys on the loop's file alone:
+    # the kernels' source goes into the file name so that editing them recompiles
+    folder = _cache_folder()
+    if str(folder) not in pysys.path:  # compiled user kernels are modules there
+        pysys.path.append(str(folder))
+    modules = sorted({line.split()[1] for line in source.splitlines()
+                      if line.startswith("from ")})
+    kernel_sources = "".join(Path(importlib.util.find_spec(m).origin).read_text()
+                             for m in modules)
+    key = hashlib.sha256((source + kernel_sources + str(_jit.HAVE_NUMBA)).encode()
+                         ).hexdigest()[:20]
     path = folder / f"loop_{key}.py"
     if not path.exists():  # keep the file's date: numba's cache keys on it
         tmp = path.with_suffix(f".{os.getpid()}.tmp")
@@ -272,7 +534,7 @@ def _load(source: str):
     return run
 
 
-def compile_system(sys):
+def compile_system(sys, params=None):
     """Generate (and compile, with numba) the simulation loop of an interconnect.
 
     Raises
@@ -294,12 +556,13 @@ def compile_system(sys):
     >>> [b.system.name for b in blocks]
     ['reference', 'cmg', 'smc', 'saturation']
     """
-    blocks = _blocks(sys)
+    blocks = _blocks(sys, params)
     order = _evaluation_order(sys, blocks)
-    return _load(_generate(sys, blocks, order)), blocks
+    return _load(*_generate(sys, blocks, order)), blocks
 
 
-def simulate_fast(sys, T, X0, U=0.0, *, progress=None, chunks=1) -> ct.TimeResponseData:
+def simulate_fast(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1
+                  ) -> ct.TimeResponseData:
     """Simulate a discrete interconnect of controlkit blocks without python-control's sweeps.
 
     Same arguments and result as :func:`control.input_output_response` for
@@ -321,17 +584,10 @@ def simulate_fast(sys, T, X0, U=0.0, *, progress=None, chunks=1) -> ct.TimeRespo
     >>> resp.outputs.shape
     (10, 3)
     """
-    run, blocks = compile_system(sys)
-    T = np.ascontiguousarray(T, dtype=float)
+    run, blocks = compile_system(sys, params)
+    T, X0, U = check_arguments(sys, T, X0, U)
+    T = np.ascontiguousarray(T)
     N = T.size
-    if N > 1 and not np.allclose(np.diff(T), sys.dt):
-        raise ValueError(f"time steps of T must equal the sampling time {sys.dt}")
-    U = np.asarray(U, dtype=float)
-    U = np.ascontiguousarray(
-        np.broadcast_to(U.reshape(-1, 1) if U.ndim <= 1 else U, (sys.ninputs, N)))
-    X0 = np.ascontiguousarray(np.asarray(X0, dtype=float).reshape(-1))
-    if X0.size != sys.nstates:
-        raise ValueError(f"X0 must have {sys.nstates} values, got {X0.size}")
     P = np.concatenate([b.kernel.params for b in blocks] + [np.zeros(0)])
     Y = np.zeros((sys.noutputs, N))
     X = np.zeros((sys.nstates, N))
@@ -341,7 +597,7 @@ def simulate_fast(sys, T, X0, U=0.0, *, progress=None, chunks=1) -> ct.TimeRespo
     for k0, k1 in zip(bounds[:-1], bounds[1:], strict=True):
         x = run(T, x, U, P, Y, X, status, k0, k1)
         if status[0] >= 0:
-            _explain_failure(sys, blocks, T, X, U, status)
+            _explain_failure(sys, blocks, T, X, U, status, params)
         if progress is not None:
             progress(k1 / N)
     return ct.TimeResponseData(
@@ -351,12 +607,12 @@ def simulate_fast(sys, T, X0, U=0.0, *, progress=None, chunks=1) -> ct.TimeRespo
     )
 
 
-def _explain_failure(sys, blocks, T, X, U, status):
+def _explain_failure(sys, blocks, T, X, U, status, params=None):
     """A kernel returned NaN: let the block's Python wrapper say why, in its own words."""
     k = int(status[0])
     b = blocks[int(status[1])]
     block = b.system
-    sys._update_params(None)
+    sys._update_params(params)
     ulist, _ = sys._compute_static_io(T[k], X[:, k], U[:, k])
     block.output(T[k], X[b.x0:b.x0 + block.nstates, k], ulist[b.u0:b.u0 + block.ninputs])
     raise FloatingPointError(f"block {block.name!r} returned NaN at t = {T[k]:g} s")
