@@ -29,6 +29,7 @@ import numpy as np
 from . import _jit, _usercode
 from ._block import BlockKernels
 from .kernels import common, lti
+from .sampling import SamplingError, blowup_message
 from .simulation import check_arguments
 
 #: Where generated simulation loops are written (and numba caches them).
@@ -598,6 +599,8 @@ def simulate_fast(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1
         x = run(T, x, U, P, Y, X, status, k0, k1)
         if status[0] >= 0:
             _explain_failure(sys, blocks, T, X, U, status, params)
+        if not np.isfinite(x).all():
+            _explain_divergence(sys, blocks, T, X, x, k1)
         if progress is not None:
             progress(k1 / N)
     return ct.TimeResponseData(
@@ -605,6 +608,21 @@ def simulate_fast(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1
         input_labels=sys.input_labels, sysname=sys.name, issiso=sys.issiso(),
         title="Input/output response for " + sys.name,
     )
+
+
+def _explain_divergence(sys, blocks, T, X, x, k1):
+    """A state became non-finite: name the first block it happened in, and what to do."""
+    bad = ~np.isfinite(np.column_stack([X[:, :k1], x]))
+    k = int(np.argmax(bad.any(axis=0)))
+    i = int(np.argmax(bad[:, k]))
+    b = next(b for b in blocks if b.x0 <= i < b.x0 + b.system.nstates)
+    t = T[k - 1] if k else T[0]
+    if b.kernel.rk4 is not None:
+        Ts, substeps = b.kernel.rk4
+        raise SamplingError(blowup_message(b.system.name, t, Ts, substeps))
+    raise FloatingPointError(
+        f"the state of block {b.system.name!r} became non-finite at t = {t:g} s: the loop "
+        f"diverged (a gain too high for the sampling time?)")
 
 
 def _explain_failure(sys, blocks, T, X, U, status, params=None):

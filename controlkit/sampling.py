@@ -19,13 +19,47 @@ from . import _checks
 
 METHODS = ("rk4", "solve_ivp")
 
+#: A Runge-Kutta substep that moves the state by more than this many times
+#: ``h |f(x)|`` (the explicit-Euler estimate) is taken as numerical blow-up.
+BLOWUP_RATIO = 1e3
+
+
+class SamplingError(ValueError):
+    """A sampled block blew up inside a sample (the message names it and what to do).
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> stiff = ct.nlsys(lambda t, x, u, p: -500.0 * x, None, inputs=0, states=1,
+    ...                  outputs=1, name="stiff")
+    >>> try:
+    ...     sample_nlsys(stiff, 0.1).dynamics(0.0, [1.0], [])
+    ... except SamplingError as error:
+    ...     print(str(error)[:40])
+    block 'stiff' blows up inside a sample
+    """
+
+
+def blowup_message(name, t, Ts, substeps) -> str:
+    """What to say when block ``name`` blew up in the sample starting at ``t``.
+
+    Examples
+    --------
+    >>> blowup_message("plant", 0.0, 0.1, 1)[:41]
+    "block 'plant' blows up inside a sample at"
+    """
+    return (f"block {name!r} blows up inside a sample at t = {t:g} s: RK4 with {substeps} "
+            f"substep(s) of {Ts / substeps:g} s is unstable or far too coarse for it (stiff "
+            f"or fast dynamics); sample it with more substeps (sample_nlsys(..., substeps=...)),"
+            f" with method='solve_ivp', or at a smaller Ts")
+
 
 def _rk4_step(rhs, t, x, h):
     k1 = rhs(t, x)
     k2 = rhs(t + h / 2, x + (h / 2) * k1)
     k3 = rhs(t + h / 2, x + (h / 2) * k2)
     k4 = rhs(t + h, x + h * k3)
-    return x + (h / 6) * (k1 + 2 * k2 + 2 * k3 + k4)
+    return x + (h / 6) * (k1 + 2 * k2 + 2 * k3 + k4), k1
 
 
 def sample_nlsys(
@@ -41,8 +75,12 @@ def sample_nlsys(
 
     Parameters
     ----------
-    sys : control.NonlinearIOSystem or control.StateSpace
+    sys : control.NonlinearIOSystem, control.StateSpace or control.TransferFunction
         Continuous-time system (``sys.dt == 0``); its parameters are passed on.
+        A linear system (``StateSpace``, ``TransferFunction``) is sampled
+        exactly, as :func:`control.sample_system` with ``method="zoh"`` does
+        (``method`` and ``substeps`` do not apply), keeping its name and its
+        signal names.
     Ts : float
         Sampling period, > 0.
     method : {"rk4", "solve_ivp"}
@@ -61,10 +99,18 @@ def sample_nlsys(
         Name of the discrete system; default: the continuous system's name,
         so that it drops into a diagram in place of the continuous block.
 
+    Raises
+    ------
+    SamplingError
+        On use, when a Runge-Kutta substep blows up (a non-finite state, or a
+        change far larger than ``h |f(x)|``): the message names the block and
+        what to do.
+
     Returns
     -------
     control.NonlinearIOSystem
-        Discrete (``dt = Ts``) with the same inputs, outputs, states and
+        Discrete (``dt = Ts``; a linear system stays a ``StateSpace`` or
+        ``TransferFunction``) with the same inputs, outputs, states and
         parameters. Attributes ``continuous`` (the original system) and
         ``sampling`` (a dict of the method settings) record what was done;
         ``kernels`` lets the fast engine run it (``"rk4"`` on a controlkit block).
@@ -83,9 +129,9 @@ def sample_nlsys(
         raise ValueError(
             f"sys must be continuous time (dt = 0) to be sampled, got dt = {sys.dt!r}"
         )
-    if isinstance(sys, ct.StateSpace):
-        sys = ct.nlsys(sys)
     Ts = _checks.positive_scalar("Ts", Ts)
+    if isinstance(sys, (ct.StateSpace, ct.TransferFunction)):
+        return ct.sample_system(sys, Ts, method="zoh", name=name or sys.name)
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if isinstance(substeps, bool) or not isinstance(substeps, int) or substeps < 1:
@@ -103,7 +149,13 @@ def sample_nlsys(
         if method == "rk4":
             x = np.asarray(x, dtype=float)
             for i in range(substeps):
-                x = _rk4_step(rhs, t + i * h, x, h)
+                x_next, k1 = _rk4_step(rhs, t + i * h, x, h)
+                euler = h * np.abs(k1).max(initial=0.0)
+                change = np.abs(x_next - x).max(initial=0.0)
+                if not np.isfinite(x_next).all() or change > BLOWUP_RATIO * euler + 1e-300 \
+                        and change > 1e-12 * (1.0 + np.abs(x).max(initial=0.0)):
+                    raise SamplingError(blowup_message(sampled.name, t, Ts, substeps))
+                x = x_next
             return x
         sol = scipy.integrate.solve_ivp(
             rhs, (t, t + Ts), np.asarray(x, dtype=float), method="DOP853", rtol=rtol, atol=atol
