@@ -71,17 +71,23 @@ def diverged(t: float, detail: str) -> FloatingPointError:
     """The error a block raises when the loop feeding it has diverged.
 
     ``detail`` says what was seen, in the block's terms. A diverged loop is
-    reported as such, not as a singularity of the equation it reached.
+    reported as such, not as a singularity of the equation it reached. The
+    error's ``time`` attribute holds ``t``, for studies that record when a run diverged.
 
     Examples
     --------
-    >>> print(diverged(12.5, "the plant's quaternion norm is 3.1e+92"))
+    >>> error = diverged(12.5, "the plant's quaternion norm is 3.1e+92")
+    >>> print(error)
     the loop diverged at t = 12.5 s: the plant's quaternion norm is 3.1e+92; \
 likely a gain too high for the sample time (or an unstable loop)
+    >>> error.time
+    12.5
     """
-    return FloatingPointError(
+    error = FloatingPointError(
         f"the loop diverged at t = {t:g} s: {detail}; likely a gain too high for the "
         f"sample time (or an unstable loop)")
+    error.time = float(t)
+    return error
 
 
 def vector(name: str, value, size: int) -> np.ndarray:

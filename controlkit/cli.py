@@ -14,9 +14,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .outputs import cmg as cmg_out
+from .outputs import frit as frit_out
 from .outputs import spacecraft as sc_out
 from .outputs.export import write_csv, write_json
+from .outputs.workers import FigureWorkers
 from .scenarios import cmg as cmg_scenario
+from .scenarios import frit as frit_scenario
 from .scenarios import spacecraft as sc_scenario
 
 
@@ -47,6 +50,19 @@ class Study:
         Case name to CSV file stem.
     csv_columns : callable
         Table to the columns written to CSV (default: all).
+    figure_stems : tuple of str
+        The figures ``figures`` can draw one at a time (``stems=[stem]``), so that they
+        are drawn in parallel worker processes; empty: ``figures`` is called once.
+    simulation_cost : float
+        Relative time to simulate the study's cases; cheaper studies run first, so their
+        figures are drawn by the workers while the costlier simulations run.
+    write : callable, optional
+        For a study whose cases are not single runs: ``write({case: result}, folder)
+        -> (metrics, paths)`` writes all its files; ``table``, ``metrics`` and
+        ``figures`` are then unused.
+    in_all : bool
+        Whether ``controlkit reproduce all`` runs it (the papers' results do; the
+        sensitivity study is asked for by name).
 
     Examples
     --------
@@ -64,6 +80,10 @@ class Study:
     default_stride: int = 1
     csv_stem: Callable[[str], str] = str
     csv_columns: Callable[[dict], dict] = lambda columns: columns
+    figure_stems: tuple[str, ...] = ()
+    simulation_cost: float = 1.0
+    write: Callable | None = None
+    in_all: bool = True
 
 
 def _runner(scenario):
@@ -79,12 +99,20 @@ STUDIES: dict[str, Study] = {
     "spacecraft": Study(
         "spacecraft", tuple(sc_scenario.CASES), sc_scenario.DEFAULT_CASES, _runner(sc_scenario),
         sc_out.table, sc_out.metrics, sc_out.figures, default_stride=10,
+        figure_stems=tuple(spec[0] for spec in sc_out.FIGURES),
     ),
     "cmg": Study(
         "cmg", tuple(cmg_scenario.CASES), cmg_scenario.DEFAULT_CASES, _runner(cmg_scenario),
         cmg_out.table, cmg_out.metrics, cmg_out.figures,
         csv_stem=lambda case: "run" if case == "thesis" else case,
         csv_columns=cmg_out.csv_columns,
+        figure_stems=tuple(spec[0] for spec in cmg_out.FIGURES),
+        simulation_cost=0.05,  # 12 000 steps of a 10-state loop vs 3 x 200 000 steps
+    ),
+    "frit": Study(
+        "frit", frit_scenario.CASES, frit_scenario.DEFAULT_CASES, _runner(frit_scenario),
+        None, None, None, write=frit_out.write, in_all=False,
+        simulation_cost=16.0,  # 16 readings of the proposed loop per tuner
     ),
 }
 
@@ -115,7 +143,7 @@ def _select_cases(studies: list[Study], requested: list[str] | None) -> dict[str
 
 
 def reproduce(study="all", *, out="results", cases=None, horizon=None, stride=None,
-              engine="fast", log=None) -> dict:
+              engine="fast", log=None, workers=None) -> dict:
     """Run studies and write their CSV, metrics and figures (the CLI's main job).
 
     Parameters
@@ -135,6 +163,9 @@ def reproduce(study="all", *, out="results", cases=None, horizon=None, stride=No
         Simulator; both give the same numbers, the fast one in seconds.
     log : file-like, optional
         Where progress goes (default stderr).
+    workers : int, optional
+        Processes drawing the figures while the next study is simulated (default: one
+        per CPU, at most 4; 0 draws them in this process).
 
     Returns
     -------
@@ -153,29 +184,48 @@ def reproduce(study="all", *, out="results", cases=None, horizon=None, stride=No
     if study != "all" and study not in STUDIES:
         raise SystemExit(f"controlkit reproduce: unknown study {study!r}; "
                          f"choose from {['all', *STUDIES]}")
-    studies = list(STUDIES.values()) if study == "all" else [STUDIES[study]]
+    studies = ([s for s in STUDIES.values() if s.in_all] if study == "all"
+               else [STUDIES[study]])
     selection = _select_cases(studies, cases)
     summary = {}
-    for s in studies:
-        if not selection[s.name]:
-            continue
-        folder = Path(out) / s.name
-        tables, study_metrics = {}, {}
-        for case in selection[s.name]:
-            log.write(f"{s.name}/{case}\n")
-            started = time.perf_counter()
-            resp = s.run(case, horizon, _progress_printer(f"{s.name}/{case}", log), engine)
-            elapsed = time.perf_counter() - started
-            step = stride if stride is not None else s.default_stride
-            columns = s.table(resp)
-            # figures are drawn from the CSV's samples: 20 001 points per curve is plenty
-            tables[case] = {name: values[::step] for name, values in columns.items()}
-            write_csv(folder / f"{s.csv_stem(case)}.csv", s.csv_columns(columns), stride=step)
-            study_metrics[case] = {**s.metrics(resp), "wall_time_s": round(elapsed, 3)}
-        write_json(folder / "metrics.json", study_metrics)
-        for path in s.figures(tables, folder):
+    with FigureWorkers(workers) as pool:
+        for s in sorted(studies, key=lambda study: study.simulation_cost):
+            if not selection[s.name]:
+                continue
+            folder = Path(out) / s.name
+            if s.write is not None:  # a study of many runs per case writes its own files
+                results = {}
+                for case in selection[s.name]:
+                    log.write(f"{s.name}/{case}\n")
+                    results[case] = s.run(case, horizon,
+                                          _progress_printer(f"{s.name}/{case}", log), engine)
+                summary[s.name], paths = s.write(results, folder)
+                log.writelines(f"  wrote {path}\n" for path in paths)
+                continue
+            tables, study_metrics = {}, {}
+            for case in selection[s.name]:
+                log.write(f"{s.name}/{case}\n")
+                started = time.perf_counter()
+                resp = s.run(case, horizon, _progress_printer(f"{s.name}/{case}", log), engine)
+                elapsed = time.perf_counter() - started
+                step = stride if stride is not None else s.default_stride
+                columns = s.table(resp)
+                # figures are drawn from the CSV's samples: 20 001 points per curve is plenty
+                tables[case] = {name: values[::step] for name, values in columns.items()}
+                write_csv(folder / f"{s.csv_stem(case)}.csv", s.csv_columns(columns),
+                          stride=step)
+                study_metrics[case] = {**s.metrics(resp), "wall_time_s": round(elapsed, 3)}
+            write_json(folder / "metrics.json", study_metrics)
+            # drawn by the workers while the next study runs
+            if s.figure_stems:
+                pool.submit(s.figures, tables, folder, s.figure_stems)
+            else:
+                for path in s.figures(tables, folder):
+                    log.write(f"  wrote {path}\n")
+            summary[s.name] = study_metrics
+        for path in pool.results():
             log.write(f"  wrote {path}\n")
-        summary[s.name] = study_metrics
+    summary = {s.name: summary[s.name] for s in studies if s.name in summary}
     return summary
 
 
@@ -192,7 +242,8 @@ def main(argv=None) -> int:
         "reproduce", help="run the papers' cases and write CSV, metrics.json and figures"
     )
     rep.add_argument("study", nargs="?", default="all", choices=["all", *STUDIES],
-                     help="which study (default: all)")
+                     help="which study (default: all = the papers' studies; frit = the "
+                          "sensitivity of the FRIT claim, asked for by name)")
     rep.add_argument("--out", default="results", help="output folder (default: results)")
     known = "; ".join(f"{name}: {', '.join(study.cases)}" for name, study in STUDIES.items())
     rep.add_argument("--case", action="append", dest="cases", metavar="NAME",
@@ -206,7 +257,13 @@ def main(argv=None) -> int:
     rep.add_argument("--engine", choices=["fast", "python-control"], default="fast",
                      help="simulator: fast (compiled, default) or python-control (the "
                           "reference; same numbers, minutes instead of seconds)")
+    from . import robustness
+
+    robustness.add_cli(sub)
     args = parser.parse_args(argv)
+    if args.command == "sweep":
+        robustness.run_cli(args)
+        return 0
     if args.stride is not None and args.stride < 1:
         parser.error("--stride must be >= 1")
     if args.horizon is not None and args.horizon <= 0:
@@ -215,7 +272,7 @@ def main(argv=None) -> int:
                         stride=args.stride, engine=args.engine)
     for study, per_case in summary.items():
         for case, m in per_case.items():
-            shown = {k: v for k, v in m.items() if isinstance(v, float | bool)}
+            shown = {k: v for k, v in m.items() if isinstance(v, int | float)}
             print(f"{study}/{case}: " + ", ".join(f"{k}={v:.6g}" if isinstance(v, float)
                                                   else f"{k}={v}" for k, v in shown.items()))
     return 0

@@ -11,6 +11,7 @@ from PIL import Image
 from controlkit.outputs import cmg as cmg_out
 from controlkit.outputs import spacecraft as sc_out
 from controlkit.outputs.style import PNG_DPI, save
+from controlkit.outputs.workers import FigureWorkers
 from controlkit.scenarios import cmg as cmg_scenario
 from controlkit.scenarios import spacecraft as sc_scenario
 
@@ -122,3 +123,25 @@ def test_library_never_switches_the_backend():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True)
     assert out.stdout.strip() == "svg"
+
+
+def _broken_figures(tables, outdir, *, stems=None):
+    raise RuntimeError(f"cannot draw {stems}")
+
+
+def test_worker_processes_write_the_same_files_as_the_caller(tmp_path, sc_tables):
+    stems = [spec[0] for spec in sc_out.FIGURES]
+    names = {}
+    for workers in (0, 2):
+        with FigureWorkers(workers) as pool:
+            pool.submit(sc_out.figures, sc_tables, tmp_path / str(workers), stems)
+            names[workers] = [p.name for p in pool.results()]
+    assert names[0] == names[2] and len(names[2]) == 12
+
+
+def test_a_failing_figure_raises_in_the_caller(tmp_path, sc_tables):
+    with FigureWorkers(2) as pool, pytest.raises(RuntimeError, match=r"cannot draw \['a'\]"):
+        pool.submit(_broken_figures, sc_tables, tmp_path, ["a"])
+        pool.results()
+    with pytest.raises(ValueError, match="workers must be an integer >= 0"):
+        FigureWorkers(-1)

@@ -247,3 +247,80 @@ def test_output_scale_is_the_tuner_seeing_scaled_data():
 def test_output_scale_must_be_positive():
     with pytest.raises(ValueError, match=r"output_scale must be finite and > 0"):
         mec.frit_tuner(output_scale=0.0)
+
+
+# --- the readings the paper leaves open (filter, start, freeze, units) -------------------
+
+@pytest.mark.parametrize(("filter_", "ahead"), [("zoh", 0), ("feedthrough", 1)])
+def test_filter_reading_sets_which_sample_the_regressors_come_from(filter_, ahead):
+    # kappa = 1 and psi = 0 make each step a bare RLS step on that step's regressors
+    inputs = tuner_inputs(200, error_scale=5e-4)
+    tuner = mec.frit_tuner(h0=inputs[0, 2:4], psi=0.0, kappa=1.0, units="q", filter=filter_)
+    states = drive_tuner(tuner, inputs)
+    S = TUNER_STATE
+    for k in range(0, 200, 17):
+        # "zoh" reads the filters before sample k (m[k]); "feedthrough" after it (m[k+1])
+        xi, eta = mec.frit_regressors(states[k + ahead], inputs[k, 2:4], tuner.F)
+        np.testing.assert_array_equal(xi[0], xi[1])  # F1 = F2: one regressor for both rows
+        P1, P2 = (states[k, S.slice(name)].reshape(2, 2) for name in ("P1", "P2"))
+        Khat, P1n, _ = mec.rls_step(states[k, S.slice("Khat")].reshape(2, 2), P1, P2,
+                                    xi[0], eta, tuner.lambda_)
+        np.testing.assert_allclose(states[k + 1, S.slice("Khat")], Khat.ravel(),
+                                   rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(states[k + 1, S.slice("P1")], P1n.ravel(), rtol=1e-12)
+
+
+def test_filter_readings_share_the_filter_states_and_differ_in_the_gain():
+    inputs = tuner_inputs(300, error_scale=5e-4)
+    zoh, ft = (drive_tuner(mec.frit_tuner(h0=inputs[0, 2:4], filter=f, units="q", psi=0.0),
+                           inputs) for f in ("zoh", "feedthrough"))
+    filters = np.r_[TUNER_STATE.slice("Mxi1"), TUNER_STATE.slice("Mxi2"),
+                    TUNER_STATE.slice("Mmu"), TUNER_STATE.slice("Mh")]
+    np.testing.assert_array_equal(zoh[:, filters], ft[:, filters])
+    K = TUNER_STATE.slice("K")
+    assert np.abs(zoh[-1, K] - ft[-1, K]).max() > 1e-3 * np.abs(zoh[-1, K]).max() > 0
+
+
+def test_start_reading_changes_only_the_initial_state_of_the_M_h_filters():
+    h0 = [0.01, -0.02]
+    rest, zero = mec.frit_tuner(h0=h0, start="rest"), mec.frit_tuner(h0=h0, start="zero")
+    np.testing.assert_array_equal(rest.kernels.params, zero.kernels.params)
+    differs = np.nonzero(rest.x0 != zero.x0)[0]
+    np.testing.assert_array_equal(differs, np.arange(*TUNER_STATE.slice("Mh").indices(24)))
+    np.testing.assert_array_equal(rest.x0[TUNER_STATE.slice("Mh")], h0)
+    np.testing.assert_array_equal(zero.x0[TUNER_STATE.slice("Mh")], 0.0)
+
+
+def test_joint_freeze_freezes_both_rows_exactly_when_the_larger_error_is_below_psi():
+    psi = 3e-4
+    inputs = tuner_inputs(1500, error_scale=5e-4)
+    e = np.abs(inputs[:, 4:6] - inputs[:, 2:4])
+    states = drive_tuner(mec.frit_tuner(psi=psi, units="q", freeze="joint",
+                                        h0=inputs[0, 2:4]), inputs)
+    S = TUNER_STATE
+    frozen = e.max(axis=1) < psi
+    assert frozen.any() and (~frozen).any()
+    steps = np.diff(states[:, S.slice("Khat")], axis=0)
+    P_steps = np.diff(states[:, np.r_[S.slice("P1"), S.slice("P2")]], axis=0)
+    assert not np.any(steps[frozen]) and not np.any(P_steps[frozen])
+    # where one error is below psi and the other is not, the row reading would freeze one
+    # row; the joint reading updates both
+    split = ~frozen & (e.min(axis=1) < psi)
+    assert split.sum() > 10
+    assert np.all(np.abs(P_steps[split]).reshape(-1, 2, 4).max(axis=2) > 0)
+
+
+@pytest.mark.parametrize(("units", "scale"), [("deg", 360 / np.pi), ("q", 1.0)])
+def test_units_reading_is_an_output_scale(units, scale):
+    by_units = mec.frit_tuner(units=units, h0=[0.01, 0.02])
+    by_scale = mec.frit_tuner(output_scale=scale, h0=[0.01, 0.02])
+    np.testing.assert_array_equal(by_units.kernels.params, by_scale.kernels.params)
+    np.testing.assert_array_equal(by_units.x0, by_scale.x0)
+    assert by_units.readings["units"] == units
+
+
+@pytest.mark.parametrize(("option", "value"), [("filter", "tustin"), ("start", "rested"),
+                                               ("freeze", "both"), ("units", "rad")])
+def test_unknown_reading_is_refused_with_the_allowed_ones(option, value):
+    with pytest.raises(ValueError, match=rf"{option} must be one of \("):
+        mec.frit_tuner(**{option: value})

@@ -188,7 +188,8 @@ def rls_step(Khat, P1, P2, xi, eta, lambda_):
     # with M h = h = 0, eta = M mu; hn - h = 1 > psi = 0 updates both rows
     x = TUNER_STATE.pack(Mxi1=xi, Mxi2=xi, Mmu=eta, Mh=np.zeros(2), Khat=Khat, P1=P1, P2=P2,
                          K=np.zeros(4))
-    p = TUNER.pack(F=[1.0, 1.0], a=[0.0, 0.0], lambda_=lambda_, kappa=1.0, psi=[0.0, 0.0])
+    p = TUNER.pack(F=[1.0, 1.0], a=[0.0, 0.0], lambda_=lambda_, kappa=1.0, psi=[0.0, 0.0],
+                   feedthrough=0.0, joint=0.0)
     u = TUNER_INPUTS.pack(mu=[0.0, 0.0], h=[0.0, 0.0], hn=[1.0, 1.0])
     xn = TUNER_STATE.unpack(kernels.tuner_update(0.0, x, u, p, np.empty(TUNER_STATE.size)))
     return xn["Khat"].reshape(2, 2), xn["P1"].reshape(2, 2), xn["P2"].reshape(2, 2)
@@ -200,11 +201,29 @@ DEGREES_PER_QUATERNION_UNIT = 360.0 / np.pi
 #: Units in which controlkit reads Table 3's ``P(0)`` and ``psi``: ``h`` in degrees (decision
 #: D1 in ``docs/theory/errata.md``; the paper does not state them).
 TABLE3_OUTPUT_SCALE = DEGREES_PER_QUATERNION_UNIT
+#: The two readings of Table 3's units (``units=`` of :func:`frit_tuner`): the scale
+#: that turns ``h = [q1, q2]`` into the units in which ``gamma`` and ``psi`` are read.
+UNIT_SCALES = {"q": 1.0, "deg": DEGREES_PER_QUATERNION_UNIT}
+#: The details of the tuner the paper leaves open, each with its readings (the first
+#: is controlkit's default); see the "Sensitivity" section of ``docs/theory/frit.md``.
+READINGS = {
+    "filter": ("zoh", "feedthrough"),
+    "start": ("rest", "zero"),
+    "freeze": ("row", "joint"),
+    "units": ("deg", "q"),
+}
+
+
+def _reading(name, value):
+    if value not in READINGS[name]:
+        raise ValueError(f"{name} must be one of {READINGS[name]}, got {value!r}")
+    return value
 
 
 def frit_tuner(
     F=F_PAPER, Ts=TS_PAPER, *, lambda_=LAMBDA_PAPER, gamma=GAMMA_PAPER, kappa=KAPPA_PAPER,
-    psi=PSI_PAPER, K0=0.0, h0=(0.0, 0.0), output_scale=TABLE3_OUTPUT_SCALE, name="tuner",
+    psi=PSI_PAPER, K0=0.0, h0=(0.0, 0.0), filter="zoh", start="rest", freeze="row",
+    units="deg", output_scale=None, name="tuner",
 ) -> ct.NonlinearIOSystem:
     """On-line FRIT tuner of the MEC gain ``K`` by recursive least squares (eq. 15-30).
 
@@ -251,17 +270,34 @@ def frit_tuner(
     K0 : float or array_like
         Initial gain ``K(0) = Khat(0)``, scalar or 2x2. Default 0.
     h0 : array_like
-        Initial output ``h(0)``: the ``M h`` filters start there, as if the loop
-        had rested at ``h(0)`` (then ``h - M r~ = 0`` holds from the first step).
-    output_scale : float
-        Units in which ``gamma`` and ``psi`` are read: the tuner behaves as if it
-        received ``output_scale * h`` (and ``mu``, ``hn`` alike). ``K`` does not
-        depend on units, but ``P`` and the threshold do: scaling the data by ``s``
-        is exactly ``P(0) = gamma s^2 I`` and a threshold ``psi / s``. Default
-        :data:`TABLE3_OUTPUT_SCALE` ``= 360/pi``: Table 3's values with ``h`` in
-        degrees of rotation, the reading that reproduces the paper's Fig. 7-8
-        (decision D1). ``1`` reads ``gamma`` and ``psi`` in the units of ``h``
-        itself (``h = [q1, q2]``: the literal reading, whose gain drifts in bursts).
+        Initial output ``h(0)``, where the ``M h`` filters start with ``start="rest"``.
+    filter : {"zoh", "feedthrough"}
+        How ``M`` is discretised. The paper writes ``M = F/(s + F)`` in continuous
+        time and the RLS in discrete time without saying how one becomes the other.
+        ``"zoh"`` (default): exact under zero-order hold, strictly proper:
+        ``m[k+1] = a m[k] + (1 - a) v[k]``, step ``k`` uses ``m[k]``.
+        ``"feedthrough"``: ``m[k] = a m[k-1] + (1 - a) v[k]``, the current sample
+        included (the ``"zoh"`` regressors advanced by one sample).
+    start : {"rest", "zero"}
+        Initial state of the ``M h`` filters, which the paper does not give.
+        ``"rest"`` (default): at ``h(0)``, as if the loop had rested there (then
+        ``h - M r~ = 0`` holds from the first step). ``"zero"``: every filter at 0.
+    freeze : {"row", "joint"}
+        How the threshold of Table 3 applies, stated only as "``|hn - h| < psi``".
+        ``"row"`` (default): row ``j`` of ``K`` is frozen while
+        ``|hn_j - h_j| < psi_j``. ``"joint"``: both rows are frozen while
+        ``|hn_j - h_j| < psi_j`` for both ``j`` (``max |hn - h| < psi`` for equal ``psi``).
+    units : {"deg", "q"}
+        Units in which Table 3's ``gamma`` and ``psi`` are read; the paper states
+        none. ``"deg"`` (default, decision D1): ``h`` in degrees of rotation
+        (scale :data:`TABLE3_OUTPUT_SCALE` ``= 360/pi``), the reading that
+        reproduces Fig. 7-8. ``"q"``: in the units of ``h = [q1, q2]`` itself (the
+        literal reading, whose gain drifts in bursts).
+    output_scale : float, optional
+        Any other scale ``s`` (overrides ``units``): the tuner behaves as if it
+        received ``s h`` (and ``mu``, ``hn`` alike). ``K`` does not depend on
+        units, but ``P`` and the threshold do: scaling the data by ``s`` is exactly
+        ``P(0) = gamma s^2 I`` and a threshold ``psi / s``.
     name : str
         System name.
 
@@ -293,16 +329,23 @@ def frit_tuner(
         raise ValueError(f"psi must be >= 0 (one value or two), got {psi!r}")
     K0 = _checks.gain_matrix("K0", K0)
     h0 = _checks.vector("h0", h0, 2)
-    scale = _checks.positive_scalar("output_scale", output_scale)
+    readings = {name: _reading(name, value) for name, value in
+                (("filter", filter), ("start", start), ("freeze", freeze), ("units", units))}
+    scale = UNIT_SCALES[units] if output_scale is None else \
+        _checks.positive_scalar("output_scale", output_scale)
     gamma, psi_values = gamma * scale**2, psi_values / scale  # see output_scale
     a = np.exp(-F * Ts)
-    params = TUNER.pack(F=F, a=a, lambda_=lambda_, kappa=kappa, psi=psi_values)
+    params = TUNER.pack(F=F, a=a, lambda_=lambda_, kappa=kappa, psi=psi_values,
+                        feedthrough=float(filter == "feedthrough"),
+                        joint=float(freeze == "joint"))
     sys = kernel_block(kernels.tuner_output, kernels.tuner_update, params=params,
                        feedthrough=False,
                        inputs=TUNER_INPUTS.labels(),
                        outputs=K_SIGNALS, states=TUNER_STATES, dt=Ts, name=name)
     P0 = (gamma * np.eye(2)).ravel()
-    sys.x0 = TUNER_STATE.pack(Mxi1=np.zeros(2), Mxi2=np.zeros(2), Mmu=np.zeros(2), Mh=h0,
+    Mh0 = h0 if start == "rest" else np.zeros(2)
+    sys.x0 = TUNER_STATE.pack(Mxi1=np.zeros(2), Mxi2=np.zeros(2), Mmu=np.zeros(2), Mh=Mh0,
                               Khat=K0, P1=P0, P2=P0, K=K0)
     sys.F, sys.lambda_, sys.gamma, sys.kappa, sys.psi = F, lambda_, gamma, kappa, psi_values
+    sys.readings, sys.output_scale = readings, scale
     return sys

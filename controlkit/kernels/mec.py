@@ -15,8 +15,11 @@ MEC_INPUTS = layout("MEC inputs", mu_n=2, hn=2, h=2, K=4)
 #: Inputs of the tuner, in order: ``mu, h, hn``.
 TUNER_INPUTS = layout("FRIT tuner inputs", mu=2, h=2, hn=2)
 #: Parameters of the tuner: ``F = (F1, F2)``, ``a_j = exp(-F_j Ts)``, forgetting
-#: factor ``lambda_``, low-pass coefficient ``kappa`` and thresholds ``psi``.
-TUNER = layout("FRIT tuner parameters", F=2, a=2, lambda_=1, kappa=1, psi=2)
+#: factor ``lambda_``, low-pass coefficient ``kappa``, thresholds ``psi``, and two
+#: flags (1.0 or 0.0) for the readings the paper leaves open: ``feedthrough`` (the
+#: ``M`` filters include the current sample) and ``joint`` (both rows freeze together).
+TUNER = layout("FRIT tuner parameters", F=2, a=2, lambda_=1, kappa=1, psi=2, feedthrough=1,
+               joint=1)
 #: State of the tuner: the filtered regressors ``M_1 (hn - h)``, ``M_2 (hn - h)``,
 #: ``M_j mu_j`` and ``M_j h_j``; the RLS estimate ``Khat`` and covariances ``P1``,
 #: ``P2`` (row-major); the implemented, low-passed gain ``K``.
@@ -59,6 +62,61 @@ def frit_eta(x, F_j, h_j, j):
 
 
 @jit
+def tuner_filters(x, e, mu0, mu1, h0, h1, p, xn):
+    """Advance the tuner's ``M_j`` filters by one sample into ``xn`` (ZOH-exact ``M``).
+
+    ``m[k+1] = a_j m[k] + (1 - a_j) v[k]`` for ``v = hn - h``, ``mu_j`` and ``h_j``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> p = TUNER.pack(F=[1, 1], a=[0.5, 0.5], lambda_=1, kappa=1, psi=[0, 0],
+    ...                feedthrough=0, joint=0)
+    >>> xn = np.zeros(TUNER_STATE.size)
+    >>> _ = tuner_filters(np.zeros(TUNER_STATE.size), (1.0, 0.0), 0.0, 0.0, 2.0, 0.0, p, xn)
+    >>> xn[TUNER_STATE.slice("Mh")].tolist()  # halfway from 0 to h = (2, 0)
+    [1.0, 0.0]
+    """
+    S = TUNER_STATE
+    a0, a1 = p[TUNER.a], p[TUNER.a + 1]
+    xn[S.Mxi1] = a0 * x[S.Mxi1] + (1 - a0) * e[0]
+    xn[S.Mxi1 + 1] = a0 * x[S.Mxi1 + 1] + (1 - a0) * e[1]
+    xn[S.Mxi2] = a1 * x[S.Mxi2] + (1 - a1) * e[0]
+    xn[S.Mxi2 + 1] = a1 * x[S.Mxi2 + 1] + (1 - a1) * e[1]
+    xn[S.Mmu] = a0 * x[S.Mmu] + (1 - a0) * mu0
+    xn[S.Mmu + 1] = a1 * x[S.Mmu + 1] + (1 - a1) * mu1
+    xn[S.Mh] = a0 * x[S.Mh] + (1 - a0) * h0
+    xn[S.Mh + 1] = a1 * x[S.Mh + 1] + (1 - a1) * h1
+    return xn
+
+
+@jit
+def tuner_frozen(e, p):
+    """Which rows the threshold freezes this step, as a pair of booleans.
+
+    Row reading (the default): row ``j`` is frozen while ``|hn_j - h_j| < psi_j``.
+    Joint reading: both rows are frozen while ``|hn_j - h_j| < psi_j`` for both
+    ``j`` (``max |hn - h| < psi`` when ``psi1 = psi2``), and both update otherwise.
+
+    Examples
+    --------
+    >>> p = TUNER.pack(F=[1, 1], a=[0.5, 0.5], lambda_=1, kappa=1, psi=[0.1, 0.1],
+    ...                feedthrough=0, joint=0)
+    >>> tuner_frozen((0.05, 0.2), p)
+    (True, False)
+    >>> p[TUNER.joint] = 1.0
+    >>> tuner_frozen((0.05, 0.2), p)
+    (False, False)
+    """
+    below0 = abs(e[0]) < p[TUNER.psi]
+    below1 = abs(e[1]) < p[TUNER.psi + 1]
+    if p[TUNER.joint] != 0.0:
+        both = below0 and below1
+        return both, both
+    return below0, below1
+
+
+@jit
 def tuner_update(t, x, u, p, out):
     """One step of the FRIT tuner (eq. 24-30, errata E1-E2).
 
@@ -83,11 +141,16 @@ def tuner_update(t, x, u, p, out):
     hn0, hn1 = u[TUNER_INPUTS.hn], u[TUNER_INPUTS.hn + 1]
     e = (hn0 - h0, hn1 - h1)
     h = (h0, h1)
+    tuner_filters(x, e, mu0, mu1, h0, h1, p, xn)
+    # the regressors of this step: the filters before this sample (ZOH reading) or
+    # after it (feedthrough reading, the current sample included)
+    src = xn if p[TUNER.feedthrough] != 0.0 else x
+    frozen = tuner_frozen(e, p)
     for j in range(2):
-        if abs(e[j]) < p[TUNER.psi + j]:
+        if frozen[j]:
             continue  # threshold: row j frozen
-        xi0, xi1 = x[S.Mxi1 + 2 * j], x[S.Mxi1 + 2 * j + 1]  # Mxi2 follows Mxi1
-        eta = frit_eta(x, p[TUNER.F + j], h[j], j)
+        xi0, xi1 = src[S.Mxi1 + 2 * j], src[S.Mxi1 + 2 * j + 1]  # Mxi2 follows Mxi1
+        eta = frit_eta(src, p[TUNER.F + j], h[j], j)
         k0 = S.Khat + 2 * j  # Khat row j
         pk = S.P1 + 4 * j    # P_j (P2 follows P1)
         P00, P01, P10, P11 = x[pk], x[pk + 1], x[pk + 2], x[pk + 3]
@@ -104,15 +167,6 @@ def tuner_update(t, x, u, p, out):
         kk = S.K + 2 * j
         xn[kk] = (1 - kappa) * x[kk] + kappa * xn[k0]
         xn[kk + 1] = (1 - kappa) * x[kk + 1] + kappa * xn[k0 + 1]
-    a0, a1 = p[TUNER.a], p[TUNER.a + 1]
-    xn[S.Mxi1] = a0 * x[S.Mxi1] + (1 - a0) * e[0]
-    xn[S.Mxi1 + 1] = a0 * x[S.Mxi1 + 1] + (1 - a0) * e[1]
-    xn[S.Mxi2] = a1 * x[S.Mxi2] + (1 - a1) * e[0]
-    xn[S.Mxi2 + 1] = a1 * x[S.Mxi2 + 1] + (1 - a1) * e[1]
-    xn[S.Mmu] = a0 * x[S.Mmu] + (1 - a0) * mu0
-    xn[S.Mmu + 1] = a1 * x[S.Mmu + 1] + (1 - a1) * mu1
-    xn[S.Mh] = a0 * x[S.Mh] + (1 - a0) * h0
-    xn[S.Mh + 1] = a1 * x[S.Mh + 1] + (1 - a1) * h1
     return out
 
 

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from ..blocks.cmg import T1_MAX, T2_MAX
-from .spacecraft import signal
+from .spacecraft import _stems, signal
 
 #: CSV columns of ``controlkit reproduce cmg``, in order.
 COLUMNS = ("time", "q1", "q2", "q4", "w1", "w2", "w4", "q2d", "q4d", "T1", "T2",
@@ -126,7 +126,8 @@ def figure(tables, stem):
     """One of the thesis-style Fig. 3-6 as a slide-sized :class:`matplotlib.figure.Figure`.
 
     - Fig. 3-4 (gimbal angles): the simulated angle with the reference dashed on top, and
-      below it ``|q - q_d|`` on a log axis, where the tracking error is visible.
+      below it ``|q - q_d|`` on a log axis, where the tracking error is visible (each
+      sample faint, the maximum over 50 ms windows solid).
     - Fig. 5 (T1, switching every sample): the moving mean over :data:`T1_WINDOW_S` with
       its min-max band and the motor range, and a zoomed window of the raw samples.
     - Fig. 6 (T2): the same mean and band, scaled to the data; the motor range, far
@@ -167,7 +168,10 @@ def figure(tables, stem):
                 ax.plot(c["time"], c[col], color=color, label=f"{col} ({_label(name)})")
                 err = np.abs(c[col] - c[ref])
                 err_ax.semilogy(c["time"], np.where(err > 0, err, np.nan), color=color,
-                                linewidth=1.0)
+                                linewidth=0.6, alpha=0.35)
+                centre, _, _, high = window_stats(c["time"], err, T1_WINDOW_S)
+                err_ax.semilogy(centre, np.where(high > 0, high, np.nan), color=color,
+                                label=f"|{col} - {ref}|, max over {1000 * T1_WINDOW_S:g} ms")
             ax.plot(first["time"], first[ref], color="k", label=f"{ref} (reference)",
                     **IDEAL_STYLE)
             err_ax.set_ylabel(f"|{col} - {ref}| [rad]")
@@ -207,7 +211,7 @@ def figure(tables, stem):
                 title = f"{title}  (motor range +/-{limit:g} N m, off this scale)"
         ax.set_ylabel(ylabel)
         ax.set_title(title)
-        legend_outside(fig, [ax], ncols=2)
+        legend_outside(fig, ncols=2 if ref is None else 3)
     return fig
 
 
@@ -217,8 +221,10 @@ def _zoom_start(time):
     return float(time[np.searchsorted(time, middle)])
 
 
-def figures(tables, outdir) -> list[Path]:
+def figures(tables, outdir, *, stems=None) -> list[Path]:
     """Save Fig. 3-6 (:func:`figure`) as PNG at 200 dpi and SVG.
+
+    ``stems`` (file stems of :data:`FIGURES`) limits the figures drawn; default all.
 
     Examples
     --------
@@ -231,6 +237,6 @@ def figures(tables, outdir) -> list[Path]:
     from .style import save
 
     written = []
-    for stem, *_ in FIGURES:
+    for stem in _stems(FIGURES, stems):
         written += save(figure(tables, stem), Path(outdir) / f"{stem}.png")
     return written

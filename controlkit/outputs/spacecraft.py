@@ -177,7 +177,7 @@ def figure(tables: dict[str, dict[str, np.ndarray]], stem: str):
     return fig
 
 
-def figures(tables: dict[str, dict[str, np.ndarray]], outdir) -> list[Path]:
+def figures(tables: dict[str, dict[str, np.ndarray]], outdir, *, stems=None) -> list[Path]:
     """Save the paper's Fig. 5-10 for the cases in ``tables`` (PNG at 200 dpi and SVG).
 
     Fig. 8 (``K``) is saved only when a case with a compensator is present.
@@ -188,6 +188,8 @@ def figures(tables: dict[str, dict[str, np.ndarray]], outdir) -> list[Path]:
         Case name to its :func:`table` columns.
     outdir : str or pathlib.Path
         Folder for ``fig05_h1.png``, ``fig05_h1.svg`` and the others.
+    stems : sequence of str, optional
+        Only these figures (file stems of :data:`FIGURES`); default all.
 
     Returns
     -------
@@ -206,8 +208,19 @@ def figures(tables: dict[str, dict[str, np.ndarray]], outdir) -> list[Path]:
     outdir = Path(outdir)
     written = []
     has_k = any(scenario.CASES[n].compensator != "none" for n in tables)
-    for stem, *_ in FIGURES:
+    for stem in _stems(FIGURES, stems):
         if stem == "fig08_K" and not has_k:
             continue
         written += save(figure(tables, stem), outdir / f"{stem}.png")
     return written
+
+
+def _stems(specs, stems):
+    """The stems of ``specs`` to draw: all, or the requested ones (checked), in order."""
+    known = [spec[0] for spec in specs]
+    if stems is None:
+        return known
+    unknown = [stem for stem in stems if stem not in known]
+    if unknown:
+        raise ValueError(f"stems must be among {known}, got {unknown}")
+    return [stem for stem in known if stem in stems]

@@ -32,7 +32,7 @@ RC = {
     "axes.grid": True,
     "grid.alpha": 0.3,
     "legend.frameon": False,
-    "svg.fonttype": "path",
+    "svg.fonttype": "none",  # text stays text: editable, and a third quicker to write
     "path.simplify": True,
 }
 #: Style of the ideal (model-exact) curve, drawn last so it lies on top.
@@ -154,4 +154,7 @@ def save(fig, path) -> list[Path]:
                 with contextlib.suppress(FileNotFoundError):
                     partial.unlink()
             written.append(target)
+            # the layout is in figure coordinates and does not depend on the dpi: keep the
+            # PNG's for the vector copies instead of solving it again (a third of the time)
+            fig.set_layout_engine("none")
     return written

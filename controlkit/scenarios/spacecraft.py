@@ -66,7 +66,7 @@ CASES: dict[str, SpacecraftCase] = {
     # Table 3's P(0) and psi read in the units of h = [q1, q2] instead of degrees (decision D1)
     "proposed_literal": SpacecraftCase(
         "proposed_literal", "Proposed, Table 3 in units of q", "tab:orange", True, "frit",
-        {"output_scale": 1.0}),
+        {"units": "q"}),
 }
 #: Cases run by ``controlkit reproduce spacecraft`` when none is named.
 DEFAULT_CASES = ("ideal", "without_mec", "proposed")
@@ -85,21 +85,61 @@ def initial_attitude() -> np.ndarray:
     return sc.quaternion_from_axis_angle([1.0, 2.0, 3.0], 30.0)
 
 
-def true_plant(model_error: bool, *, name="plant"):
+def true_plant(model_error: bool, *, inertia_error_scale=1.0, momentum_scale=1.0,
+               name="plant"):
     """The plant the controller faces.
 
     Without model error it is the nominal model (``J_b = J_bn``, ``H0 = 0``);
     with it, ``J_b = J_bn + Delta J`` (so that ``J_t = J_m + Delta J``, eq. 31 and
     erratum E4) and ``H0(t)`` of Table 2.
 
+    Parameters
+    ----------
+    model_error : bool
+        Whether the plant differs from the controller's model.
+    inertia_error_scale : float or array_like of 3
+        Factors on the diagonal entries of ``Delta J`` (Table 2's values at 1), each
+        >= 0; used with ``model_error``. The robustness sweeps draw them.
+    momentum_scale : float
+        Factor on the amplitude of ``H0(t)`` (Table 2's at 1), >= 0; used with
+        ``model_error``.
+    name : str
+        System name.
+
     Examples
     --------
     >>> float(true_plant(True).J_t[0, 0])
     4020.678
+    >>> round(float(true_plant(True, inertia_error_scale=[0, 1, 1]).J_t[0, 0]), 6)  # none on x
+    4000.675
     """
+    scale = np.broadcast_to(np.asarray(inertia_error_scale, dtype=float), (3,)) \
+        if np.ndim(inertia_error_scale) == 0 else np.asarray(inertia_error_scale, dtype=float)
+    if scale.shape != (3,) or not np.all(np.isfinite(scale)) or np.any(scale < 0):
+        raise ValueError("inertia_error_scale must be one factor or three, each finite and "
+                         f">= 0, got {inertia_error_scale!r}")
+    momentum_scale = _checks.positive_scalar("momentum_scale", momentum_scale, allow_zero=True)
     if model_error:
-        return sc.spacecraft_plant(J_b=sc.J_BN + sc.DELTA_J, H0=sc.paper_momentum, name=name)
+        H0 = sc.paper_momentum
+        H0 = sc.MomentumProfile(constant=tuple(momentum_scale * np.asarray(H0.constant)),
+                                sine=tuple(momentum_scale * np.asarray(H0.sine)),
+                                cosine=tuple(momentum_scale * np.asarray(H0.cosine)),
+                                omega=H0.omega)
+        return sc.spacecraft_plant(J_b=sc.J_BN + sc.DELTA_J * scale, H0=H0, name=name)
     return sc.spacecraft_plant(name=name)
+
+
+#: Keywords of :func:`true_plant` that ``plant_options`` may set.
+PLANT_OPTIONS = ("inertia_error_scale", "momentum_scale")
+
+
+def _plant_options(options) -> dict:
+    options = dict(options or {})
+    unknown = sorted(set(options) - set(PLANT_OPTIONS))
+    if unknown:
+        raise ValueError(f"plant_options has unknown keys {unknown}; allowed: "
+                         f"{list(PLANT_OPTIONS)}")
+    return options
 
 
 def _case(case) -> SpacecraftCase:
@@ -111,7 +151,7 @@ def _case(case) -> SpacecraftCase:
 
 
 def build_loop(case="ideal", *, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXED, h0=None,
-               tuner_options=None):
+               tuner_options=None, plant_options=None):
     """The closed loop of one case, sampled at ``Ts``.
 
     Parameters
@@ -131,6 +171,10 @@ def build_loop(case="ideal", *, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXED, h0=None
         Keywords for :func:`~controlkit.blocks.mec.frit_tuner` (``lambda_``,
         ``gamma``, ``kappa``, ``psi``, ``K0``) in the ``"frit"`` case.
 
+    plant_options : dict, optional
+        Keywords of :func:`true_plant` (``inertia_error_scale``, ``momentum_scale``):
+        how far the true plant is from the model (Table 2's at their defaults).
+
     Returns
     -------
     control.InterconnectedSystem
@@ -142,7 +186,7 @@ def build_loop(case="ideal", *, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXED, h0=None
     'without_mec'
     """
     case = _case(case)
-    plant = true_plant(case.model_error)
+    plant = true_plant(case.model_error, **_plant_options(plant_options))
     if case.compensator == "none":
         return diagrams.output_zeroing_loop(
             plant, sc.io_linearizer(), sc.outer_controller(F), Ts=Ts, name=case.name
@@ -159,7 +203,7 @@ def build_loop(case="ideal", *, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXED, h0=None
 
 
 def run(case="ideal", *, horizon=HORIZON, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXED,
-        q_initial=None, tuner_options=None, progress=None, engine="fast"):
+        q_initial=None, tuner_options=None, plant_options=None, progress=None, engine="fast"):
     """Simulate one case from the initial attitude of Table 2.
 
     Parameters
@@ -178,6 +222,8 @@ def run(case="ideal", *, horizon=HORIZON, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXE
         Initial unit quaternion; default :func:`initial_attitude`.
     tuner_options : dict, optional
         Keywords for the FRIT tuner (``proposed`` case).
+    plant_options : dict, optional
+        Keywords of :func:`true_plant` (model error of the true plant).
     progress : callable, optional
         Called with the fraction done.
     engine : {"fast", "python-control"}
@@ -200,7 +246,8 @@ def run(case="ideal", *, horizon=HORIZON, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXE
     else:
         q0 = _checks.unit_quaternion("q_initial", q_initial)
     h0 = q0[1:3]
-    loop = build_loop(case, Ts=Ts, F=F, K=K, h0=h0, tuner_options=tuner_options)
+    loop = build_loop(case, Ts=Ts, F=F, K=K, h0=h0, tuner_options=tuner_options,
+                      plant_options=plant_options)
     X0 = initial_state(loop, plant=q0)  # the ideal model and the tuner start from h0 already
     T = time_grid(horizon, Ts)
     return simulate(loop, T, X0, 0.0, progress=progress, chunks=20 if len(T) > 20_000 else 1,

@@ -1,0 +1,200 @@
+"""Sweeps: documented rows for grids and draws, the same rows on every executor,
+failing runs as rows, and interrupted sweeps resumed without repeating runs."""
+
+import concurrent.futures as cf
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from controlkit import robustness
+from controlkit.sweep import draw_points, plan, sweep, wilson_interval
+
+CALLS = []
+
+
+def damped(F, Ts=0.1, case="a"):
+    """A tiny model: the sampled loop e[k+1] = (1 - F Ts) e[k] is stable for 0 < F Ts < 2."""
+    CALLS.append((case, F))
+    if F < 0:
+        raise ValueError("F must be >= 0")
+    pole = 1 - F * Ts
+    return {"pole": pole, "stable": bool(abs(pole) < 1), "e_100": float(pole ** 100)}
+
+
+def test_grid_rows_are_every_combination_in_order():
+    table = sweep(damped, grid={"F": [1.0, 5.0, 30.0], "Ts": [0.1, 0.01]}, executor="serial",
+                  progress=False)
+    assert list(table["run"]) == list(range(6))
+    assert table[["F", "Ts"]].values.tolist() == [[1.0, 0.1], [1.0, 0.01], [5.0, 0.1],
+                                                  [5.0, 0.01], [30.0, 0.1], [30.0, 0.01]]
+    assert table["stable"].tolist() == [True, True, True, True, False, True]
+    assert table.loc[0, "pole"] == pytest.approx(0.9)
+    assert (table["error"] == "").all()
+    assert "case" not in table and "seed" not in table
+
+
+def test_draws_are_seeded_per_run_and_crossed_with_cases():
+    table = sweep(damped, draws={"F": (0.0, 20.0)}, samples=4, seed=7, cases=["a", "b"],
+                  executor="serial", progress=False)
+    assert len(table) == 8 and table["case"].tolist() == ["a", "b"] * 4
+    # the same draw for both cases; draw i does not depend on how many were drawn
+    assert (table["F"].to_numpy()[::2] == table["F"].to_numpy()[1::2]).all()
+    again = draw_points({"F": (0.0, 20.0)}, 2, seed=7)
+    assert [p["F"] for _, p in again] == table["F"].tolist()[:4:2]
+    assert table["seed"].tolist()[:4:2] == [s for s, _ in again]
+    assert ((table["F"] >= 0) & (table["F"] <= 20)).all()
+    other = sweep(damped, draws={"F": (0.0, 20.0)}, samples=4, seed=8, executor="serial",
+                  progress=False)
+    assert not np.allclose(other["F"], table["F"].to_numpy()[::2])
+
+
+def test_grid_crossed_with_draws():
+    runs = plan(grid={"Ts": [0.1, 0.2]}, draws={"F": (0, 1)}, samples=3, seed=0)
+    assert len(runs) == 6 and [r.params["Ts"] for r in runs] == [0.1] * 3 + [0.2] * 3
+    assert [r.params["F"] for r in runs[:3]] == [r.params["F"] for r in runs[3:]]
+
+
+def test_a_failing_run_is_a_row_with_its_error():
+    table = sweep(damped, grid={"F": [1.0, -1.0, 2.0]}, executor="serial", progress=False)
+    assert table["error"].tolist() == ["", "ValueError: F must be >= 0", ""]
+    assert np.isnan(table.loc[1, "pole"]) and table.loc[2, "pole"] == pytest.approx(0.8)
+
+
+INTERRUPT = {"after": None}
+
+
+def interrupt_after(F, Ts=0.1, case="a"):
+    """``damped``, but a Ctrl-C arrives once ``INTERRUPT["after"]`` runs have been made."""
+    if INTERRUPT["after"] is not None and len(CALLS) >= INTERRUPT["after"]:
+        raise KeyboardInterrupt
+    return damped(F, Ts, case)
+
+
+def test_interrupted_sweep_resumes_without_repeating_finished_runs(tmp_path):
+    CALLS.clear()
+    INTERRUPT["after"] = 2
+    grid = {"F": [1.0, 2.0, 3.0, 4.0, 5.0]}
+    with pytest.raises(KeyboardInterrupt):
+        sweep(interrupt_after, grid=grid, executor="serial", store=tmp_path, progress=False)
+    stored = [json.loads(line) for line in (tmp_path / "runs.jsonl").read_text().splitlines()]
+    assert [row["run"] for row in stored] == [0, 1]
+    INTERRUPT["after"] = None
+    with pytest.raises(ValueError, match="already holds a sweep; pass resume=True"):
+        sweep(interrupt_after, grid=grid, executor="serial", store=tmp_path, progress=False)
+    CALLS.clear()
+    table = sweep(interrupt_after, grid=grid, executor="serial", store=tmp_path, resume=True,
+                  progress=False)
+    assert [F for _, F in CALLS] == [3.0, 4.0, 5.0]  # runs 0 and 1 are not run again
+    assert table["F"].tolist() == grid["F"] and (table["error"] == "").all()
+    with pytest.raises(ValueError, match="holds a different sweep"):
+        sweep(interrupt_after, grid={"F": [9.0]}, executor="serial", store=tmp_path,
+              resume=True, progress=False)
+
+
+def _study(executor, **kwargs):
+    table, summary = robustness.spacecraft_study(
+        samples=3, seed=11, cases=["without_mec", "proposed"], horizon=200.0,
+        executor=executor, progress=False, **kwargs)
+    return table.drop(columns="wall_time_s"), summary
+
+
+def test_same_seed_same_rows_serial_processes_and_dask():
+    serial, summary = _study("serial")
+    assert len(serial) == 6 and (serial["error"] == "").all()
+    processes, _ = _study("processes", workers=2)
+    pd.testing.assert_frame_equal(serial, processes)
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        on_dask, _ = _study(client.get_executor())
+    pd.testing.assert_frame_equal(serial, on_dask)
+    assert summary["proposed"]["runs"] == 3
+
+
+def test_user_executor_is_used_and_not_closed():
+    with cf.ThreadPoolExecutor(2) as pool:
+        first = sweep(damped, grid={"F": [1.0, 2.0]}, executor=pool, progress=False)
+        second = sweep(damped, grid={"F": [1.0, 2.0]}, executor=pool, progress=False)
+    pd.testing.assert_frame_equal(first.drop(columns="wall_time_s"),
+                                  second.drop(columns="wall_time_s"))
+
+
+def test_study_rows_and_summary_are_consistent(tmp_path):
+    table, summary = robustness.spacecraft_study(
+        samples=2, seed=3, cases=["without_mec"], horizon=100.0, executor="serial",
+        out=tmp_path, progress=False)
+    assert set(robustness.RANGES) <= set(table.columns)
+    assert ((table["inertia_error_x"] >= 0) & (table["inertia_error_x"] <= 3)).all()
+    assert ((table["angle_deg"] >= 10) & (table["angle_deg"] <= 60)).all()
+    s = summary["without_mec"]
+    assert s["runs"] == 2 and s["requirement_met"] == int(
+        table["requirement_met_last_half"].sum())
+    written = json.loads((tmp_path / "summary.json").read_text())
+    assert written["cases"]["without_mec"]["runs"] == 2
+    assert len(pd.read_csv(tmp_path / "sweep.csv")) == 2
+    for stem in ("robustness_errors", "robustness_success_vs_inertia"):
+        assert (tmp_path / f"{stem}.png").stat().st_size > 10_000
+
+
+def test_trajectories_are_kept_per_run():
+    table = sweep(robustness.spacecraft_run, grid={"angle_deg": [10.0, 20.0]},
+                  cases=["ideal"], fixed={"horizon": 10.0, "keep_every": 10},
+                  executor="serial", progress=False)
+    assert sorted(table.attrs["trajectories"]) == [0, 1]
+    assert len(table.attrs["trajectories"][0]["time"]) == 11
+    assert "trajectory" not in table
+
+
+def test_wilson_interval():
+    low, high = wilson_interval(0, 10)
+    assert low == 0.0 and high == pytest.approx(0.2775, abs=1e-4)
+    assert wilson_interval(10, 10) == pytest.approx((0.7225, 1.0), abs=1e-4)
+
+
+@pytest.mark.parametrize(("kwargs", "message"), [
+    ({}, r"give grid= \(named values\), draws="),
+    ({"draws": {"F": (0, 1)}}, r"draws= needs samples="),
+    ({"grid": {"F": [1]}, "samples": 3}, r"samples= goes with draws="),
+    ({"draws": {"F": (1, 0)}, "samples": 2}, r"needs finite low <= high"),
+    ({"draws": {"F": "wide"}, "samples": 2}, r"draws\['F'\] must be a \(low, high\) tuple"),
+    ({"draws": {"F": (0, 1)}, "samples": 0}, r"samples must be an integer >= 1"),
+    ({"draws": {"F": (0, 1)}, "samples": 2, "seed": -1}, r"seed must be an integer >= 0"),
+    ({"grid": {"F": []}}, r"grid\['F'\] has no values"),
+    ({"grid": {"F": [1]}, "cases": []}, r"cases must not be empty"),
+    ({"grid": {"F": [1]}, "executor": "gpu"}, r"executor must be one of"),
+    ({"grid": {"F": [1]}, "executor": "threads", "workers": 0}, r"workers must be an integer"),
+    ({"grid": {"F": [1]}, "resume": True}, r"resume=True needs store="),
+    ({"grid": {"F": [1]}, "draws": {"F": (0, 1)}, "samples": 1},
+     r"\['F'\] are both in grid= and in draws="),
+])
+def test_bad_sweep_arguments_are_refused(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        sweep(damped, progress=False, **kwargs)
+
+
+def test_cli_sweep_writes_table_summary_and_figures(tmp_path, capsys):
+    from controlkit.cli import main
+
+    assert main(["sweep", "spacecraft", "--samples", "2", "--horizon", "50", "--case",
+                 "ideal", "--executor", "serial", "--vary", "angle_deg=20:30",
+                 "--vary", "momentum_scale=1:2:2", "--out", str(tmp_path)]) == 0
+    table = pd.read_csv(tmp_path / "sweep.csv")
+    assert len(table) == 4 and sorted(set(table["momentum_scale"])) == [1.0, 2.0]
+    assert table["angle_deg"].between(20, 30).all()
+    assert "sweep/ideal: runs=4" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(("vary", "message"), [
+    ("spin=1:2", r"unknown parameter 'spin'"),
+    ("angle_deg=3", r"expected NAME=LOW:HIGH"),
+    ("angle_deg=a:b", r"LOW and HIGH must be numbers"),
+    ("angle_deg=5:1", r"needs finite LOW <= HIGH"),
+])
+def test_cli_bad_vary_is_refused(vary, message, tmp_path):
+    from controlkit.cli import main
+
+    with pytest.raises(ValueError, match=message):
+        main(["sweep", "spacecraft", "--vary", vary, "--out", str(tmp_path)])
