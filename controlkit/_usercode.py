@@ -22,6 +22,7 @@ import builtins
 import hashlib
 import importlib.util
 import inspect
+import linecache
 import os
 import sys as pysys
 import textwrap
@@ -81,41 +82,50 @@ if _jit.HAVE_NUMBA:
         return impl
 
 
-def _function_node(fn):
-    """The ``def`` or ``lambda`` node of ``fn`` and its argument names."""
+def _lambda_body(fn):
+    """The expression of a lambda, cut from its file by the positions of its code."""
     code = fn.__code__
+    spans = [p for p in code.co_positions()  # not the zero-width entry and return
+             if None not in p and (p[0], p[2]) != (p[1], p[3])]
+    lines = linecache.getlines(code.co_filename)
+    if not spans or not lines:
+        raise NotCompilable("its source is not available")
+    first = min((p[0], p[2]) for p in spans)
+    last = max((p[1], p[3]) for p in spans)
+    chunk = lines[first[0] - 1:last[0]]
+    if not chunk:
+        raise NotCompilable("its source is not available")
+    chunk[-1] = chunk[-1].encode()[:last[1]].decode(errors="ignore")
+    chunk[0] = chunk[0].encode()[first[1]:].decode(errors="ignore")
     try:
-        lines, start = inspect.getsourcelines(fn)
+        node = ast.parse("(" + "".join(chunk) + ")", mode="eval").body
+    except SyntaxError:
+        raise NotCompilable("its source could not be parsed") from None
+    return node.body if isinstance(node, ast.Lambda) else node
+
+
+def _function_node(fn):
+    """The body statements of ``fn`` (a def or a lambda) and its argument names."""
+    code = fn.__code__
+    names = list(code.co_varnames[:code.co_argcount])
+    if code.co_flags & (inspect.CO_VARARGS | inspect.CO_VARKEYWORDS) or code.co_kwonlyargcount \
+            or len(names) != 4:
+        raise NotCompilable("it does not take exactly (t, x, u, params)")
+    if fn.__name__ == "<lambda>":
+        return names, [ast.Return(_lambda_body(fn))]
+    try:
+        lines, _ = inspect.getsourcelines(fn)
     except (OSError, TypeError) as error:
         raise NotCompilable(f"its source is not available ({error})") from None
-    source = textwrap.dedent("".join(lines))
     try:
-        tree = ast.parse(source)
-    except SyntaxError:  # a lambda in the middle of a multi-line expression
-        try:
-            tree = ast.parse("(\n" + source + "\n)")
-            start -= 1
-        except SyntaxError:
-            raise NotCompilable("its source could not be parsed") from None
-    if fn.__name__ == "<lambda>":
-        lambdas = [n for n in ast.walk(tree) if isinstance(n, ast.Lambda)
-                   and n.lineno + start - 1 == code.co_firstlineno
-                   and [a.arg for a in n.args.args] == list(code.co_varnames[:code.co_argcount])]
-        if len(lambdas) != 1:
-            raise NotCompilable("several lambdas share its line; write it as a def")
-        node = lambdas[0]
-        body = [ast.Return(node.body)]
-    else:
-        defs = [n for n in ast.walk(tree) if isinstance(n, ast.FunctionDef)
-                and n.name == fn.__name__]
-        if not defs:
-            raise NotCompilable("its definition was not found in its source")
-        node = defs[0]
-        body = node.body
-    args = node.args
-    if args.vararg or args.kwarg or args.kwonlyargs or len(args.args) != 4:
-        raise NotCompilable("it does not take exactly (t, x, u, params)")
-    return [a.arg for a in args.args], body
+        tree = ast.parse(textwrap.dedent("".join(lines)))
+    except SyntaxError:
+        raise NotCompilable("its source could not be parsed") from None
+    defs = [n for n in ast.walk(tree) if isinstance(n, ast.FunctionDef)
+            and n.name == fn.__name__]
+    if not defs:
+        raise NotCompilable("its definition was not found in its source")
+    return names, defs[0].body
 
 
 class _Params(ast.NodeTransformer):

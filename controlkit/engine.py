@@ -304,18 +304,18 @@ def explain(sys, params=None) -> list[BlockTier]:
     Examples
     --------
     >>> import control as ct
-    >>> pi = ct.sample_system(ct.tf([1.0, 0.5], [1.0, 0.0], name="pi"), 0.1)
+    >>> pi = ct.sample_system(ct.tf([1.0, 0.5], [1.0, 0.0]), 0.1, name="pi",
+    ...                       inputs="e", outputs="u")
     >>> plant = ct.nlsys(lambda t, x, u, p: x + 0.1 * (u - p.get("a", 1.0) * x ** 3),
     ...                  lambda t, x, u, p: x, inputs="u", outputs="y", states=1,
     ...                  dt=0.1, name="plant")
-    >>> pi.set_inputs("e"); pi.set_outputs("u")
-    >>> sumblk = ct.summing_junction(["r", "-y"], "e")
-    >>> loop = ct.interconnect([plant, pi, sumblk], inputs="r", outputs="y")
+    >>> error = ct.summing_junction(["r", "-y"], "e", name="error")
+    >>> loop = ct.interconnect([plant, pi, error], inputs="r", outputs="y")
     >>> for row in explain(loop):
-    ...     print(row.name, "|", row.tier)
-    plant | compiled
-    pi | compiled
-    sumblk | compiled
+    ...     print(row.name, "|", row.tier, "|", row.reason)
+    plant | compiled | user nlsys compiled with its parameters frozen
+    pi | compiled | LTI block (state space)
+    error | compiled | LTI block (state space)
     """
     try:
         blocks = _blocks(sys, params)
