@@ -628,6 +628,8 @@ def _explain_divergence(sys, blocks, T, X, x, k1):
 def _explain_failure(sys, blocks, T, X, U, status, params=None):
     """A kernel returned NaN: let the block's Python wrapper say why, in its own words."""
     k = int(status[0])
+    if not np.isfinite(X[:, k]).all():  # the loop diverged before the block's output did
+        _explain_divergence(sys, blocks, T, X, X[:, k], k)
     b = blocks[int(status[1])]
     block = b.system
     sys._update_params(params)

@@ -209,7 +209,7 @@ def simulate(
         resp = ct.input_output_response(sys, T[i0 : i1 + 1], U[:, i0 : i1 + 1], x,
                                         params=params, squeeze=False)
         first = 0 if k == 0 else 1  # the previous chunk already holds this sample
-        states = resp.states if resp.states is not None else np.zeros((0, resp.time.size))
+        states = resp.x if resp.x is not None else np.zeros((0, resp.time.size))
         arrays = (resp.time, resp.outputs, states, resp.inputs)
         pieces.append([a[..., first:] for a in arrays])
         x = states[:, -1]
