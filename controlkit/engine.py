@@ -500,7 +500,18 @@ def _cache_folder() -> Path:
     return folder
 
 
-def _load(source: str, injected=None):
+#: A diagram's loop that is not compiled yet (neither in this process nor in the disk cache)
+#: runs as plain Python, calling the compiled kernels, for its first this-many steps in a
+#: process: compiling a loop costs 1-3 s, the Python loop 5-40 us a step (measured in
+#: benchmarks/bench_user_diagrams.py), so short exploratory runs of a newly wired diagram
+#: start at once and the loop is compiled once the runs grow long.
+COMPILE_AFTER_STEPS = 50_000
+
+#: Steps run as Python so far, per loop source (see :data:`COMPILE_AFTER_STEPS`).
+_PYTHON_STEPS: dict[str, int] = {}
+
+
+def _load(source: str, injected=None, steps=None):
     if injected:  # Python kernels in the loop: run it as plain Python, handed those kernels
         namespace = {}
         exec(compile(source, "<controlkit loop>", "exec"), namespace)
@@ -520,6 +531,13 @@ def _load(source: str, injected=None):
     key = hashlib.sha256((source + kernel_sources + str(_jit.HAVE_NUMBA)).encode()
                          ).hexdigest()[:20]
     path = folder / f"loop_{key}.py"
+    cached = any((folder / "__pycache__").glob(f"loop_{key}.run-*.nbi"))
+    if _jit.HAVE_NUMBA and steps is not None and not cached \
+            and _PYTHON_STEPS.get(source, 0) + steps < COMPILE_AFTER_STEPS:
+        _PYTHON_STEPS[source] = _PYTHON_STEPS.get(source, 0) + steps
+        namespace = {}
+        exec(compile(source, "<controlkit loop>", "exec"), namespace)
+        return namespace["run"]
     if not path.exists():  # keep the file's date: numba's cache keys on it
         tmp = path.with_suffix(f".{os.getpid()}.tmp")
         tmp.write_text(source)
@@ -535,8 +553,11 @@ def _load(source: str, injected=None):
     return run
 
 
-def compile_system(sys, params=None):
+def compile_system(sys, params=None, *, steps=None):
     """Generate (and compile, with numba) the simulation loop of an interconnect.
+
+    With ``steps`` (the length of the run it is for), a loop not compiled yet runs as
+    Python while the runs are short (:data:`COMPILE_AFTER_STEPS`).
 
     Raises
     ------
@@ -559,7 +580,7 @@ def compile_system(sys, params=None):
     """
     blocks = _blocks(sys, params)
     order = _evaluation_order(sys, blocks)
-    return _load(*_generate(sys, blocks, order)), blocks
+    return _load(*_generate(sys, blocks, order), steps=steps), blocks
 
 
 def simulate_fast(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1
@@ -585,8 +606,8 @@ def simulate_fast(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1
     >>> resp.outputs.shape
     (10, 3)
     """
-    run, blocks = compile_system(sys, params)
     T, X0, U = check_arguments(sys, T, X0, U)
+    run, blocks = compile_system(sys, params, steps=T.size)
     T = np.ascontiguousarray(T)
     N = T.size
     P = np.concatenate([b.kernel.params for b in blocks] + [np.zeros(0)])
