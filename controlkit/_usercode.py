@@ -169,8 +169,8 @@ def used_params(fn):
 
     Examples
     --------
-    >>> used_params(lambda t, x, u, params: params["k"] * x + params.get("b", 0.0))
-    {'b', 'k'}
+    >>> sorted(used_params(lambda t, x, u, params: params["k"] * x + params.get("b", 0.0)))
+    ['b', 'k']
     """
     fn = getattr(fn, "py_func", fn)
     try:

@@ -26,10 +26,9 @@ from typing import NamedTuple
 import control as ct
 import numpy as np
 
-from . import _jit, _usercode
+from . import _checks, _jit, _usercode
 from ._block import BlockKernels
 from .kernels import common, lti
-from .sampling import SamplingError, blowup_message
 from .simulation import check_arguments
 
 #: Where generated simulation loops are written (and numba caches them).
@@ -583,13 +582,35 @@ def compile_system(sys, params=None, *, steps=None):
     return _load(*_generate(sys, blocks, order), steps=steps), blocks
 
 
-def simulate_fast(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1
-                  ) -> ct.TimeResponseData:
+#: Steps simulated per chunk when a run is streamed (bounds the memory of long runs).
+STREAM_CHUNK_STEPS = 20_000
+
+
+def recorded_indices(N: int, record_every: int) -> np.ndarray:
+    """Indices kept when every ``record_every``-th of ``N`` samples is recorded (and the last).
+
+    Examples
+    --------
+    >>> recorded_indices(10, 4).tolist()
+    [0, 4, 8, 9]
+    """
+    if isinstance(record_every, bool) or not isinstance(record_every, int | np.integer) \
+            or record_every < 1:
+        raise ValueError(f"record_every must be an integer >= 1, got {record_every!r}")
+    kept = np.arange(0, N, int(record_every))
+    return kept if N == 0 or kept[-1] == N - 1 else np.append(kept, N - 1)
+
+
+def simulate_fast(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
+                  record_every=1, on_chunk=None) -> ct.TimeResponseData:
     """Simulate a discrete interconnect of controlkit blocks without python-control's sweeps.
 
     Same arguments and result as :func:`control.input_output_response` for
-    a discrete system (plus ``progress`` and ``chunks`` as in
-    :func:`controlkit.simulation.simulate`).
+    a discrete system (plus ``progress``, ``chunks``, ``record_every`` and
+    ``on_chunk`` as in :func:`controlkit.simulation.simulate`). With
+    ``record_every > 1`` or ``on_chunk`` the run is streamed: it proceeds in
+    chunks of :data:`STREAM_CHUNK_STEPS` steps through fixed buffers, so memory
+    does not grow with the horizon.
 
     Raises
     ------
@@ -606,11 +627,17 @@ def simulate_fast(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1
     >>> resp.outputs.shape
     (10, 3)
     """
-    T, X0, U = check_arguments(sys, T, X0, U)
+    T, X0, U = check_arguments(sys, T, X0, U)  # a lazy TimeGrid stays lazy, U a view
     run, blocks = compile_system(sys, params, steps=T.size)
-    T = np.ascontiguousarray(T)
+    streamed = record_every != 1 or on_chunk is not None
+    if not streamed:
+        T = np.ascontiguousarray(T, dtype=float)
     N = T.size
     P = np.concatenate([b.kernel.params for b in blocks] + [np.zeros(0)])
+    kept = recorded_indices(N, record_every)
+    if streamed:
+        return _stream(sys, run, blocks, T, X0, U, P, kept, on_chunk, progress, params)
+    U = np.ascontiguousarray(U)
     Y = np.zeros((sys.noutputs, N))
     X = np.zeros((sys.nstates, N))
     status = np.array([-1, -1])
@@ -621,7 +648,7 @@ def simulate_fast(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1
         if status[0] >= 0:
             _explain_failure(sys, blocks, T, X, U, status, params)
         if not np.isfinite(x).all():
-            _explain_divergence(sys, blocks, T, X, x, k1)
+            _explain_divergence(sys, blocks, T, X, x, k1, U, params)
         if progress is not None:
             progress(k1 / N)
     return ct.TimeResponseData(
@@ -631,29 +658,73 @@ def simulate_fast(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1
     )
 
 
-def _explain_divergence(sys, blocks, T, X, x, k1):
-    """A state became non-finite: name the first block it happened in, and what to do."""
+def _explain_divergence(sys, blocks, T, X, x, k1, U, params=None):
+    """A state became non-finite: a sampled block that blew up inside its sample says so
+    (as on the python-control path), otherwise the loop diverged."""
     bad = ~np.isfinite(np.column_stack([X[:, :k1], x]))
     k = int(np.argmax(bad.any(axis=0)))
     i = int(np.argmax(bad[:, k]))
     b = next(b for b in blocks if b.x0 <= i < b.x0 + b.system.nstates)
-    t = T[k - 1] if k else T[0]
-    if b.kernel.rk4 is not None:
-        Ts, substeps = b.kernel.rk4
-        raise SamplingError(blowup_message(b.system.name, t, Ts, substeps))
-    raise FloatingPointError(
-        f"the state of block {b.system.name!r} became non-finite at t = {t:g} s: the loop "
-        f"diverged (a gain too high for the sampling time?)")
+    if k >= 1 and b.kernel.rk4 is not None and np.isfinite(X[:, k - 1]).all():
+        # the Python step of that sample, with its blow-up test (raises SamplingError)
+        sys._update_params(params)
+        try:
+            ulist, _ = sys._compute_static_io(T[k - 1], X[:, k - 1], U[:, k - 1])
+        except RuntimeError:
+            ulist = None
+        if ulist is not None and np.isfinite(ulist).all():
+            s = b.system
+            with np.errstate(all="ignore"):
+                s._rhs(T[k - 1], X[b.x0:b.x0 + s.nstates, k - 1], ulist[b.u0:b.u0 + s.ninputs])
+    t = T[k] if k < len(T) else T[-1] + (T[-1] - T[-2] if len(T) > 1 else 0.0)
+    raise _checks.diverged(t, f"the state of block {b.system.name!r} became non-finite")
+
+
+def _stream(sys, run, blocks, T, x, U, P, kept, on_chunk, progress, params=None):
+    """Run the compiled loop chunk by chunk on slices of ``T`` and ``U``; keep ``kept`` only.
+
+    The generated loop indexes its arrays from ``k0``, so each chunk runs on views of
+    ``T`` and ``U`` with ``k0 = 0`` into buffers reused from chunk to chunk.
+    """
+    N = T.size
+    step = min(STREAM_CHUNK_STEPS, max(N, 1))
+    Yb, Xb = np.zeros((sys.noutputs, step)), np.zeros((sys.nstates, step))
+    Y, X = np.zeros((sys.noutputs, kept.size)), np.zeros((sys.nstates, kept.size))
+    status = np.array([-1, -1])
+    for k0 in range(0, N, step):
+        k1 = min(N, k0 + step)
+        Tc, Uc = T[k0:k1], np.ascontiguousarray(U[:, k0:k1])
+        x = run(Tc, x, Uc, P, Yb, Xb, status, 0, k1 - k0)
+        if status[0] >= 0:
+            _explain_failure(sys, blocks, Tc, Xb, Uc, status, params)
+        if not np.isfinite(x).all():
+            _explain_divergence(sys, blocks, Tc, Xb, x, k1 - k0, Uc, params)
+        if on_chunk is not None:
+            on_chunk(Tc, Yb[:, :k1 - k0], Xb[:, :k1 - k0])
+        mine = (kept >= k0) & (kept < k1)
+        Y[:, mine] = Yb[:, kept[mine] - k0]
+        X[:, mine] = Xb[:, kept[mine] - k0]
+        if progress is not None:
+            progress(k1 / N)
+    return ct.TimeResponseData(
+        T[kept], Y, X, U[:, kept], output_labels=sys.output_labels,
+        state_labels=sys.state_labels, input_labels=sys.input_labels, sysname=sys.name,
+        issiso=sys.issiso(), title="Input/output response for " + sys.name,
+    )
 
 
 def _explain_failure(sys, blocks, T, X, U, status, params=None):
     """A kernel returned NaN: let the block's Python wrapper say why, in its own words."""
     k = int(status[0])
-    if not np.isfinite(X[:, k]).all():  # the loop diverged before the block's output did
-        _explain_divergence(sys, blocks, T, X, X[:, k], k)
     b = blocks[int(status[1])]
     block = b.system
     sys._update_params(params)
-    ulist, _ = sys._compute_static_io(T[k], X[:, k], U[:, k])
-    block.output(T[k], X[b.x0:b.x0 + block.nstates, k], ulist[b.u0:b.u0 + block.ninputs])
+    try:
+        ulist, _ = sys._compute_static_io(T[k], X[:, k], U[:, k])
+    except RuntimeError:  # python-control's sweep cannot settle on non-finite signals
+        ulist = None
+    if ulist is not None:
+        block.output(T[k], X[b.x0:b.x0 + block.nstates, k], ulist[b.u0:b.u0 + block.ninputs])
+    if not np.isfinite(X[:, k]).all():  # the loop diverged before the block's output did
+        _explain_divergence(sys, blocks, T, X, X[:, k], k, U, params)
     raise FloatingPointError(f"block {block.name!r} returned NaN at t = {T[k]:g} s")

@@ -80,7 +80,7 @@ def check_arguments(sys, T, X0, U=0.0):
     X0 : numpy.ndarray
         Initial state with exactly ``sys.nstates`` values (never zero-padded).
     U : numpy.ndarray
-        Inputs, shape ``(ninputs, len(T))``.
+        Inputs, shape ``(ninputs, len(T))`` (a read-only view when constant).
 
     Raises
     ------
@@ -99,18 +99,30 @@ def check_arguments(sys, T, X0, U=0.0):
     ...
     ValueError: X0 must have 1 values (x[0]), got 2
     """
-    T = np.asarray(T, dtype=float)
-    if T.ndim != 1 or T.size == 0:
-        raise ValueError(f"T must be a non-empty 1-D array of time points, got shape {T.shape}")
-    if not np.isfinite(T).all():
-        raise ValueError("T must hold finite time points")
-    steps = np.diff(T)
-    if (steps <= 0).any():
-        raise ValueError("T must be increasing")
-    if sys.isdtime(strict=True) and sys.dt is not True and T.size > 1 \
-            and not np.allclose(steps, sys.dt):
-        raise ValueError(f"time steps of T must equal the sampling time {sys.dt} of "
-                         f"{sys.name!r}, got steps from {steps.min():g} to {steps.max():g}")
+    from .sampling import TimeGrid
+
+    discrete = sys.isdtime(strict=True) and sys.dt is not True
+    if isinstance(T, TimeGrid):  # a lazy grid stays lazy (long streamed runs)
+        if T.size == 0 or not np.isfinite(T.Ts) or T.Ts <= 0:
+            raise ValueError(f"T must be a non-empty grid with a positive step, got {T.size} "
+                             f"samples of {T.Ts:g}")
+        if discrete and T.size > 1 and not np.isclose(T.Ts, sys.dt):
+            raise ValueError(f"time steps of T must equal the sampling time {sys.dt} of "
+                             f"{sys.name!r}, got steps from {T.Ts:g} to {T.Ts:g}")
+    else:
+        T = np.asarray(T, dtype=float)
+        if T.ndim != 1 or T.size == 0:
+            raise ValueError(f"T must be a non-empty 1-D array of time points, "
+                             f"got shape {T.shape}")
+        if not np.isfinite(T).all():
+            raise ValueError("T must hold finite time points")
+        steps = np.diff(T)
+        if (steps <= 0).any():
+            raise ValueError("T must be increasing")
+        if discrete and T.size > 1 and not np.allclose(steps, sys.dt):
+            raise ValueError(f"time steps of T must equal the sampling time {sys.dt} of "
+                             f"{sys.name!r}, got steps from {steps.min():g} to "
+                             f"{steps.max():g}")
     X0 = np.asarray(X0 if X0 is not None else 0.0, dtype=float)
     if X0.ndim == 0 and sys.nstates != 1 and X0 == 0:
         X0 = np.zeros(sys.nstates)
@@ -123,10 +135,9 @@ def check_arguments(sys, T, X0, U=0.0):
         raise ValueError("X0 must be finite")
     n, N = sys.ninputs, T.size
     U = np.asarray(U, dtype=float)
-    if U.ndim == 0:
-        U = np.full((n, N), float(U))
-    elif U.ndim == 1 and U.size == n:
-        U = np.repeat(U.reshape(n, 1), N, axis=1)
+    if U.ndim == 0 or U.ndim == 1 and U.size == n:
+        # a view: a constant input costs no memory per step
+        U = np.broadcast_to(U.reshape(-1, 1), (n, N))
     elif U.ndim == 1 and n == 1 and U.size == N:
         U = U.reshape(1, N)
     elif U.shape != (n, N):
@@ -134,12 +145,13 @@ def check_arguments(sys, T, X0, U=0.0):
                          f"shape ({n}, {N}) (inputs by time points), got shape {U.shape}")
     if not np.isfinite(U).all():
         raise ValueError("U must be finite")
-    return T, X0, np.ascontiguousarray(U)
+    return T, X0, U
 
 
 def simulate(
     sys, T, X0, U=0.0, *, params=None, progress: Callable[[float], None] | None = None,
-    chunks: int = 1, engine: str = "python-control",
+    chunks: int = 1, engine: str = "python-control", record_every: int = 1,
+    on_chunk: Callable | None = None,
 ) -> ct.TimeResponseData:
     """Simulate a system, optionally in chunks with progress reports.
 
@@ -172,6 +184,14 @@ def simulate(
         Number of pieces the run is cut into (for progress reports).
     engine : {"python-control", "fast"}
         Which simulator to use (see above).
+    record_every : int
+        Keep every ``record_every``-th sample (and the last) in the result. On the fast
+        engine the run is then streamed through fixed buffers, so a long horizon needs
+        memory for the kept samples only.
+    on_chunk : callable, optional
+        ``on_chunk(time, outputs, states)``, called with every sample exactly once, in
+        order, chunk by chunk and at full resolution: for metrics that need every step
+        (a maximum, a peak) while only decimated samples are kept.
 
     Returns
     -------
@@ -195,7 +215,8 @@ def simulate(
     if engine == "fast":
         try:
             return fast.simulate_fast(sys, T, X0, U, params=params, progress=progress,
-                                      chunks=chunks)
+                                      chunks=chunks, record_every=record_every,
+                                      on_chunk=on_chunk)
         except fast.UnsupportedSystem as reason:
             warnings.warn(f"fast engine not used, running python-control instead: {reason} "
                           f"(controlkit.engine.explain(sys) lists every block's tier)",
@@ -216,6 +237,14 @@ def simulate(
         if progress is not None:
             progress(i1 / (len(T) - 1))
     time, outputs, states, inputs = (np.concatenate(a, axis=-1) for a in zip(*pieces, strict=True))
+    if on_chunk is not None:  # the reference path holds the whole run anyway
+        on_chunk(time, outputs, states)
+    if record_every != 1:
+        from .engine import recorded_indices
+
+        kept = recorded_indices(time.size, record_every)
+        time, outputs, states = time[kept], outputs[:, kept], states[:, kept]
+        inputs = inputs[:, kept]
     return ct.TimeResponseData(
         time, outputs, states, inputs,
         output_labels=sys.output_labels, state_labels=sys.state_labels,

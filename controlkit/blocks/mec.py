@@ -189,7 +189,7 @@ def rls_step(Khat, P1, P2, xi, eta, lambda_):
     x = TUNER_STATE.pack(Mxi1=xi, Mxi2=xi, Mmu=eta, Mh=np.zeros(2), Khat=Khat, P1=P1, P2=P2,
                          K=np.zeros(4))
     p = TUNER.pack(F=[1.0, 1.0], a=[0.0, 0.0], lambda_=lambda_, kappa=1.0, psi=[0.0, 0.0],
-                   feedthrough=0.0, joint=0.0)
+                   feedthrough=0.0, joint=0.0, **_safeguard_params(None, 1.0))
     u = TUNER_INPUTS.pack(mu=[0.0, 0.0], h=[0.0, 0.0], hn=[1.0, 1.0])
     xn = TUNER_STATE.unpack(kernels.tuner_update(0.0, x, u, p, np.empty(TUNER_STATE.size)))
     return xn["Khat"].reshape(2, 2), xn["P1"].reshape(2, 2), xn["P2"].reshape(2, 2)
@@ -214,6 +214,41 @@ READINGS = {
 }
 
 
+#: Settings of the safeguarded tuner (``safeguard=True``); see ``docs/theory/frit.md``.
+#: ``p_min``, ``p_max``: bounds on the eigenvalues of each covariance ``P_j`` (the
+#: regressors are normalised, so these are in (1/s)^2 whatever the units of ``h``);
+#: ``deadzone``: no update while the normalised prediction error is below it (1/s);
+#: ``rho``: the gain is kept in ``|| I - Ts K ||_2 <= rho`` (a stable error loop).
+SAFEGUARD_DEFAULTS = {"p_min": 1e-4, "p_max": 1.0, "deadzone": 0.0, "rho": 0.98}
+
+
+def _safeguard_params(safeguard, Ts) -> dict:
+    """The safeguard's entries of the :data:`TUNER` layout (flag 0 for the paper's tuner)."""
+    if safeguard is None or safeguard is False:
+        return {"safeguard": 0.0, "Ts": Ts, **SAFEGUARD_DEFAULTS}
+    if safeguard is True:
+        settings = dict(SAFEGUARD_DEFAULTS)
+    elif isinstance(safeguard, dict):
+        unknown = sorted(set(safeguard) - set(SAFEGUARD_DEFAULTS))
+        if unknown:
+            raise ValueError(f"safeguard has unknown keys {unknown}; allowed: "
+                             f"{list(SAFEGUARD_DEFAULTS)}")
+        settings = {**SAFEGUARD_DEFAULTS, **safeguard}
+    else:
+        raise ValueError(f"safeguard must be None, False, True or a dict of "
+                         f"{list(SAFEGUARD_DEFAULTS)}, got {safeguard!r}")
+    settings["p_max"] = _checks.positive_scalar("safeguard p_max", settings["p_max"])
+    settings["p_min"] = _checks.in_interval("safeguard p_min", settings["p_min"], 0.0,
+                                            settings["p_max"])
+    settings["deadzone"] = _checks.positive_scalar("safeguard deadzone", settings["deadzone"],
+                                                   allow_zero=True)
+    settings["rho"] = _checks.in_interval("safeguard rho", settings["rho"], 0.0, 1.0)
+    if settings["rho"] == 1.0:
+        raise ValueError("safeguard rho must be < 1 (rho = 1 admits gains on the stability "
+                         "boundary)")
+    return {"safeguard": 1.0, "Ts": Ts, **settings}
+
+
 def _reading(name, value):
     if value not in READINGS[name]:
         raise ValueError(f"{name} must be one of {READINGS[name]}, got {value!r}")
@@ -223,7 +258,7 @@ def _reading(name, value):
 def frit_tuner(
     F=F_PAPER, Ts=TS_PAPER, *, lambda_=LAMBDA_PAPER, gamma=GAMMA_PAPER, kappa=KAPPA_PAPER,
     psi=PSI_PAPER, K0=0.0, h0=(0.0, 0.0), filter="zoh", start="rest", freeze="row",
-    units="deg", output_scale=None, name="tuner",
+    units="deg", output_scale=None, safeguard=None, name="tuner",
 ) -> ct.NonlinearIOSystem:
     """On-line FRIT tuner of the MEC gain ``K`` by recursive least squares (eq. 15-30).
 
@@ -298,6 +333,16 @@ def frit_tuner(
         received ``s h`` (and ``mu``, ``hn`` alike). ``K`` does not depend on
         units, but ``P`` and the threshold do: scaling the data by ``s`` is exactly
         ``P(0) = gamma s^2 I`` and a threshold ``psi / s``.
+    safeguard : None, bool or dict
+        ``None``/``False`` (default): the paper's tuner. ``True``: the safeguarded tuner
+        (beyond the paper; ``docs/theory/frit.md``): each row's regression is
+        normalised by ``|xi_j|`` (so ``P`` and ``gamma`` no longer depend on the units of
+        ``h``; ``P(0) = min(gamma, p_max) I``), a dead zone skips updates whose
+        normalised prediction error is below ``deadzone``, the eigenvalues of ``P_j``
+        stay in ``[p_min, p_max]`` (no wind-up, no starving: it re-tunes when the plant
+        changes), and ``Khat`` is projected onto ``|| I - Ts K ||_2 <= rho`` so the
+        sampled error loop stays stable (``K(0)`` is projected too). A dict overrides
+        entries of :data:`SAFEGUARD_DEFAULTS`.
     name : str
         System name.
 
@@ -333,11 +378,17 @@ def frit_tuner(
                 (("filter", filter), ("start", start), ("freeze", freeze), ("units", units))}
     scale = UNIT_SCALES[units] if output_scale is None else \
         _checks.positive_scalar("output_scale", output_scale)
-    gamma, psi_values = gamma * scale**2, psi_values / scale  # see output_scale
+    guard = _safeguard_params(safeguard, Ts)
+    if guard["safeguard"]:  # normalised regressors: P is in the units of K, not of h
+        gamma = min(gamma, guard["p_max"])
+        K0 = kernels.project_stable_gain(K0.ravel().copy(), 0, Ts, guard["rho"]).reshape(2, 2)
+    else:
+        gamma = gamma * scale**2  # see output_scale
+    psi_values = psi_values / scale
     a = np.exp(-F * Ts)
     params = TUNER.pack(F=F, a=a, lambda_=lambda_, kappa=kappa, psi=psi_values,
                         feedthrough=float(filter == "feedthrough"),
-                        joint=float(freeze == "joint"))
+                        joint=float(freeze == "joint"), **guard)
     sys = kernel_block(kernels.tuner_output, kernels.tuner_update, params=params,
                        feedthrough=False,
                        inputs=TUNER_INPUTS.labels(),
@@ -348,4 +399,5 @@ def frit_tuner(
                               Khat=K0, P1=P0, P2=P0, K=K0)
     sys.F, sys.lambda_, sys.gamma, sys.kappa, sys.psi = F, lambda_, gamma, kappa, psi_values
     sys.readings, sys.output_scale = readings, scale
+    sys.safeguard = {k: guard[k] for k in SAFEGUARD_DEFAULTS} if guard["safeguard"] else None
     return sys

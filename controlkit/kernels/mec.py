@@ -7,6 +7,10 @@ the kernels read them through these layouts.
 
 from __future__ import annotations
 
+import math
+
+import numpy as np
+
 from .._block import layout
 from .._jit import jit
 
@@ -17,9 +21,12 @@ TUNER_INPUTS = layout("FRIT tuner inputs", mu=2, h=2, hn=2)
 #: Parameters of the tuner: ``F = (F1, F2)``, ``a_j = exp(-F_j Ts)``, forgetting
 #: factor ``lambda_``, low-pass coefficient ``kappa``, thresholds ``psi``, and two
 #: flags (1.0 or 0.0) for the readings the paper leaves open: ``feedthrough`` (the
-#: ``M`` filters include the current sample) and ``joint`` (both rows freeze together).
+#: ``M`` filters include the current sample) and ``joint`` (both rows freeze together);
+#: then the safeguard (beyond the paper): its flag, the bounds ``p_min``, ``p_max`` on the
+#: eigenvalues of each ``P_j``, the dead zone on the normalised prediction error, and the
+#: radius ``rho`` of the stable set ``|| I - Ts K ||_2 <= rho`` with the period ``Ts``.
 TUNER = layout("FRIT tuner parameters", F=2, a=2, lambda_=1, kappa=1, psi=2, feedthrough=1,
-               joint=1)
+               joint=1, safeguard=1, p_min=1, p_max=1, deadzone=1, rho=1, Ts=1)
 #: State of the tuner: the filtered regressors ``M_1 (hn - h)``, ``M_2 (hn - h)``,
 #: ``M_j mu_j`` and ``M_j h_j``; the RLS estimate ``Khat`` and covariances ``P1``,
 #: ``P2`` (row-major); the implemented, low-passed gain ``K``.
@@ -70,8 +77,7 @@ def tuner_filters(x, e, mu0, mu1, h0, h1, p, xn):
     Examples
     --------
     >>> import numpy as np
-    >>> p = TUNER.pack(F=[1, 1], a=[0.5, 0.5], lambda_=1, kappa=1, psi=[0, 0],
-    ...                feedthrough=0, joint=0)
+    >>> p = np.zeros(TUNER.size); p[TUNER.slice("a")] = 0.5
     >>> xn = np.zeros(TUNER_STATE.size)
     >>> _ = tuner_filters(np.zeros(TUNER_STATE.size), (1.0, 0.0), 0.0, 0.0, 2.0, 0.0, p, xn)
     >>> xn[TUNER_STATE.slice("Mh")].tolist()  # halfway from 0 to h = (2, 0)
@@ -100,8 +106,8 @@ def tuner_frozen(e, p):
 
     Examples
     --------
-    >>> p = TUNER.pack(F=[1, 1], a=[0.5, 0.5], lambda_=1, kappa=1, psi=[0.1, 0.1],
-    ...                feedthrough=0, joint=0)
+    >>> import numpy as np
+    >>> p = np.zeros(TUNER.size); p[TUNER.slice("psi")] = 0.1
     >>> tuner_frozen((0.05, 0.2), p)
     (True, False)
     >>> p[TUNER.joint] = 1.0
@@ -146,6 +152,8 @@ def tuner_update(t, x, u, p, out):
     # after it (feedthrough reading, the current sample included)
     src = xn if p[TUNER.feedthrough] != 0.0 else x
     frozen = tuner_frozen(e, p)
+    safe = p[TUNER.safeguard] != 0.0
+    updated = False
     for j in range(2):
         if frozen[j]:
             continue  # threshold: row j frozen
@@ -153,6 +161,14 @@ def tuner_update(t, x, u, p, out):
         eta = frit_eta(src, p[TUNER.F + j], h[j], j)
         k0 = S.Khat + 2 * j  # Khat row j
         pk = S.P1 + 4 * j    # P_j (P2 follows P1)
+        if safe:
+            # scale-free regression: both sides divided by |xi| (units of h cancel)
+            norm = math.sqrt(xi0 * xi0 + xi1 * xi1)
+            if norm == 0.0:
+                continue
+            xi0, xi1, eta = xi0 / norm, xi1 / norm, eta / norm
+            if abs(eta - (x[k0] * xi0 + x[k0 + 1] * xi1)) <= p[TUNER.deadzone]:
+                continue  # dead zone: the data say nothing beyond the disturbance
         P00, P01, P10, P11 = x[pk], x[pk + 1], x[pk + 2], x[pk + 3]
         Px0 = P00 * xi0 + P01 * xi1
         Px1 = P10 * xi0 + P11 * xi1
@@ -164,10 +180,86 @@ def tuner_update(t, x, u, p, out):
         xn[pk + 1] = (P01 - Px0 * Px1 / den) / lam
         xn[pk + 2] = (P10 - Px1 * Px0 / den) / lam
         xn[pk + 3] = (P11 - Px1 * Px1 / den) / lam
+        if safe:
+            bound_covariance(xn, pk, p[TUNER.p_min], p[TUNER.p_max])
+            updated = True
+            continue  # K follows below, once Khat is projected as a whole
         kk = S.K + 2 * j
         xn[kk] = (1 - kappa) * x[kk] + kappa * xn[k0]
         xn[kk + 1] = (1 - kappa) * x[kk + 1] + kappa * xn[k0 + 1]
+    if updated:
+        project_stable_gain(xn, S.Khat, p[TUNER.Ts], p[TUNER.rho])
+        for i in range(4):  # a convex combination of two stable-set gains stays in the set
+            xn[S.K + i] = (1 - kappa) * x[S.K + i] + kappa * xn[S.Khat + i]
     return out
+
+
+@jit
+def bound_covariance(x, o, p_min, p_max):
+    """Clip the eigenvalues of the symmetric 2x2 ``P`` at ``x[o:o+4]`` to ``[p_min, p_max]``.
+
+    The safeguard's covariance bound: ``P`` cannot wind up in directions the data do not
+    excite (``<= p_max``) nor collapse where they do (``>= p_min``, so the tuner keeps
+    learning and re-tunes when the plant changes).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> x = np.array([50.0, 0.0, 0.0, 1e-9])
+    >>> bound_covariance(x, 0, 1e-3, 10.0).tolist()
+    [10.0, 0.0, 0.0, 0.001]
+    """
+    a, b, d = x[o], 0.5 * (x[o + 1] + x[o + 2]), x[o + 3]
+    mean, half = 0.5 * (a + d), math.sqrt(0.25 * (a - d) ** 2 + b * b)
+    l1, l2 = mean + half, mean - half
+    c1, c2 = min(max(l1, p_min), p_max), min(max(l2, p_min), p_max)
+    if c1 == l1 and c2 == l2:
+        return x
+    if half == 0.0:  # P = l I: any basis
+        v0, v1 = 1.0, 0.0
+    elif abs(b) > 0.0:
+        v0, v1 = b, l1 - a
+        n = math.sqrt(v0 * v0 + v1 * v1)
+        v0, v1 = v0 / n, v1 / n
+    else:
+        v0, v1 = (1.0, 0.0) if a >= d else (0.0, 1.0)
+    # P = c1 v v^T + c2 w w^T with w = v rotated by 90 degrees
+    x[o] = c1 * v0 * v0 + c2 * v1 * v1
+    x[o + 1] = x[o + 2] = (c1 - c2) * v0 * v1
+    x[o + 3] = c1 * v1 * v1 + c2 * v0 * v0
+    return x
+
+
+@jit
+def project_stable_gain(x, o, Ts, rho):
+    """Project the 2x2 gain at ``x[o:o+4]`` (row-major) onto ``|| I - Ts K ||_2 <= rho``.
+
+    The sampled error loop of the MEC, ``e[k+1] = (I - Ts K) e[k] + ...``, is stable when
+    the spectral radius of ``I - Ts K`` is below 1; the spectral norm bounds it, and unlike
+    the spectral radius it defines a convex set (a norm ball around ``K = I / Ts``), so the
+    projection is unique and the low-pass law (eq. 30), a convex combination, stays inside.
+    The projection clips the singular values of ``M = I - Ts K`` to ``rho`` (nearest point
+    in the Frobenius norm).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> K = np.array([-1.0, 0.0, 0.0, 5.0])  # a negative eigenvalue: unstable error loop
+    >>> project_stable_gain(K, 0, 0.1, 0.98).round(6).tolist()
+    [0.2, 0.0, 0.0, 5.0]
+    """
+    m00, m01 = 1.0 - Ts * x[o], -Ts * x[o + 1]
+    m10, m11 = -Ts * x[o + 2], 1.0 - Ts * x[o + 3]
+    M = np.array([[m00, m01], [m10, m11]])
+    U, s, Vt = np.linalg.svd(M)
+    if s[0] <= rho:
+        return x
+    s0, s1 = min(s[0], rho), min(s[1], rho)
+    for i in range(2):
+        for k in range(2):
+            m = U[i, 0] * s0 * Vt[0, k] + U[i, 1] * s1 * Vt[1, k]
+            x[o + 2 * i + k] = ((1.0 if i == k else 0.0) - m) / Ts
+    return x
 
 
 @jit

@@ -17,10 +17,11 @@ import itertools
 import math
 from dataclasses import dataclass, field
 
+import control as ct
 import numpy as np
 
 from ..blocks import mec
-from ..blocks.spacecraft import POINTING_REQUIREMENT_DEG, pointing_error_deg
+from ..blocks.spacecraft import POINTING_REQUIREMENT_DEG, TS_PAPER, pointing_error_deg
 from . import spacecraft
 
 #: Horizon of the study (the paper's figures), s.
@@ -122,9 +123,13 @@ def run_reading(tuner="paper", reading=None, *, horizon=HORIZON, engine="fast",
         raise ValueError(f"reading has unknown keys {sorted(unknown)}; "
                          f"allowed: {list(mec.READINGS)}")
     options = _tuner_options(tuner, reading)
+    labels = list(spacecraft.build_loop("proposed", tuner_options=options).output_labels)
+    watch = _Watch(labels, horizon)
+    steps = int(round(horizon / TS_PAPER)) + 1
     try:
         resp = spacecraft.run("proposed", horizon=horizon, tuner_options=options,
-                              progress=progress, engine=engine)
+                              progress=progress, engine=engine, on_chunk=watch,
+                              record_every=max(1, steps // K_TRACE_POINTS))
     except FloatingPointError as error:
         metrics = {"horizon_s": float(horizon), "max_pointing_error_last_half_deg": math.nan,
                    "final_pointing_error_deg": math.nan, "max_abs_K": math.nan,
@@ -133,33 +138,46 @@ def run_reading(tuner="paper", reading=None, *, horizon=HORIZON, engine="fast",
                    "diverged_at_s": getattr(error, "time", math.nan)}
         return ReadingResult(tuner, reading, metrics, np.zeros(0), np.zeros((4, 0)),
                              str(error))
-    return ReadingResult(tuner, reading, *_summarise(resp))
+    K = resp.outputs[[labels.index(f"K[{i}]") for i in range(4)]]
+    return ReadingResult(tuner, reading, watch.metrics(), resp.time, K)
 
 
-def _summarise(resp):
-    """The CSV metrics of one run and its decimated ``K`` trace (the run is then dropped)."""
-    labels = list(resp.output_labels)
+class _Watch:
+    """The study's metrics, accumulated chunk by chunk over every step of a streamed run."""
 
-    def rows(name, n):
-        return resp.outputs[[labels.index(f"{name}[{i}]") for i in range(n)]]
+    def __init__(self, labels, horizon):
+        self.q = [labels.index(f"q[{i}]") for i in range(4)]
+        self.K = [labels.index(f"K[{i}]") for i in range(4)]
+        self.u = [labels.index(f"u[{i}]") for i in range(2)]
+        self.half, self.horizon = horizon / 2, horizon
+        self.worst = self.max_K = self.peak_u = 0.0
+        self.final, self.finite, self.t_end = math.nan, True, 0.0
 
-    t, q, K, u = resp.time, rows("q", 4), rows("K", 4), rows("u", 2)
-    error = pointing_error_deg(q)
-    finite = bool(np.all(np.isfinite(error)) and np.all(np.isfinite(K)))
-    worst = float(error[t >= t[-1] / 2].max())
-    after = t >= min(TRANSIENT_S, t[-1])
-    metrics = {
-        "horizon_s": float(t[-1]),
-        "max_pointing_error_last_half_deg": worst,
-        "final_pointing_error_deg": float(error[-1]),
-        "max_abs_K": float(np.abs(K).max()),
-        "peak_abs_u_after_1000s_rad_s": float(np.abs(u[:, after]).max()),
-        "diverged": not finite,
-        "requirement_met_last_half": bool(finite and worst <= POINTING_REQUIREMENT_DEG),
-        "diverged_at_s": math.nan,
-    }
-    every = max(1, t.size // K_TRACE_POINTS)
-    return metrics, t[::every], K[:, ::every]
+    def __call__(self, t, y, x):
+        error = pointing_error_deg(y[self.q])
+        K, u = y[self.K], y[self.u]
+        self.finite &= bool(np.all(np.isfinite(error)) and np.all(np.isfinite(K)))
+        late = t >= self.half
+        if late.any():
+            self.worst = max(self.worst, float(error[late].max()))
+        self.max_K = max(self.max_K, float(np.abs(K).max()))
+        after = t >= min(TRANSIENT_S, self.horizon)
+        if after.any():
+            self.peak_u = max(self.peak_u, float(np.abs(u[:, after]).max()))
+        self.final, self.t_end = float(error[-1]), float(t[-1])
+
+    def metrics(self) -> dict:
+        return {
+            "horizon_s": self.t_end,
+            "max_pointing_error_last_half_deg": self.worst,
+            "final_pointing_error_deg": self.final,
+            "max_abs_K": self.max_K,
+            "peak_abs_u_after_1000s_rad_s": self.peak_u,
+            "diverged": not self.finite,
+            "requirement_met_last_half": bool(self.finite
+                                              and self.worst <= POINTING_REQUIREMENT_DEG),
+            "diverged_at_s": math.nan,
+        }
 
 
 def run(case="paper", *, horizon=HORIZON, engine="fast", progress=None):
@@ -193,3 +211,58 @@ def run(case="paper", *, horizon=HORIZON, engine="fast", progress=None):
         if progress is not None:
             progress((i + 1) / len(READINGS))
     return results
+
+
+def run_inertia_step(tuner="safeguarded", reading=None, *, horizon=HORIZON, step_at=None,
+                     factor=2.0, engine="fast"):
+    """The proposed loop whose inertia error jumps to ``factor`` times Table 2's mid-run.
+
+    Until ``step_at`` (default half the horizon) the true plant is Table 2's; from then on
+    each diagonal entry of ``Delta J`` is ``factor`` times larger. The loop continues from
+    the state it reached (the tuner keeps what it learnt), so the run shows whether the
+    tuner re-tunes. Returns the response and the recovery time: how long after the step the
+    pointing error last exceeded the 0.05 deg requirement (0 if it never did; ``inf`` if it
+    still exceeds it at the end).
+
+    Examples
+    --------
+    >>> resp, recovery = run_inertia_step("paper", horizon=20.0)  # still turning at 20 s
+    >>> float(resp.time[-1]), recovery
+    (20.0, inf)
+    """
+    from ..sampling import time_grid
+    from ..simulation import initial_state, simulate
+
+    reading = {**READINGS[0], **(reading or {})}
+    options = _tuner_options(tuner, reading)
+    step_at = horizon / 2 if step_at is None else step_at
+    if not 0 < step_at < horizon:
+        raise ValueError(f"step_at must lie inside (0, horizon = {horizon:g}) s, got {step_at!r}")
+    first = spacecraft.run("proposed", horizon=step_at, tuner_options=options, engine=engine)
+    loop = spacecraft.build_loop("proposed", tuner_options=options,
+                                 h0=spacecraft.initial_attitude()[1:3],
+                                 plant_options={"inertia_error_scale": factor})
+    if initial_state(loop).size != first.states.shape[0]:  # the same blocks, the same state
+        raise RuntimeError("the stepped loop's state does not match the first part's")
+    T = step_at + time_grid(horizon - step_at, TS_PAPER)
+    second = simulate(loop, T, first.states[:, -1], 0.0, engine=engine)
+
+    resp = ct.TimeResponseData(
+        np.concatenate([first.time, second.time[1:]]),
+        np.hstack([first.outputs, second.outputs[:, 1:]]),
+        np.hstack([first.states, second.states[:, 1:]]), np.zeros((0, first.time.size +
+                                                                      second.time.size - 1)),
+        output_labels=first.output_labels, state_labels=first.state_labels,
+        sysname="inertia_step", issiso=False,
+        title=f"Inertia error x{factor:g} at t = {step_at:g} s")
+    labels = list(resp.output_labels)
+    error = pointing_error_deg(resp.outputs[[labels.index(f"q[{i}]") for i in range(4)]])
+    after = resp.time >= step_at
+    over = np.nonzero(after & (error > POINTING_REQUIREMENT_DEG))[0]
+    if over.size == 0:
+        recovery = 0.0
+    elif over[-1] == resp.time.size - 1:
+        recovery = math.inf
+    else:
+        recovery = float(resp.time[over[-1] + 1] - step_at)
+    return resp, recovery

@@ -67,6 +67,11 @@ CASES: dict[str, SpacecraftCase] = {
     "proposed_literal": SpacecraftCase(
         "proposed_literal", "Proposed, Table 3 in units of q", "tab:orange", True, "frit",
         {"units": "q"}),
+    # beyond the paper: the safeguarded tuner (normalised RLS, bounded covariance, dead
+    # zone, stable-gain projection; docs/theory/frit.md)
+    "safeguarded": SpacecraftCase(
+        "safeguarded", "MEC + safeguarded FRIT", "tab:blue", True, "frit",
+        {"safeguard": True}),
 }
 #: Cases run by ``controlkit reproduce spacecraft`` when none is named.
 DEFAULT_CASES = ("ideal", "without_mec", "proposed")
@@ -203,7 +208,8 @@ def build_loop(case="ideal", *, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXED, h0=None
 
 
 def run(case="ideal", *, horizon=HORIZON, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXED,
-        q_initial=None, tuner_options=None, plant_options=None, progress=None, engine="fast"):
+        q_initial=None, tuner_options=None, plant_options=None, progress=None, engine="fast",
+        record_every=1, on_chunk=None):
     """Simulate one case from the initial attitude of Table 2.
 
     Parameters
@@ -229,6 +235,9 @@ def run(case="ideal", *, horizon=HORIZON, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXE
     engine : {"fast", "python-control"}
         Simulator (see :func:`controlkit.simulation.simulate`); both give the
         same numbers.
+    record_every, on_chunk
+        Decimated recording and full-resolution streaming of long runs, as in
+        :func:`controlkit.simulation.simulate`.
 
     Returns
     -------
@@ -249,6 +258,8 @@ def run(case="ideal", *, horizon=HORIZON, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXE
     loop = build_loop(case, Ts=Ts, F=F, K=K, h0=h0, tuner_options=tuner_options,
                       plant_options=plant_options)
     X0 = initial_state(loop, plant=q0)  # the ideal model and the tuner start from h0 already
-    T = time_grid(horizon, Ts)
+    # a streamed run on the fast engine makes its time samples chunk by chunk
+    T = time_grid(horizon, Ts, lazy=engine == "fast" and (record_every != 1 or
+                                                          on_chunk is not None))
     return simulate(loop, T, X0, 0.0, progress=progress, chunks=20 if len(T) > 20_000 else 1,
-                    engine=engine)
+                    engine=engine, record_every=record_every, on_chunk=on_chunk)
