@@ -19,9 +19,6 @@ from . import _checks
 
 METHODS = ("rk4", "solve_ivp")
 
-#: A Runge-Kutta substep that moves the state by more than this many times both its size
-#: and ``h |f(x)|`` (the explicit-Euler estimate) is taken as numerical blow-up.
-BLOWUP_RATIO = 1e3
 
 
 class SamplingError(ValueError):
@@ -32,8 +29,11 @@ class SamplingError(ValueError):
     >>> import control as ct
     >>> stiff = ct.nlsys(lambda t, x, u, p: -500.0 * x, None, inputs=0, states=1,
     ...                  outputs=1, name="stiff")
+    >>> sampled, x = sample_nlsys(stiff, 0.1), [1.0]  # RK4 multiplies x by 2.4e5 a sample
     >>> try:
-    ...     sample_nlsys(stiff, 0.1).dynamics(0.0, [1.0], [])
+    ...     for k in range(100):
+    ...         with np.errstate(over="ignore", invalid="ignore"):
+    ...             x = sampled.dynamics(0.1 * k, x, [])
     ... except SamplingError as error:
     ...     print(str(error)[:38])
     block 'stiff' blows up inside a sample
@@ -102,9 +102,9 @@ def sample_nlsys(
     Raises
     ------
     SamplingError
-        On use, when a Runge-Kutta substep blows up (a non-finite state, or a
-        change far larger than ``h |f(x)|``): the message names the block and
-        what to do.
+        On use, when a Runge-Kutta substep from a finite state blows up to a
+        non-finite one: the message names the block and what to do. (A loop
+        that diverges is reported by the blocks it feeds, usually earlier.)
 
     Returns
     -------
@@ -149,12 +149,8 @@ def sample_nlsys(
         if method == "rk4":
             x = np.asarray(x, dtype=float)
             for i in range(substeps):
-                x_next, k1 = _rk4_step(rhs, t + i * h, x, h)
-                size = np.abs(x).max(initial=0.0)
-                change = np.abs(x_next - x).max(initial=0.0)
-                euler = h * np.abs(k1).max(initial=0.0)
-                if not np.isfinite(x_next).all() or (
-                        change > BLOWUP_RATIO * max(size, euler) and change > 1e-300):
+                x_next, _ = _rk4_step(rhs, t + i * h, x, h)
+                if not np.isfinite(x_next).all():
                     raise SamplingError(blowup_message(sampled.name, t, Ts, substeps))
                 x = x_next
             return x
