@@ -152,3 +152,31 @@ def test_function_numba_cannot_compile_runs_in_python_inside_the_fast_loop():
     fast = simulate(loop, T, [0.0], 1.0, engine="fast")
     np.testing.assert_allclose(fast.outputs, simulate(loop, T, [0.0], 1.0).outputs,
                                rtol=0, atol=1e-12)
+
+
+def test_continuous_diagram_falls_back_with_a_warning_pointing_to_explain():
+    plant = ct.nlsys(lambda t, x, u, params: -x + u, None, inputs="u", outputs="y", states=1,
+                     name="plant")
+    loop = ct.interconnect([plant, ct.summing_junction(["r", "-y"], "u", name="error")],
+                           inputs="r", outputs="y")
+    rows = engine.explain(loop)
+    assert {r.tier for r in rows} == {"python-control"}
+    assert "continuous time" in rows[0].reason
+    with pytest.warns(UserWarning, match=r"continuous time.*controlkit.engine.explain\(sys\)"):
+        simulate(loop, np.linspace(0.0, 1.0, 11), [0.0], 1.0, engine="fast")
+
+
+def test_lti_blocks_with_feedthrough_in_a_chain_are_ordered_and_exact():
+    # D != 0 in the lead filter, the gain and the junction: ordered after the plant
+    lead = ct.sample_system(ct.tf([2.0, 1.0], [0.5, 1.0]), TS, name="lead", inputs="e",
+                            outputs="v")
+    gain = ct.tf(3.0, 1.0, name="gain", inputs="v", outputs="u")
+    plant = ct.sample_system(ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]]), TS, name="plant",
+                             inputs="u", outputs="y")
+    error = ct.summing_junction(["r", "-y"], "e", name="error")
+    loop = ct.interconnect([error, gain, lead, plant], inputs="r", outputs=["y", "u"])
+    assert {r.tier for r in engine.explain(loop)} == {"compiled"}
+    T = np.arange(200) * TS
+    fast = simulate(loop, T, np.zeros(loop.nstates), 1.0, engine="fast")
+    ref = ct.input_output_response(loop, T, 1.0, np.zeros(loop.nstates))
+    np.testing.assert_allclose(fast.outputs, ref.outputs, rtol=0, atol=1e-9)
