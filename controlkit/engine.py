@@ -330,7 +330,8 @@ def explain(sys, params=None) -> list[BlockTier]:
     except UnsupportedSystem as why:
         return [BlockTier(s.name, "python-control", str(why))
                 for s in getattr(sys, "syslist", [sys])]
-    return [BlockTier(b.system.name, b.tier, b.reason) for b in blocks]
+    note = "" if _jit.HAVE_NUMBA else " (numba not installed: the loop runs as Python)"
+    return [BlockTier(b.system.name, b.tier, b.reason + note) for b in blocks]
 
 
 def _evaluation_order(sys, blocks):
