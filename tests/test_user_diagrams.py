@@ -180,3 +180,21 @@ def test_lti_blocks_with_feedthrough_in_a_chain_are_ordered_and_exact():
     fast = simulate(loop, T, np.zeros(loop.nstates), 1.0, engine="fast")
     ref = ct.input_output_response(loop, T, 1.0, np.zeros(loop.nstates))
     np.testing.assert_allclose(fast.outputs, ref.outputs, rtol=0, atol=1e-9)
+
+
+def test_values_read_by_a_user_function_are_taken_afresh_at_each_run():
+    gain = np.array([0.5])
+
+    def update(t, x, u, params):
+        return [x[0] + TS * (gain[0] * u[0] - params.get("leak", 0.1) * x[0])]
+
+    plant = ct.nlsys(update, None, inputs="u", outputs="y", states=1, dt=TS, name="plant")
+    loop = ct.interconnect([plant, ct.summing_junction(["r", "-y"], "u", name="error")],
+                           inputs="r", outputs="y")
+    T = np.arange(30) * TS
+    first = simulate(loop, T, [0.0], 1.0, engine="fast").outputs
+    gain[0] = 2.0  # the user edits the array between runs
+    second = simulate(loop, T, [0.0], 1.0, params={"leak": 0.3}, engine="fast").outputs
+    ref = simulate(loop, T, [0.0], 1.0, params={"leak": 0.3}).outputs
+    np.testing.assert_allclose(second, ref, rtol=0, atol=1e-12)
+    assert np.abs(second - first).max() > 0.1
