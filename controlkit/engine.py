@@ -21,11 +21,15 @@ import sys as pysys
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import control as ct
 import numpy as np
 
-from . import _jit
+from . import _checks, _jit, _usercode
+from ._block import BlockKernels
+from .kernels import common, lti
+from .simulation import check_arguments
 
 #: Where generated simulation loops are written (and numba caches them).
 CACHE_DIR = Path(os.environ.get("CONTROLKIT_CACHE_DIR",
@@ -55,30 +59,279 @@ class _Block:
     u0: int  # offset in the list of all subsystem inputs
     y0: int  # offset in the list of all subsystem outputs
     p0: int  # parameter offset
+    tier: str = "compiled"
+    reason: str = ""
 
 
-def _blocks(sys):
+#: The tiers a block can get, fastest first (see :func:`explain`).
+TIERS = ("compiled", "python", "python-control")
+
+
+class BlockTier(NamedTuple):
+    """How the fast engine runs one block: ``tier`` is one of :data:`TIERS`.
+
+    Examples
+    --------
+    >>> row = BlockTier("pi", "compiled", "LTI block (state space)")
+    >>> row.tier
+    'compiled'
+    """
+
+    name: str
+    tier: str
+    reason: str
+
+
+def _local_params(sys, block, params):
+    """The parameters python-control hands ``block`` inside ``sys`` (see its _update_params)."""
+    local = dict(block.params)
+    local.update(sys.params)
+    if params:
+        local.update(params)
+    return local
+
+
+def _probe_feedthrough(output, nx, nu, ny, on_error=True):
+    """Whether ``output(t, x, u, out)`` moves with ``u`` at random trial points
+    (``on_error`` where the output cannot be evaluated there)."""
+    if nu == 0 or ny == 0:
+        return False
+    rng = np.random.default_rng(1)
+    for _ in range(3):
+        x = rng.uniform(-1, 1, nx)
+        u = rng.uniform(-1, 1, nu)
+        try:
+            a = np.array(output(0.0, x, np.zeros(nu), np.empty(ny)), dtype=float)
+            b = np.array(output(0.0, x, u, np.empty(ny)), dtype=float)
+        except Exception:  # undefined at this point
+            return on_error
+        if not np.array_equal(a, b, equal_nan=True):
+            return True
+    return False
+
+
+def _python_kernels(block, local, reason):
+    """Kernels calling ``block``'s own functions from Python, inside the engine's loop."""
+    if isinstance(block, ct.InterconnectedSystem):  # a nested diagram: its own sweeps
+        def output(t, x, u, p, out):
+            block._update_params(local)
+            out[:] = block._out(t, x, u)
+            return out
+
+        def update(t, x, u, p, out):
+            block._update_params(local)
+            out[:] = block._rhs(t, x, u)
+            return out
+        feed = None
+    else:
+        output = (_usercode.python_kernel(block.outfcn, local) if block.outfcn is not None
+                  else common.state_output)
+        update = _usercode.python_kernel(block.updfcn, local) if block.nstates else None
+        feed = (_usercode.reads_input(block.outfcn) if block.outfcn is not None else False)
+    if feed is None or hasattr(block, "kernel_reason"):
+        feed = _probe_feedthrough(lambda t, x, u, out: output(t, x, u, None, out),
+                                  block.nstates, block.ninputs, block.noutputs)
+    return BlockKernels(output, update, np.zeros(0), feed), "python", reason
+
+
+def _user_kernels(block, local):
+    """A user's ``nlsys``: compiled with its parameters frozen, else called from Python."""
+    if isinstance(block, ct.InterconnectedSystem) or hasattr(block, "kernel_reason"):
+        reason = getattr(block, "kernel_reason", "a nested interconnect")
+        return _python_kernels(block, local, reason)
+    folder = _cache_folder()
+    try:
+        output = common.state_output
+        if block.outfcn is not None:
+            output, _ = _usercode.compiled_kernel(block.outfcn, local, folder, block.noutputs,
+                                                  block.nstates, block.ninputs)
+        update = None
+        if block.nstates:
+            update, _ = _usercode.compiled_kernel(block.updfcn, local, folder, block.nstates,
+                                                  block.nstates, block.ninputs)
+    except _usercode.NotCompilable as why:
+        return _python_kernels(block, local, f"user function not compiled: {why}")
+    feed = _usercode.reads_input(block.outfcn) if block.outfcn is not None else False
+    if feed is None:
+        feed = True
+    return (BlockKernels(output, update, np.zeros(0), feed), "compiled",
+            "user nlsys compiled with its parameters frozen")
+
+
+def _resolve(sys, block, params):
+    """``(BlockKernels, tier, reason)`` for one block of ``sys``."""
+    kernel = getattr(block, "kernels", None)
+    if kernel is not None:
+        _check_feedthrough(block, kernel)
+        return kernel, "compiled", "controlkit block"
+    local = _local_params(sys, block, params)
+    if isinstance(block, ct.StateSpace):  # also a transfer function, converted by interconnect
+        D = np.asarray(block.D, dtype=float)
+        return (BlockKernels(lti.lti_output, lti.lti_update if block.nstates else None,
+                             lti.pack(block.A, block.B, block.C, D), bool(D.any())),
+                "compiled", "LTI block (state space)")
+    sampling = getattr(block, "sampling", None)
+    continuous = getattr(block, "continuous", None)
+    if sampling is not None and continuous is not None:
+        if sampling["method"] != "rk4":
+            return _python_kernels(block, local, "sampled with solve_ivp")
+        inner = dict(continuous.params)
+        inner.update(local)
+        kernel, tier, reason = _resolve(sys, continuous, None) if getattr(
+            continuous, "kernels", None) is not None else _user_kernels(continuous, inner)
+        return (kernel.sampled(block.dt, sampling["substeps"]), tier,
+                f"{reason}, sampled by RK4")
+    if isinstance(block, ct.NonlinearIOSystem):
+        return _user_kernels(block, local)
+    raise UnsupportedSystem(f"block {block.name!r} cannot be compiled: "
+                            f"a {type(block).__name__}, not an I/O system the engine knows")
+
+
+def _check_feedthrough(block, kernel):
+    """Refuse a block declared without feedthrough whose output moves with its input."""
+    if kernel.feedthrough or not block.ninputs or not block.noutputs:
+        return
+    p = kernel.params
+    if _probe_feedthrough(lambda t, x, u, out: kernel.output(t, x, u, p, out),
+                          block.nstates, block.ninputs, block.noutputs, on_error=False):
+        raise ValueError(
+            f"block {block.name!r} is declared without feedthrough (feedthrough=False) but "
+            f"its output changes with its input; declare feedthrough=True")
+
+
+def _blocks(sys, params=None):
     if not isinstance(sys, ct.InterconnectedSystem):
+        name = getattr(sys, "name", type(sys).__name__)
         raise UnsupportedSystem(
-            f"{sys.name!r} is a single block; the fast engine runs interconnects")
+            f"{name!r} is a single block; the fast engine runs interconnects")
     if not sys.isdtime(strict=True):
         raise UnsupportedSystem(
             f"{sys.name!r} is continuous time (dt = {sys.dt}); sample its continuous blocks "
             f"with controlkit.sampling.sample_nlsys so that the diagram is discrete")
     blocks, xs, us, ys, ps = [], 0, 0, 0, 0
     for i, block in enumerate(sys.syslist):
-        kernel = getattr(block, "kernels", None)
-        if kernel is None:
-            reason = getattr(block, "kernel_reason", None) or "not a controlkit block"
-            raise UnsupportedSystem(f"block {block.name!r} cannot be compiled: {reason}")
+        kernel, tier, reason = _resolve(sys, block, params)
         if kernel.update is not None and kernel.rk4 is None and not block.isdtime(strict=True):
             raise UnsupportedSystem(f"block {block.name!r} is continuous and not sampled")
-        blocks.append(_Block(i, block, kernel, xs, us, ys, ps))
+        blocks.append(_Block(i, block, kernel, xs, us, ys, ps, tier, reason))
         xs += block.nstates
         us += block.ninputs
         ys += block.noutputs
         ps += kernel.params.size
     return blocks
+
+
+def _params_read(block):
+    """The parameter names ``block`` reads, or None where that cannot be known."""
+    if getattr(block, "kernels", None) is not None or isinstance(block, ct.StateSpace):
+        return set()  # controlkit blocks take theirs when built; LTI blocks have none
+    if isinstance(block, ct.InterconnectedSystem):
+        keys = set(block.params)
+        for sub in block.syslist:
+            more = _params_read(sub)
+            if more is None:
+                return None
+            keys |= more
+        return keys
+    continuous = getattr(block, "continuous", None)
+    if continuous is not None:
+        inner = _params_read(continuous)
+        return None if inner is None else inner | set(block.params)
+    if hasattr(block, "kernel_reason"):
+        return set()
+    keys = set(block.params)
+    for fn in (block.updfcn, block.outfcn):
+        if fn is not None:
+            more = _usercode.used_params(fn)
+            if more is None:
+                return None
+            keys |= more
+    return keys
+
+
+def check_params(sys, params):
+    """Refuse ``params`` keys that no block of ``sys`` reads (python-control ignores them).
+
+    Raises
+    ------
+    ValueError
+        Naming the unknown keys and the ones the blocks read.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> gain = ct.nlsys(None, lambda t, x, u, params: params["k"] * u, inputs=1, outputs=1,
+    ...                 params={"k": 2.0}, name="gain")
+    >>> check_params(gain, {"k": 3.0})
+    >>> try:
+    ...     check_params(gain, {"K": 3.0})
+    ... except ValueError as error:
+    ...     print(error)  # doctest: +NORMALIZE_WHITESPACE
+    params ['K'] are read by no block of 'gain' (they read ['k']); controlkit's own
+    blocks take their parameters when they are built, e.g. outer_controller(F=...)
+    """
+    if not params:
+        return
+    if not isinstance(params, dict):
+        raise ValueError(f"params must be a dict of parameter values, got "
+                         f"{type(params).__name__}")
+    keys = _params_read(sys)
+    if keys is None:  # a function without source: python-control's own behaviour
+        return
+    unknown = sorted(set(params) - keys)
+    if unknown:
+        raise ValueError(
+            f"params {unknown} are read by no block of {sys.name!r} (they read "
+            f"{sorted(keys)}); controlkit's own blocks take their parameters when they are "
+            f"built, e.g. outer_controller(F=...)")
+
+
+def explain(sys, params=None) -> list[BlockTier]:
+    """How the fast engine runs each block of ``sys``: its tier and the reason.
+
+    Tiers (:data:`TIERS`): ``"compiled"`` (numba, in the generated loop),
+    ``"python"`` (the block's own Python function called from the generated
+    loop: no python-control sweeps, but slower) and ``"python-control"``
+    (the whole diagram falls back to :func:`control.input_output_response`;
+    the reason says why).
+
+    Parameters
+    ----------
+    sys : control.InterconnectedSystem
+        The diagram.
+    params : dict, optional
+        Parameters as for :func:`controlkit.simulation.simulate` (they decide
+        the values frozen into compiled user functions).
+
+    Returns
+    -------
+    list of BlockTier
+        ``(name, tier, reason)`` per block, in ``sys.syslist`` order.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> pi = ct.sample_system(ct.tf([1.0, 0.5], [1.0, 0.0]), 0.1, name="pi",
+    ...                       inputs="e", outputs="u")
+    >>> plant = ct.nlsys(lambda t, x, u, p: x + 0.1 * (u - p.get("a", 1.0) * x ** 3),
+    ...                  lambda t, x, u, p: x, inputs="u", outputs="y", states=1,
+    ...                  dt=0.1, name="plant")
+    >>> error = ct.summing_junction(["r", "-y"], "e", name="error")
+    >>> loop = ct.interconnect([plant, pi, error], inputs="r", outputs="y")
+    >>> for row in explain(loop):
+    ...     print(row.name, "|", row.tier, "|", row.reason)
+    plant | compiled | user nlsys compiled with its parameters frozen
+    pi | compiled | LTI block (state space)
+    error | compiled | LTI block (state space)
+    """
+    try:
+        blocks = _blocks(sys, params)
+        _evaluation_order(sys, blocks)
+    except UnsupportedSystem as why:
+        return [BlockTier(s.name, "python-control", str(why))
+                for s in getattr(sys, "syslist", [sys])]
+    note = "" if _jit.HAVE_NUMBA else " (numba not installed: the loop runs as Python)"
+    return [BlockTier(b.system.name, b.tier, b.reason + note) for b in blocks]
 
 
 def _evaluation_order(sys, blocks):
@@ -129,18 +382,23 @@ def _function_ref(function):
 
 
 def _generate(sys, blocks, order):
-    imports, names = {}, {}
+    """The loop's source and the kernels it must be handed (those not importable)."""
+    imports, names, injected = {}, {}, {}
     for b in blocks:
         for role, fn in (("out", b.kernel.output), ("upd", b.kernel.update)):
             if fn is None:
                 continue
-            module, name = _function_ref(fn)
-            if "<" in name or module is None or module == "__main__":
-                raise UnsupportedSystem(
-                    f"block {b.system.name!r}: its kernel {name} is not importable")
             alias = f"{role}_{b.index}"
-            imports[alias] = (module, name)
             names[(role, b.index)] = alias
+            module, name = _function_ref(fn)
+            if "<" in name or module is None or module == "__main__" or "<" in getattr(
+                    getattr(fn, "py_func", fn), "__qualname__", "<"):
+                if b.tier != "python":
+                    raise UnsupportedSystem(
+                        f"block {b.system.name!r}: its kernel {name} is not importable")
+                injected[alias] = fn
+                continue
+            imports[alias] = (module, name)
     nsub_out = sys.connect_map.shape[1]
     # buffers live outside the time loop: allocation is what a compiled step costs
     setup = ["x = X0.copy()", f"xn = np.empty({sys.nstates})", f"ys = np.zeros({nsub_out})"]
@@ -232,31 +490,62 @@ def _generate(sys, blocks, order):
     body.append("x[:] = xn")
     L += ["        " + line for chunk in body for line in chunk.split("\n")]
     L.append("    return x")
-    return "\n".join(L) + "\n"
+    return "\n".join(L) + "\n", injected
 
 
 #: Loops loaded in this process, by generated source (the kernels imported here are fixed).
 _LOADED: dict[str, object] = {}
 
 
-def _load(source: str):
-    if source in _LOADED:  # no need to read and hash the kernels' files again
-        return _LOADED[source]
-    # numba caches the loop with the kernels inlined but keys on the loop's file alone:
-    # the kernels' source goes into the file name so that editing them recompiles
-    modules = sorted({line.split()[1] for line in source.splitlines()
-                      if line.startswith("from ")})
-    kernel_sources = "".join(Path(importlib.util.find_spec(m).origin).read_text()
-                             for m in modules)
-    key = hashlib.sha256((source + kernel_sources + str(_jit.HAVE_NUMBA)).encode()
-                         ).hexdigest()[:20]
+def _cache_folder() -> Path:
+    """:data:`CACHE_DIR`, or a temporary folder when it cannot be written."""
     folder = CACHE_DIR
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError:  # a read-only home: keep the loops for this machine's session only
         folder = Path(tempfile.gettempdir()) / "controlkit-engine"
         folder.mkdir(parents=True, exist_ok=True)
+    return folder
+
+
+#: A diagram's loop that is not compiled yet (neither in this process nor in the disk cache)
+#: runs as plain Python, calling the compiled kernels, for its first this-many steps in a
+#: process: compiling a loop costs 1-3 s, the Python loop 5-40 us a step (measured in
+#: benchmarks/bench_user_diagrams.py), so short exploratory runs of a newly wired diagram
+#: start at once and the loop is compiled once the runs grow long.
+COMPILE_AFTER_STEPS = 50_000
+
+#: Steps run as Python so far, per loop source (see :data:`COMPILE_AFTER_STEPS`).
+_PYTHON_STEPS: dict[str, int] = {}
+
+
+def _load(source: str, injected=None, steps=None):
+    if injected:  # Python kernels in the loop: run it as plain Python, handed those kernels
+        namespace = {}
+        exec(compile(source, "<controlkit loop>", "exec"), namespace)
+        namespace.update(injected)
+        return namespace["run"]
+    if source in _LOADED:  # no need to read and hash the kernels' files again
+        return _LOADED[source]
+    # numba caches the loop with the kernels inlined but keys on the loop's file alone:
+    # the kernels' source goes into the file name so that editing them recompiles
+    folder = _cache_folder()
+    if str(folder) not in pysys.path:  # compiled user kernels are modules there
+        pysys.path.append(str(folder))
+    modules = sorted({line.split()[1] for line in source.splitlines()
+                      if line.startswith("from ")})
+    kernel_sources = "".join(Path(importlib.util.find_spec(m).origin).read_text()
+                             for m in modules)
+    key = hashlib.sha256((source + kernel_sources + str(_jit.HAVE_NUMBA)).encode()
+                         ).hexdigest()[:20]
     path = folder / f"loop_{key}.py"
+    cached = any((folder / "__pycache__").glob(f"loop_{key}.run-*.nbi"))
+    if _jit.HAVE_NUMBA and steps is not None and not cached \
+            and _PYTHON_STEPS.get(source, 0) + steps < COMPILE_AFTER_STEPS:
+        _PYTHON_STEPS[source] = _PYTHON_STEPS.get(source, 0) + steps
+        namespace = {}
+        exec(compile(source, "<controlkit loop>", "exec"), namespace)
+        return namespace["run"]
     if not path.exists():  # keep the file's date: numba's cache keys on it
         tmp = path.with_suffix(f".{os.getpid()}.tmp")
         tmp.write_text(source)
@@ -272,8 +561,11 @@ def _load(source: str):
     return run
 
 
-def compile_system(sys):
+def compile_system(sys, params=None, *, steps=None):
     """Generate (and compile, with numba) the simulation loop of an interconnect.
+
+    With ``steps`` (the length of the run it is for), a loop not compiled yet runs as
+    Python while the runs are short (:data:`COMPILE_AFTER_STEPS`).
 
     Raises
     ------
@@ -294,9 +586,9 @@ def compile_system(sys):
     >>> [b.system.name for b in blocks]
     ['reference', 'cmg', 'smc', 'saturation']
     """
-    blocks = _blocks(sys)
+    blocks = _blocks(sys, params)
     order = _evaluation_order(sys, blocks)
-    return _load(_generate(sys, blocks, order)), blocks
+    return _load(*_generate(sys, blocks, order), steps=steps), blocks
 
 
 #: Steps simulated per chunk when a run is streamed (bounds the memory of long runs).
@@ -318,8 +610,8 @@ def recorded_indices(N: int, record_every: int) -> np.ndarray:
     return kept if N == 0 or kept[-1] == N - 1 else np.append(kept, N - 1)
 
 
-def simulate_fast(sys, T, X0, U=0.0, *, progress=None, chunks=1, record_every=1,
-                  on_chunk=None) -> ct.TimeResponseData:
+def simulate_fast(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
+                  record_every=1, on_chunk=None) -> ct.TimeResponseData:
     """Simulate a discrete interconnect of controlkit blocks without python-control's sweeps.
 
     Same arguments and result as :func:`control.input_output_response` for
@@ -344,30 +636,16 @@ def simulate_fast(sys, T, X0, U=0.0, *, progress=None, chunks=1, record_every=1,
     >>> resp.outputs.shape
     (10, 3)
     """
-    from .sampling import TimeGrid
-
-    run, blocks = compile_system(sys)
+    T, X0, U = check_arguments(sys, T, X0, U)  # a lazy TimeGrid stays lazy, U a view
+    run, blocks = compile_system(sys, params, steps=T.size)
     streamed = record_every != 1 or on_chunk is not None
-    if not (streamed and isinstance(T, TimeGrid)):  # a lazy grid stays lazy when streamed
+    if not streamed:
         T = np.ascontiguousarray(T, dtype=float)
     N = T.size
-    if isinstance(T, TimeGrid):
-        if N > 1 and not np.isclose(T.Ts, sys.dt):
-            raise ValueError(f"time steps of T must equal the sampling time {sys.dt}")
-    for k0 in range(0, max(N - 1, 0) if not isinstance(T, TimeGrid) else 0,
-                    STREAM_CHUNK_STEPS):  # in pieces: no copy of T
-        if not np.allclose(np.diff(T[k0:k0 + STREAM_CHUNK_STEPS + 1]), sys.dt):
-            raise ValueError(f"time steps of T must equal the sampling time {sys.dt}")
-    U = np.asarray(U, dtype=float)
-    # a view: a constant input costs no memory per step until a chunk is copied out of it
-    U = np.broadcast_to(U.reshape(-1, 1) if U.ndim <= 1 else U, (sys.ninputs, N))
-    X0 = np.ascontiguousarray(np.asarray(X0, dtype=float).reshape(-1))
-    if X0.size != sys.nstates:
-        raise ValueError(f"X0 must have {sys.nstates} values, got {X0.size}")
     P = np.concatenate([b.kernel.params for b in blocks] + [np.zeros(0)])
     kept = recorded_indices(N, record_every)
     if streamed:
-        return _stream(sys, run, blocks, T, X0, U, P, kept, on_chunk, progress)
+        return _stream(sys, run, blocks, T, X0, U, P, kept, on_chunk, progress, params)
     U = np.ascontiguousarray(U)
     Y = np.zeros((sys.noutputs, N))
     X = np.zeros((sys.nstates, N))
@@ -377,7 +655,9 @@ def simulate_fast(sys, T, X0, U=0.0, *, progress=None, chunks=1, record_every=1,
     for k0, k1 in zip(bounds[:-1], bounds[1:], strict=True):
         x = run(T, x, U, P, Y, X, status, k0, k1)
         if status[0] >= 0:
-            _explain_failure(sys, blocks, T, X, U, status)
+            _explain_failure(sys, blocks, T, X, U, status, params)
+        if not np.isfinite(x).all():
+            _explain_divergence(sys, blocks, T, X, x, k1, U, params)
         if progress is not None:
             progress(k1 / N)
     return ct.TimeResponseData(
@@ -387,7 +667,29 @@ def simulate_fast(sys, T, X0, U=0.0, *, progress=None, chunks=1, record_every=1,
     )
 
 
-def _stream(sys, run, blocks, T, x, U, P, kept, on_chunk, progress):
+def _explain_divergence(sys, blocks, T, X, x, k1, U, params=None):
+    """A state became non-finite: a sampled block that blew up inside its sample says so
+    (as on the python-control path), otherwise the loop diverged."""
+    bad = ~np.isfinite(np.column_stack([X[:, :k1], x]))
+    k = int(np.argmax(bad.any(axis=0)))
+    i = int(np.argmax(bad[:, k]))
+    b = next(b for b in blocks if b.x0 <= i < b.x0 + b.system.nstates)
+    if k >= 1 and b.kernel.rk4 is not None and np.isfinite(X[:, k - 1]).all():
+        # the Python step of that sample, with its blow-up test (raises SamplingError)
+        sys._update_params(params)
+        try:
+            ulist, _ = sys._compute_static_io(T[k - 1], X[:, k - 1], U[:, k - 1])
+        except RuntimeError:
+            ulist = None
+        if ulist is not None and np.isfinite(ulist).all():
+            s = b.system
+            with np.errstate(all="ignore"):
+                s._rhs(T[k - 1], X[b.x0:b.x0 + s.nstates, k - 1], ulist[b.u0:b.u0 + s.ninputs])
+    t = T[k] if k < len(T) else T[-1] + (T[-1] - T[-2] if len(T) > 1 else 0.0)
+    raise _checks.diverged(t, f"the state of block {b.system.name!r} became non-finite")
+
+
+def _stream(sys, run, blocks, T, x, U, P, kept, on_chunk, progress, params=None):
     """Run the compiled loop chunk by chunk on slices of ``T`` and ``U``; keep ``kept`` only.
 
     The generated loop indexes its arrays from ``k0``, so each chunk runs on views of
@@ -403,7 +705,9 @@ def _stream(sys, run, blocks, T, x, U, P, kept, on_chunk, progress):
         Tc, Uc = T[k0:k1], np.ascontiguousarray(U[:, k0:k1])
         x = run(Tc, x, Uc, P, Yb, Xb, status, 0, k1 - k0)
         if status[0] >= 0:
-            _explain_failure(sys, blocks, Tc, Xb, Uc, status)
+            _explain_failure(sys, blocks, Tc, Xb, Uc, status, params)
+        if not np.isfinite(x).all():
+            _explain_divergence(sys, blocks, Tc, Xb, x, k1 - k0, Uc, params)
         if on_chunk is not None:
             on_chunk(Tc, Yb[:, :k1 - k0], Xb[:, :k1 - k0])
         mine = (kept >= k0) & (kept < k1)
@@ -419,12 +723,18 @@ def _stream(sys, run, blocks, T, x, U, P, kept, on_chunk, progress):
     )
 
 
-def _explain_failure(sys, blocks, T, X, U, status):
+def _explain_failure(sys, blocks, T, X, U, status, params=None):
     """A kernel returned NaN: let the block's Python wrapper say why, in its own words."""
     k = int(status[0])
     b = blocks[int(status[1])]
     block = b.system
-    sys._update_params(None)
-    ulist, _ = sys._compute_static_io(T[k], X[:, k], U[:, k])
-    block.output(T[k], X[b.x0:b.x0 + block.nstates, k], ulist[b.u0:b.u0 + block.ninputs])
+    sys._update_params(params)
+    try:
+        ulist, _ = sys._compute_static_io(T[k], X[:, k], U[:, k])
+    except RuntimeError:  # python-control's sweep cannot settle on non-finite signals
+        ulist = None
+    if ulist is not None:
+        block.output(T[k], X[b.x0:b.x0 + block.nstates, k], ulist[b.u0:b.u0 + block.ninputs])
+    if not np.isfinite(X[:, k]).all():  # the loop diverged before the block's output did
+        _explain_divergence(sys, blocks, T, X, X[:, k], k, U, params)
     raise FloatingPointError(f"block {block.name!r} returned NaN at t = {T[k]:g} s")

@@ -20,12 +20,46 @@ from . import _checks
 METHODS = ("rk4", "solve_ivp")
 
 
+
+class SamplingError(ValueError):
+    """A sampled block blew up inside a sample (the message names it and what to do).
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> stiff = ct.nlsys(lambda t, x, u, p: -500.0 * x, None, inputs=0, states=1,
+    ...                  outputs=1, name="stiff")
+    >>> sampled, x = sample_nlsys(stiff, 0.1), [1.0]  # RK4 multiplies x by 2.4e5 a sample
+    >>> try:
+    ...     for k in range(100):
+    ...         with np.errstate(over="ignore", invalid="ignore"):
+    ...             x = sampled.dynamics(0.1 * k, x, [])
+    ... except SamplingError as error:
+    ...     print(str(error)[:38])
+    block 'stiff' blows up inside a sample
+    """
+
+
+def blowup_message(name, t, Ts, substeps) -> str:
+    """What to say when block ``name`` blew up in the sample starting at ``t``.
+
+    Examples
+    --------
+    >>> blowup_message("plant", 0.0, 0.1, 1)[:41]
+    "block 'plant' blows up inside a sample at"
+    """
+    return (f"block {name!r} blows up inside a sample at t = {t:g} s: RK4 with {substeps} "
+            f"substep(s) of {Ts / substeps:g} s is unstable or far too coarse for it (stiff "
+            f"or fast dynamics); sample it with more substeps (sample_nlsys(..., substeps=...)),"
+            f" with method='solve_ivp', or at a smaller Ts")
+
+
 def _rk4_step(rhs, t, x, h):
     k1 = rhs(t, x)
     k2 = rhs(t + h / 2, x + (h / 2) * k1)
     k3 = rhs(t + h / 2, x + (h / 2) * k2)
     k4 = rhs(t + h, x + h * k3)
-    return x + (h / 6) * (k1 + 2 * k2 + 2 * k3 + k4)
+    return x + (h / 6) * (k1 + 2 * k2 + 2 * k3 + k4), k1
 
 
 def sample_nlsys(
@@ -41,8 +75,12 @@ def sample_nlsys(
 
     Parameters
     ----------
-    sys : control.NonlinearIOSystem or control.StateSpace
+    sys : control.NonlinearIOSystem, control.StateSpace or control.TransferFunction
         Continuous-time system (``sys.dt == 0``); its parameters are passed on.
+        A linear system (``StateSpace``, ``TransferFunction``) is sampled
+        exactly, as :func:`control.sample_system` with ``method="zoh"`` does
+        (``method`` and ``substeps`` do not apply), keeping its name and its
+        signal names.
     Ts : float
         Sampling period, > 0.
     method : {"rk4", "solve_ivp"}
@@ -61,10 +99,18 @@ def sample_nlsys(
         Name of the discrete system; default: the continuous system's name,
         so that it drops into a diagram in place of the continuous block.
 
+    Raises
+    ------
+    SamplingError
+        On use, when a Runge-Kutta substep from a finite state blows up to a
+        non-finite one: the message names the block and what to do. (A loop
+        that diverges is reported by the blocks it feeds, usually earlier.)
+
     Returns
     -------
     control.NonlinearIOSystem
-        Discrete (``dt = Ts``) with the same inputs, outputs, states and
+        Discrete (``dt = Ts``; a linear system stays a ``StateSpace`` or
+        ``TransferFunction``) with the same inputs, outputs, states and
         parameters. Attributes ``continuous`` (the original system) and
         ``sampling`` (a dict of the method settings) record what was done;
         ``kernels`` lets the fast engine run it (``"rk4"`` on a controlkit block).
@@ -83,8 +129,6 @@ def sample_nlsys(
         raise ValueError(
             f"sys must be continuous time (dt = 0) to be sampled, got dt = {sys.dt!r}"
         )
-    if isinstance(sys, ct.StateSpace):
-        sys = ct.nlsys(sys)
     Ts = _checks.positive_scalar("Ts", Ts)
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
@@ -92,6 +136,8 @@ def sample_nlsys(
         raise ValueError(f"substeps must be an integer >= 1, got {substeps!r}")
     rtol = _checks.positive_scalar("rtol", rtol)
     atol = _checks.positive_scalar("atol", atol)
+    if isinstance(sys, (ct.StateSpace, ct.TransferFunction)):
+        return ct.sample_system(sys, Ts, method="zoh", name=name or sys.name)
     h = Ts / substeps
 
     def updfcn(t, x, u, params):
@@ -103,7 +149,10 @@ def sample_nlsys(
         if method == "rk4":
             x = np.asarray(x, dtype=float)
             for i in range(substeps):
-                x = _rk4_step(rhs, t + i * h, x, h)
+                x_next, _ = _rk4_step(rhs, t + i * h, x, h)
+                if not np.isfinite(x_next).all():
+                    raise SamplingError(blowup_message(sampled.name, t, Ts, substeps))
+                x = x_next
             return x
         sol = scipy.integrate.solve_ivp(
             rhs, (t, t + Ts), np.asarray(x, dtype=float), method="DOP853", rtol=rtol, atol=atol

@@ -63,9 +63,94 @@ def initial_state(sys, **by_block) -> np.ndarray:
 ENGINES = ("fast", "python-control")
 
 
+def check_arguments(sys, T, X0, U=0.0):
+    """``T``, ``X0`` and ``U`` checked and shaped once, the same way for both engines.
+
+    Parameters
+    ----------
+    sys : control.InputOutputSystem
+        The system they are meant for.
+    T, X0, U : array_like
+        As for :func:`simulate`.
+
+    Returns
+    -------
+    T : numpy.ndarray
+        Time points, 1-D, finite, increasing (spaced by ``sys.dt`` if discrete).
+    X0 : numpy.ndarray
+        Initial state with exactly ``sys.nstates`` values (never zero-padded).
+    U : numpy.ndarray
+        Inputs, shape ``(ninputs, len(T))`` (a read-only view when constant).
+
+    Raises
+    ------
+    ValueError
+        Naming the argument, what it must be and what it is.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> sys = ct.ss([[0.5]], [[1.0, 1.0]], [[1.0]], [[0.0, 0.0]], dt=1)
+    >>> T, X0, U = check_arguments(sys, [0, 1, 2], [1.0], [1.0, -1.0])  # U per input
+    >>> U.tolist()
+    [[1.0, 1.0, 1.0], [-1.0, -1.0, -1.0]]
+    >>> check_arguments(sys, [0, 1, 2], [1.0, 0.0])
+    Traceback (most recent call last):
+    ...
+    ValueError: X0 must have 1 values (x[0]), got 2
+    """
+    from .sampling import TimeGrid
+
+    discrete = sys.isdtime(strict=True) and sys.dt is not True
+    if isinstance(T, TimeGrid):  # a lazy grid stays lazy (long streamed runs)
+        if T.size == 0 or not np.isfinite(T.Ts) or T.Ts <= 0:
+            raise ValueError(f"T must be a non-empty grid with a positive step, got {T.size} "
+                             f"samples of {T.Ts:g}")
+        if discrete and T.size > 1 and not np.isclose(T.Ts, sys.dt):
+            raise ValueError(f"time steps of T must equal the sampling time {sys.dt} of "
+                             f"{sys.name!r}, got steps from {T.Ts:g} to {T.Ts:g}")
+    else:
+        T = np.asarray(T, dtype=float)
+        if T.ndim != 1 or T.size == 0:
+            raise ValueError(f"T must be a non-empty 1-D array of time points, "
+                             f"got shape {T.shape}")
+        if not np.isfinite(T).all():
+            raise ValueError("T must hold finite time points")
+        steps = np.diff(T)
+        if (steps <= 0).any():
+            raise ValueError("T must be increasing")
+        if discrete and T.size > 1 and not np.allclose(steps, sys.dt):
+            raise ValueError(f"time steps of T must equal the sampling time {sys.dt} of "
+                             f"{sys.name!r}, got steps from {steps.min():g} to "
+                             f"{steps.max():g}")
+    X0 = np.asarray(X0 if X0 is not None else 0.0, dtype=float)
+    if X0.ndim == 0 and sys.nstates != 1 and X0 == 0:
+        X0 = np.zeros(sys.nstates)
+    X0 = X0.reshape(-1)
+    if X0.size != sys.nstates:
+        labels = ", ".join(sys.state_labels) if sys.nstates <= 6 else f"{sys.nstates} states"
+        raise ValueError(f"X0 must have {sys.nstates} values ({labels or 'none'}), "
+                         f"got {X0.size}")
+    if not np.isfinite(X0).all():
+        raise ValueError("X0 must be finite")
+    n, N = sys.ninputs, T.size
+    U = np.asarray(U, dtype=float)
+    if U.ndim == 0 or U.ndim == 1 and U.size == n:
+        # a view: a constant input costs no memory per step
+        U = np.broadcast_to(U.reshape(-1, 1), (n, N))
+    elif U.ndim == 1 and n == 1 and U.size == N:
+        U = U.reshape(1, N)
+    elif U.shape != (n, N):
+        raise ValueError(f"U must be a scalar, one value per input ({n}), or an array of "
+                         f"shape ({n}, {N}) (inputs by time points), got shape {U.shape}")
+    if not np.isfinite(U).all():
+        raise ValueError("U must be finite")
+    return T, X0, U
+
+
 def simulate(
-    sys, T, X0, U=0.0, *, progress: Callable[[float], None] | None = None, chunks: int = 1,
-    engine: str = "python-control", record_every: int = 1,
+    sys, T, X0, U=0.0, *, params=None, progress: Callable[[float], None] | None = None,
+    chunks: int = 1, engine: str = "python-control", record_every: int = 1,
     on_chunk: Callable | None = None,
 ) -> ct.TimeResponseData:
     """Simulate a system, optionally in chunks with progress reports.
@@ -86,10 +171,13 @@ def simulate(
     T : array_like
         Time points (for a discrete system, multiples of ``sys.dt``).
     X0 : array_like
-        Initial state.
+        Initial state, exactly ``sys.nstates`` values.
     U : float or array_like
         Inputs: a constant (scalar or one value per input) or an array
         ``(ninputs, len(T))``.
+    params : dict, optional
+        Parameter values, as for :func:`control.input_output_response`; a key
+        no block reads is refused (:func:`controlkit.engine.check_params`).
     progress : callable, optional
         Called with the fraction done (0 < f <= 1) after each chunk.
     chunks : int
@@ -120,29 +208,32 @@ def simulate(
     """
     if engine not in ENGINES:
         raise ValueError(f"engine must be one of {ENGINES}, got {engine!r}")
-    if engine == "fast":
-        from . import engine as fast
+    from . import engine as fast
 
+    T, X0, U = check_arguments(sys, T, X0, U)
+    fast.check_params(sys, params)
+    if engine == "fast":
         try:
-            return fast.simulate_fast(sys, T, X0, U, progress=progress, chunks=chunks,
-                                      record_every=record_every, on_chunk=on_chunk)
+            return fast.simulate_fast(sys, T, X0, U, params=params, progress=progress,
+                                      chunks=chunks, record_every=record_every,
+                                      on_chunk=on_chunk)
         except fast.UnsupportedSystem as reason:
-            warnings.warn(f"fast engine not used, running python-control instead: {reason}",
+            warnings.warn(f"fast engine not used, running python-control instead: {reason} "
+                          f"(controlkit.engine.explain(sys) lists every block's tier)",
                           stacklevel=2)
-    T = np.asarray(T, dtype=float)
-    U = np.asarray(U, dtype=float)
     chunks = max(1, min(int(chunks), len(T) - 1))
     bounds = np.linspace(0, len(T) - 1, chunks + 1).round().astype(int)
     x = np.asarray(X0, dtype=float)
     pieces = []
     for k in range(chunks):
         i0, i1 = bounds[k], bounds[k + 1]
-        Uk = U[..., i0 : i1 + 1] if U.ndim == 2 else U
-        resp = ct.input_output_response(sys, T[i0 : i1 + 1], Uk, x, squeeze=False)
+        resp = ct.input_output_response(sys, T[i0 : i1 + 1], U[:, i0 : i1 + 1], x,
+                                        params=params, squeeze=False)
         first = 0 if k == 0 else 1  # the previous chunk already holds this sample
-        arrays = (resp.time, resp.outputs, resp.states, resp.inputs)
+        states = resp.x if resp.x is not None else np.zeros((0, resp.time.size))
+        arrays = (resp.time, resp.outputs, states, resp.inputs)
         pieces.append([a[..., first:] for a in arrays])
-        x = resp.states[:, -1]
+        x = states[:, -1]
         if progress is not None:
             progress(i1 / (len(T) - 1))
     time, outputs, states, inputs = (np.concatenate(a, axis=-1) for a in zip(*pieces, strict=True))

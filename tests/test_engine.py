@@ -77,22 +77,29 @@ def test_rewired_loop_with_saturation_and_reference_matches():
     assert np.abs(ref.outputs[2]).max() == pytest.approx(1.0)  # the limiter is active
 
 
-def test_user_block_falls_back_to_python_control_with_a_warning_naming_it():
+def test_user_lambda_block_compiles_and_matches_python_control():
     user = ct.nlsys(None, lambda t, x, u, p: 0.0009 * (u[0:2] - u[2:4]),
                     inputs=["r[0]", "r[1]", "h[0]", "h[1]"], outputs=["mu[0]", "mu[1]"],
                     dt=None, name="my_controller")
     loop = output_zeroing_loop(controller=user)
+    tiers = {row.name: row.tier for row in engine.explain(loop)}
+    assert tiers["my_controller"] == "compiled"
     T = np.arange(11) * 0.1
-    with pytest.warns(UserWarning, match=r"block 'my_controller' cannot be compiled"):
-        resp = simulate(loop, T, start(loop), engine="fast")
-    np.testing.assert_array_equal(resp.outputs, simulate(loop, T, start(loop)).outputs)
+    resp = simulate(loop, T, start(loop), engine="fast")
+    ref = simulate(loop, T, start(loop))
+    np.testing.assert_allclose(resp.outputs, ref.outputs, rtol=0, atol=1e-12)
 
 
-def test_momentum_given_as_python_function_is_named_in_the_warning():
+def test_momentum_given_as_python_function_runs_in_python_inside_the_fast_loop():
     plant = sc.spacecraft_plant(H0=lambda t: [0.0, 0.0, 0.01])
     loop = output_zeroing_loop(plant)
-    with pytest.warns(UserWarning, match=r"block 'plant' cannot be compiled: H0 is a Python"):
-        simulate(loop, np.arange(3) * 0.1, start(loop), engine="fast")
+    row = next(r for r in engine.explain(loop) if r.name == "plant")
+    assert row.tier == "python"
+    assert "H0 is a Python" in row.reason
+    T = np.arange(21) * 0.1
+    fast = engine.simulate_fast(loop, T, start(loop))
+    ref = simulate(loop, T, start(loop))
+    np.testing.assert_allclose(fast.outputs, ref.outputs, rtol=0, atol=1e-12)
 
 
 def test_singular_attitude_gives_the_same_message_on_the_fast_path():

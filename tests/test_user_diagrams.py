@@ -1,0 +1,200 @@
+"""Diagrams built the python-control way run compiled, with python-control's numbers."""
+
+import numpy as np
+import pytest
+from user_diagrams import DIAGRAMS
+
+from controlkit import engine
+from controlkit.simulation import simulate
+
+
+@pytest.mark.parametrize("name", list(DIAGRAMS))
+def test_user_diagram_is_compiled_and_equals_python_control(name):
+    loop, T, X0, U, params = DIAGRAMS[name]()
+    tiers = engine.explain(loop, params=params)
+    assert [row.tier for row in tiers] == ["compiled"] * len(loop.syslist), tiers
+    ref = simulate(loop, T, X0, U, params=params)
+    fast = simulate(loop, T, X0, U, params=params, engine="fast")
+    assert list(fast.state_labels) == list(ref.state_labels)
+    np.testing.assert_allclose(fast.outputs, ref.outputs, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(fast.states, ref.states, rtol=0, atol=1e-9)
+    assert np.abs(ref.outputs).max() > 0.1  # the loop does something
+
+
+# --- what is refused, and how --------------------------------------------------------------
+
+import control as ct  # noqa: E402
+from user_diagrams import TS, lti_loop, sampled_lti_plant, tank_with_params  # noqa: E402
+
+from controlkit._block import kernel_block  # noqa: E402
+from controlkit.blocks import spacecraft as sc  # noqa: E402
+from controlkit.diagrams.spacecraft import output_zeroing_loop  # noqa: E402
+from controlkit.kernels.common import saturation_output  # noqa: E402
+from controlkit.sampling import SamplingError, sample_nlsys  # noqa: E402
+from controlkit.scenarios.spacecraft import initial_attitude  # noqa: E402
+from controlkit.simulation import initial_state  # noqa: E402
+
+ENGINES = ["python-control", "fast"]
+
+
+def test_block_declared_without_feedthrough_whose_output_moves_with_its_input_is_refused():
+    limiter = kernel_block(saturation_output, params=[1.0], feedthrough=False,
+                           inputs="v", outputs="u", dt=None, name="limiter")
+    loop, T, X0, U, _ = lti_loop(steps=10)
+    loop = ct.interconnect([*[s for s in loop.syslist if s.name != "disturbance"], limiter,
+                            ct.summing_junction(["u", "d"], "u_plant", name="disturbance")],
+                           inputs=["r", "d"], outputs=["y"])
+    with pytest.raises(ValueError, match=r"block 'limiter' is declared without feedthrough"):
+        engine.simulate_fast(loop, T, np.zeros(loop.nstates), U)
+
+
+@pytest.mark.parametrize("which", ENGINES)
+def test_unknown_params_key_is_refused_on_both_engines(which):
+    loop = output_zeroing_loop(controller=sc.outer_controller(0.5))
+    X0 = initial_state(loop, plant=initial_attitude())
+    with pytest.raises(ValueError, match=r"params \['F'\] are read by no block of 'fig2_loop'"):
+        simulate(loop, [0.0, 0.1], X0, params={"F": 10}, engine=which)
+
+
+@pytest.mark.parametrize("which", ENGINES)
+def test_params_are_honoured_on_both_engines(which):
+    loop, T, X0, U, params = tank_with_params(steps=50)
+    default = simulate(loop, T, X0, U, engine=which)
+    changed = simulate(loop, T, X0, U, params={"leak": 0.9}, engine=which)
+    ref = ct.input_output_response(loop, T, U, X0, params={"leak": 0.9})
+    np.testing.assert_allclose(changed.outputs, ref.outputs, rtol=0, atol=1e-12)
+    assert np.abs(changed.outputs - default.outputs).max() > 1e-2
+
+
+def stiff_loop():
+    stiff = ct.nlsys(lambda t, x, u, params: -400.0 * x + u, None, inputs="u", outputs="y",
+                     states=1, name="stiff")
+    gain = ct.summing_junction(["r", "-y"], "u", name="error")
+    return ct.interconnect([sample_nlsys(stiff, TS), gain], inputs="r", outputs="y")
+
+
+@pytest.mark.parametrize("which", ENGINES)
+def test_sampled_block_that_blows_up_is_named_with_the_remedy(which):
+    loop = stiff_loop()
+    T = np.arange(400) * TS
+    with pytest.raises(SamplingError, match=r"block 'stiff' blows up inside a sample at t = .*"
+                                            r"more substeps .* method='solve_ivp'"):
+        simulate(loop, T, [1.0], 1.0, engine=which)
+
+
+def test_more_substeps_cure_the_blow_up():
+    stiff = ct.nlsys(lambda t, x, u, params: -400.0 * x + u, None, inputs="u", outputs="y",
+                     states=1, name="stiff")
+    sampled = sample_nlsys(stiff, TS, substeps=20)
+    assert sampled.dynamics(0.0, [1.0], [0.0])[0] == pytest.approx(np.exp(-20.0), abs=1e-6)
+
+
+@pytest.mark.parametrize("make", [
+    lambda: ct.ss([[0.0, 1.0], [-4.0, -0.4]], [[0.0], [1.0]], [[1.0, 0.0]], [[0.0]],
+                  name="msd", inputs="F", outputs="p", states=["p", "v"]),
+    lambda: ct.tf([2.0, 1.0], [1.0, 3.0, 2.0], name="msd", inputs="F", outputs="p"),
+])
+def test_sample_nlsys_of_lti_is_exact_zoh_and_keeps_names(make):
+    sys = make()
+    ours = sample_nlsys(sys, TS)
+    ref = ct.sample_system(sys, TS, method="zoh")
+    assert ours.name == "msd" and "$" not in ours.name
+    assert ours.input_labels == ["F"] and ours.output_labels == ["p"]
+    a, b = ct.ss(ours), ct.ss(ref)
+    for m in "ABCD":
+        np.testing.assert_allclose(getattr(a, m), getattr(b, m), rtol=0, atol=1e-12)
+
+
+def test_sampled_lti_connects_by_name_and_compiles():
+    loop, T, X0, U, _ = sampled_lti_plant(steps=5)
+    assert [s.name for s in loop.syslist] == ["msd", "feedback"]
+    assert {r.tier for r in engine.explain(loop)} == {"compiled"}
+
+
+@pytest.mark.parametrize("which", ENGINES)
+@pytest.mark.parametrize("args, message", [
+    (([], [0.0, 0.0, 0.0], 0.0), r"T must be a non-empty 1-D array"),
+    (([0.0, 0.1], [0.0, 0.0, 0.0], 0.0), r"time steps of T must equal the sampling time 0.05"),
+    (([0.0, TS], [0.0, 0.0], 0.0), r"X0 must have 3 values \(plant_x\[0\].*got 2"),
+    (([0.0, TS], [0.0, 0.0, np.nan], 0.0), r"X0 must be finite"),
+    (([0.0, TS], [0.0, 0.0, 0.0], np.ones((3, 2))), r"U must be a scalar, one value per input"),
+    (([0.0, TS], [0.0, 0.0, 0.0], [np.inf, 0.0]), r"U must be finite"),
+])
+def test_bad_arguments_get_the_same_error_on_both_engines(which, args, message):
+    loop, *_ = lti_loop(steps=2)
+    with pytest.raises(ValueError, match=message):
+        simulate(loop, *args, engine=which)
+
+
+def test_one_value_per_input_and_stateless_diagrams_work_on_both_engines():
+    gain = ct.nlsys(None, lambda t, x, u, params: 2.0 * u[0] - u[1], inputs=["a", "b"],
+                    outputs="c", dt=TS, name="gain")
+    total = ct.summing_junction(["c", "a"], "s", name="total")
+    loop = ct.interconnect([gain, total], inputs=["a", "b"], outputs=["s"])
+    T = np.arange(4) * TS
+    results = [simulate(loop, T, [], [1.0, 0.5], engine=w).outputs for w in ENGINES]
+    for outputs in results:
+        np.testing.assert_array_equal(outputs, [[2.5, 2.5, 2.5, 2.5]])
+
+
+def test_function_numba_cannot_compile_runs_in_python_inside_the_fast_loop():
+    table = {"gain": 0.5}  # a dict read by the function: numba cannot freeze it
+
+    def update(t, x, u, params):
+        return x + TS * (table["gain"] * u[0] - x[0])
+
+    plant = ct.nlsys(update, None, inputs="u", outputs="y", states=1, dt=TS, name="plant")
+    loop = ct.interconnect([plant, ct.summing_junction(["r", "-y"], "u", name="error")],
+                           inputs="r", outputs="y")
+    row = engine.explain(loop)[0]
+    assert row.tier == "python" and "dict" in row.reason
+    T = np.arange(50) * TS
+    fast = simulate(loop, T, [0.0], 1.0, engine="fast")
+    np.testing.assert_allclose(fast.outputs, simulate(loop, T, [0.0], 1.0).outputs,
+                               rtol=0, atol=1e-12)
+
+
+def test_continuous_diagram_falls_back_with_a_warning_pointing_to_explain():
+    plant = ct.nlsys(lambda t, x, u, params: -x + u, None, inputs="u", outputs="y", states=1,
+                     name="plant")
+    loop = ct.interconnect([plant, ct.summing_junction(["r", "-y"], "u", name="error")],
+                           inputs="r", outputs="y")
+    rows = engine.explain(loop)
+    assert {r.tier for r in rows} == {"python-control"}
+    assert "continuous time" in rows[0].reason
+    with pytest.warns(UserWarning, match=r"continuous time.*controlkit.engine.explain\(sys\)"):
+        simulate(loop, np.linspace(0.0, 1.0, 11), [0.0], 1.0, engine="fast")
+
+
+def test_lti_blocks_with_feedthrough_in_a_chain_are_ordered_and_exact():
+    # D != 0 in the lead filter, the gain and the junction: ordered after the plant
+    lead = ct.sample_system(ct.tf([2.0, 1.0], [0.5, 1.0]), TS, name="lead", inputs="e",
+                            outputs="v")
+    gain = ct.tf(3.0, 1.0, name="gain", inputs="v", outputs="u")
+    plant = ct.sample_system(ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]]), TS, name="plant",
+                             inputs="u", outputs="y")
+    error = ct.summing_junction(["r", "-y"], "e", name="error")
+    loop = ct.interconnect([error, gain, lead, plant], inputs="r", outputs=["y", "u"])
+    assert {r.tier for r in engine.explain(loop)} == {"compiled"}
+    T = np.arange(200) * TS
+    fast = simulate(loop, T, np.zeros(loop.nstates), 1.0, engine="fast")
+    ref = ct.input_output_response(loop, T, 1.0, np.zeros(loop.nstates))
+    np.testing.assert_allclose(fast.outputs, ref.outputs, rtol=0, atol=1e-9)
+
+
+def test_values_read_by_a_user_function_are_taken_afresh_at_each_run():
+    gain = np.array([0.5])
+
+    def update(t, x, u, params):
+        return [x[0] + TS * (gain[0] * u[0] - params.get("leak", 0.1) * x[0])]
+
+    plant = ct.nlsys(update, None, inputs="u", outputs="y", states=1, dt=TS, name="plant")
+    loop = ct.interconnect([plant, ct.summing_junction(["r", "-y"], "u", name="error")],
+                           inputs="r", outputs="y")
+    T = np.arange(30) * TS
+    first = simulate(loop, T, [0.0], 1.0, engine="fast").outputs
+    gain[0] = 2.0  # the user edits the array between runs
+    second = simulate(loop, T, [0.0], 1.0, params={"leak": 0.3}, engine="fast").outputs
+    ref = simulate(loop, T, [0.0], 1.0, params={"leak": 0.3}).outputs
+    np.testing.assert_allclose(second, ref, rtol=0, atol=1e-12)
+    assert np.abs(second - first).max() > 0.1
