@@ -48,10 +48,11 @@ def blowup_message(name, t, Ts, substeps) -> str:
     >>> blowup_message("plant", 0.0, 0.1, 1)[:41]
     "block 'plant' blows up inside a sample at"
     """
-    return (f"block {name!r} blows up inside a sample at t = {t:g} s: RK4 with {substeps} "
-            f"substep(s) of {Ts / substeps:g} s is unstable or far too coarse for it (stiff "
-            f"or fast dynamics); sample it with more substeps (sample_nlsys(..., substeps=...)),"
-            f" with method='solve_ivp', or at a smaller Ts")
+    return (f"block {name!r} blows up inside a sample at t = {t:g} s: either the loop "
+            f"feeding it diverged (a gain too high for the sample time), or RK4 with "
+            f"{substeps} substep(s) of {Ts / substeps:g} s is unstable or far too coarse for "
+            f"it (stiff or fast dynamics); for the latter, sample it with more substeps "
+            f"(sample_nlsys(..., substeps=...)), with method='solve_ivp', or at a smaller Ts")
 
 
 def _rk4_step(rhs, t, x, h):
