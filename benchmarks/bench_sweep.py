@@ -31,7 +31,7 @@ def timed(samples, workers, executor="processes"):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--runs", type=int, default=24,
+    parser.add_argument("--runs", type=int, default=120,
                         help="runs per throughput measurement (a multiple of 3)")
     parser.add_argument("--study-samples", type=int, default=67,
                         help="draws of the timed study (x 3 cases; 67 -> 201 runs)")
