@@ -67,8 +67,9 @@ follows these rules; the ones marked *checked* are enforced where they can be.
     The fast engine stops at the first NaN and calls the same check, so both
     paths report a failure in the same words.
 12. A block whose equations call Python objects (a user's function) passes
-    ``uncompiled=`` with the reason; it then runs on the python-control path
-    only, and the engine tells the user that reason.
+    ``uncompiled=`` with the reason; the fast engine then calls its Python
+    functions inside its own loop (the ``python`` tier of
+    :func:`controlkit.engine.explain`, which also gives that reason).
 """
 
 from __future__ import annotations

@@ -86,13 +86,14 @@ if _jit.HAVE_NUMBA:
 def _lambda_body(fn):
     """The expression of a lambda, cut from its file by the positions of its code."""
     code = fn.__code__
-    spans = [p for p in code.co_positions()  # not the zero-width entry and return
-             if None not in p and (p[0], p[2]) != (p[1], p[3])]
+    # (line, end line, column, end column) of each instruction, not the zero-width ones
+    spans = [(line, end, col, end_col) for line, end, col, end_col in code.co_positions()
+             if None not in (line, end, col, end_col) and (line, col) != (end, end_col)]
     lines = linecache.getlines(code.co_filename)
     if not spans or not lines:
         raise NotCompilable("its source is not available")
-    first = min((p[0], p[2]) for p in spans)
-    last = max((p[1], p[3]) for p in spans)
+    first = min((line, col) for line, _, col, _ in spans)
+    last = max((end, end_col) for _, end, _, end_col in spans)
     chunk = lines[first[0] - 1:last[0]]
     if not chunk:
         raise NotCompilable("its source is not available")
