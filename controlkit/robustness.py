@@ -13,7 +13,6 @@ against the size of the inertia error.
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import numpy as np
@@ -251,22 +250,19 @@ def write(table, summary, out, **settings) -> list[Path]:
     >>> sorted(p.name for p in write(t, s, tempfile.mkdtemp()))[-2:]
     ['summary.json', 'sweep.csv']
     """
+    from .outputs.export import atomic
     from .outputs.style import save
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     paths = []
-    csv_path = out / "sweep.csv"
-    tmp = csv_path.with_name(f".sweep.csv.{os.getpid()}.tmp")
-    table.to_csv(tmp, index=False)
-    os.replace(tmp, csv_path)
-    paths.append(csv_path)
-    json_path = out / "summary.json"
-    tmp = json_path.with_name(f".summary.json.{os.getpid()}.tmp")
-    tmp.write_text(json.dumps({"settings": settings, "requirement_deg":
-                               POINTING_REQUIREMENT_DEG, "cases": summary}, indent=2) + "\n")
-    os.replace(tmp, json_path)
-    paths.append(json_path)
+    with atomic(out / "sweep.csv") as partial:
+        table.to_csv(partial, index=False)
+    with atomic(out / "summary.json") as partial:
+        partial.write_text(json.dumps({"settings": settings, "requirement_deg":
+                                       POINTING_REQUIREMENT_DEG, "cases": summary},
+                                      indent=2) + "\n")
+    paths += [out / "sweep.csv", out / "summary.json"]
     for stem, fig in figures(table, summary).items():
         paths += save(fig, out / f"{stem}.png")
     return paths

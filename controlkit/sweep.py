@@ -37,6 +37,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .outputs.export import atomic, json_default
+
 #: Executors by name (``executor=`` of :func:`sweep`, ``--executor`` of the CLI).
 EXECUTORS = ("processes", "threads", "serial", "dask")
 #: Where finished runs are appended, inside ``store``.
@@ -234,26 +236,17 @@ def _load_finished(store: Path, key: str, resume: bool) -> dict[int, dict]:
             finished[row["run"]] = row
         return finished
     store.mkdir(parents=True, exist_ok=True)
-    tmp = spec.with_suffix(".tmp")
-    tmp.write_text(json.dumps({"key": key}) + "\n")
-    os.replace(tmp, spec)
+    with atomic(spec) as partial:
+        partial.write_text(json.dumps({"key": key}) + "\n")
     runs_file.write_text("")
     return {}
 
 
 def _append(store: Path, row: dict) -> None:
     with (store / RUNS_FILE).open("a") as handle:
-        handle.write(json.dumps(row, default=_plain) + "\n")
+        handle.write(json.dumps(row, default=json_default) + "\n")
         handle.flush()
         os.fsync(handle.fileno())
-
-
-def _plain(value):
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    raise TypeError(f"cannot store {type(value).__name__} in a sweep row")
 
 
 def process_context():

@@ -80,13 +80,21 @@ def write_json(path, data) -> Path:
     >>> p.read_text()
     '{\\n  "x": 1.5\\n}\\n'
     """
-    text = json.dumps(data, indent=2, default=_to_builtin) + "\n"
+    text = json.dumps(data, indent=2, default=json_default) + "\n"
     with atomic(path) as partial:
         partial.write_text(text)
     return Path(path)
 
 
-def _to_builtin(value):
+def json_default(value):
+    """``default=`` of :func:`json.dumps` for numpy scalars and arrays.
+
+    Examples
+    --------
+    >>> import json, numpy as np
+    >>> json.dumps({"x": np.arange(2)}, default=json_default)
+    '{"x": [0, 1]}'
+    """
     if isinstance(value, np.ndarray):
         return value.tolist()
     if isinstance(value, np.generic):
