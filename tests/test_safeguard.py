@@ -79,6 +79,14 @@ def test_safeguarded_tuner_meets_the_claim_under_all_16_readings():
         assert m["peak_abs_u_after_1000s_rad_s"] <= 2.5, r.reading
 
 
+def test_every_reading_meets_the_requirement_again_after_the_inertia_error_doubles():
+    # measured: under all 16 readings the safeguarded loop never leaves 0.05 deg after the
+    # step (recovery 0 s); the bar is recovery within 5 000 s
+    for reading in frit.READINGS:
+        _, recovery = frit.run_inertia_step("safeguarded", reading, horizon=40_000.0)
+        assert recovery <= 5000.0, reading
+
+
 def test_safeguarded_tuner_retunes_after_the_inertia_error_doubles():
     resp, recovery = frit.run_inertia_step("safeguarded", horizon=40_000.0)
     assert recovery <= 5000.0
