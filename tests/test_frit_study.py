@@ -59,6 +59,12 @@ def test_a_diverging_reading_is_a_row_with_its_time_not_a_crash():
     assert result.metrics["requirement_met_last_half"] is False
     assert result.metrics["diverged_at_s"] == pytest.approx(10_281.2, abs=1.0)
     assert "diverged" in result.error
+    # the K trace is kept up to the last chunk of the run that stayed finite
+    from controlkit.engine import STREAM_CHUNK_STEPS
+    chunk_s = STREAM_CHUNK_STEPS * 0.1
+    assert result.time[-1] < result.metrics["diverged_at_s"] <= result.time[-1] + chunk_s
+    assert result.K.shape == (4, result.time.size) and np.isfinite(result.K).all()
+    assert np.all(np.diff(result.time) > 0)
     row = out.rows({"paper": [result]})[0]
     assert row["diverged"] is True and np.isnan(row["max_pointing_error_last_half_deg"])
 

@@ -76,7 +76,8 @@ def figure(results: dict[str, list], stem: str):
     ``"sensitivity_last_half_error"``: the worst pointing error over the last half of
     every reading, one marker per tuner, on a log axis with the 0.05 deg requirement
     (a diverged run is drawn at the top, marked x). ``"sensitivity_K_failing"``: the
-    gain ``K`` of the readings where the paper's tuner misses the requirement.
+    gain ``K`` of the readings where the paper's tuner misses the requirement (a run that
+    diverged is drawn up to the last chunk that stayed finite, ending in an x).
 
     Examples
     --------
@@ -122,21 +123,22 @@ def figure(results: dict[str, list], stem: str):
             return fig
         failing = [r for r in results.get("paper", [])
                    if not r.metrics["requirement_met_last_half"]]
-        fig, (ax,) = new_figure()
+        fig, (ax,) = new_figure(size=(10.0, 5.625))  # room for labels that say "diverged"
         styles = ("-", "--", "-.", ":")
         colors = ("tab:red", "tab:orange", "tab:purple", "tab:brown", "tab:olive", "tab:cyan",
                   "tab:pink", "tab:gray")
         for color, r in zip(colors, failing, strict=False):
-            if r.K.size == 0:
+            label = reading_label(r.reading)
+            if r.metrics["diverged"]:
+                label += f": diverged, {r.metrics['diverged_at_s']:.0f} s"
+            if r.K.size == 0:  # diverged before any sample was kept: the legend says when
+                ax.plot([], [], "x", color=color, markeredgewidth=2.5, label=label)
                 continue
             norm = np.abs(r.K).max(axis=0)
-            ax.plot(r.time, norm, color=color, linestyle=styles[0],
-                    label=reading_label(r.reading))
-        for r in failing:
-            if r.K.size == 0:  # no trace: say where it stopped, in the legend
-                ax.plot([], [], "x", color="k", markeredgewidth=2,
-                        label=f"{reading_label(r.reading)}: diverged at "
-                              f"{r.metrics['diverged_at_s']:.0f} s")
+            ax.plot(r.time, norm, color=color, linestyle=styles[0], label=label)
+            if r.metrics["diverged"]:  # the trace ends where the run was last finite
+                ax.plot(r.time[-1], norm[-1], "x", color=color, markersize=11,
+                        markeredgewidth=2.5)
         if not failing:
             ax.text(0.5, 0.5, "the paper's tuner meets the requirement in every reading",
                     transform=ax.transAxes, ha="center", va="center")

@@ -53,8 +53,8 @@ class ReadingResult:
     metrics : dict
         The CSV columns after the reading's (see :data:`controlkit.outputs.frit.COLUMNS`).
     time, K : numpy.ndarray
-        Decimated time and gain trace (``K`` row-major, shape ``(4, n)``); empty if the
-        run diverged.
+        Decimated time and gain trace (``K`` row-major, shape ``(4, n)``); for a run that
+        diverged, the trace up to the last chunk of the run that stayed finite.
     error : str
         Why the run stopped, when it diverged; else ``""``.
 
@@ -124,20 +124,21 @@ def run_reading(tuner="paper", reading=None, *, horizon=HORIZON, engine="fast",
                          f"allowed: {list(mec.READINGS)}")
     options = _tuner_options(tuner, reading)
     labels = list(spacecraft.build_loop("proposed", tuner_options=options).output_labels)
-    watch = _Watch(labels, horizon)
     steps = int(round(horizon / TS_PAPER)) + 1
+    every = max(1, steps // K_TRACE_POINTS)
+    watch = _Watch(labels, horizon, every)
     try:
         resp = spacecraft.run("proposed", horizon=horizon, tuner_options=options,
                               progress=progress, engine=engine, on_chunk=watch,
-                              record_every=max(1, steps // K_TRACE_POINTS))
+                              record_every=every)
     except FloatingPointError as error:
         metrics = {"horizon_s": float(horizon), "max_pointing_error_last_half_deg": math.nan,
                    "final_pointing_error_deg": math.nan, "max_abs_K": math.nan,
                    "peak_abs_u_after_1000s_rad_s": math.nan, "diverged": True,
                    "requirement_met_last_half": False,
                    "diverged_at_s": getattr(error, "time", math.nan)}
-        return ReadingResult(tuner, reading, metrics, np.zeros(0), np.zeros((4, 0)),
-                             str(error))
+        time, K = watch.trace()
+        return ReadingResult(tuner, reading, metrics, time, K, str(error))
     K = resp.outputs[[labels.index(f"K[{i}]") for i in range(4)]]
     return ReadingResult(tuner, reading, watch.metrics(), resp.time, K)
 
@@ -145,13 +146,16 @@ def run_reading(tuner="paper", reading=None, *, horizon=HORIZON, engine="fast",
 class _Watch:
     """The study's metrics, accumulated chunk by chunk over every step of a streamed run."""
 
-    def __init__(self, labels, horizon):
+    def __init__(self, labels, horizon, every=1):
         self.q = [labels.index(f"q[{i}]") for i in range(4)]
         self.K = [labels.index(f"K[{i}]") for i in range(4)]
         self.u = [labels.index(f"u[{i}]") for i in range(2)]
         self.half, self.horizon = horizon / 2, horizon
         self.worst = self.max_K = self.peak_u = 0.0
         self.final, self.finite, self.t_end = math.nan, True, 0.0
+        # every ``every``-th sample of K, counted over the whole run: the trace of a run
+        # that diverges, whose decimated response is lost with the exception
+        self.every, self.seen, self.t_kept, self.K_kept = every, 0, [], []
 
     def __call__(self, t, y, x):
         error = pointing_error_deg(y[self.q])
@@ -165,6 +169,16 @@ class _Watch:
         if after.any():
             self.peak_u = max(self.peak_u, float(np.abs(u[:, after]).max()))
         self.final, self.t_end = float(error[-1]), float(t[-1])
+        first = -self.seen % self.every
+        self.t_kept.append(t[first::self.every].copy())
+        self.K_kept.append(K[:, first::self.every].copy())
+        self.seen += t.size
+
+    def trace(self):
+        """The kept samples of ``K`` so far: ``time (n,)``, ``K (4, n)``."""
+        if not self.t_kept:
+            return np.zeros(0), np.zeros((4, 0))
+        return np.concatenate(self.t_kept), np.hstack(self.K_kept)
 
     def metrics(self) -> dict:
         return {
