@@ -6,12 +6,21 @@ import pytest
 
 from controlkit.blocks import mec
 from controlkit.blocks.spacecraft import TS_PAPER
-from controlkit.kernels.mec import TUNER, TUNER_STATE, bound_covariance, project_stable_gain
+from controlkit.kernels.mec import (
+    TUNER,
+    TUNER_INPUTS,
+    TUNER_STATE,
+    bound_covariance,
+    normalised_row,
+    project_stable_gain,
+    tuner_update,
+)
 from controlkit.scenarios import frit
 from controlkit.scenarios import spacecraft as scenario
 
 RNG = np.random.default_rng(5)
 RHO = mec.SAFEGUARD_DEFAULTS["rho"]
+DEADZONE = mec.SAFEGUARD_DEFAULTS["deadzone"]
 
 
 def spectral_norm_of_error_loop(K):
@@ -66,6 +75,83 @@ def test_invariants_hold_at_every_step(reading):
         assert np.linalg.norm(M, 2, axis=(1, 2)).max() <= RHO + 1e-9
 
 
+@pytest.mark.parametrize("reading", [frit.READINGS[0], frit.READINGS[10]],
+                         ids=lambda r: " ".join(r.values()))
+def test_dead_zone_freezes_the_estimator_exactly_when_both_errors_are_inside(reading):
+    # replay the recorded run: at step k the normalised prediction errors come from the
+    # regressors of that step (filters before the sample for "zoh", after it for
+    # "feedthrough") and Khat before it; inside the dead zone nothing may move
+    resp = scenario.run("proposed", horizon=3000.0, tuner_options={"safeguard": True,
+                                                                   **reading})
+    states = np.array([resp.states[list(resp.state_labels).index(f"tuner_{n}")]
+                       for n in TUNER_STATE.labels()]).T
+    labels = list(resp.output_labels)
+    h = resp.outputs[[labels.index("h[0]"), labels.index("h[1]")]].T
+    p = mec.frit_tuner(safeguard=True, **reading).kernels.params
+    ahead = 1 if reading["filter"] == "feedthrough" else 0
+    S, moved, inside_both = TUNER_STATE, 0, 0
+    for k in range(resp.time.size - 1):
+        errors = []
+        for j in range(2):
+            xi0, xi1, eta, norm = normalised_row(states[k + ahead], p, h[k, j], j)
+            Khat = states[k, S.Khat + 2 * j:S.Khat + 2 * j + 2]
+            errors.append(abs(eta - Khat @ [xi0, xi1]) if norm > 0 else 0.0)
+        estimator = np.r_[S.slice("Khat"), S.slice("P1"), S.slice("P2")]
+        step = states[k + 1, estimator] - states[k, estimator]
+        if max(errors) <= DEADZONE:
+            inside_both += 1
+            assert not np.any(step), (k, errors)
+        elif min(errors) > DEADZONE * (1 + 1e-9):
+            moved += 1
+            assert np.any(step[4:8]) and np.any(step[8:]), (k, errors)  # P1 and P2
+    assert inside_both > 1000 and moved > 10  # both branches were exercised
+
+
+def test_units_change_nothing_under_the_safeguard():
+    # the dead zone replaces psi and the regression is normalised: the two readings of
+    # Table 3's units are the same tuner, step for step
+    runs = [scenario.run("proposed", horizon=2000.0,
+                         tuner_options={"safeguard": True, "units": units})
+            for units in ("deg", "q")]
+    np.testing.assert_array_equal(runs[0].outputs, runs[1].outputs)
+    scaled = mec.frit_tuner(safeguard=True, output_scale=1e3)
+    np.testing.assert_array_equal(scaled.kernels.params, mec.frit_tuner(safeguard=True)
+                                  .kernels.params)
+
+
+def drive_estimator(tuner, xi, eta):
+    """Step the tuner kernel on given regressors: filters with a = 0 hold the last sample,
+    so with ``h = 0`` and ``M h = 0`` step k sees ``xi_j = xi[k]`` and ``eta = eta[k]``."""
+    p = tuner.kernels.params.copy()
+    p[TUNER.slice("a")] = 0.0
+    x, S = tuner.x0.copy(), TUNER_STATE
+    u = TUNER_INPUTS.pack(mu=[0.0, 0.0], h=[0.0, 0.0], hn=[0.0, 0.0])
+    trace = np.empty((len(xi), 4))
+    for k in range(len(xi)):
+        x[S.slice("Mxi1")] = x[S.slice("Mxi2")] = xi[k]
+        x[S.slice("Mmu")], x[S.slice("Mh")] = eta[k], 0.0
+        x = tuner_update(0.0, x, u, p, np.empty(S.size))
+        trace[k] = x[S.slice("Khat")]
+    return trace
+
+
+def test_the_estimator_keeps_learning_after_a_long_run_and_retunes_when_the_plant_changes():
+    # 40 000 samples from one gain, then the data change to another one: the lower bound
+    # on P keeps the estimator's gain from vanishing, so it follows the change; the
+    # regressor's size (units of h) does not matter after the normalisation
+    K1 = np.array([[3.0, 0.5], [-0.4, 6.0]])
+    K2 = np.array([[9.0, -1.0], [1.5, 4.0]])
+    n = 40_000
+    xi = 1e-4 * RNG.normal(size=(2 * n, 2))
+    eta = np.vstack([xi[:n] @ K1.T, xi[n:] @ K2.T])
+    Khat = drive_estimator(mec.frit_tuner(safeguard=True, kappa=1.0), xi, eta)
+    np.testing.assert_allclose(Khat[n - 1].reshape(2, 2), K1, atol=2 * DEADZONE)
+    np.testing.assert_allclose(Khat[n + 2000].reshape(2, 2), K2, atol=2 * DEADZONE)
+    assert np.abs(Khat[n + 100].reshape(2, 2) - K1).max() > 1.0  # it left K1 at once
+    big = drive_estimator(mec.frit_tuner(safeguard=True, kappa=1.0), 1e4 * xi, 1e4 * eta)
+    np.testing.assert_allclose(big, Khat, rtol=1e-9, atol=1e-12)
+
+
 def test_safeguarded_tuner_meets_the_claim_under_all_16_readings():
     # the issue's bar at 20 000 s: <= 0.05 deg over the last half, |K_ij| <= 20, wheels
     # after the first 1 000 s never above 2.5 rad/s (the ideal loop's initial peak)
@@ -118,6 +204,15 @@ def test_no_safeguard_is_the_papers_tuner():
 def test_bad_safeguard_settings_are_refused(safeguard, message):
     with pytest.raises(ValueError, match=message):
         mec.frit_tuner(safeguard=safeguard)
+
+
+def test_psi_is_refused_with_the_safeguard_which_replaces_it():
+    with pytest.raises(ValueError, match=r"psi is the paper's threshold; the safeguarded "
+                                         r"tuner replaces it by its dead zone"):
+        mec.frit_tuner(psi=1e-3, safeguard=True)
+    assert mec.frit_tuner(safeguard=True).psi is None
+    np.testing.assert_array_equal(mec.frit_tuner().psi,
+                                  mec.frit_tuner(psi=mec.PSI_PAPER).psi)
 
 
 @pytest.mark.slow

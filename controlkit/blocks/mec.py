@@ -217,9 +217,10 @@ READINGS = {
 #: Settings of the safeguarded tuner (``safeguard=True``); see ``docs/theory/frit.md``.
 #: ``p_min``, ``p_max``: bounds on the eigenvalues of each covariance ``P_j`` (the
 #: regressors are normalised, so these are in (1/s)^2 whatever the units of ``h``);
-#: ``deadzone``: no update while the normalised prediction error is below it (1/s);
+#: ``deadzone``: no update while the normalised prediction error is at most this (1/s);
+#: it replaces the paper's threshold ``psi``, whose units the paper leaves open;
 #: ``rho``: the gain is kept in ``|| I - Ts K ||_2 <= rho`` (a stable error loop).
-SAFEGUARD_DEFAULTS = {"p_min": 1e-4, "p_max": 1.0, "deadzone": 0.0, "rho": 0.98}
+SAFEGUARD_DEFAULTS = {"p_min": 1e-4, "p_max": 1.0, "deadzone": 0.01, "rho": 0.98}
 
 
 def _safeguard_params(safeguard, Ts) -> dict:
@@ -257,7 +258,7 @@ def _reading(name, value):
 
 def frit_tuner(
     F=F_PAPER, Ts=TS_PAPER, *, lambda_=LAMBDA_PAPER, gamma=GAMMA_PAPER, kappa=KAPPA_PAPER,
-    psi=PSI_PAPER, K0=0.0, h0=(0.0, 0.0), filter="zoh", start="rest", freeze="row",
+    psi=None, K0=0.0, h0=(0.0, 0.0), filter="zoh", start="rest", freeze="row",
     units="deg", output_scale=None, safeguard=None, name="tuner",
 ) -> ct.NonlinearIOSystem:
     """On-line FRIT tuner of the MEC gain ``K`` by recursive least squares (eq. 15-30).
@@ -300,8 +301,10 @@ def frit_tuner(
     kappa : float
         Low-pass coefficient in ``(0, 1]`` (eq. 30); 1 applies ``Khat`` directly.
         Default 0.45.
-    psi : float or array_like
-        Thresholds ``(psi1, psi2)`` >= 0 on ``|hn_j - h_j|``. Default 0.00012.
+    psi : float or array_like, optional
+        Thresholds ``(psi1, psi2)`` >= 0 on ``|hn_j - h_j|``. Default 0.00012 (Table 3).
+        The paper's tuner only: the safeguarded tuner replaces the threshold by its
+        dead zone, and refuses ``psi``.
     K0 : float or array_like
         Initial gain ``K(0) = Khat(0)``, scalar or 2x2. Default 0.
     h0 : array_like
@@ -337,8 +340,10 @@ def frit_tuner(
         ``None``/``False`` (default): the paper's tuner. ``True``: the safeguarded tuner
         (beyond the paper; ``docs/theory/frit.md``): each row's regression is
         normalised by ``|xi_j|`` (so ``P`` and ``gamma`` no longer depend on the units of
-        ``h``; ``P(0) = min(gamma, p_max) I``), a dead zone skips updates whose
-        normalised prediction error is below ``deadzone``, the eigenvalues of ``P_j``
+        ``h``; ``P(0) = min(gamma, p_max) I``), a dead zone on the normalised prediction
+        error takes the place of ``psi`` (row ``j`` frozen while the error is at most
+        ``deadzone``; ``freeze="joint"``: both rows while both are), so ``units`` and
+        ``output_scale`` change nothing, the eigenvalues of ``P_j``
         stay in ``[p_min, p_max]`` (no wind-up, no starving: it re-tunes when the plant
         changes), and ``Khat`` is projected onto ``|| I - Ts K ||_2 <= rho`` so the
         sampled error loop stays stable (``K(0)`` is projected too). A dict overrides
@@ -360,6 +365,9 @@ def frit_tuner(
     (24, [0.0, 0.0, 0.0, 0.0])
     >>> round(tuner.gamma), tuner.psi.round(8).tolist()  # in units of h = [q1, q2]
     (1313123, [1.05e-06, 1.05e-06])
+    >>> guarded = frit_tuner(safeguard=True, units="q")  # units change nothing here
+    >>> guarded.psi is None, guarded.safeguard["deadzone"], guarded.gamma
+    (True, 0.01, 1.0)
     """
     F = _checks.gain_pair("F", F)
     if np.any(F == 0):
@@ -368,6 +376,11 @@ def frit_tuner(
     lambda_ = _checks.in_interval("lambda_", lambda_, 0.0, 1.0)
     gamma = _checks.positive_scalar("gamma", gamma)
     kappa = _checks.in_interval("kappa", kappa, 0.0, 1.0)
+    guard = _safeguard_params(safeguard, Ts)
+    if guard["safeguard"] and psi is not None:
+        raise ValueError("psi is the paper's threshold; the safeguarded tuner replaces it by "
+                         "its dead zone: give safeguard={'deadzone': ...} instead of psi")
+    psi = PSI_PAPER if psi is None else psi
     psi_values = np.broadcast_to(np.asarray(psi, dtype=float), (2,)) if np.ndim(psi) == 0 \
         else np.asarray(psi, dtype=float)
     if psi_values.shape != (2,) or not np.all(np.isfinite(psi_values)) or np.any(psi_values < 0):
@@ -378,13 +391,15 @@ def frit_tuner(
                 (("filter", filter), ("start", start), ("freeze", freeze), ("units", units))}
     scale = UNIT_SCALES[units] if output_scale is None else \
         _checks.positive_scalar("output_scale", output_scale)
-    guard = _safeguard_params(safeguard, Ts)
-    if guard["safeguard"]:  # normalised regressors: P is in the units of K, not of h
+    if guard["safeguard"]:
+        # normalised regressors: P is in the units of K, not of h, and the dead zone takes
+        # the place of psi, so the units of h enter nowhere
         gamma = min(gamma, guard["p_max"])
         K0 = kernels.project_stable_gain(K0.ravel().copy(), 0, Ts, guard["rho"]).reshape(2, 2)
+        psi_values = np.zeros(2)
     else:
         gamma = gamma * scale**2  # see output_scale
-    psi_values = psi_values / scale
+        psi_values = psi_values / scale
     a = np.exp(-F * Ts)
     params = TUNER.pack(F=F, a=a, lambda_=lambda_, kappa=kappa, psi=psi_values,
                         feedthrough=float(filter == "feedthrough"),
@@ -397,7 +412,8 @@ def frit_tuner(
     Mh0 = h0 if start == "rest" else np.zeros(2)
     sys.x0 = TUNER_STATE.pack(Mxi1=np.zeros(2), Mxi2=np.zeros(2), Mmu=np.zeros(2), Mh=Mh0,
                               Khat=K0, P1=P0, P2=P0, K=K0)
-    sys.F, sys.lambda_, sys.gamma, sys.kappa, sys.psi = F, lambda_, gamma, kappa, psi_values
+    sys.F, sys.lambda_, sys.gamma, sys.kappa = F, lambda_, gamma, kappa
+    sys.psi = None if guard["safeguard"] else psi_values
     sys.readings, sys.output_scale = readings, scale
     sys.safeguard = {k: guard[k] for k in SAFEGUARD_DEFAULTS} if guard["safeguard"] else None
     return sys

@@ -151,24 +151,22 @@ def tuner_update(t, x, u, p, out):
     # the regressors of this step: the filters before this sample (ZOH reading) or
     # after it (feedthrough reading, the current sample included)
     src = xn if p[TUNER.feedthrough] != 0.0 else x
-    frozen = tuner_frozen(e, p)
     safe = p[TUNER.safeguard] != 0.0
+    # the paper's threshold psi on |hn - h|, or the safeguard's scale-free dead zone
+    frozen = safeguard_dead_zone(x, src, h, p) if safe else tuner_frozen(e, p)
     updated = False
     for j in range(2):
         if frozen[j]:
-            continue  # threshold: row j frozen
-        xi0, xi1 = src[S.Mxi1 + 2 * j], src[S.Mxi1 + 2 * j + 1]  # Mxi2 follows Mxi1
-        eta = frit_eta(src, p[TUNER.F + j], h[j], j)
+            continue  # threshold or dead zone: row j frozen
+        if safe:
+            xi0, xi1, eta, norm = normalised_row(src, p, h[j], j)
+            if norm == 0.0:
+                continue  # no data in this row (joint reading: the other row had some)
+        else:
+            xi0, xi1 = src[S.Mxi1 + 2 * j], src[S.Mxi1 + 2 * j + 1]  # Mxi2 follows Mxi1
+            eta = frit_eta(src, p[TUNER.F + j], h[j], j)
         k0 = S.Khat + 2 * j  # Khat row j
         pk = S.P1 + 4 * j    # P_j (P2 follows P1)
-        if safe:
-            # scale-free regression: both sides divided by |xi| (units of h cancel)
-            norm = math.sqrt(xi0 * xi0 + xi1 * xi1)
-            if norm == 0.0:
-                continue
-            xi0, xi1, eta = xi0 / norm, xi1 / norm, eta / norm
-            if abs(eta - (x[k0] * xi0 + x[k0 + 1] * xi1)) <= p[TUNER.deadzone]:
-                continue  # dead zone: the data say nothing beyond the disturbance
         P00, P01, P10, P11 = x[pk], x[pk + 1], x[pk + 2], x[pk + 3]
         Px0 = P00 * xi0 + P01 * xi1
         Px1 = P10 * xi0 + P11 * xi1
@@ -192,6 +190,73 @@ def tuner_update(t, x, u, p, out):
         for i in range(4):  # a convex combination of two stable-set gains stays in the set
             xn[S.K + i] = (1 - kappa) * x[S.K + i] + kappa * xn[S.Khat + i]
     return out
+
+
+@jit
+def normalised_row(x, p, h_j, j):
+    """Row ``j`` of the regression divided by ``|xi_j|``: ``(xi0, xi1, eta, |xi_j|)``.
+
+    The safeguard's scale-free regression: ``xi_j = M_j (hn - h)`` and ``eta_j`` both carry
+    the units of ``h``, so after the division the regressor is a unit vector and the
+    target is in the units of ``K`` (1/s), whatever the units of ``h``. Where
+    ``xi_j = 0`` the row holds no data and is returned unchanged with norm 0.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> x = TUNER_STATE.pack(Mxi1=[3.0, 4.0], Mxi2=[0.0, 0.0], Mmu=[10.0, 0.0],
+    ...                      Mh=[0.0, 0.0], Khat=np.zeros(4), P1=np.zeros(4), P2=np.zeros(4),
+    ...                      K=np.zeros(4))
+    >>> p = TUNER.pack(F=[1.0, 1.0], a=[0.5, 0.5], lambda_=1.0, kappa=1.0, psi=[0.0, 0.0],
+    ...                feedthrough=0.0, joint=0.0, safeguard=1.0, p_min=0.0, p_max=1.0,
+    ...                deadzone=0.0, rho=0.9, Ts=0.1)
+    >>> normalised_row(x, p, 0.0, 0)  # eta = M mu - F (h - M h) = 10, |xi| = 5
+    (0.6, 0.8, 2.0, 5.0)
+    """
+    xi0, xi1 = x[TUNER_STATE.Mxi1 + 2 * j], x[TUNER_STATE.Mxi1 + 2 * j + 1]
+    eta = frit_eta(x, p[TUNER.F + j], h_j, j)
+    norm = math.sqrt(xi0 * xi0 + xi1 * xi1)
+    if norm == 0.0:
+        return xi0, xi1, eta, 0.0
+    return xi0 / norm, xi1 / norm, eta / norm, norm
+
+
+@jit
+def safeguard_dead_zone(x, src, h, p):
+    """Which rows the safeguard's dead zone freezes this step, as a pair of booleans.
+
+    It takes the place of the paper's threshold ``psi``, which compares ``|hn_j - h_j|``
+    with a number whose units the paper does not state. Row ``j`` is frozen while its
+    normalised prediction error ``|eta_j - Khat_j xi_j| / |xi_j|`` (1/s, the same in any
+    units of ``h``; :func:`normalised_row`) is at most ``deadzone``, or while
+    ``xi_j = 0``. Joint reading: both rows are frozen while both would be, as for ``psi``.
+    ``x`` holds ``Khat`` (before this step), ``src`` the regressors of this step.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> x = TUNER_STATE.pack(Mxi1=[3.0, 4.0], Mxi2=[1.0, 0.0], Mmu=[10.0, 0.1],
+    ...                      Mh=[0.0, 0.0], Khat=[2.0, 0.0, 0.0, 0.0], P1=np.zeros(4),
+    ...                      P2=np.zeros(4), K=np.zeros(4))
+    >>> p = TUNER.pack(F=[1.0, 1.0], a=[0.5, 0.5], lambda_=1.0, kappa=1.0, psi=[0.0, 0.0],
+    ...                feedthrough=0.0, joint=0.0, safeguard=1.0, p_min=0.0, p_max=1.0,
+    ...                deadzone=0.5, rho=0.9, Ts=0.1)
+    >>> safeguard_dead_zone(x, x, (0.0, 0.0), p)  # errors: |2 - 1.2| = 0.8, |0.1 - 0| = 0.1
+    (False, True)
+    >>> p[TUNER.joint] = 1.0
+    >>> safeguard_dead_zone(x, x, (0.0, 0.0), p)
+    (False, False)
+    """
+    inside = [True, True]
+    for j in range(2):
+        xi0, xi1, eta, norm = normalised_row(src, p, h[j], j)
+        k0 = TUNER_STATE.Khat + 2 * j
+        if norm > 0.0:
+            inside[j] = abs(eta - (x[k0] * xi0 + x[k0 + 1] * xi1)) <= p[TUNER.deadzone]
+    if p[TUNER.joint] != 0.0:
+        both = inside[0] and inside[1]
+        return both, both
+    return inside[0], inside[1]
 
 
 @jit
