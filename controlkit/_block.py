@@ -50,7 +50,9 @@ follows these rules; the ones marked *checked* are enforced where they can be.
 9. It declares its timebase: ``dt=None`` for a static block (it joins a
    discrete or a continuous diagram), ``dt=Ts`` for a discrete one; a
    continuous block joins the fast engine once sampled by
-   :func:`controlkit.sampling.sample_nlsys` with ``method="rk4"``.
+   :func:`controlkit.sampling.sample_nlsys` with ``method="rk4"``: its update
+   kernel is then the right-hand side ``x'`` that both paths hand to
+   :func:`controlkit.kernels.common.rk4_step`.
 10. Inputs and states are checked once, at the block's boundary: called with
     the wrong number of inputs or states, the block raises a ``ValueError``
     naming itself, the argument and the expected size (*checked* by the

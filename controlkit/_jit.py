@@ -22,10 +22,14 @@ except ImportError:
 HAVE_NUMBA = numba is not None
 
 
-def jit(function):
+def jit(function=None, *, inline=False):
     """Compile ``function`` with numba (cached) when available; else return it unchanged.
 
     Every kernel and every helper a kernel calls is decorated with ``@jit``.
+    ``@jit(inline=True)`` marks a helper that takes a kernel as an argument
+    (:func:`controlkit.kernels.common.rk4_step`): numba inlines it into its caller
+    before typing, so the kernel it is handed is a constant there and the caller's
+    compiled loop can still be cached on disk.
 
     Examples
     --------
@@ -34,6 +38,22 @@ def jit(function):
     >>> constant_output(0.0, np.zeros(0), np.zeros(0), np.array([1.5]), np.zeros(1)).tolist()
     [1.5]
     """
+    if function is None:
+        return lambda f: jit(f, inline=inline)
     if numba is None:
         return function
+    if inline:
+        return numba.njit(cache=True, inline="always")(function)
     return numba.njit(cache=True)(function)
+
+
+def python_function(function):
+    """The plain Python function behind a :func:`jit`-decorated one.
+
+    Examples
+    --------
+    >>> from controlkit.kernels.common import rk4_step
+    >>> python_function(rk4_step).__name__
+    'rk4_step'
+    """
+    return getattr(function, "py_func", function)

@@ -16,9 +16,14 @@ import numpy as np
 import scipy.integrate
 
 from . import _checks
+from ._jit import python_function
+from .kernels.common import rk4_step
+
+#: The one RK4 step (:func:`controlkit.kernels.common.rk4_step`), as plain Python: it calls
+#: a system's Python right-hand side here, where the fast engine inlines the compiled one.
+_rk4_step = python_function(rk4_step)
 
 METHODS = ("rk4", "solve_ivp")
-
 
 
 class SamplingError(ValueError):
@@ -53,14 +58,6 @@ def blowup_message(name, t, Ts, substeps) -> str:
             f"{substeps} substep(s) of {Ts / substeps:g} s is unstable or far too coarse for "
             f"it (stiff or fast dynamics); for the latter, sample it with more substeps "
             f"(sample_nlsys(..., substeps=...)), with method='solve_ivp', or at a smaller Ts")
-
-
-def _rk4_step(rhs, t, x, h):
-    k1 = rhs(t, x)
-    k2 = rhs(t + h / 2, x + (h / 2) * k1)
-    k3 = rhs(t + h / 2, x + (h / 2) * k2)
-    k4 = rhs(t + h, x + h * k3)
-    return x + (h / 6) * (k1 + 2 * k2 + 2 * k3 + k4), k1
 
 
 def sample_nlsys(
@@ -144,20 +141,22 @@ def sample_nlsys(
     def updfcn(t, x, u, params):
         sys._update_params(params)
 
-        def rhs(tau, xi):
-            return sys._rhs(tau, xi, u)
-
         if method == "rk4":
-            x = np.asarray(x, dtype=float)
+            def rhs(tau, xi, u, p, out):  # the kernel form rk4_step calls
+                out[:] = sys._rhs(tau, xi, u)
+                return out
+
+            x = np.array(x, dtype=float)
+            work = tuple(np.empty(x.size) for _ in range(5))
             for i in range(substeps):
-                x_next, _ = _rk4_step(rhs, t + i * h, x, h)
+                x_next = _rk4_step(rhs, t + i * h, x, u, None, h, work, np.empty(x.size))
                 if not np.isfinite(x_next).all():
                     raise SamplingError(blowup_message(sampled.name, t, Ts, substeps))
                 x = x_next
             return x
         sol = scipy.integrate.solve_ivp(
-            rhs, (t, t + Ts), np.asarray(x, dtype=float), method="DOP853", rtol=rtol, atol=atol
-        )
+            lambda tau, xi: sys._rhs(tau, xi, u), (t, t + Ts), np.asarray(x, dtype=float),
+            method="DOP853", rtol=rtol, atol=atol)
         if not sol.success:
             raise RuntimeError(f"solve_ivp failed inside a sample at t = {t:g}: {sol.message}")
         return sol.y[:, -1]
