@@ -29,7 +29,7 @@ import numpy as np
 from . import _checks, _jit, _usercode
 from ._block import BlockKernels
 from .kernels import common, lti
-from .simulation import check_arguments
+from .simulation import check_arguments, response
 
 #: Where generated simulation loops are written (and numba caches them).
 CACHE_DIR = Path(os.environ.get("CONTROLKIT_CACHE_DIR",
@@ -655,11 +655,7 @@ def simulate_fast(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
             _explain_divergence(sys, blocks, T, X, x, k1, U, params)
         if progress is not None:
             progress(k1 / N)
-    return ct.TimeResponseData(
-        T, Y, X, U, output_labels=sys.output_labels, state_labels=sys.state_labels,
-        input_labels=sys.input_labels, sysname=sys.name, issiso=sys.issiso(),
-        title="Input/output response for " + sys.name, plot_inputs=sys.ninputs > 0,
-    )
+    return response(sys, T, Y, X, U)
 
 
 def _explain_divergence(sys, blocks, T, X, x, k1, U, params=None):
@@ -710,12 +706,7 @@ def _stream(sys, run, blocks, T, x, U, P, kept, on_chunk, progress, params=None)
         X[:, mine] = Xb[:, kept[mine] - k0]
         if progress is not None:
             progress(k1 / N)
-    return ct.TimeResponseData(
-        T[kept], Y, X, U[:, kept], output_labels=sys.output_labels,
-        state_labels=sys.state_labels, input_labels=sys.input_labels, sysname=sys.name,
-        issiso=sys.issiso(), title="Input/output response for " + sys.name,
-        plot_inputs=sys.ninputs > 0,
-    )
+    return response(sys, T[kept], Y, X, U[:, kept])
 
 
 def _explain_failure(sys, blocks, T, X, U, status, params=None):

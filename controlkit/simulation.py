@@ -148,6 +148,40 @@ def check_arguments(sys, T, X0, U=0.0):
     return T, X0, U
 
 
+def response(sys, time, outputs, states, inputs, **overrides) -> ct.TimeResponseData:
+    """The :class:`control.TimeResponseData` of a run of ``sys``, as python-control labels it.
+
+    Both simulators (and a run pieced together from parts) build their result here, so a
+    result looks the same whichever made it: signal labels from ``sys``, its name, and
+    ``plot_inputs`` only when it has inputs (``.plot()`` fails on an empty input panel).
+
+    Parameters
+    ----------
+    sys : control.InputOutputSystem
+        The simulated system.
+    time : array_like
+        Sample times, shape ``(N,)``.
+    outputs, states, inputs : numpy.ndarray
+        Shapes ``(noutputs, N)``, ``(nstates, N)`` and ``(ninputs, N)``.
+    **overrides
+        Other keywords of :class:`control.TimeResponseData` (``title``, ``sysname``).
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> sys = ct.nlsys(None, lambda t, x, u, p: u, inputs=1, outputs=1, name="gain")
+    >>> resp = response(sys, np.arange(2.0), np.ones((1, 2)), np.zeros((0, 2)), np.ones((1, 2)))
+    >>> resp.title, resp.output_labels
+    ('Input/output response for gain', ['y[0]'])
+    """
+    options = dict(
+        output_labels=sys.output_labels, state_labels=sys.state_labels,
+        input_labels=sys.input_labels, sysname=sys.name, issiso=sys.issiso(),
+        title="Input/output response for " + sys.name, plot_inputs=sys.ninputs > 0,
+    )
+    return ct.TimeResponseData(time, outputs, states, inputs, **{**options, **overrides})
+
+
 def simulate(
     sys, T, X0, U=0.0, *, params=None, progress: Callable[[float], None] | None = None,
     chunks: int = 1, engine: str = "python-control", record_every: int = 1,
@@ -245,10 +279,5 @@ def simulate(
         kept = recorded_indices(time.size, record_every)
         time, outputs, states = time[kept], outputs[:, kept], states[:, kept]
         inputs = inputs[:, kept]
-    return ct.TimeResponseData(
-        time, outputs, states, inputs,
-        output_labels=sys.output_labels, state_labels=sys.state_labels,
-        input_labels=sys.input_labels, sysname=sys.name, issiso=sys.issiso(),
-        title="Input/output response for " + sys.name, plot_inputs=sys.ninputs > 0,
-    )
+    return response(sys, time, outputs, states, inputs)
 

@@ -17,7 +17,6 @@ import itertools
 import math
 from dataclasses import dataclass, field
 
-import control as ct
 import numpy as np
 
 from ..blocks import mec
@@ -245,7 +244,7 @@ def run_inertia_step(tuner="safeguarded", reading=None, *, horizon=HORIZON, step
     (20.0, inf)
     """
     from ..sampling import time_grid
-    from ..simulation import initial_state, simulate
+    from ..simulation import initial_state, response, simulate
 
     reading = {**READINGS[0], **(reading or {})}
     options = _tuner_options(tuner, reading)
@@ -261,14 +260,12 @@ def run_inertia_step(tuner="safeguarded", reading=None, *, horizon=HORIZON, step
     T = step_at + time_grid(horizon - step_at, TS_PAPER)
     second = simulate(loop, T, first.states[:, -1], 0.0, engine=engine)
 
-    resp = ct.TimeResponseData(
-        np.concatenate([first.time, second.time[1:]]),
-        np.hstack([first.outputs, second.outputs[:, 1:]]),
-        np.hstack([first.states, second.states[:, 1:]]), np.zeros((0, first.time.size +
-                                                                      second.time.size - 1)),
-        output_labels=first.output_labels, state_labels=first.state_labels,
-        sysname="inertia_step", issiso=False,
-        title=f"Inertia error x{factor:g} at t = {step_at:g} s")
+    # the second part starts where the first ended: its first sample is the first's last
+    resp = response(
+        loop, *(np.concatenate([a, b[..., 1:]], axis=-1) for a, b in (
+            (first.time, second.time), (first.outputs, second.outputs),
+            (first.states, second.states), (first.inputs, second.inputs))),
+        sysname="inertia_step", title=f"Inertia error x{factor:g} at t = {step_at:g} s")
     labels = list(resp.output_labels)
     error = pointing_error_deg(resp.outputs[[labels.index(f"q[{i}]") for i in range(4)]])
     after = resp.time >= step_at
