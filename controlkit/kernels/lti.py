@@ -34,8 +34,25 @@ def pack(A, B, C, D) -> np.ndarray:
 
 
 @jit
+def _affine(p, first, second, rows, x, u, out):
+    """``out = F x + G u`` with ``F`` (``rows`` x n) at ``p[first:]`` and ``G`` (``rows`` x m)
+    at ``p[second:]``, row-major: the two products summed as numpy's ``F @ x + G @ u`` does,
+    so the engine and python-control's LTI path give the same numbers."""
+    n, m = x.shape[0], u.shape[0]
+    for i in range(rows):
+        fx = 0.0
+        for j in range(n):
+            fx += p[first + i * n + j] * x[j]
+        gu = 0.0
+        for j in range(m):
+            gu += p[second + i * m + j] * u[j]
+        out[i] = fx + gu
+    return out
+
+
+@jit
 def lti_output(t, x, u, p, out):
-    """``y = C x + D u`` with ``p`` from :func:`pack` (the two products summed as numpy does).
+    """``y = C x + D u`` with ``p`` from :func:`pack`.
 
     Examples
     --------
@@ -45,16 +62,7 @@ def lti_output(t, x, u, p, out):
     """
     n, m, q = int(p[_N]), int(p[_M]), int(p[_Q])
     c0 = _HEAD + n * n + n * m
-    d0 = c0 + q * n
-    for i in range(q):
-        cx = 0.0
-        for j in range(n):
-            cx += p[c0 + i * n + j] * x[j]
-        du = 0.0
-        for j in range(m):
-            du += p[d0 + i * m + j] * u[j]
-        out[i] = cx + du
-    return out
+    return _affine(p, c0, c0 + q * n, q, x, u, out)
 
 
 @jit
@@ -67,14 +75,5 @@ def lti_update(t, x, u, p, out):
     >>> lti_update(0.0, np.array([1.0]), np.array([2.0]), p, np.empty(1)).tolist()
     [2.5]
     """
-    n, m = int(p[_N]), int(p[_M])
-    b0 = _HEAD + n * n
-    for i in range(n):
-        ax = 0.0
-        for j in range(n):
-            ax += p[_HEAD + i * n + j] * x[j]
-        bu = 0.0
-        for j in range(m):
-            bu += p[b0 + i * m + j] * u[j]
-        out[i] = ax + bu
-    return out
+    n = int(p[_N])
+    return _affine(p, _HEAD, _HEAD + n * n, n, x, u, out)
