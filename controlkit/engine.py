@@ -29,7 +29,7 @@ import numpy as np
 from . import _checks, _jit, _usercode
 from ._block import BlockKernels
 from .kernels import common, lti
-from .simulation import check_arguments, response
+from .simulation import check_arguments, chunk_bounds, response
 
 #: Where generated simulation loops are written (and numba caches them).
 CACHE_DIR = Path(os.environ.get("CONTROLKIT_CACHE_DIR",
@@ -645,7 +645,7 @@ def simulate_fast(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
     Y = np.zeros((sys.noutputs, N))
     X = np.zeros((sys.nstates, N))
     status = np.array([-1, -1])
-    bounds = np.linspace(0, N, max(1, min(int(chunks), N)) + 1).round().astype(int)
+    bounds = chunk_bounds(N, chunks)
     x = X0
     for k0, k1 in zip(bounds[:-1], bounds[1:], strict=True):
         x = run(T, x, U, P, Y, X, status, k0, k1)

@@ -148,6 +148,19 @@ def check_arguments(sys, T, X0, U=0.0):
     return T, X0, U
 
 
+def chunk_bounds(n: int, chunks: int) -> np.ndarray:
+    """Where ``n`` steps are cut into ``chunks`` near-equal runs (at least one step each).
+
+    Examples
+    --------
+    >>> chunk_bounds(10, 3).tolist()
+    [0, 3, 7, 10]
+    >>> chunk_bounds(2, 5).tolist()
+    [0, 1, 2]
+    """
+    return np.linspace(0, n, max(1, min(int(chunks), n)) + 1).round().astype(int)
+
+
 def response(sys, time, outputs, states, inputs, **overrides) -> ct.TimeResponseData:
     """The :class:`control.TimeResponseData` of a run of ``sys``, as python-control labels it.
 
@@ -255,12 +268,10 @@ def simulate(
             warnings.warn(f"fast engine not used, running python-control instead: {reason} "
                           f"(controlkit.engine.explain(sys) lists every block's tier)",
                           stacklevel=2)
-    chunks = max(1, min(int(chunks), len(T) - 1))
-    bounds = np.linspace(0, len(T) - 1, chunks + 1).round().astype(int)
+    bounds = chunk_bounds(len(T) - 1, chunks)  # chunks share their end samples
     x = np.asarray(X0, dtype=float)
     pieces = []
-    for k in range(chunks):
-        i0, i1 = bounds[k], bounds[k + 1]
+    for k, (i0, i1) in enumerate(zip(bounds[:-1], bounds[1:], strict=True)):
         resp = ct.input_output_response(sys, T[i0 : i1 + 1], U[:, i0 : i1 + 1], x,
                                         params=params, squeeze=False)
         first = 0 if k == 0 else 1  # the previous chunk already holds this sample
