@@ -174,7 +174,7 @@ def used_params(fn):
     >>> sorted(used_params(lambda t, x, u, params: params["k"] * x + params.get("b", 0.0)))
     ['b', 'k']
     """
-    fn = getattr(fn, "py_func", fn)
+    fn = _jit.python_function(fn)
     try:
         names, body = _function_node(fn)
     except NotCompilable:
@@ -205,7 +205,7 @@ def reads_input(fn):
     >>> reads_input(lambda t, x, u, params: 2 * x)
     False
     """
-    fn = getattr(fn, "py_func", fn)
+    fn = _jit.python_function(fn)
     try:
         names, body = _function_node(fn)
     except NotCompilable:
@@ -299,7 +299,7 @@ def kernel_source(fn, values: dict, direct: bool = True) -> str:
     >>> "_param_0 = 2.0" in src
     True
     """
-    fn = getattr(fn, "py_func", fn)
+    fn = _jit.python_function(fn)
     if not isinstance(fn, pytypes.FunctionType):
         raise NotCompilable(f"it is a {type(fn).__name__}, not a Python function")
     key = (fn.__code__, frozenset(k for k in values if isinstance(k, str)), bool(direct))

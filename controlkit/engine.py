@@ -464,7 +464,7 @@ def _generate(sys, blocks, order):
             body.append(f"{f}(t, x[{sl}], ui_{b.index}, {p}, xn[{sl}])")
             continue
         Ts, n = b.kernel.rk4
-        # the RK4 of controlkit.sampling, inlined by numba: the same numbers, no allocation
+        # kernels.common.rk4_step, as sample_nlsys calls it; numba inlines it (no allocation)
         body += [
             f"xs_{b.index}[:] = x[{sl}]",
             f"h = {Ts!r} / {n}",
