@@ -141,20 +141,55 @@ def save(fig, path) -> list[Path]:
     if path.suffix != ".png":
         raise ValueError(f"path must end in .png (the SVG is written beside it), got {path}")
     path.parent.mkdir(parents=True, exist_ok=True)
-    FigureCanvasAgg(fig)  # a canvas of our own: no pyplot, no global backend
+    canvas = FigureCanvasAgg(fig)  # a canvas of our own: no pyplot, no global backend
     written = []
     with slide_style():
-        for target, fmt, dpi in [(path, "png", PNG_DPI)] + [
-                (path.with_suffix(f".{v}"), v, None) for v in VECTOR_FORMATS]:
+        for target, fmt in [(path, "png")] + [
+                (path.with_suffix(f".{v}"), v) for v in VECTOR_FORMATS]:
             partial = target.with_name(f".{target.name}.partial")
             try:
-                fig.savefig(partial, format=fmt, dpi=dpi or "figure")
+                if fmt == "png":
+                    _write_png(fig, canvas, partial)
+                else:
+                    fig.savefig(partial, format=fmt, dpi="figure")
                 os.replace(partial, target)
             finally:
                 with contextlib.suppress(FileNotFoundError):
                     partial.unlink()
             written.append(target)
             # the layout is in figure coordinates and does not depend on the dpi: keep the
-            # PNG's for the vector copies instead of solving it again (a third of the time)
-            fig.set_layout_engine("none")
+            # PNG's for the vector copies instead of solving it again (a third of the time).
+            # No engine at all, not "none": savefig runs a non-rendering draw of the whole
+            # figure before saving whenever a figure has an engine, even one that does
+            # nothing (a fifth of the SVG's time)
+            fig.set_layout_engine(None)
     return written
+
+
+def _write_png(fig, canvas, target) -> None:
+    """``fig.savefig(target, format="png", dpi=PNG_DPI)``, drawing the figure once, not twice.
+
+    For a figure with a layout engine, savefig first draws the whole figure without
+    rendering to solve the layout, then draws it again to render. Rendering on the Agg
+    canvas solves the layout within that one draw; the file is the same, byte for byte
+    (checked on every figure of ``controlkit reproduce all``), in 13 % less time. Settings
+    that make savefig do more (``savefig.bbox: tight``, colours, transparency) keep it.
+    """
+    import matplotlib
+    import matplotlib.image
+
+    rc = matplotlib.rcParams
+    if rc["savefig.bbox"] is not None or rc["savefig.transparent"] or any(
+            not (isinstance(rc[f"savefig.{key}"], str) and rc[f"savefig.{key}"] == "auto")
+            for key in ("facecolor", "edgecolor")):
+        fig.savefig(target, format="png", dpi=PNG_DPI)
+        return
+    dpi = fig.dpi
+    fig.dpi = PNG_DPI
+    try:
+        canvas.draw()
+        # what savefig's PNG writer does with the rendered canvas
+        matplotlib.image.imsave(target, canvas.buffer_rgba(), format="png", origin="upper",
+                                dpi=PNG_DPI)
+    finally:
+        fig.dpi = dpi
