@@ -562,6 +562,29 @@ def main(argv=None) -> int:
     >>> main(["reproduce", "--horizon", "-3"])  # says why on stderr, in one line
     2
     """
+    try:
+        return _main(argv)
+    finally:
+        if argv is None:  # the command line: this process ends when main returns
+            _skip_exit_collection()
+
+
+def _skip_exit_collection() -> None:
+    """Leave the objects of an ending process to the operating system, not to the collector.
+
+    When Python exits it clears every module and runs the cyclic garbage collector over
+    what is left: the ~300 000 objects of python-control, scipy, numba and matplotlib.
+    That took 0.3 s after ``import control`` alone and 0.7-0.9 s after ``controlkit
+    reproduce all``, a fifth of the command's time, to free memory the process is about
+    to give back. Frozen objects are skipped by the collector. Every file is closed by
+    then; atexit handlers and the flush of stdout and stderr still run.
+    """
+    import gc
+
+    gc.freeze()
+
+
+def _main(argv) -> int:
     parser = _Parser(prog="controlkit", description=HELP,
                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--debug", action="store_true",
