@@ -4,6 +4,11 @@ Drawing the papers' ten figures (PNG at 200 dpi and SVG) takes longer than simul
 them on the fast engine. :class:`FigureWorkers` hands each figure to a process pool as
 soon as its study's cases are simulated, so the figures of one study are drawn while
 the next study runs, and the figures of a study share the cores among themselves.
+
+While the caller is still simulating, the workers leave it a core: they draw on the
+other cores only (at least one figure at a time), and on every core once the caller
+waits for them in :meth:`FigureWorkers.results`. The caller's simulations are what the
+last figures wait for, so slowing them down to draw sooner makes the whole run longer.
 """
 
 from __future__ import annotations
@@ -16,6 +21,20 @@ from concurrent.futures import Future, ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+
+#: In a worker: the semaphore that bounds how many workers draw at once.
+_SLOTS = None
+
+
+def _start_worker(slots) -> None:
+    global _SLOTS
+    _SLOTS = slots
+
+
+def _draw(figures, tables, outdir, stems):
+    """In a worker: ``figures(tables, outdir, stems=stems)`` once a drawing slot is free."""
+    with _SLOTS:
+        return figures(tables, outdir, stems=stems)
 
 
 def _context():
@@ -54,8 +73,18 @@ class FigureWorkers:
             raise ValueError(f"workers must be an integer >= 0, got {workers!r}")
         self.workers = workers
         context = _context()
-        self._pool = (ProcessPoolExecutor(workers, mp_context=context)
-                      if workers > 0 else None)
+        self._pool = self._slots = None
+        self._reserved = 0
+        if workers > 0:
+            # the caller keeps a core while it simulates: it holds the slots of the
+            # workers beyond the other cores until results() (see the module's docstring)
+            self._slots = context.Semaphore(workers)
+            self._reserved = workers - max(1, min(workers, (os.cpu_count() or 1) - 1))
+            for _ in range(self._reserved):
+                self._slots.acquire()
+            self._pool = ProcessPoolExecutor(workers, mp_context=context,
+                                             initializer=_start_worker,
+                                             initargs=(self._slots,))
         self._futures: list[Future] = []
         # A forked worker shares the caller's memory until it writes to it, and the cyclic
         # garbage collector writes to every object it visits: the first full collection
@@ -92,22 +121,31 @@ class FigureWorkers:
             else:
                 if self._frozen:  # the workers are forked at the first submit
                     gc.freeze()
-                self._futures.append(self._pool.submit(figures, tables, outdir, stems=[stem]))
+                self._futures.append(self._pool.submit(_draw, figures, tables, outdir, [stem]))
 
     def results(self) -> list[Path]:
         """Wait for every submitted figure; the files in submission order.
 
-        A figure that failed raises its error here.
+        A figure that failed raises its error here. From now on the workers draw on
+        every core: the caller only waits.
         """
+        self._release()
         written = []
         for future in self._futures:
             written += future.result()
         self._futures = []
         return written
 
+    def _release(self) -> None:
+        """Hand the caller's drawing slots to the workers."""
+        for _ in range(self._reserved):
+            self._slots.release()
+        self._reserved = 0
+
     def close(self) -> None:
         """Stop the worker processes (pending figures are cancelled)."""
         if self._pool is not None:
+            self._release()  # a worker waiting for a slot would never end
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
         if self._frozen:
