@@ -475,7 +475,7 @@ def _streamed(s, case, horizon, stride, csv_path, progress, options):
 
     import numpy as np
 
-    from .outputs.export import atomic
+    from .outputs.export import atomic, write_rows
 
     watch = s.streaming(case, horizon)
     steps = round(horizon / s.Ts) + 1
@@ -493,7 +493,7 @@ def _streamed(s, case, horizon, stride, csv_path, progress, options):
                 handle.write(header + "\n")
             first = (-seen[0]) % stride  # rows 0, stride, 2 stride, ... of the whole run
             rows = np.column_stack([np.asarray(v, dtype=float) for v in cols.values()])
-            np.savetxt(handle, rows[first::stride], delimiter=",", fmt="%.10g")
+            write_rows(handle, rows[first::stride])
             seen[0] += t.size
 
         resp = s.run(case, horizon, progress, "fast", on_chunk=on_chunk,
