@@ -7,7 +7,6 @@ entry of its scenario's ``CASES``. Adding a study or a case adds no code here.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import gc
 import sys
 import time
@@ -87,6 +86,11 @@ class Study:
         streamed: the run then holds no more than the figures' samples, the CSV rows are
         written as they are computed, and ``accumulator.metrics()`` gives the metrics
         from every sample.
+    loop : callable, optional
+        ``loop(case) -> interconnect``: a case's published loop. For a study shorter
+        than :data:`controlkit.engine.COMPILE_AFTER_STEPS`, which the fast engine runs as
+        Python until its loop is compiled, a worker compiles the loop into the disk
+        cache during the first ``reproduce``, so that later ones load it compiled.
 
     Examples
     --------
@@ -112,6 +116,7 @@ class Study:
     horizon: float = 20_000.0
     signals: int = 60
     streaming: Callable | None = None
+    loop: Callable | None = None
 
 
 def _runner(scenario):
@@ -160,6 +165,7 @@ STUDIES: dict[str, Study] = {
         figure_stems=tuple(spec[0] for spec in cmg_out.FIGURES),
         simulation_cost=0.05,  # 12 000 steps of a 10-state loop vs 3 x 200 000 steps
         Ts=cmg_scenario.cmg.TS_CMG, horizon=cmg_scenario.HORIZON, signals=32,
+        loop=cmg_scenario.build_loop,
     ),
     "frit": Study(
         "frit", frit_scenario.CASES, frit_scenario.DEFAULT_CASES, _runner(frit_scenario),
@@ -372,7 +378,9 @@ def reproduce(study="all", *, out="results", cases=None, horizon=None, stride=No
                 f"most {MEMORY_LIMIT // (s.signals * 24) * s.Ts:g} s")
     out = _writable(out)
     summary = {}
-    with FigureWorkers(workers) as pool, _loops_compiled():
+    with FigureWorkers(workers) as pool:
+        if engine == "fast" and not options:
+            _compile_ahead(studies, selection, horizons, pool)
         for s in sorted(studies, key=lambda study: study.simulation_cost):
             if not selection[s.name]:
                 continue
@@ -383,24 +391,43 @@ def reproduce(study="all", *, out="results", cases=None, horizon=None, stride=No
     return {s.name: summary[s.name] for s in studies if s.name in summary}
 
 
-@contextlib.contextmanager
-def _loops_compiled():
-    """The studies' loops compiled by the fast engine (and cached on disk) whatever their length.
+def _compile_ahead(studies, selection, horizons, pool) -> None:
+    """Have a worker compile the published loops that the fast engine would run as Python.
 
-    The engine runs a loop that is not compiled yet as Python for its first
+    The engine runs a loop that is not in its disk cache as Python for its first
     :data:`controlkit.engine.COMPILE_AFTER_STEPS` steps in a process, so that a diagram
-    being tried starts at once. The studies run the same loops every time: the CMG
-    study's 12 001 steps ran as Python in every ``reproduce`` (0.9 s, most of it loading
-    each kernel's cache), compiled they take 0.05 s once the loop is cached.
+    being tried starts at once; the CMG study's 12 001 steps therefore ran as Python in
+    every ``reproduce`` (0.9 s with loading each kernel's cache; 0.05 s compiled). Its
+    loop is compiled (3-5 s) by a worker while this run goes on as before, so later
+    runs load it compiled and this one takes no longer. Looking the loop up costs this
+    process a few milliseconds: the kernels it loads are the ones its run needs.
+    """
+    from . import engine
+    from ._jit import HAVE_NUMBA
+
+    if not HAVE_NUMBA or pool.workers == 0:
+        return
+    for s in studies:
+        steps = round((horizons[s.name] or s.horizon) / s.Ts) + 1
+        if s.loop is None or steps >= engine.COMPILE_AFTER_STEPS:
+            continue
+        for case in selection[s.name]:
+            run, _ = engine.compile_system(s.loop(case), steps=0)
+            if not hasattr(run, "py_func"):  # not a numba function: not compiled yet
+                pool.run_in_background(_compile_case, s.name, case)
+
+
+def _compile_case(study: str, case: str) -> None:
+    """In a worker: compile a case's loop into the disk cache (see :func:`_compile_ahead`).
+
+    A run of two steps with the fast engine told to compile whatever the length gives
+    the loop the argument types of a full run.
     """
     from . import engine
 
-    before = engine.COMPILE_AFTER_STEPS
-    engine.COMPILE_AFTER_STEPS = 0
-    try:
-        yield
-    finally:
-        engine.COMPILE_AFTER_STEPS = before
+    s = STUDIES[study]
+    engine.COMPILE_AFTER_STEPS = 0  # this worker process only
+    s.run(case, 2 * s.Ts, None, "fast")
 
 
 def _run_study(s, cases, folder, horizon, stride, engine, log, pool, options) -> dict:

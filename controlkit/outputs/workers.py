@@ -86,6 +86,7 @@ class FigureWorkers:
                                              initializer=_start_worker,
                                              initargs=(self._slots,))
         self._futures: list[Future] = []
+        self._background: list[Future] = []
         # A forked worker shares the caller's memory until it writes to it, and the cyclic
         # garbage collector writes to every object it visits: the first full collection
         # in a worker walked the ~200 000 objects of python-control, scipy, numba and
@@ -119,9 +120,21 @@ class FigureWorkers:
                 done.set_result(figures(tables, outdir, stems=[stem]))
                 self._futures.append(done)
             else:
-                if self._frozen:  # the workers are forked at the first submit
+                if self._frozen:  # the workers are forked at the first task
                     gc.freeze()
                 self._futures.append(self._pool.submit(_draw, figures, tables, outdir, [stem]))
+
+    def run_in_background(self, function, *args) -> None:
+        """Run ``function(*args)`` in a worker for what it leaves on disk (a cache).
+
+        It draws nothing, so it needs no drawing slot; its result and any error are
+        ignored. Nothing happens without worker processes (``workers=0``).
+        """
+        if self._pool is None:
+            return
+        if self._frozen:
+            gc.freeze()
+        self._background.append(self._pool.submit(function, *args))
 
     def results(self) -> list[Path]:
         """Wait for every submitted figure; the files in submission order.
