@@ -110,7 +110,7 @@ class FigureWorkers:
         if self._pool is not None:
             self._background.append(self._pool.submit(_started))
 
-    def submit(self, figures, tables, outdir, stems) -> None:
+    def submit(self, figures, tables, outdir, stems, *, first=()) -> None:
         """Draw ``figures(tables, outdir, stems=[stem])`` for each stem, one task each.
 
         Parameters
@@ -123,19 +123,27 @@ class FigureWorkers:
             Folder of the files.
         stems : sequence of str
             Figures to draw.
+        first : sequence of str
+            Stems handed to the workers before the others: the slowest figures, so
+            that the workers finish together. :meth:`results` keeps the order of
+            ``stems``.
         """
         # plain arrays: python-control's NamedSignal does not survive a trip through pickle
         tables = {case: {name: np.asarray(values) for name, values in columns.items()}
                   for case, columns in tables.items()}
-        for stem in stems:
-            if self._pool is None:
+        if self._pool is None:
+            for stem in stems:
                 done = Future()
                 done.set_result(figures(tables, outdir, stems=[stem]))
                 self._futures.append(done)
-            else:
-                if self._frozen:  # the workers are forked at the first task
-                    gc.freeze()
-                self._futures.append(self._pool.submit(_draw, figures, tables, outdir, [stem]))
+            return
+        if self._frozen:  # the workers are forked at the first task
+            gc.freeze()
+        stems = list(stems)
+        futures = [None] * len(stems)
+        for i in sorted(range(len(stems)), key=lambda i: stems[i] not in first):
+            futures[i] = self._pool.submit(_draw, figures, tables, outdir, [stems[i]])
+        self._futures += futures
 
     def run_in_background(self, function, *args) -> None:
         """Run ``function(*args)`` in a worker for what it leaves on disk (a cache).
