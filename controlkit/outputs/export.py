@@ -60,7 +60,7 @@ def write_rows(handle, data, fmt: str = "%.10g") -> None:
     >>> out = io.StringIO()
     >>> write_rows(out, np.array([[0.1, 2.0], [1e-12, 3.25]]))
     >>> out.getvalue()
-    '0.1,2\n1e-12,3.25\n'
+    '0.1,2\\n1e-12,3.25\\n'
     """
     data = np.asarray(data, dtype=float)
     if data.ndim != 2:
