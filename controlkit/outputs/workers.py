@@ -33,9 +33,12 @@ def _start_worker(slots) -> None:
     # exponents of its tick labels: 0.12 s, most of a worker's first figure beyond the
     # others. The workers start with the pool, so they build it while the caller is
     # still running its first study rather than while the figures wait for them.
-    from matplotlib.mathtext import MathTextParser
+    try:
+        from matplotlib.mathtext import MathTextParser
 
-    MathTextParser("path").parse(r"$\mathdefault{10^{-4}}$")
+        MathTextParser("path").parse(r"$\mathdefault{10^{-4}}$")
+    except Exception:  # only a head start: a figure that needs the parser says why
+        pass
 
 
 def _started() -> None:
@@ -104,7 +107,9 @@ class FigureWorkers:
         # matplotlib it inherited, copying their pages, for 0.4-0.7 s of a worker's
         # ~1.5 s. Frozen objects are skipped by the collector (still freed by reference
         # counting); they are handed back to it by close().
-        self._frozen = self._pool is not None and context.get_start_method() == "fork"
+        # Objects someone else froze are left as they are (close() would thaw them).
+        self._frozen = (self._pool is not None and context.get_start_method() == "fork"
+                        and gc.get_freeze_count() == 0)
         if self._frozen:
             gc.freeze()
         if self._pool is not None:
