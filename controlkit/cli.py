@@ -68,6 +68,9 @@ class Study:
     draw_first : tuple of str
         Figures handed to the workers before the others because they take longest, so
         that the workers finish together.
+    figure_columns : callable, optional
+        ``figure_columns(stem)``: the table columns a figure reads (the workers are sent
+        only those); default all.
     simulation_cost : float
         Relative time to simulate the study's cases; cheaper studies run first, so their
         figures are drawn by the workers while the costlier simulations run.
@@ -113,6 +116,7 @@ class Study:
     csv_columns: Callable[[dict], dict] = lambda columns: columns
     figure_stems: tuple[str, ...] = ()
     draw_first: tuple[str, ...] = ()
+    figure_columns: Callable[[str], tuple[str, ...]] | None = None
     simulation_cost: float = 1.0
     write: Callable | None = None
     in_all: bool = True
@@ -159,6 +163,7 @@ STUDIES: dict[str, Study] = {
         sc_out.table, sc_out.metrics_from_table, sc_out.figures, default_stride=10,
         figure_stems=tuple(spec[0] for spec in sc_out.FIGURES),
         draw_first=("fig07_pointing_error",),  # a log axis: 1.5-2x the others
+        figure_columns=sc_out.figure_columns,
         Ts=sc_scenario.sc.TS_PAPER, horizon=sc_scenario.HORIZON, signals=60,
         streaming=_spacecraft_watch,
     ),
@@ -168,6 +173,7 @@ STUDIES: dict[str, Study] = {
         csv_stem=lambda case: "run" if case == "thesis" else case,
         csv_columns=cmg_out.csv_columns,
         figure_stems=tuple(spec[0] for spec in cmg_out.FIGURES),
+        figure_columns=cmg_out.figure_columns,
         simulation_cost=0.05,  # 12 000 steps of a 10-state loop vs 3 x 200 000 steps
         Ts=cmg_scenario.cmg.TS_CMG, horizon=cmg_scenario.HORIZON, signals=32,
         loop=cmg_scenario.build_loop,
@@ -493,7 +499,8 @@ def _run_study(s, cases, folder, horizon, stride, engine, log, pool, options) ->
                 names = _figure_files(s, tables)
                 manifest["files"] = sorted(set(manifest["files"]) | set(names))
                 if s.figure_stems:  # drawn by the workers while the next study runs
-                    pool.submit(s.figures, tables, folder, s.figure_stems, first=s.draw_first)
+                    pool.submit(s.figures, tables, folder, s.figure_stems,
+                                first=s.draw_first, columns=s.figure_columns)
                 else:
                     for path in s.figures(tables, folder):
                         log.write(f"  wrote {path}\n")
