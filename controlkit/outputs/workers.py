@@ -163,7 +163,9 @@ class FigureWorkers:
         """Run ``function(*args)`` in a worker for what it leaves on disk (a cache).
 
         It draws nothing, so it needs no drawing slot; its result and any error are
-        ignored. Nothing happens without worker processes (``workers=0``).
+        ignored. Leaving the ``with`` block normally waits for it; :meth:`close` or an
+        error cancels it if it has not started. Nothing happens without worker
+        processes (``workers=0``).
         """
         if self._pool is None:
             return
@@ -203,6 +205,9 @@ class FigureWorkers:
     def __enter__(self):
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, exc_type, *exc):
+        if exc_type is None:  # a clean exit lets the background work finish (close cancels it)
+            for future in self._background:
+                future.exception()  # waits; an error of background work is ignored
         self.close()
         return False
