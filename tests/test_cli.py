@@ -1,14 +1,17 @@
 """controlkit reproduce: files, columns and argument errors."""
 
 import csv
+import io
 import json
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from controlkit.cli import main
+from controlkit.outputs import export
 from controlkit.outputs.spacecraft import COLUMNS
 
 FIGS = ["fig05_h1", "fig06_h2", "fig07_pointing_error", "fig08_K", "fig09_u1", "fig10_u2"]
@@ -102,3 +105,15 @@ def test_interrupted_run_keeps_finished_files_and_says_what_is_missing(tmp_path)
     rows = (folder / "ideal.csv").read_text().splitlines()
     assert len(rows) == 1 + 40_001  # complete: header + every 10th of 400 001 samples
     assert not (folder / "without_mec.csv").exists()
+
+
+def test_csv_rows_are_the_text_numpy_savetxt_writes(monkeypatch):
+    rng = np.random.default_rng(0)
+    data = np.vstack([rng.standard_normal((40, 4)) * 10.0 ** rng.integers(-15, 15, (40, 4)),
+                      [[0.0, -0.0, np.nan, np.inf], [-np.inf, 1e-300, 1e300, 123456789.0],
+                       [0.1, 1 / 3, -2 / 3, 9.9999999995], [1e-5, 1e-4, 1e9, 1e10]]])
+    monkeypatch.setattr(export, "ROWS_PER_BLOCK", 7)  # blocks that do not divide the rows
+    ours, reference = io.StringIO(), io.StringIO()
+    export.write_rows(ours, data)
+    np.savetxt(reference, data, delimiter=",", fmt="%.10g")
+    assert ours.getvalue() == reference.getvalue()

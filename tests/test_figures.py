@@ -10,7 +10,7 @@ from PIL import Image
 
 from controlkit.outputs import cmg as cmg_out
 from controlkit.outputs import spacecraft as sc_out
-from controlkit.outputs.style import PNG_DPI, save
+from controlkit.outputs.style import PNG_DPI, save, slide_style
 from controlkit.outputs.workers import FigureWorkers
 from controlkit.scenarios import cmg as cmg_scenario
 from controlkit.scenarios import spacecraft as sc_scenario
@@ -134,9 +134,40 @@ def test_worker_processes_write_the_same_files_as_the_caller(tmp_path, sc_tables
     names = {}
     for workers in (0, 2):
         with FigureWorkers(workers) as pool:
-            pool.submit(sc_out.figures, sc_tables, tmp_path / str(workers), stems)
+            # the slowest figure is handed out first; the files keep the figures' order
+            pool.submit(sc_out.figures, sc_tables, tmp_path / str(workers), stems,
+                        first=["fig07_pointing_error"])
             names[workers] = [p.name for p in pool.results()]
     assert names[0] == names[2] and len(names[2]) == 12
+    assert names[2][:2] == ["fig05_h1.png", "fig05_h1.svg"]
+    for png in (tmp_path / "0").glob("*.png"):  # the same pixels from either process
+        with Image.open(png) as a, Image.open(tmp_path / "2" / png.name) as b:
+            assert np.array_equal(np.asarray(a), np.asarray(b)), png.name
+
+
+def test_saved_png_has_the_pixels_and_tags_of_savefig(tmp_path, sc_tables, cmg_tables):
+    import io
+
+    for fig in (sc_out.figure(sc_tables, "fig07_pointing_error"),
+                cmg_out.figure(cmg_tables, "fig3_q2")):
+        reference = io.BytesIO()
+        FigureCanvasAgg(fig)
+        with slide_style():
+            fig.savefig(reference, format="png", dpi=PNG_DPI)
+        ours = save(fig, tmp_path / "figure.png")[0]
+        with Image.open(reference) as a, Image.open(ours) as b:
+            assert np.array_equal(np.asarray(a), np.asarray(b))
+            assert a.info == b.info  # dpi and the Software tag
+
+
+def test_figure_workers_run_background_work_outside_the_drawing_slots(tmp_path):
+    marker = tmp_path / "done"
+    with FigureWorkers(2) as pool:
+        pool.run_in_background(marker.write_text, "yes")
+    assert marker.read_text() == "yes"  # close() waited for it
+    with FigureWorkers(0) as pool:  # no workers: nothing runs
+        pool.run_in_background(marker.write_text, "no")
+    assert marker.read_text() == "yes"
 
 
 def test_a_failing_figure_raises_in_the_caller(tmp_path, sc_tables):

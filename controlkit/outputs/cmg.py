@@ -133,6 +133,21 @@ def window_stats(time, values, width):
     return centre, blocks.mean(axis=1), blocks.min(axis=1), blocks.max(axis=1)
 
 
+def figure_columns(stem: str) -> tuple[str, ...]:
+    """The table columns :func:`figure` reads to draw ``stem``.
+
+    Examples
+    --------
+    >>> figure_columns("fig3_q2")
+    ('time', 'q2', 'q2d')
+    """
+    specs = {spec[0]: spec for spec in FIGURES}
+    if stem not in specs:
+        raise ValueError(f"stem must be one of {list(specs)}, got {stem!r}")
+    _, _, _, col, ref, _ = specs[stem]
+    return ("time", col) if ref is None else ("time", col, ref)
+
+
 def figure(tables, stem):
     """One of the thesis-style Fig. 3-6 as a slide-sized :class:`matplotlib.figure.Figure`.
 

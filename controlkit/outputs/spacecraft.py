@@ -96,6 +96,20 @@ FIG7_FLOOR_DEG = 1e-4
 _POINTS = 4000
 
 
+def figure_columns(stem: str) -> tuple[str, ...]:
+    """The table columns :func:`figure` reads to draw ``stem``.
+
+    Examples
+    --------
+    >>> figure_columns("fig05_h1")
+    ('time', 'h1')
+    """
+    specs = {spec[0]: spec for spec in FIGURES}
+    if stem not in specs:
+        raise ValueError(f"stem must be one of {list(specs)}, got {stem!r}")
+    return ("time", *specs[stem][3])
+
+
 def figure(tables: dict[str, dict[str, np.ndarray]], stem: str):
     """One of the paper's Fig. 5-10 as a slide-sized :class:`matplotlib.figure.Figure`.
 

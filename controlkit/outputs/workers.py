@@ -4,10 +4,16 @@ Drawing the papers' ten figures (PNG at 200 dpi and SVG) takes longer than simul
 them on the fast engine. :class:`FigureWorkers` hands each figure to a process pool as
 soon as its study's cases are simulated, so the figures of one study are drawn while
 the next study runs, and the figures of a study share the cores among themselves.
+
+While the caller is still simulating, the workers leave it a core: they draw on the
+other cores only (at least one figure at a time), and on every core once the caller
+waits for them in :meth:`FigureWorkers.results`. The caller's simulations are what the
+last figures wait for, so slowing them down to draw sooner makes the whole run longer.
 """
 
 from __future__ import annotations
 
+import gc
 import multiprocessing
 import os
 import sys
@@ -15,6 +21,34 @@ from concurrent.futures import Future, ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+
+#: In a worker: the semaphore that bounds how many workers draw at once.
+_SLOTS = None
+
+
+def _start_worker(slots) -> None:
+    global _SLOTS
+    _SLOTS = slots
+    # The first log axis a process draws builds matplotlib's mathtext parser, for the
+    # exponents of its tick labels: 0.12 s, most of a worker's first figure beyond the
+    # others. The workers start with the pool, so they build it while the caller is
+    # still running its first study rather than while the figures wait for them.
+    try:
+        from matplotlib.mathtext import MathTextParser
+
+        MathTextParser("path").parse(r"$\mathdefault{10^{-4}}$")
+    except Exception:  # only a head start: a figure that needs the parser says why
+        pass
+
+
+def _started() -> None:
+    """A task that does nothing: submitted first, it starts every worker at once."""
+
+
+def _draw(figures, tables, outdir, stems):
+    """In a worker: ``figures(tables, outdir, stems=stems)`` once a drawing slot is free."""
+    with _SLOTS:
+        return figures(tables, outdir, stems=stems)
 
 
 def _context():
@@ -52,11 +86,36 @@ class FigureWorkers:
         if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
             raise ValueError(f"workers must be an integer >= 0, got {workers!r}")
         self.workers = workers
-        self._pool = (ProcessPoolExecutor(workers, mp_context=_context())
-                      if workers > 0 else None)
+        context = _context()
+        self._pool = self._slots = None
+        self._reserved = 0
+        if workers > 0:
+            # the caller keeps a core while it simulates: it holds the slots of the
+            # workers beyond the other cores until results() (see the module's docstring)
+            self._slots = context.Semaphore(workers)
+            self._reserved = workers - max(1, min(workers, (os.cpu_count() or 1) - 1))
+            for _ in range(self._reserved):
+                self._slots.acquire()
+            self._pool = ProcessPoolExecutor(workers, mp_context=context,
+                                             initializer=_start_worker,
+                                             initargs=(self._slots,))
         self._futures: list[Future] = []
+        self._background: list[Future] = []
+        # A forked worker shares the caller's memory until it writes to it, and the cyclic
+        # garbage collector writes to every object it visits: the first full collection
+        # in a worker walked the ~200 000 objects of python-control, scipy, numba and
+        # matplotlib it inherited, copying their pages, for 0.4-0.7 s of a worker's
+        # ~1.5 s. Frozen objects are skipped by the collector (still freed by reference
+        # counting); they are handed back to it by close().
+        # Objects someone else froze are left as they are (close() would thaw them).
+        self._frozen = (self._pool is not None and context.get_start_method() == "fork"
+                        and gc.get_freeze_count() == 0)
+        if self._frozen:
+            gc.freeze()
+        if self._pool is not None:
+            self._background.append(self._pool.submit(_started))
 
-    def submit(self, figures, tables, outdir, stems) -> None:
+    def submit(self, figures, tables, outdir, stems, *, first=(), columns=None) -> None:
         """Draw ``figures(tables, outdir, stems=[stem])`` for each stem, one task each.
 
         Parameters
@@ -69,38 +128,86 @@ class FigureWorkers:
             Folder of the files.
         stems : sequence of str
             Figures to draw.
+        first : sequence of str
+            Stems handed to the workers before the others: the slowest figures, so
+            that the workers finish together. :meth:`results` keeps the order of
+            ``stems``.
+        columns : callable, optional
+            ``columns(stem)``: the table columns that figure reads; a worker is sent
+            only those (all the columns of the three spacecraft cases were 6.7 MB to
+            pickle and pipe per figure).
         """
         # plain arrays: python-control's NamedSignal does not survive a trip through pickle
         tables = {case: {name: np.asarray(values) for name, values in columns.items()}
                   for case, columns in tables.items()}
-        for stem in stems:
-            if self._pool is None:
+        if self._pool is None:
+            for stem in stems:
                 done = Future()
                 done.set_result(figures(tables, outdir, stems=[stem]))
                 self._futures.append(done)
-            else:
-                self._futures.append(self._pool.submit(figures, tables, outdir, stems=[stem]))
+            return
+        if self._frozen:  # the workers are forked at the first task
+            gc.freeze()
+        stems = list(stems)
+        futures = [None] * len(stems)
+        for i in sorted(range(len(stems)), key=lambda i: stems[i] not in first):
+            sent = tables
+            if columns is not None:
+                names = columns(stems[i])
+                sent = {case: {name: table[name] for name in names}
+                        for case, table in tables.items()}
+            futures[i] = self._pool.submit(_draw, figures, sent, outdir, [stems[i]])
+        self._futures += futures
+
+    def run_in_background(self, function, *args) -> None:
+        """Run ``function(*args)`` in a worker for what it leaves on disk (a cache).
+
+        It draws nothing, so it needs no drawing slot; its result and any error are
+        ignored. Leaving the ``with`` block normally waits for it; :meth:`close` or an
+        error cancels it if it has not started. Nothing happens without worker
+        processes (``workers=0``).
+        """
+        if self._pool is None:
+            return
+        if self._frozen:
+            gc.freeze()
+        self._background.append(self._pool.submit(function, *args))
 
     def results(self) -> list[Path]:
         """Wait for every submitted figure; the files in submission order.
 
-        A figure that failed raises its error here.
+        A figure that failed raises its error here. From now on the workers draw on
+        every core: the caller only waits.
         """
+        self._release()
         written = []
         for future in self._futures:
             written += future.result()
         self._futures = []
         return written
 
+    def _release(self) -> None:
+        """Hand the caller's drawing slots to the workers."""
+        for _ in range(self._reserved):
+            self._slots.release()
+        self._reserved = 0
+
     def close(self) -> None:
         """Stop the worker processes (pending figures are cancelled)."""
         if self._pool is not None:
+            self._release()  # a worker waiting for a slot would never end
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
+        if self._frozen:
+            gc.unfreeze()
+            self._frozen = False
 
     def __enter__(self):
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, exc_type, *exc):
+        if exc_type is None:  # a clean exit lets the background work finish (close cancels it)
+            for future in self._background:
+                future.exception()  # waits; an error of background work is ignored
         self.close()
         return False
