@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from ..blocks.cmg import T1_MAX, T2_MAX
-from .common import select_stems, signal
+from .common import figure_spec, select_stems, signal
 
 #: CSV columns of ``controlkit reproduce cmg``, in order.
 COLUMNS = ("time", "q1", "q2", "q4", "w1", "w2", "w4", "q2d", "q4d", "T1", "T2",
@@ -141,10 +141,7 @@ def figure_columns(stem: str) -> tuple[str, ...]:
     >>> figure_columns("fig3_q2")
     ('time', 'q2', 'q2d')
     """
-    specs = {spec[0]: spec for spec in FIGURES}
-    if stem not in specs:
-        raise ValueError(f"stem must be one of {list(specs)}, got {stem!r}")
-    _, _, _, col, ref, _ = specs[stem]
+    _, _, _, col, ref, _ = figure_spec(FIGURES, stem)
     return ("time", col) if ref is None else ("time", col, ref)
 
 
@@ -179,12 +176,9 @@ def figure(tables, stem):
     """
     from .style import IDEAL_STYLE, legend_outside, new_figure, slide_style
 
-    specs = {spec[0]: spec for spec in FIGURES}
-    if stem not in specs:
-        raise ValueError(f"stem must be one of {list(specs)}, got {stem!r}")
+    _, title, ylabel, col, ref, limit = figure_spec(FIGURES, stem)
     if not tables:
         raise ValueError("tables must hold at least one case")
-    _, title, ylabel, col, ref, limit = specs[stem]
     first = next(iter(tables.values()))
     with slide_style():
         if ref is not None:

@@ -42,3 +42,17 @@ def select_stems(specs, stems) -> list[str]:
     if unknown:
         raise ValueError(f"stems must be among {known}, got {unknown}")
     return [stem for stem in known if stem in stems]
+
+
+def figure_spec(specs, stem: str) -> tuple:
+    """The row of a study's ``FIGURES`` table (rows starting with their stem) for ``stem``.
+
+    Examples
+    --------
+    >>> figure_spec([("fig1", "Title"), ("fig2", "Other")], "fig2")
+    ('fig2', 'Other')
+    """
+    for spec in specs:
+        if spec[0] == stem:
+            return spec
+    raise ValueError(f"stem must be one of {[spec[0] for spec in specs]}, got {stem!r}")

@@ -8,7 +8,7 @@ import numpy as np
 
 from ..blocks.spacecraft import POINTING_REQUIREMENT_DEG, pointing_error_deg
 from ..scenarios import spacecraft as scenario
-from .common import select_stems, signal
+from .common import figure_spec, select_stems, signal
 
 #: CSV columns of ``controlkit reproduce spacecraft``, in order.
 COLUMNS = ("time", "h1", "h2", "pointing_error_deg", "u1", "u2",
@@ -104,10 +104,7 @@ def figure_columns(stem: str) -> tuple[str, ...]:
     >>> figure_columns("fig05_h1")
     ('time', 'h1')
     """
-    specs = {spec[0]: spec for spec in FIGURES}
-    if stem not in specs:
-        raise ValueError(f"stem must be one of {list(specs)}, got {stem!r}")
-    return ("time", *specs[stem][3])
+    return ("time", *figure_spec(FIGURES, stem)[3])
 
 
 def figure(tables: dict[str, dict[str, np.ndarray]], stem: str):
@@ -137,10 +134,7 @@ def figure(tables: dict[str, dict[str, np.ndarray]], stem: str):
     """
     from .style import IDEAL_STYLE, legend_outside, new_figure, slide_style
 
-    specs = {spec[0]: spec for spec in FIGURES}
-    if stem not in specs:
-        raise ValueError(f"stem must be one of {list(specs)}, got {stem!r}")
-    _, title, ylabel, cols = specs[stem]
+    _, title, ylabel, cols = figure_spec(FIGURES, stem)
     unknown = [name for name in tables if name not in scenario.CASES]
     if unknown:
         raise ValueError(f"tables has unknown cases {unknown}; known: {list(scenario.CASES)}")
