@@ -612,11 +612,26 @@ def main(argv=None) -> int:
     >>> main(["reproduce", "--horizon", "-3"])  # says why on stderr, in one line
     2
     """
+    if argv is None:  # the command line: this process ends when main returns
+        _settle_imports()
     try:
         return _main(argv)
     finally:
-        if argv is None:  # the command line: this process ends when main returns
+        if argv is None:
             _skip_exit_collection()
+
+
+def _settle_imports() -> None:
+    """Keep the collector off the objects the command's imports created.
+
+    Importing python-control, scipy, numba and matplotlib leaves ~300 000 objects
+    that live as long as the process. Every full collection walks all of them, and
+    numba's first use (loading its typing registries to call a cached loop) allocates
+    enough to start several: it took 0.34-0.46 s after the imports instead of 0.12-0.17
+    s with them frozen. Frozen objects are skipped by the collector and, should one
+    become garbage, freed by reference counting or with the process.
+    """
+    gc.freeze()
 
 
 def _skip_exit_collection() -> None:
