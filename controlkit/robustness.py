@@ -288,7 +288,7 @@ def figures(table, summary) -> dict:
     >>> sorted(figures(t, s))
     ['robustness_errors', 'robustness_success_vs_inertia']
     """
-    from .outputs.style import legend_outside, new_figure, slide_style
+    from .outputs.style import legend_outside, log_scale, new_figure, slide_style
 
     cases = list(summary)
     out = {}
@@ -307,7 +307,7 @@ def figures(table, summary) -> dict:
                     color=CASE_COLORS.get(case, "k"))
         ax.axhline(POINTING_REQUIREMENT_DEG, color="k", linestyle=":", linewidth=1.6,
                    label=f"requirement {POINTING_REQUIREMENT_DEG} deg")
-        ax.set_yscale("log")
+        log_scale(ax)
         labels = [f"{c}\n{100 * summary[c]['success_rate']:.1f} % met" for c in cases]
         ax.set_xticks(positions, labels)
         ax.set_ylabel("worst error, last half [deg]")
@@ -540,7 +540,7 @@ def cmg_study(*, samples=200, seed=0, cases=None, horizon=None, ranges=None, gri
 
 def _write_cmg(table, summary, out, **settings):
     from .outputs.export import atomic
-    from .outputs.style import legend_outside, new_figure, save, slide_style
+    from .outputs.style import legend_outside, log_scale, new_figure, save, slide_style
 
     out.mkdir(parents=True, exist_ok=True)
     with atomic(out / "sweep.csv") as partial:
@@ -558,7 +558,7 @@ def _write_cmg(table, summary, out, **settings):
                         markersize=4, label=f"{case}: {column.split('_')[2]} error")
         ax.axhline(CMG_TRACKING_BOUND_RAD, color="k", linestyle=":", linewidth=1.6,
                    label=f"bound {CMG_TRACKING_BOUND_RAD} rad")
-        ax.set_yscale("log")
+        log_scale(ax)
         ax.set_xlabel("factor on the friction of the case")
         ax.set_ylabel("max |error| after 1 s [rad]")
         ax.set_title("CMG tracking over drawn friction and inertia")

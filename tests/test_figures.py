@@ -6,11 +6,12 @@ import sys
 import numpy as np
 import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.ticker import LogFormatterSciNotation
 from PIL import Image
 
 from controlkit.outputs import cmg as cmg_out
 from controlkit.outputs import spacecraft as sc_out
-from controlkit.outputs.style import PNG_DPI, save, slide_style
+from controlkit.outputs.style import PNG_DPI, PowerOfTenFormatter, save, slide_style
 from controlkit.outputs.workers import FigureWorkers
 from controlkit.scenarios import cmg as cmg_scenario
 from controlkit.scenarios import spacecraft as sc_scenario
@@ -80,6 +81,53 @@ def test_fig7_is_logarithmic_with_the_requirement_and_ideal_on_top(sc_tables):
     others = [line for line in ax.get_lines() if line not in ideal + flat]
     assert ideal[0].get_linestyle() == "--"
     assert ideal[0].get_zorder() > max(line.get_zorder() for line in others)
+
+
+def _value(label):
+    """The number a plain-text log label such as '2×10⁻⁴' stands for."""
+    superscripts = "⁰¹²³⁴⁵⁶⁷⁸⁹⁻"
+    head = label.rstrip(superscripts)
+    exponent = label[len(head):].translate(str.maketrans(superscripts, "0123456789-"))
+    sign = -1.0 if head.startswith("−") else 1.0
+    coeff, _, base = head.lstrip("−").rpartition("×")
+    return sign * float(coeff or 1.0) * float(base) ** int(exponent or 0)
+
+
+def test_log_axes_label_the_same_ticks_as_matplotlib_in_plain_text(sc_tables, cmg_tables):
+    for fig in (sc_out.figure(sc_tables, "fig07_pointing_error"),
+                cmg_out.figure(cmg_tables, "fig3_q2")):
+        FigureCanvasAgg(fig).draw()
+        ax = next(a for a in fig.axes if a.get_yscale() == "log")
+        reference = LogFormatterSciNotation()
+        reference.set_axis(ax.yaxis)
+        ticks = ax.get_yticks()
+        reference.set_locs(ticks)
+        labels = [t.get_text() for t in ax.get_yticklabels()]
+        # labelled where matplotlib labels, with the number matplotlib writes, and no TeX
+        assert [bool(label) for label in labels] == [bool(reference(v)) for v in ticks]
+        shown = [(v, label) for v, label in zip(ticks, labels, strict=True) if label]
+        assert len(shown) >= 3 and not any("$" in label for _, label in shown)
+        for value, label in shown:
+            assert _value(label) == pytest.approx(value, rel=1e-12), label
+
+
+def test_power_of_ten_formatter_writes_matplotlibs_numbers():
+    f = PowerOfTenFormatter(labelOnlyBase=False)
+    assert [f(v) for v in (1e-8, 1e3, 1.0, 3e-4, -1e-2)] == [
+        "10⁻⁸", "10³", "10⁰", "3×10⁻⁴", "−10⁻²"]
+
+
+def test_saved_result_figures_need_no_mathtext(tmp_path, monkeypatch, sc_tables, cmg_tables):
+    # mathtext parsing took 4-5 ms a label, twice per figure (PNG and SVG)
+    from matplotlib import mathtext
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a result figure parsed mathtext")
+
+    monkeypatch.setattr(mathtext.MathTextParser, "parse", refuse)
+    paths = (sc_out.figures(sc_tables, tmp_path, stems=["fig07_pointing_error"])
+             + cmg_out.figures(cmg_tables, tmp_path, stems=["fig3_q2", "fig4_q4"]))
+    assert len(paths) == 6
 
 
 def test_fig8_legend_is_one_row_of_k_entries(sc_tables):

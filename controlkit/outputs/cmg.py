@@ -174,7 +174,7 @@ def figure(tables, stem):
     >>> fig.axes[1].get_yscale()
     'log'
     """
-    from .style import IDEAL_STYLE, legend_outside, new_figure, slide_style
+    from .style import IDEAL_STYLE, legend_outside, log_scale, new_figure, slide_style
 
     _, title, ylabel, col, ref, limit = figure_spec(FIGURES, stem)
     if not tables:
@@ -187,13 +187,14 @@ def figure(tables, stem):
                 color = _COLORS.get(name, "tab:green")
                 ax.plot(c["time"], c[col], color=color, label=f"{col} ({_label(name)})")
                 err = np.abs(c[col] - c[ref])
-                err_ax.semilogy(c["time"], np.where(err > 0, err, np.nan), color=color,
-                                linewidth=0.6, alpha=0.35)
+                err_ax.plot(c["time"], np.where(err > 0, err, np.nan), color=color,
+                            linewidth=0.6, alpha=0.35)
                 centre, _, _, high = window_stats(c["time"], err, T1_WINDOW_S)
-                err_ax.semilogy(centre, np.where(high > 0, high, np.nan), color=color,
-                                label=f"|{col} - {ref}|, max over {1000 * T1_WINDOW_S:g} ms")
+                err_ax.plot(centre, np.where(high > 0, high, np.nan), color=color,
+                            label=f"|{col} - {ref}|, max over {1000 * T1_WINDOW_S:g} ms")
             ax.plot(first["time"], first[ref], color="k", label=f"{ref} (reference)",
                     **IDEAL_STYLE)
+            log_scale(err_ax)
             err_ax.set_ylabel(f"|{col} - {ref}| [rad]")
             err_ax.set_xlabel("time [s]")
         else:  # torques switch every sample: a moving mean with its min-max band

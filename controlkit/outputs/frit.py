@@ -86,7 +86,7 @@ def figure(results: dict[str, list], stem: str):
     >>> fig.axes[0].get_yscale()
     'log'
     """
-    from .style import legend_outside, new_figure, slide_style
+    from .style import legend_outside, log_scale, new_figure, slide_style
 
     if stem not in FIGURES:
         raise ValueError(f"stem must be one of {list(FIGURES)}, got {stem!r}")
@@ -112,7 +112,7 @@ def figure(results: dict[str, list], stem: str):
                             label=f"{tuner} tuner: diverged")
             ax.axhline(POINTING_REQUIREMENT_DEG, color="k", linestyle=":", linewidth=1.6,
                        label=f"requirement {POINTING_REQUIREMENT_DEG} deg")
-            ax.set_yscale("log")
+            log_scale(ax)
             ax.set_ylim(1e-4, top * 2)
             ax.set_xticks(np.arange(len(labels)), labels, rotation=60, ha="right",
                           fontsize=10.5)
@@ -142,7 +142,7 @@ def figure(results: dict[str, list], stem: str):
         if not failing:
             ax.text(0.5, 0.5, "the paper's tuner meets the requirement in every reading",
                     transform=ax.transAxes, ha="center", va="center")
-        ax.set_yscale("log")
+        log_scale(ax)
         ax.set_ylim(bottom=1e-3)  # K starts at 0: the first samples would stretch the axis
         ax.set_xlabel("time [s]")
         ax.set_ylabel("max |K_ij| [1/s]")

@@ -132,7 +132,7 @@ def figure(tables: dict[str, dict[str, np.ndarray]], stem: str):
     >>> fig.axes[0].get_yscale()
     'log'
     """
-    from .style import IDEAL_STYLE, legend_outside, new_figure, slide_style
+    from .style import IDEAL_STYLE, legend_outside, log_scale, new_figure, slide_style
 
     _, title, ylabel, cols = figure_spec(FIGURES, stem)
     unknown = [name for name in tables if name not in scenario.CASES]
@@ -158,7 +158,7 @@ def figure(tables: dict[str, dict[str, np.ndarray]], stem: str):
         ax.set_ylabel(ylabel)
         ax.set_title(title)
         if stem == "fig07_pointing_error":
-            ax.set_yscale("log")
+            log_scale(ax)
             ax.axhline(POINTING_REQUIREMENT_DEG, color="k", linestyle=":", linewidth=1.6,
                        label=f"requirement {POINTING_REQUIREMENT_DEG} deg", zorder=6)
             top = max([1.0] + [float(np.max(c["pointing_error_deg"])) for c in shown.values()])

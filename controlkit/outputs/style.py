@@ -11,7 +11,10 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 from pathlib import Path
+
+from matplotlib.ticker import LogFormatterSciNotation
 
 #: Saved figure size in inches (a 16:9 slide).
 SLIDE_SIZE = (8.0, 4.5)
@@ -89,6 +92,68 @@ def new_figure(nrows=1, *, size=SLIDE_SIZE, sharex=True, height_ratios=None):
     axes = fig.subplots(nrows, 1, sharex=sharex, squeeze=False,
                         gridspec_kw={"height_ratios": height_ratios})[:, 0]
     return fig, list(axes)
+
+
+_SUPERSCRIPT = str.maketrans("0123456789-", "⁰¹²³⁴⁵⁶⁷⁸⁹⁻")
+# what matplotlib's log formatter writes: [sign] base^{exponent}, [sign] coeff\times
+# base^{exponent}, or a number
+_POWER = re.compile(r"\$\\mathdefault\{(-?)(?:([0-9.]+)\\times)?([0-9]+)(?:\^\{(-?[0-9]+)\})?\}\$")
+
+
+class PowerOfTenFormatter(LogFormatterSciNotation):
+    """Log-axis tick labels as plain text with superscript digits: ``10⁻⁴``, ``2×10⁻⁴``.
+
+    The labels of matplotlib's default log formatter (the same ticks labelled, the same
+    numbers), written without mathtext: parsing ``$\\mathdefault{10^{-4}}$`` took 4-5 ms
+    per label, once for the PNG and once more for the SVG of every figure, a tenth of
+    the drawing time of the figures with a log axis. In the SVG the label is one
+    editable text. A label of another form is left to mathtext.
+
+    Examples
+    --------
+    >>> f = PowerOfTenFormatter()
+    >>> [f(1e-4), f(1e2), f(1.0), f(2e-4), f(-1e-3)]
+    ['10⁻⁴', '10²', '10⁰', '2×10⁻⁴', '−10⁻³']
+    """
+
+    def __call__(self, x, pos=None):
+        label = super().__call__(x, pos)
+        match = _POWER.fullmatch(label)
+        if match is None:
+            return label
+        sign, coeff, base, exponent = match.groups()
+        minus = "\N{MINUS SIGN}" if sign and _unicode_minus() else sign
+        mantissa = f"{coeff}\N{MULTIPLICATION SIGN}" if coeff else ""
+        return f"{minus}{mantissa}{base}{(exponent or '').translate(_SUPERSCRIPT)}"
+
+
+def _unicode_minus() -> bool:
+    import matplotlib
+
+    return bool(matplotlib.rcParams["axes.unicode_minus"])
+
+
+def log_scale(ax, axis="y"):
+    """Put one axis of ``ax`` on a log scale labelled by :class:`PowerOfTenFormatter`.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+    axis : {"y", "x"}
+
+    Examples
+    --------
+    >>> fig, (ax,) = new_figure()
+    >>> log_scale(ax)
+    >>> ax.get_yscale(), type(ax.yaxis.get_major_formatter()).__name__
+    ('log', 'PowerOfTenFormatter')
+    """
+    if axis not in ("x", "y"):
+        raise ValueError(f"axis must be 'x' or 'y', got {axis!r}")
+    getattr(ax, f"set_{axis}scale")("log")
+    target = ax.yaxis if axis == "y" else ax.xaxis
+    target.set_major_formatter(PowerOfTenFormatter())
+    target.set_minor_formatter(PowerOfTenFormatter(labelOnlyBase=False))
 
 
 def legend_outside(fig, axes=None, *, ncols=None):

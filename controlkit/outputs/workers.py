@@ -29,16 +29,6 @@ _SLOTS = None
 def _start_worker(slots) -> None:
     global _SLOTS
     _SLOTS = slots
-    # The first log axis a process draws builds matplotlib's mathtext parser, for the
-    # exponents of its tick labels: 0.12 s, most of a worker's first figure beyond the
-    # others. The workers start with the pool, so they build it while the caller is
-    # still running its first study rather than while the figures wait for them.
-    try:
-        from matplotlib.mathtext import MathTextParser
-
-        MathTextParser("path").parse(r"$\mathdefault{10^{-4}}$")
-    except Exception:  # only a head start: a figure that needs the parser says why
-        pass
 
 
 def _started() -> None:
