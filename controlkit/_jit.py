@@ -10,6 +10,7 @@ through this module, so both compute with the same code.
 from __future__ import annotations
 
 import os
+import uuid
 
 try:
     if os.environ.get("CONTROLKIT_DISABLE_NUMBA", "") not in ("", "0"):
@@ -20,6 +21,39 @@ except ImportError:
 
 #: True when kernels are compiled with numba.
 HAVE_NUMBA = numba is not None
+
+
+class _RandomIds:
+    """Unique ids for the functions numba compiles: random 128-bit numbers, not 1, 2, 3.
+
+    numba names the compiled code of a function (and the global that holds its
+    environment) after the function and a per-process counter. Two processes
+    compiling the same kernel, e.g. the test suite and a ``controlkit reproduce`` it
+    starts, or two figure workers, give it the same number; when one process's
+    compiled loop (which carries a copy of each kernel it calls) and the other's
+    cached kernel are later loaded into one process, the second copy is bound to the
+    first's environment. We saw a kernel then fail on return with numba's "In
+    'NRT_adapt_ndarray_to_python', 'descr' is NULL" (numba issue 10486; PyTensor draws
+    random ids for the same reason). numba only calls ``next()`` on this iterator.
+    """
+
+    def __iter__(self):
+        return self
+
+    def __next__(self) -> int:
+        return uuid.uuid4().int
+
+
+if numba is not None:
+    from numba.core.bytecode import FunctionIdentity
+
+    if hasattr(FunctionIdentity, "_unique_ids"):  # numba's counter (0.59-0.68)
+        FunctionIdentity._unique_ids = _RandomIds()
+
+#: Part of the name of every compiled loop and user kernel in the disk cache: changed
+#: when code cached by earlier versions must not be loaded again (2: cached before the
+#: random ids above, whose copies of a kernel could share a name with another's).
+CACHE_FORMAT = 2
 
 
 def jit(function=None, *, inline=False):

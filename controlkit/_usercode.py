@@ -389,7 +389,8 @@ def load_kernel(source: str, folder: Path):
     >>> kernel(0.0, np.zeros(0), np.ones(1), np.zeros(0), np.empty(1)).tolist()
     [3.0]
     """
-    key = hashlib.sha256((source + str(_jit.HAVE_NUMBA)).encode()).hexdigest()[:20]
+    key = hashlib.sha256((source + str(_jit.HAVE_NUMBA) + str(_jit.CACHE_FORMAT)).encode()
+                         ).hexdigest()[:20]
     name = f"controlkit_user_{key}"
     if name in pysys.modules:
         return pysys.modules[name].kernel, name

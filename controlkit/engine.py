@@ -533,8 +533,8 @@ def _load(source: str, injected=None, steps=None):
                       if line.startswith("from ")})
     kernel_sources = "".join(Path(importlib.util.find_spec(m).origin).read_text()
                              for m in modules)
-    key = hashlib.sha256((source + kernel_sources + str(_jit.HAVE_NUMBA)).encode()
-                         ).hexdigest()[:20]
+    key = hashlib.sha256((source + kernel_sources + str(_jit.HAVE_NUMBA)
+                          + str(_jit.CACHE_FORMAT)).encode()).hexdigest()[:20]
     path = folder / f"loop_{key}.py"
     cached = any((folder / "__pycache__").glob(f"loop_{key}.run-*.nbi"))
     if _jit.HAVE_NUMBA and steps is not None and not cached \

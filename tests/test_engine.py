@@ -148,3 +148,22 @@ def test_engine_without_numba_gives_the_same_numbers(tmp_path):
 def test_unknown_engine_is_refused():
     with pytest.raises(ValueError, match=r"engine must be one of \('fast', 'python-control'\)"):
         simulate(scenario.build_loop("ideal"), [0.0, 0.1], Q0, engine="numba")
+
+
+_COMPILE_ONE = """
+import controlkit._jit, numba
+f = numba.njit(lambda x: x + 1.0)
+f(1.0)
+print(next(iter(f.overloads.values())).fndesc.unique_name)
+"""
+
+
+@pytest.mark.skipif(not engine._jit.HAVE_NUMBA, reason="numba not installed")
+def test_two_processes_name_the_same_compiled_function_differently():
+    # numba numbered compiled functions 1, 2, 3 in every process, so the same kernel
+    # compiled by two processes (a loop's copy, the kernel's own cache) had one name and
+    # the second loaded was bound to the first one's environment ('descr' is NULL)
+    names = [subprocess.run([sys.executable, "-c", _COMPILE_ONE], capture_output=True,
+                            text=True, check=True).stdout.strip() for _ in range(2)]
+    assert all(names) and names[0] != names[1], names
+
