@@ -37,3 +37,32 @@ nb_execution_raise_on_error = True
 (HERE / "notebooks").mkdir(exist_ok=True)
 for notebook in sorted((HERE.parent / "notebooks").glob("*.ipynb")):
     shutil.copy(notebook, HERE / "notebooks" / notebook.name)
+
+
+def _keep_constant_descriptions_whole(app, what, name, obj, options, lines):
+    """Undo napoleon's reading of ``#:`` comments as ``type: description``.
+
+    For a module constant, napoleon takes the text before the first colon of its
+    comment as the constant's type ("Wheel axes v1, v2 (Table 2): the z wheel has
+    failed" became "the z wheel has failed. Type: Wheel axes ..."). Our comments never
+    give a type that way, so the two parts are joined again.
+    """
+    if what not in ("data", "attribute"):
+        return
+    typed = [i for i, line in enumerate(lines) if line.startswith(":type: ")]
+    if len(typed) != 1:
+        return
+    head = lines[typed[0]][len(":type: "):]
+    del lines[typed[0]]
+    while lines and not lines[-1].strip():
+        lines.pop()
+    first = next((i for i, line in enumerate(lines) if line.strip()), None)
+    if first is None:
+        lines.append(head)
+    else:
+        lines[first] = f"{head}: {lines[first].lstrip()}"
+
+
+def setup(app):
+    # after napoleon (priority 500), which split the comment
+    app.connect("autodoc-process-docstring", _keep_constant_descriptions_whole, priority=600)

@@ -16,7 +16,7 @@ from pathlib import Path
 
 from matplotlib.ticker import LogFormatterSciNotation
 
-#: Saved figure size in inches (a 16:9 slide).
+#: Saved figure size in inches, the shape of a 16 by 9 slide.
 SLIDE_SIZE = (8.0, 4.5)
 #: Resolution of the saved PNG (the pHYs chunk records it).
 PNG_DPI = 200
