@@ -167,3 +167,35 @@ def test_two_processes_name_the_same_compiled_function_differently():
                             text=True, check=True).stdout.strip() for _ in range(2)]
     assert all(names) and names[0] != names[1], names
 
+
+_LOOP_COMPILED = """
+import sys
+import numpy as np
+sys.path.insert(0, sys.argv[2])
+from controlkit import engine
+from controlkit.simulation import simulate
+from user_diagrams import lti_loop
+loop, T, X0, U, _ = lti_loop(steps=10)
+if sys.argv[1] == "compile":
+    engine.COMPILE_AFTER_STEPS = 0  # compile and cache it whatever the length
+    simulate(loop, T, X0, U, engine="fast")
+else:  # a short run in a new process: the compiled loop, found in the cache
+    run, _ = engine.compile_system(loop, steps=len(T))
+    print(hasattr(run, "py_func"))
+"""
+
+
+@pytest.mark.skipif(not engine._jit.HAVE_NUMBA, reason="numba not installed")
+def test_a_compiled_loop_is_found_under_numba_cache_dir(tmp_path):
+    # the loop's cache was looked for next to its file only, so with NUMBA_CACHE_DIR every
+    # short run (the CMG study's) ran as Python and was compiled again in the background
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba"),
+           "CONTROLKIT_CACHE_DIR": str(tmp_path / "loops")}
+    tests = os.path.dirname(__file__)
+    for step in ("compile", "load"):
+        out = subprocess.run([sys.executable, "-c", _LOOP_COMPILED, step, tests], env=env,
+                             capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "True"
+    assert not list((tmp_path / "loops").glob("__pycache__/*.nbi"))  # it went there instead
+    assert list((tmp_path / "numba").rglob("loop_*.nbi"))
+
