@@ -105,9 +105,9 @@ class PowerOfTenFormatter(LogFormatterSciNotation):
 
     The labels of matplotlib's default log formatter (the same ticks labelled, the same
     numbers), written without mathtext: parsing ``$\\mathdefault{10^{-4}}$`` took 4-5 ms
-    per label, once for the PNG and once more for the SVG of every figure, a tenth of
-    the drawing time of the figures with a log axis. In the SVG the label is one
-    editable text. A label of another form is left to mathtext.
+    per label, once for the PNG and once more for the SVG (Fig. 7 took 0.26 s to draw
+    and save, 0.20 s with these labels). In the SVG the label is one editable text. A
+    label of another form is left to mathtext.
 
     Examples
     --------
