@@ -103,6 +103,8 @@ class FigureWorkers:
         if self._frozen:
             gc.freeze()
         if self._pool is not None:
+            # with fork, the pool starts all its workers at its first task: this one, so
+            # they are forked now, with the objects frozen above
             self._background.append(self._pool.submit(_started))
 
     def submit(self, figures, tables, outdir, stems, *, first=(), columns=None) -> None:
@@ -136,8 +138,6 @@ class FigureWorkers:
                 done.set_result(figures(tables, outdir, stems=[stem]))
                 self._futures.append(done)
             return
-        if self._frozen:  # the workers are forked at the first task
-            gc.freeze()
         stems = list(stems)
         futures = [None] * len(stems)
         for i in sorted(range(len(stems)), key=lambda i: stems[i] not in first):
@@ -159,8 +159,6 @@ class FigureWorkers:
         """
         if self._pool is None:
             return
-        if self._frozen:
-            gc.freeze()
         self._background.append(self._pool.submit(function, *args))
 
     def results(self) -> list[Path]:
