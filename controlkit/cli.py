@@ -224,6 +224,11 @@ MANIFEST = "run.json"
 CASE_FAILURES = (FloatingPointError, ArithmeticError, SingularDecouplingError)
 
 
+def _steps(s: Study, horizon) -> int:
+    """Samples of a ``s`` run over ``horizon`` seconds (``None``: its published horizon)."""
+    return round((horizon or s.horizon) / s.Ts) + 1
+
+
 def _select_cases(studies: list[Study], requested) -> dict[str, list[str]]:
     if requested is None:
         return {s.name: list(s.default_cases) for s in studies}
@@ -376,7 +381,7 @@ def reproduce(study="all", *, out="results", cases=None, horizon=None, stride=No
             continue
         if options and hasattr(s.run, "check"):
             s.run.check(options)
-        steps = round((horizons[s.name] or s.horizon) / s.Ts) + 1
+        steps = _steps(s, horizons[s.name])
         step = stride if stride is not None else s.default_stride
         if stride is not None and steps // step < 2:
             raise UsageError(f"stride {step} keeps {1 + (steps - 1) // step} sample(s) of the "
@@ -420,8 +425,7 @@ def _compile_ahead(studies, selection, horizons, pool) -> None:
     if not HAVE_NUMBA or pool.workers == 0:
         return
     for s in studies:
-        steps = round((horizons[s.name] or s.horizon) / s.Ts) + 1
-        if s.loop is None or steps >= engine.COMPILE_AFTER_STEPS:
+        if s.loop is None or _steps(s, horizons[s.name]) >= engine.COMPILE_AFTER_STEPS:
             continue
         for case in selection[s.name]:
             run, _ = engine.compile_system(s.loop(case), steps=0)
@@ -529,7 +533,7 @@ def _streamed(s, case, horizon, stride, csv_path, progress, options):
     from .outputs.export import atomic, write_rows
 
     watch = s.streaming(case, horizon)
-    steps = round(horizon / s.Ts) + 1
+    steps = _steps(s, horizon)
     seen = [0]
     with atomic(csv_path) as partial, partial.open("w") as handle:
         header = None
@@ -614,36 +618,30 @@ def main(argv=None) -> int:
     2
     """
     if argv is None:  # the command line: this process ends when main returns
-        _settle_imports()
+        _freeze_objects()  # those of the imports
     try:
         return _main(argv)
     finally:
         if argv is None:
-            _skip_exit_collection()
+            _freeze_objects()  # and those of the run, before the interpreter exits
 
 
-def _settle_imports() -> None:
-    """Keep the collector off the objects the command's imports created.
+def _freeze_objects() -> None:
+    """Keep the collector off the objects the command has made so far (``gc.freeze``).
 
-    Importing python-control, scipy, numba and matplotlib leaves ~300 000 objects
-    that live as long as the process. Every full collection walks all of them, and
-    numba's first use (loading its typing registries to call a cached loop) allocates
-    enough to start several: it took 0.34-0.46 s after the imports instead of 0.12-0.17
-    s with them frozen. Frozen objects are skipped by the collector and, should one
-    become garbage, freed by reference counting or with the process.
-    """
-    gc.freeze()
+    Importing python-control, scipy, numba and matplotlib leaves ~300 000 objects that
+    live as long as the process, and a full collection walks all of them:
 
+    - before the run: numba's first use (loading its typing registries to call a cached
+      loop) allocates enough to start several, 0.34-0.46 s after the imports instead of
+      0.12-0.17 s with them frozen;
+    - at exit: Python clears every module and runs the collector over what is left,
+      0.3 s after ``import control`` alone and 0.7-0.9 s after ``controlkit reproduce
+      all``, to free memory the process is about to give back.
 
-def _skip_exit_collection() -> None:
-    """Leave the objects of an ending process to the operating system, not to the collector.
-
-    When Python exits it clears every module and runs the cyclic garbage collector over
-    what is left: the ~300 000 objects of python-control, scipy, numba and matplotlib.
-    That took 0.3 s after ``import control`` alone and 0.7-0.9 s after ``controlkit
-    reproduce all``, a fifth of the command's time, to free memory the process is about
-    to give back. Frozen objects are skipped by the collector. Every file is closed by
-    then; atexit handlers and the flush of stdout and stderr still run.
+    Frozen objects are skipped by the collector and, should one become garbage, freed by
+    reference counting or with the process. atexit handlers and the flush of stdout and
+    stderr still run.
     """
     gc.freeze()
 
