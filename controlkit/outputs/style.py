@@ -14,6 +14,7 @@ import os
 import re
 from pathlib import Path
 
+from matplotlib import rcParams
 from matplotlib.ticker import LogFormatterSciNotation
 
 #: Saved figure size in inches, the shape of a 16 by 9 slide.
@@ -122,15 +123,9 @@ class PowerOfTenFormatter(LogFormatterSciNotation):
         if match is None:
             return label
         sign, coeff, base, exponent = match.groups()
-        minus = "\N{MINUS SIGN}" if sign and _unicode_minus() else sign
+        minus = "\N{MINUS SIGN}" if sign and rcParams["axes.unicode_minus"] else sign
         mantissa = f"{coeff}\N{MULTIPLICATION SIGN}" if coeff else ""
         return f"{minus}{mantissa}{base}{(exponent or '').translate(_SUPERSCRIPT)}"
-
-
-def _unicode_minus() -> bool:
-    import matplotlib
-
-    return bool(matplotlib.rcParams["axes.unicode_minus"])
 
 
 def log_scale(ax, axis="y"):
