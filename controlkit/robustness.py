@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from .blocks.spacecraft import POINTING_REQUIREMENT_DEG, pointing_error_deg
-from .sweep import sweep, wilson_interval
+from .sweep import check_folder, sweep, wilson_interval
 
 #: Cases compared by default (``safeguarded`` joins when the scenario has it).
 BASE_CASES = ("without_mec", "mec_fixed", "proposed")
@@ -433,9 +433,7 @@ def run_cli(args) -> dict:
             ranges[name] = span
         else:
             grid[name] = np.linspace(span[0], span[1], n).tolist()
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {out} is a file, not a folder")
+    out = check_folder(args.out, "--out")
     study = spacecraft_study if args.study == "spacecraft" else cmg_study
     _, summary = study(samples=args.samples, seed=args.seed, cases=args.cases,
                        horizon=args.horizon, ranges=ranges, grid=grid,

@@ -9,13 +9,13 @@ text is 12-14 pt at that size, so it stays legible when the figure fills a slide
 
 from __future__ import annotations
 
-import contextlib
-import os
 import re
 from pathlib import Path
 
 from matplotlib import rcParams
 from matplotlib.ticker import LogFormatterSciNotation
+
+from .export import atomic
 
 #: Saved figure size in inches, the shape of a 16 by 9 slide.
 SLIDE_SIZE = (8.0, 4.5)
@@ -206,16 +206,11 @@ def save(fig, path) -> list[Path]:
     with slide_style():
         for target, fmt in [(path, "png")] + [
                 (path.with_suffix(f".{v}"), v) for v in VECTOR_FORMATS]:
-            partial = target.with_name(f".{target.name}.partial")
-            try:
+            with atomic(target) as partial:  # a temporary name unique to this writer
                 if fmt == "png":
                     _write_png(fig, canvas, partial)
                 else:
                     fig.savefig(partial, format=fmt, dpi="figure")
-                os.replace(partial, target)
-            finally:
-                with contextlib.suppress(FileNotFoundError):
-                    partial.unlink()
             written.append(target)
             # the layout is in figure coordinates and does not depend on the dpi: keep the
             # PNG's for the vector copies instead of solving it again (a third of the time).
