@@ -138,7 +138,7 @@ class RunStore:
     """
 
     def __init__(self, folder: Path, key: str, runs, *, resume: bool):
-        self.folder = Path(folder)
+        self.folder = Path(folder).absolute()  # the same folder if the function changes cwd
         self.key, self.runs, self.resume = key, runs, resume
         self.spec, self.runs_file = self.folder / SPEC_FILE, self.folder / RUNS_FILE
         self._lock = None
@@ -188,7 +188,11 @@ class RunStore:
     def open(self) -> dict[int, dict]:
         """Lock the store, make it ready, and return its finished rows by run index."""
         self._lock = FolderLock(self.folder, name=LOCK_FILE, purpose="another sweep")
-        self._lock.acquire()
+        try:
+            self._lock.acquire()
+        except OSError as exc:  # a folder that cannot be made or written (read-only, /proc)
+            self._lock = None
+            raise ValueError(f"store {self.folder} cannot be used: {exc}") from None
         try:
             if self._lock.taken_over:
                 pid = self._lock.taken_over.get("pid")
@@ -207,10 +211,10 @@ class RunStore:
             if problems:
                 shown = "; ".join(f"line {n}: {why}" for n, why in problems[:SHOWN_PROBLEMS])
                 more = len(problems) - SHOWN_PROBLEMS
-                warnings.warn(f"{self.runs_file}: {len(problems)} line(s) skipped, their runs "
-                              f"are made again - {shown}"
-                              + (f"; and {more} more" if more > 0 else ""),
-                              StoreWarning, stacklevel=3)
+                warnings.warn(f"{self.runs_file}: {len(problems)} line(s) skipped - {shown}"
+                              + (f"; and {more} more" if more > 0 else "")
+                              + " (they stay in the file; a run with no whole row is made "
+                                "again)", StoreWarning, stacklevel=3)
             self._fd = os.open(self.runs_file, os.O_RDWR | os.O_APPEND | os.O_CREAT, 0o644)
             size = os.fstat(self._fd).st_size
             self._fresh_line = size == 0 or os.pread(self._fd, 1, size - 1) == b"\n"
@@ -253,14 +257,16 @@ class RunStore:
             return f"run {index} is not in this sweep (it has {len(self.runs)} runs)", True
         run = self.runs[index]
         for name, value in (("case", run.case), ("seed", run.seed)):
-            if row.get(name) != value and not (value is None and name not in row):
-                return (f"run {index} has {name} {row.get(name)!r}, this sweep's run {index} "
+            if name in row and row[name] != value:
+                return (f"run {index} has {name} {row[name]!r}, this sweep's run {index} "
                         f"has {value!r}"), True
         for name, value in plain(run.params).items():
             if name in row and not same_value(row[name], value):
                 return (f"run {index} has {name}={row[name]!r}, this sweep's run {index} "
                         f"has {name}={value!r}"), True
-        missing = [f for f in (*ROW_FIELDS, *run.params) if f not in row]
+        own = [name for name, value in (("case", run.case), ("seed", run.seed))
+               if value is not None]
+        missing = [f for f in (*ROW_FIELDS, *own, *run.params) if f not in row]
         if missing:
             return f"run {index} lacks {missing}", False
         if not isinstance(row["error"], str):
@@ -277,6 +283,9 @@ class RunStore:
             data = self.runs_file.read_bytes()
         except FileNotFoundError:
             return finished, problems, foreign
+        except OSError as exc:  # a folder under that name, no permission, ...
+            raise ValueError(f"{self.runs_file} cannot be read ({exc}); choose another "
+                             "folder, or move it away (it is never removed here)") from None
         lines = data.split(b"\n")
         last = len(lines) - 1  # after the final newline: empty, or a cut line
         for number, raw in enumerate(lines, start=1):

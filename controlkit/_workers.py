@@ -117,6 +117,14 @@ def _watch_parent(pid: int, start_ticks: int | None) -> None:
             os._exit(70)  # the sweep is gone: nobody will read this run's row
 
 
+def _describe(exc: BaseException) -> str:
+    try:
+        message = str(exc)
+    except Exception:
+        message = "(its message cannot be shown)"
+    return f"{type(exc).__name__}: {message}" if message else type(exc).__name__
+
+
 def _exit_description(code) -> str:
     if code is None:
         return "ended"
@@ -142,7 +150,7 @@ def _worker_main(conn, call, fail, function, parent_pid, parent_ticks) -> None:
         try:
             run = pickle.loads(message)
         except Exception as exc:  # e.g. a parameter's class that cannot be imported here
-            conn.send(("unreadable", f"{type(exc).__name__}: {exc}"))
+            conn.send(("unreadable", _describe(exc)))
             continue
         if run is None:
             return
@@ -151,13 +159,12 @@ def _worker_main(conn, call, fail, function, parent_pid, parent_ticks) -> None:
         try:
             row = call(function, run)
         except BaseException as exc:  # noqa: B036 - in a worker, even a KeyboardInterrupt
-            row = fail(run, f"{type(exc).__name__}: {exc}".rstrip(": "),
-                       time.perf_counter() - started)
+            row = fail(run, _describe(exc), time.perf_counter() - started)
         try:
             payload = pickle.dumps(("row", row))
         except Exception as exc:  # a row is plain data; this is a last guard
             payload = pickle.dumps(("row", fail(run, f"the row cannot be sent back from the "
-                                                     f"worker: {type(exc).__name__}: {exc}",
+                                                     f"worker: {_describe(exc)}",
                                                 time.perf_counter() - started)))
         conn.send_bytes(payload)
 
@@ -170,6 +177,7 @@ class _Worker:
             target=_worker_main, name="controlkit-sweep-worker",
             args=(child_conn, call, fail, function, parent, process_start_ticks(parent)))
         self.process.start()
+        self.ticks = process_start_ticks(self.process.pid)
         child_conn.close()
         self.run = None  # the run it is making
         self.sent_at = None
@@ -183,9 +191,17 @@ class _Worker:
         self.conn.send_bytes(message)
         self.run, self.sent_at, self.started_at = run, time.monotonic(), None
 
+    def lost(self) -> bool:
+        """multiprocessing says it ended, but it still runs: its forkserver was lost (a
+        forkserver's worker reports its end through the forkserver)."""
+        return self.process.exitcode is not None and process_alive(self.process.pid,
+                                                                    self.ticks)
+
     def kill(self) -> None:
         if self.process.is_alive():
             self.process.kill()
+        elif self.lost():
+            os.kill(self.process.pid, signal.SIGKILL)
         self.process.join(5)
         self.conn.close()
 
@@ -222,6 +238,7 @@ class ProcessRunner:
         self.workers, self.context, self.timeout = workers, context, timeout
         self._pool: list[_Worker] = []
         self._start_failures = 0
+        self._given_again: set[int] = set()
         self._reaper = None
 
     def _start(self) -> _Worker:
@@ -267,7 +284,7 @@ class ProcessRunner:
         except Exception as exc:  # the run's parameters do not pickle
             idle.append(worker)
             record(self.fail(run, "the run's parameters cannot be sent to a worker process: "
-                                  f"{type(exc).__name__}: {exc}", 0.0))
+                                  f"{_describe(exc)}", 0.0))
 
     def map(self, runs, record) -> None:
         """Make every run of ``runs``; ``record(row)`` each row as it arrives."""
@@ -300,7 +317,10 @@ class ProcessRunner:
                         if worker.run is None:
                             idle.append(self._replace(worker))
                             continue
-                        if not worker.ever_started:
+                        if worker.lost() and run.index not in self._given_again:
+                            self._given_again.add(run.index)  # not its fault: once more
+                            todo.appendleft(run)
+                        elif not worker.ever_started:
                             self._start_failures += 1
                             if self._start_failures >= MAX_START_FAILURES:
                                 raise RuntimeError(
@@ -419,8 +439,7 @@ def child_main() -> None:
     try:
         row = call(function, run)
     except BaseException as exc:  # noqa: B036 - a row whatever happens
-        row = fail(run, f"{type(exc).__name__}: {exc}".rstrip(": "),
-                   time.perf_counter() - started)
+        row = fail(run, _describe(exc), time.perf_counter() - started)
     result.write(pickle.dumps(row))
     result.flush()
 

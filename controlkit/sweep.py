@@ -114,6 +114,10 @@ def _grid_values(grid: dict) -> list[list]:
         if isinstance(vals, str | bytes):
             raise ValueError(f"grid[{name!r}] = {vals!r} is one text, not a list of values; "
                              f"write [{vals!r}]")
+        if isinstance(vals, set | frozenset | dict):
+            raise ValueError(f"grid[{name!r}] is a {type(vals).__name__}, which has no fixed "
+                             "order (the runs' order would change from one session to the "
+                             "next); give a list")
         vals = list(np.atleast_1d(vals)) if not isinstance(vals, list | tuple) else list(vals)
         if not vals:
             raise ValueError(f"grid[{name!r}] has no values")
@@ -274,8 +278,8 @@ def plan(*, grid=None, draws=None, samples=None, seed=None, cases=None,
     if cases is None:
         cases = [None]
     else:
-        if isinstance(cases, str | bytes) or not isinstance(cases, Iterable):
-            raise ValueError(f"cases must be a list of case names, got {cases!r}"
+        if isinstance(cases, str | bytes | set | frozenset) or not isinstance(cases, Iterable):
+            raise ValueError(f"cases must be a list of case names (in order), got {cases!r}"
                              + (f" (write [{cases!r}] for one case)"
                                 if isinstance(cases, str) else ""))
         cases = list(cases)
@@ -302,11 +306,17 @@ def plan(*, grid=None, draws=None, samples=None, seed=None, cases=None,
 
 
 def _describe(exc: BaseException) -> str:
+    """``"Type: message"`` of an exception, even one whose message cannot be made."""
+    name = type(exc).__name__
     if isinstance(exc, SystemExit):
         return f"SystemExit: the function called sys.exit({exc.code!r})"
-    if isinstance(exc, KeyboardInterrupt) and not str(exc):
-        return "KeyboardInterrupt: raised by the function"
-    return f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__
+    try:
+        message = str(exc)
+    except Exception as inner:  # its __str__ fails: say so rather than lose the run
+        message = f"(its message cannot be shown: {type(inner).__name__})"
+    if isinstance(exc, KeyboardInterrupt) and not message:
+        message = "raised by the function"
+    return f"{name}: {message}" if message else name
 
 
 def _plain_metrics(result: dict) -> dict:
@@ -627,7 +637,10 @@ def _connect(scheduler: str):
     except ValueError as exc:
         raise ValueError(f"scheduler {scheduler!r} is not an address ({exc}); e.g. "
                          "'tcp://10.0.0.5:8786'") from None
-    if parts.scheme == "tcp" and parts.hostname and port:
+    if parts.scheme == "tcp" and not (parts.hostname and port):
+        raise ValueError(f"scheduler {scheduler!r} is not an address: it needs a host and a "
+                         "port, e.g. 'tcp://10.0.0.5:8786'")
+    if parts.scheme == "tcp":
         try:
             socket.create_connection((parts.hostname, port), SCHEDULER_TIMEOUT_S).close()
         except OSError as exc:
@@ -643,8 +656,9 @@ def _connect(scheduler: str):
     try:
         return Client(scheduler, timeout=SCHEDULER_TIMEOUT_S)
     except Exception as exc:  # OSError, TimeoutError, ValueError, ... all mean "not there"
-        raise _unreachable(scheduler, f"did not answer within {SCHEDULER_TIMEOUT_S:g} s "
-                                      f"({type(exc).__name__}: {exc})") from None
+        why = (f"did not answer within {SCHEDULER_TIMEOUT_S:g} s" if isinstance(
+            exc, TimeoutError | OSError) else "cannot be used")
+        raise _unreachable(scheduler, f"{why} ({type(exc).__name__}: {exc})") from None
 
 
 def _on_executor(pool, function, todo, timeout, record, fail):

@@ -45,6 +45,13 @@ def sleepy(seconds, pid_folder=None):
     return {"slept": seconds}
 
 
+class Unprintable(Exception):
+    """An exception whose message itself fails."""
+
+    def __str__(self):
+        raise RuntimeError("no message")
+
+
 def misbehave(kind):
     """Every way a run can go wrong, by name."""
     if kind == "raise":
@@ -75,6 +82,8 @@ def misbehave(kind):
         return [1, 2]
     if kind == "interrupt":
         raise KeyboardInterrupt
+    if kind == "unprintable":
+        raise Unprintable
     return {"y": 0.0}
 
 

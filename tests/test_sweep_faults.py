@@ -280,6 +280,14 @@ def test_missing_spec_is_rebuilt_from_matching_rows_never_emptied(full_store):
     assert json.loads((store / "sweep.json").read_text())["key"]
 
 
+def test_missing_spec_and_an_incomplete_row_still_rebuilds(full_store):
+    store, reference = full_store
+    (store / "sweep.json").unlink()
+    _rewrite_runs(store, lambda b: b + b'{"run": 4}\n')  # incomplete, not another sweep's
+    with pytest.warns(StoreWarning, match=r"line 7: run 4 lacks"):
+        _resumed(store, reference, [], match=r"sweep.json was missing; rebuilt")
+
+
 def test_missing_spec_with_rows_of_another_sweep_is_refused(full_store):
     store, _ = full_store
     (store / "sweep.json").unlink()
@@ -298,6 +306,15 @@ def test_damaged_spec_is_kept_aside_and_rebuilt(full_store):
     (store / "sweep.json").write_text('{"key": ')
     _resumed(store, reference, [], match=r"sweep.json was damaged \(line 1: Expecting value")
     assert (store / "sweep.json.damaged").read_text() == '{"key": '
+
+
+def test_a_runs_file_that_cannot_be_read_is_named_and_left_alone(tmp_path):
+    store = tmp_path / "store"
+    (store / "runs.jsonl").mkdir(parents=True)
+    with pytest.raises(ValueError, match=r"runs.jsonl cannot be read \(\[Errno 21\] Is a "
+                                         r"directory.*it is never removed here"):
+        stored_sweep(store, resume=True)
+    assert (store / "runs.jsonl").is_dir() and not (store / ".lock").exists()
 
 
 def test_spec_without_runs_file_starts_the_runs(full_store):
@@ -327,8 +344,7 @@ def test_spec_without_runs_file_starts_the_runs(full_store):
 def test_damaged_rows_are_skipped_named_and_rerun(full_store, edit, rerun, match):
     store, reference = full_store
     _rewrite_runs(store, edit)
-    _resumed(store, reference, rerun, match=rf"runs.jsonl: \d line\(s\) skipped, their runs "
-                                            rf"are made again - .*{match}")
+    _resumed(store, reference, rerun, match=rf"runs.jsonl: \d line\(s\) skipped - .*{match}")
     if rerun:  # the rerun rows are whole lines of their own
         assert [json.loads(line)["run"] for line in lines(store)[-len(rerun):]] == rerun
 
@@ -430,6 +446,7 @@ EVERY_WAY = {
     "same_parameter_value": "",
     "not_a_dict": "TypeError: the swept function must return a dict of metrics, got list",
     "interrupt": "KeyboardInterrupt: raised by the function",
+    "unprintable": "Unprintable: (its message cannot be shown: RuntimeError)",
     "fine": "",
 }
 
@@ -440,7 +457,7 @@ def test_a_misbehaving_function_is_a_failed_row_whatever_it_does(tmp_path):
     for expected, error in zip(EVERY_WAY.values(), table["error"], strict=True):
         assert error.startswith(expected) if expected else error == "", (expected, error)
     y = table["y"].tolist()
-    assert y[-4] == 1.0 and y[-1] == 0.0  # same_parameter_value and fine, after the others
+    assert y[-5] == 1.0 and y[-1] == 0.0  # same_parameter_value and fine, after the others
     assert table["y"].isna().sum() == len(EVERY_WAY) - 2  # only two runs gave metrics
     stored = [json.loads(line) for line in lines(tmp_path / "store")]
     assert sorted(r["run"] for r in stored) == list(range(len(EVERY_WAY)))
@@ -449,7 +466,7 @@ def test_a_misbehaving_function_is_a_failed_row_whatever_it_does(tmp_path):
 
 def test_in_this_process_too_except_what_ends_the_process():
     safe = ["raise", "sys_exit", "unpicklable", "reserved_run", "other_parameter_value",
-            "same_parameter_value", "not_a_dict", "fine"]
+            "same_parameter_value", "not_a_dict", "unprintable", "fine"]
     for executor in ("serial", "threads"):
         table = sweep(misbehave, grid={"kind": safe}, executor=executor, progress=False)
         for kind, error in zip(safe, table["error"], strict=True):
@@ -479,7 +496,12 @@ def _lambda_function(x):
     ({"grid": {"x": [1]}, "draws": None, "samples": None, "seed": 3},
      r"seed= goes with draws="),
     ({"samples": 10 ** 9}, r"1,000,000,000 runs is more than one sweep holds"),
-    ({"cases": "ab"}, r"cases must be a list of case names, got 'ab' \(write \['ab'\]"),
+    ({"cases": "ab"}, r"cases must be a list of case names \(in order\), got 'ab' "
+                      r"\(write \['ab'\]"),
+    ({"cases": {"a", "b"}}, r"cases must be a list of case names \(in order\)"),
+    ({"grid": {"x": {1, 2}}}, r"grid\['x'\] is a set, which has no fixed order"),
+    ({"executor": "dask", "scheduler": "foo"}, r"scheduler 'foo' is not an address: it "
+                                               r"needs a host and a port"),
     ({"cases": ["a", "a"]}, r"cases \['a'\] are given more than once"),
     ({"fixed": {"x": 1}}, r"'x' is both in draws= and in fixed="),
     ({"grid": {"run": [1]}}, r"grid= names 'run', a column of the sweep's own"),
