@@ -449,6 +449,11 @@ def _check_signature(function, names, has_cases: bool) -> None:
     if not any(p.kind is inspect.Parameter.VAR_KEYWORD
                for p in signature.parameters.values()):
         unknown = sorted(given - set(takes))
+        positional = [p.name for p in signature.parameters.values()
+                      if p.kind is inspect.Parameter.POSITIONAL_ONLY and p.name in unknown]
+        if positional:
+            raise ValueError(f"{title}() takes {positional} by position only; a sweep passes "
+                             "every parameter by name (def f(x) rather than def f(x, /))")
         if unknown:
             raise ValueError(f"{title}() takes no parameter {unknown} (it takes {takes})"
                              + ("; cases= passes case= to the function" if "case" in unknown
@@ -479,7 +484,7 @@ def check_folder(path, name: str = "store") -> Path:
         raise ValueError(f"{name} must be a folder path, got {path!r}")
     if not str(os.fspath(path)).strip():
         raise ValueError(f"{name} must name a folder, got {path!r}")
-    folder = Path(path)
+    folder = Path(path).expanduser()  # "~/results" means the home folder, as in a shell
     if folder.exists() and not folder.is_dir():
         raise ValueError(f"{name} {folder} is a file, not a folder")
     existing = folder.absolute()

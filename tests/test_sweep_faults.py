@@ -515,6 +515,7 @@ def _lambda_function(x):
     ({"function": lambda x: {"y": x}, "executor": "threads", "timeout": 5},
      r"timeout= makes each run in another process"),
     ({"function": sleepy}, r"sleepy\(\) takes no parameter \['x'\]"),
+    ({"function": divmod}, r"divmod\(\) takes \['x'\] by position only"),
 ])
 def test_bad_arguments_are_refused_before_anything_is_created(tmp_path, kwargs, message):
     arguments = {"function": _lambda_function, "draws": {"x": (0, 1)}, "samples": 3,
@@ -579,6 +580,10 @@ def test_store_that_cannot_be_written_is_refused(tmp_path):
             sweep(square, grid={"x": [1]}, executor="serial", store=locked / "s")
     finally:
         locked.chmod(0o700)
+
+
+def test_a_store_under_home_is_in_the_home_folder():
+    assert sweep_module.check_folder("~/results/sweep") == Path.home() / "results" / "sweep"
 
 
 def test_cli_refuses_bad_out_and_workers_before_creating_the_store(tmp_path, capsys):
