@@ -246,12 +246,24 @@ class FolderLock:
             return self
         raise RuntimeError(f"could not create the lock file {self.path}")
 
+    def still_held(self) -> bool:
+        """Whether the lock file is still the one this lock holds (someone may have removed
+        it by hand, letting a second process lock a new file under the same name)."""
+        if self._fd is None:
+            return False
+        try:
+            mine, named = os.fstat(self._fd), os.stat(self.path)
+        except FileNotFoundError:
+            return False
+        return (mine.st_ino, mine.st_dev) == (named.st_ino, named.st_dev)
+
     def release(self) -> None:
         """Remove the lock file and let go of the lock (nothing if not held)."""
         if self._fd is None:
             return
         try:
-            os.unlink(self.path)  # before letting go, so no one locks a file being removed
+            if self.still_held():  # not another process's file under the same name
+                os.unlink(self.path)  # before letting go: no one locks a file being removed
         except FileNotFoundError:
             pass
         finally:

@@ -26,7 +26,7 @@ import re
 import warnings
 from pathlib import Path
 
-from ._lock import FolderLock
+from ._lock import FolderLock, LockHeld
 from .outputs.export import atomic, json_default
 
 #: Where finished runs are appended, inside the store.
@@ -329,8 +329,24 @@ class RunStore:
                                     ) from None
             raise
 
+    def _keep_lock(self) -> None:
+        """If the lock file was removed by hand, lock a new one, or stop: another process
+        has locked the store meanwhile."""
+        if self._lock.still_held():
+            return
+        replacement = FolderLock(self.folder, name=LOCK_FILE, purpose="another sweep")
+        try:
+            replacement.acquire()
+        except LockHeld as exc:
+            raise RuntimeError(f"the lock file {self._lock.path} was removed while this sweep "
+                               f"ran, and another process has locked the store since ({exc}); "
+                               "this sweep stops here, its finished runs are kept") from None
+        self._lock.release()
+        self._lock = replacement
+
     def append(self, row: dict, line: str | None = None) -> None:
         """Append ``row`` (or its ready ``line``): one write of one complete line, synced."""
+        self._keep_lock()
         text = (self.line(row) if line is None else line) + "\n"
         data = (b"" if self._fresh_line else b"\n") + text.encode()
         self._fresh_line = False

@@ -48,9 +48,10 @@ from ._store import RUNS_FILE, SPEC_FILE, RunStore, StoreWarning, plain, same_va
 from ._workers import ProcessRunner, ThreadRunner, call_in_child
 from .outputs.export import json_default
 
-__all__ = ["EXECUTORS", "MAX_RUNS", "RESERVED", "RUNS_FILE", "SPEC_FILE", "Run",
-           "StoreWarning", "check_folder", "draw_points", "grid_points", "plan",
-           "process_context", "sweep", "wilson_interval"]
+__all__ = ["EXECUTORS", "MAX_RUNS", "MAX_THREADS", "RESERVED", "RUNS_FILE",
+           "SCHEDULER_TIMEOUT_S", "SPEC_FILE", "Run", "StoreWarning", "check_folder",
+           "draw_points", "grid_points", "max_processes", "plan", "process_context", "sweep",
+           "wilson_interval"]
 
 #: Executors by name (``executor=`` of :func:`sweep`, ``--executor`` of the CLI).
 EXECUTORS = ("processes", "threads", "serial", "dask")
@@ -562,9 +563,7 @@ def _check_executor(executor, workers, scheduler, timeout) -> str:
 def _check_sendable(function, kind, executor, timeout) -> None:
     """Refuse a function that the executor would have to send to another process but
     cannot (a lambda, a closure, a function of an interactive session)."""
-    given_processes = kind == "given" and (
-        isinstance(executor, cf.ProcessPoolExecutor)
-        or type(executor).__module__.startswith("distributed"))
+    given_processes = kind == "given" and isinstance(executor, cf.ProcessPoolExecutor)
     if kind != "processes" and timeout is None and not given_processes:
         return  # threads and this process take any callable; Dask uses cloudpickle
     why = ("timeout= makes each run in another process (a thread cannot be stopped)"

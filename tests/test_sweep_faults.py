@@ -205,6 +205,27 @@ def test_lock_of_a_dead_process_is_taken_over_and_a_live_one_refused(tmp_path, m
         _refuses_a_live_holder(tmp_path)
 
 
+def lock_thief(x, store):
+    """Run 1 removes the store's lock file by hand; run 2 tries to lock the store."""
+    if x == 1:
+        (Path(store) / ".lock").unlink()
+    if x == 2:
+        try:
+            FolderLock(store).acquire().release()
+        except LockHeld:
+            return {"stolen": False}
+        return {"stolen": True}
+    return {"stolen": None}
+
+
+def test_a_lock_file_removed_by_hand_is_locked_again_at_the_next_row(tmp_path):
+    store = tmp_path / "store"
+    table = sweep(lock_thief, grid={"x": [0, 1, 2]}, fixed={"store": str(store)},
+                  executor="serial", store=store, progress=False)
+    assert table["stolen"].tolist()[2] is False and (table["error"] == "").all()
+    assert not (store / ".lock").exists()
+
+
 def test_temporary_names_are_unique_per_writer(tmp_path):
     target = tmp_path / "table.csv"
     errors = []
