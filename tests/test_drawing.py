@@ -7,9 +7,9 @@ import control as ct
 import numpy as np
 import pytest
 
-from controlkit.diagrams.cmg import cmg_loop
-from controlkit.diagrams.spacecraft import linearized_plant, mec_loop, output_zeroing_loop
 from controlkit.drawing import compress_signals, diagram_graph, draw_block_diagram
+from controlkit.studies.cmg.diagrams import cmg_loop
+from controlkit.studies.spacecraft.diagrams import linearized_plant, mec_loop, output_zeroing_loop
 
 
 def svg_text(sys, tmp_path):

@@ -9,12 +9,12 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.ticker import LogFormatterSciNotation
 from PIL import Image
 
-from controlkit.outputs import cmg as cmg_out
-from controlkit.outputs import spacecraft as sc_out
 from controlkit.outputs.style import PNG_DPI, PowerOfTenFormatter, save, slide_style
 from controlkit.outputs.workers import FigureWorkers
-from controlkit.scenarios import cmg as cmg_scenario
-from controlkit.scenarios import spacecraft as sc_scenario
+from controlkit.studies.cmg import outputs as cmg_out
+from controlkit.studies.cmg import scenario as cmg_scenario
+from controlkit.studies.spacecraft import outputs as sc_out
+from controlkit.studies.spacecraft import scenario as sc_scenario
 
 
 @pytest.fixture(scope="module")
@@ -164,8 +164,8 @@ def test_bad_stems_and_paths_are_named(sc_tables, tmp_path):
 
 def test_library_never_switches_the_backend():
     code = ("import matplotlib; matplotlib.use('svg'); "
-            "from controlkit.outputs import spacecraft as o; from controlkit.scenarios import "
-            "spacecraft as s; import tempfile; "
+            "from controlkit.studies.spacecraft import outputs as o; "
+            "from controlkit.studies.spacecraft import scenario as s; import tempfile; "
             "o.figures({'ideal': o.table(s.run('ideal', horizon=1.0))}, tempfile.mkdtemp()); "
             "print(matplotlib.get_backend())")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,

@@ -10,9 +10,9 @@ import matplotlib
 
 matplotlib.use("Agg")
 
-from controlkit.diagrams.cmg import cmg_loop  # noqa: E402
-from controlkit.diagrams.spacecraft import mec_loop, output_zeroing_loop  # noqa: E402
 from controlkit.drawing import draw_block_diagram  # noqa: E402
+from controlkit.studies.cmg.diagrams import cmg_loop  # noqa: E402
+from controlkit.studies.spacecraft.diagrams import mec_loop, output_zeroing_loop  # noqa: E402
 
 HERE = Path(__file__).parent
 DIAGRAMS = {

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import control as ct
 
-from ..blocks import cmg
-from ._period import require_period, sampled
+from ...blocks import cmg
+from .._period import require_period, sampled
 
 
 def cmg_loop(plant=None, controller=None, *, reference=None, saturation=None, Ts=cmg.TS_CMG,
@@ -13,7 +13,7 @@ def cmg_loop(plant=None, controller=None, *, reference=None, saturation=None, Ts
     """References -> adaptive SMC -> torque saturation -> CMG -> controller, sampled at ``Ts``.
 
     The controller computes from the sampled state; the continuous plant is
-    held under zero-order hold between samples (:func:`~controlkit.sampling.sample_nlsys`).
+    held under zero-order hold between samples (:func:`~controlkit.blocks.sampling.sample_nlsys`).
 
     Parameters
     ----------

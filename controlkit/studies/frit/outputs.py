@@ -8,9 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..blocks.spacecraft import POINTING_REQUIREMENT_DEG
-from ..scenarios import frit as scenario
-from .export import atomic, write_json
+from ...blocks.spacecraft import POINTING_REQUIREMENT_DEG
+from ...outputs.export import atomic, write_json
+from . import scenario
 
 #: Columns of ``sensitivity.csv``, in order: the required ones, then when a run diverged.
 COLUMNS = ("tuner", "filter", "start", "freeze", "units", "horizon_s",
@@ -40,7 +40,7 @@ def rows(results: dict[str, list]) -> list[dict]:
     Parameters
     ----------
     results : dict
-        Tuner name to its list of :class:`~controlkit.scenarios.frit.ReadingResult`.
+        Tuner name to its list of :class:`~controlkit.studies.frit.scenario.ReadingResult`.
 
     Returns
     -------
@@ -86,7 +86,7 @@ def figure(results: dict[str, list], stem: str):
     >>> fig.axes[0].get_yscale()
     'log'
     """
-    from .style import legend_outside, log_scale, new_figure, slide_style
+    from ...outputs.style import legend_outside, log_scale, new_figure, slide_style
 
     if stem not in FIGURES:
         raise ValueError(f"stem must be one of {list(FIGURES)}, got {stem!r}")
@@ -158,7 +158,7 @@ def write(results: dict[str, list], outdir) -> tuple[dict, list[Path]]:
     Parameters
     ----------
     results : dict
-        Tuner name to its list of :class:`~controlkit.scenarios.frit.ReadingResult`.
+        Tuner name to its list of :class:`~controlkit.studies.frit.scenario.ReadingResult`.
     outdir : str or pathlib.Path
         The study's folder (``out/frit``).
 
@@ -176,7 +176,7 @@ def write(results: dict[str, list], outdir) -> tuple[dict, list[Path]]:
     >>> m["paper"]["readings"], sorted(p.name for p in paths)[:2]
     (16, ['metrics.json', 'sensitivity.csv'])
     """
-    from .style import save
+    from ...outputs.style import save
 
     outdir = Path(outdir)
     table = rows(results)

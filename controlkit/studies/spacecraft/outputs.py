@@ -6,9 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..blocks.spacecraft import POINTING_REQUIREMENT_DEG, pointing_error_deg
-from ..scenarios import spacecraft as scenario
-from .common import figure_spec, select_stems, signal
+from ...blocks.spacecraft import POINTING_REQUIREMENT_DEG, pointing_error_deg
+from ...outputs.common import figure_spec, select_stems, signal
+from . import scenario
 
 #: CSV columns of ``controlkit reproduce spacecraft``, in order.
 COLUMNS = ("time", "h1", "h2", "pointing_error_deg", "u1", "u2",
@@ -132,7 +132,7 @@ def figure(tables: dict[str, dict[str, np.ndarray]], stem: str):
     >>> fig.axes[0].get_yscale()
     'log'
     """
-    from .style import IDEAL_STYLE, legend_outside, log_scale, new_figure, slide_style
+    from ...outputs.style import IDEAL_STYLE, legend_outside, log_scale, new_figure, slide_style
 
     _, title, ylabel, cols = figure_spec(FIGURES, stem)
     unknown = [name for name in tables if name not in scenario.CASES]
@@ -204,22 +204,35 @@ def figures(tables: dict[str, dict[str, np.ndarray]], outdir, *, stems=None) -> 
     >>> [p.name for p in paths][:3]
     ['fig05_h1.png', 'fig05_h1.svg', 'fig06_h2.png']
     """
-    from .style import save
+    from ...outputs.style import save
 
     outdir = Path(outdir)
     written = []
-    has_k = any(scenario.CASES[n].compensator != "none" for n in tables)
+    drawn = figure_stems(tables)
     for stem in select_stems(FIGURES, stems):
-        if stem == "fig08_K" and not has_k:
-            continue
-        written += save(figure(tables, stem), outdir / f"{stem}.png")
+        if stem in drawn:
+            written += save(figure(tables, stem), outdir / f"{stem}.png")
     return written
+
+
+def figure_stems(cases) -> tuple[str, ...]:
+    """The figures drawn for ``cases``: all, but Fig. 8 (``K``) only with a compensator.
+
+    Examples
+    --------
+    >>> figure_stems(["ideal", "without_mec"])[-2:]
+    ('fig09_u1', 'fig10_u2')
+    >>> "fig08_K" in figure_stems(["proposed"])
+    True
+    """
+    has_k = any(scenario.CASES[case].compensator != "none" for case in cases)
+    return tuple(spec[0] for spec in FIGURES if spec[0] != "fig08_K" or has_k)
 
 
 class StreamingMetrics:
     """:func:`metrics` accumulated chunk by chunk over a streamed run, every sample counted.
 
-    Pass an instance as ``on_chunk`` of :func:`controlkit.scenarios.spacecraft.run`; the
+    Pass an instance as ``on_chunk`` of :func:`controlkit.studies.spacecraft.scenario.run`; the
     maxima and final values are the very ones :func:`metrics` computes from the whole run.
 
     Parameters

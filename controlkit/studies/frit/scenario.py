@@ -4,8 +4,8 @@ The spacecraft paper's on-line FRIT tuner (eq. 15-30, Table 3) leaves four
 details unstated: how ``M`` is discretised (``filter``), where its filters
 start (``start``), how the threshold freezes the rows of ``K`` (``freeze``) and
 the units of Table 3's ``P(0)`` and ``psi`` (``units``); see
-:data:`controlkit.blocks.mec.READINGS`. This study runs the ``proposed`` case
-of :mod:`controlkit.scenarios.spacecraft` under all 16 combinations, for the
+:data:`controlkit.blocks.frit.READINGS`. This study runs the ``proposed`` case
+of :mod:`controlkit.studies.spacecraft.scenario` under all 16 combinations, for the
 paper's tuner and for the safeguarded one, and reports per reading whether the
 0.05 deg requirement holds. A reading whose loop diverges is a result, not a
 crash: its row says ``diverged`` and when.
@@ -19,9 +19,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..blocks import mec
-from ..blocks.spacecraft import POINTING_REQUIREMENT_DEG, TS_PAPER, pointing_error_deg
-from . import spacecraft
+from ...blocks import frit
+from ...blocks.spacecraft import POINTING_REQUIREMENT_DEG, TS_PAPER, pointing_error_deg
+from ..spacecraft import scenario as spacecraft
 
 #: Horizon of the study (the paper's figures), s.
 HORIZON = spacecraft.HORIZON
@@ -33,8 +33,8 @@ DEFAULT_CASES = CASES
 #: Wheel speeds are compared after the initial transient: from this time on, s.
 TRANSIENT_S = 1000.0
 #: Every reading, as dicts of ``frit_tuner`` keywords, in a fixed order.
-READINGS = tuple(dict(zip(mec.READINGS, values, strict=True))
-                 for values in itertools.product(*mec.READINGS.values()))
+READINGS = tuple(dict(zip(frit.READINGS, values, strict=True))
+                 for values in itertools.product(*frit.READINGS.values()))
 #: Samples of ``K`` kept per reading for the figures (the run itself has every step).
 K_TRACE_POINTS = 2000
 
@@ -50,7 +50,7 @@ class ReadingResult:
     reading : dict
         ``filter``, ``start``, ``freeze``, ``units``.
     metrics : dict
-        The CSV columns after the reading's (see :data:`controlkit.outputs.frit.COLUMNS`).
+        The CSV columns after the reading's (see :data:`controlkit.studies.frit.outputs.COLUMNS`).
     time, K : numpy.ndarray
         Decimated time and gain trace (``K`` row-major, shape ``(4, n)``); for a run that
         diverged, the trace up to the last chunk of the run that stayed finite.
@@ -85,7 +85,7 @@ def _tuner_options(tuner: str, reading: dict) -> dict:
 def _has_safeguard() -> bool:
     import inspect
 
-    return "safeguard" in inspect.signature(mec.frit_tuner).parameters
+    return "safeguard" in inspect.signature(frit.frit_tuner).parameters
 
 
 def run_reading(tuner="paper", reading=None, *, horizon=HORIZON, engine="fast",
@@ -117,10 +117,10 @@ def run_reading(tuner="paper", reading=None, *, horizon=HORIZON, engine="fast",
     ('q', 100)
     """
     reading = {**READINGS[0], **(reading or {})}
-    unknown = set(reading) - set(mec.READINGS)
+    unknown = set(reading) - set(frit.READINGS)
     if unknown:
         raise ValueError(f"reading has unknown keys {sorted(unknown)}; "
-                         f"allowed: {list(mec.READINGS)}")
+                         f"allowed: {list(frit.READINGS)}")
     options = _tuner_options(tuner, reading)
     labels = list(spacecraft.build_loop("proposed", tuner_options=options).output_labels)
     steps = int(round(horizon / TS_PAPER)) + 1
@@ -243,8 +243,9 @@ def run_inertia_step(tuner="safeguarded", reading=None, *, horizon=HORIZON, step
     >>> float(resp.time[-1]), recovery
     (20.0, inf)
     """
-    from ..sampling import time_grid
-    from ..simulation import initial_state, response, simulate
+    from ...blocks.sampling import time_grid
+    from ...engines.contract import response
+    from ...simulation import initial_state, simulate
 
     reading = {**READINGS[0], **(reading or {})}
     options = _tuner_options(tuner, reading)

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..blocks.cmg import T1_MAX, T2_MAX
-from .common import figure_spec, select_stems, signal
+from ...blocks.cmg import T1_MAX, T2_MAX
+from ...outputs.common import figure_spec, select_stems, signal
 
 #: CSV columns of ``controlkit reproduce cmg``, in order.
 COLUMNS = ("time", "q1", "q2", "q4", "w1", "w2", "w4", "q2d", "q4d", "T1", "T2",
@@ -19,7 +19,7 @@ def table(resp) -> dict[str, np.ndarray]:
 
     Examples
     --------
-    >>> from controlkit.scenarios.cmg import run
+    >>> from controlkit.studies.cmg.scenario import run
     >>> list(table(run(horizon=0.005)))[:4]
     ['time', 'q1', 'q2', 'q4']
     """
@@ -45,7 +45,7 @@ def metrics(resp) -> dict:
 
     Examples
     --------
-    >>> from controlkit.scenarios.cmg import run
+    >>> from controlkit.studies.cmg.scenario import run
     >>> sorted(metrics(run(horizon=0.01)))[:2]
     ['final_estimates', 'final_q2_error_rad']
     """
@@ -57,7 +57,7 @@ def metrics_from_table(c) -> dict:
 
     Examples
     --------
-    >>> from controlkit.scenarios.cmg import run
+    >>> from controlkit.studies.cmg.scenario import run
     >>> metrics_from_table(table(run(horizon=0.01)))["horizon_s"]
     0.01
     """
@@ -169,12 +169,12 @@ def figure(tables, stem):
 
     Examples
     --------
-    >>> from controlkit.scenarios.cmg import run
+    >>> from controlkit.studies.cmg.scenario import run
     >>> fig = figure({"thesis": table(run(horizon=0.5))}, "fig3_q2")
     >>> fig.axes[1].get_yscale()
     'log'
     """
-    from .style import IDEAL_STYLE, legend_outside, log_scale, new_figure, slide_style
+    from ...outputs.style import IDEAL_STYLE, legend_outside, log_scale, new_figure, slide_style
 
     _, title, ylabel, col, ref, limit = figure_spec(FIGURES, stem)
     if not tables:
@@ -250,12 +250,12 @@ def figures(tables, outdir, *, stems=None) -> list[Path]:
     Examples
     --------
     >>> import tempfile
-    >>> from controlkit.scenarios.cmg import run
+    >>> from controlkit.studies.cmg.scenario import run
     >>> paths = figures({"thesis": table(run(horizon=0.1))}, tempfile.mkdtemp())
     >>> [p.name for p in paths if p.suffix == ".png"]
     ['fig3_q2.png', 'fig4_q4.png', 'fig5_T1.png', 'fig6_T2.png']
     """
-    from .style import save
+    from ...outputs.style import save
 
     written = []
     for stem in select_stems(FIGURES, stems):

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import control as ct
 
-from ..blocks import mec
-from ..blocks import spacecraft as sc
-from ._period import require_period, sampled
+from ...blocks import frit, mec
+from ...blocks import spacecraft as sc
+from .._period import require_period, sampled
 
 Q = [f"q[{i}]" for i in range(4)]
 U = ["u[0]", "u[1]"]
@@ -165,7 +165,7 @@ def mec_loop(
 
     - a number or 2x2 matrix: a :func:`~controlkit.blocks.mec.constant_gain` (Fig. 3);
     - ``"frit"``: the on-line FRIT tuner with the paper's settings (Fig. 4);
-    - a block with outputs ``K[0]..K[3]`` (e.g. a :func:`~controlkit.blocks.mec.frit_tuner`
+    - a block with outputs ``K[0]..K[3]`` (e.g. a :func:`~controlkit.blocks.frit.frit_tuner`
       with other settings, or your own tuner).
 
     For the loop without MEC use :func:`output_zeroing_loop`.
@@ -207,7 +207,7 @@ def mec_loop(
     if isinstance(K, str):
         if K != "frit":
             raise ValueError(f'K must be a gain, "frit" or a gain-source block, got {K!r}')
-        gain = mec.frit_tuner(controller.F if hasattr(controller, "F") else sc.F_PAPER, Ts,
+        gain = frit.frit_tuner(controller.F if hasattr(controller, "F") else sc.F_PAPER, Ts,
                               h0=h0)
     elif isinstance(K, ct.InputOutputSystem):
         gain = K

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ..sampling import sample_nlsys
+from ..blocks.sampling import sample_nlsys
 
 
 def require_period(block, Ts, *, static_ok=False):

@@ -22,27 +22,15 @@ import builtins
 import copy
 import hashlib
 import importlib.util
-import inspect
-import linecache
 import os
 import sys as pysys
-import textwrap
 import types as pytypes
 from pathlib import Path
 
 import numpy as np
 
-from . import _jit
-
-
-class NotCompilable(Exception):
-    """Why a user function cannot be compiled (the message is shown by ``explain``).
-
-    Examples
-    --------
-    >>> str(NotCompilable("no source"))
-    'no source'
-    """
+from ... import _jit
+from ..source import NotCompilable, function_node
 
 
 def store(r, out):
@@ -83,53 +71,6 @@ if _jit.HAVE_NUMBA:
         return impl
 
 
-def _lambda_body(fn):
-    """The expression of a lambda, cut from its file by the positions of its code."""
-    code = fn.__code__
-    # (line, end line, column, end column) of each instruction, not the zero-width ones
-    spans = [(line, end, col, end_col) for line, end, col, end_col in code.co_positions()
-             if None not in (line, end, col, end_col) and (line, col) != (end, end_col)]
-    lines = linecache.getlines(code.co_filename)
-    if not spans or not lines:
-        raise NotCompilable("its source is not available")
-    first = min((line, col) for line, _, col, _ in spans)
-    last = max((end, end_col) for _, end, _, end_col in spans)
-    chunk = lines[first[0] - 1:last[0]]
-    if not chunk:
-        raise NotCompilable("its source is not available")
-    chunk[-1] = chunk[-1].encode()[:last[1]].decode(errors="ignore")
-    chunk[0] = chunk[0].encode()[first[1]:].decode(errors="ignore")
-    try:
-        node = ast.parse("(" + "".join(chunk) + ")", mode="eval").body
-    except SyntaxError:
-        raise NotCompilable("its source could not be parsed") from None
-    return node.body if isinstance(node, ast.Lambda) else node
-
-
-def _function_node(fn):
-    """The body statements of ``fn`` (a def or a lambda) and its argument names."""
-    code = fn.__code__
-    names = list(code.co_varnames[:code.co_argcount])
-    if code.co_flags & (inspect.CO_VARARGS | inspect.CO_VARKEYWORDS) or code.co_kwonlyargcount \
-            or len(names) != 4:
-        raise NotCompilable("it does not take exactly (t, x, u, params)")
-    if fn.__name__ == "<lambda>":
-        return names, [ast.Return(_lambda_body(fn))]
-    try:
-        lines, _ = inspect.getsourcelines(fn)
-    except (OSError, TypeError) as error:
-        raise NotCompilable(f"its source is not available ({error})") from None
-    try:
-        tree = ast.parse(textwrap.dedent("".join(lines)))
-    except SyntaxError:
-        raise NotCompilable("its source could not be parsed") from None
-    defs = [n for n in ast.walk(tree) if isinstance(n, ast.FunctionDef)
-            and n.name == fn.__name__]
-    if not defs:
-        raise NotCompilable("its definition was not found in its source")
-    return names, defs[0].body
-
-
 class _Params(ast.NodeTransformer):
     """``params["k"]`` and ``params.get("k", d)`` -> a frozen constant's name."""
 
@@ -164,54 +105,6 @@ class _Params(ast.NodeTransformer):
                 return self.visit(node.args[1])
             return ast.copy_location(ast.Constant(None), node)
         return self.generic_visit(node)
-
-
-def used_params(fn):
-    """The ``params`` keys a ``(t, x, u, params)`` function reads, or None if unknown.
-
-    Examples
-    --------
-    >>> sorted(used_params(lambda t, x, u, params: params["k"] * x + params.get("b", 0.0)))
-    ['b', 'k']
-    """
-    fn = _jit.python_function(fn)
-    try:
-        names, body = _function_node(fn)
-    except NotCompilable:
-        return None
-    keys, opaque = set(), False
-    for node in ast.walk(ast.Module(body, [])):
-        if isinstance(node, ast.Subscript) and isinstance(node.value, ast.Name) \
-                and node.value.id == names[3] and isinstance(node.slice, ast.Constant):
-            keys.add(node.slice.value)
-        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) \
-                and node.func.attr == "get" and isinstance(node.func.value, ast.Name) \
-                and node.func.value.id == names[3] and node.args \
-                and isinstance(node.args[0], ast.Constant):
-            keys.add(node.args[0].value)
-    for node in ast.walk(ast.Module(body, [])):  # params passed on whole: keys unknown
-        if isinstance(node, ast.Call):
-            for a in node.args:
-                if isinstance(a, ast.Name) and a.id == names[3]:
-                    opaque = True
-    return None if opaque else keys
-
-
-def reads_input(fn):
-    """Whether a ``(t, x, u, params)`` function reads ``u`` (None when its source is unknown).
-
-    Examples
-    --------
-    >>> reads_input(lambda t, x, u, params: 2 * x)
-    False
-    """
-    fn = _jit.python_function(fn)
-    try:
-        names, body = _function_node(fn)
-    except NotCompilable:
-        return None
-    return any(isinstance(n, ast.Name) and n.id == names[2]
-               for n in ast.walk(ast.Module(body, [])))
 
 
 def _literal(name, value, lines, imports):
@@ -317,7 +210,8 @@ def kernel_source(fn, values: dict, direct: bool = True) -> str:
     if fn.__closure__:
         scope.update(zip(fn.__code__.co_freevars,
                          (c.cell_contents for c in fn.__closure__), strict=True))
-    lines, imports = [], ["import numpy as _np_", "from controlkit._usercode import store"]
+    lines = []
+    imports = ["import numpy as _np_", "from controlkit.engines.fast.usercode import store"]
     for name, alias in aliases.items():
         value = values[name]
         if isinstance(value, (list, tuple)):
@@ -344,7 +238,7 @@ _TEMPLATES: dict = {}
 
 def _template(fn, keys, direct):
     """``(user source, kernel call line, {param: alias}, free names)`` of ``fn``."""
-    args, body = _function_node(fn)
+    args, body = function_node(fn)
     rewrite = _Params(args[3], dict.fromkeys(keys))
     body = [rewrite.visit(stmt) for stmt in body]
     for node in ast.walk(ast.Module(body, [])):

@@ -7,11 +7,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import _checks
-from ..blocks import cmg
-from ..diagrams.cmg import cmg_loop
-from ..sampling import time_grid
-from ..simulation import initial_state, simulate
+from ... import _checks
+from ...blocks import cmg
+from ...blocks.sampling import time_grid
+from ...simulation import initial_state, simulate
+from .diagrams import cmg_loop
 
 #: Horizon of the thesis's Fig. 3-6 (s).
 HORIZON = 12.0

@@ -15,9 +15,9 @@ import control as ct
 import numpy as np
 import scipy.integrate
 
-from . import _checks
-from ._jit import python_function
-from .kernels.common import rk4_step
+from .. import _checks
+from .._jit import python_function
+from ..kernels.common import rk4_step
 
 #: The one RK4 step (:func:`controlkit.kernels.common.rk4_step`), as plain Python: it calls
 #: a system's Python right-hand side here, where the fast engine inlines the compiled one.
@@ -106,12 +106,10 @@ def sample_nlsys(
 
     Returns
     -------
-    control.NonlinearIOSystem
+    SampledSystem
         Discrete (``dt = Ts``; a linear system stays a ``StateSpace`` or
         ``TransferFunction``) with the same inputs, outputs, states and
-        parameters. Attributes ``continuous`` (the original system) and
-        ``sampling`` (a dict of the method settings) record what was done;
-        ``kernels`` lets the fast engine run it (``"rk4"`` on a controlkit block).
+        parameters, recording the continuous system and the settings.
 
     Examples
     --------
@@ -136,50 +134,84 @@ def sample_nlsys(
     atol = _checks.positive_scalar("atol", atol)
     if isinstance(sys, (ct.StateSpace, ct.TransferFunction)):
         return ct.sample_system(sys, Ts, method="zoh", name=name or sys.name)
-    h = Ts / substeps
+    return SampledSystem(sys, Ts, method=method, substeps=substeps, rtol=rtol, atol=atol,
+                         name=name)
 
-    def updfcn(t, x, u, params):
+
+class SampledSystem(ct.NonlinearIOSystem):
+    """A continuous system under zero-order hold at ``Ts``: what :func:`sample_nlsys` returns.
+
+    Its update integrates the continuous system over one sample with the input held
+    (RK4 with ``substeps`` steps, or DOP853 to ``rtol``/``atol``); its output is the
+    continuous system's output. Build it with :func:`sample_nlsys`, which checks the
+    arguments.
+
+    Attributes
+    ----------
+    continuous : control.NonlinearIOSystem
+        The system that was sampled.
+    method : {"rk4", "solve_ivp"}
+    substeps : int
+    rtol, atol : float
+        The sampling settings.
+    kernels : BlockKernels or None
+        For the fast engine: the continuous block's kernels under RK4, when it is a
+        :class:`~controlkit.blocks.contract.KernelBlock` sampled by ``"rk4"``.
+    uncompiled_reason : str or None
+        Why ``kernels`` is None.
+
+    Examples
+    --------
+    >>> from controlkit.blocks.spacecraft import spacecraft_plant
+    >>> sampled = sample_nlsys(spacecraft_plant(), 0.1)
+    >>> sampled.dt, sampled.method, sampled.kernels.rk4
+    (0.1, 'rk4', (0.1, 1))
+    """
+
+    def __init__(self, sys, Ts, *, method, substeps, rtol, atol, name=None):
+        self.continuous = sys
+        self.method, self.substeps, self.rtol, self.atol = method, substeps, rtol, atol
+        super().__init__(
+            self._next_state, self._output, inputs=sys.input_labels,
+            outputs=sys.output_labels, states=sys.state_labels, dt=Ts,
+            params=dict(sys.params), name=name or sys.name)
+        kernel = getattr(sys, "kernels", None)
+        if method == "rk4" and kernel is not None and kernel.update is not None:
+            self.kernels = kernel.sampled(Ts, substeps)  # the fast engine inlines the same RK4
+            self.uncompiled_reason = None
+        else:
+            self.kernels = None
+            self.uncompiled_reason = getattr(sys, "uncompiled_reason", None) or (
+                "sampled with solve_ivp" if method == "solve_ivp" else "not a controlkit block")
+        self.check = getattr(sys, "check", None)
+
+    def _next_state(self, t, x, u, params):
+        sys, Ts = self.continuous, self.dt
         sys._update_params(params)
-
-        if method == "rk4":
+        if self.method == "rk4":
             def rhs(tau, xi, u, p, out):  # the kernel form rk4_step calls
                 out[:] = sys._rhs(tau, xi, u)
                 return out
 
+            h = Ts / self.substeps
             x = np.array(x, dtype=float)
             work = tuple(np.empty(x.size) for _ in range(5))
-            for i in range(substeps):
+            for i in range(self.substeps):
                 x_next = _rk4_step(rhs, t + i * h, x, u, None, h, work, np.empty(x.size))
                 if not np.isfinite(x_next).all():
-                    raise SamplingError(blowup_message(sampled.name, t, Ts, substeps))
+                    raise SamplingError(blowup_message(self.name, t, Ts, self.substeps))
                 x = x_next
             return x
         sol = scipy.integrate.solve_ivp(
             lambda tau, xi: sys._rhs(tau, xi, u), (t, t + Ts), np.asarray(x, dtype=float),
-            method="DOP853", rtol=rtol, atol=atol)
+            method="DOP853", rtol=self.rtol, atol=self.atol)
         if not sol.success:
             raise RuntimeError(f"solve_ivp failed inside a sample at t = {t:g}: {sol.message}")
         return sol.y[:, -1]
 
-    def outfcn(t, x, u, params):
-        sys._update_params(params)
-        return sys._out(t, x, u)
-
-    sampled = ct.nlsys(
-        updfcn, outfcn, inputs=sys.input_labels, outputs=sys.output_labels,
-        states=sys.state_labels, dt=Ts, params=dict(sys.params), name=name or sys.name,
-    )
-    sampled.continuous = sys
-    sampled.sampling = {"method": method, "substeps": substeps, "rtol": rtol, "atol": atol}
-    kernel = getattr(sys, "kernels", None)
-    if method == "rk4" and kernel is not None and kernel.update is not None:
-        sampled.kernels = kernel.sampled(Ts, substeps)  # the fast engine inlines the same RK4
-        sampled.kernel_check = getattr(sys, "kernel_check", None)
-    else:
-        sampled.kernels = None
-        sampled.kernel_reason = getattr(sys, "kernel_reason", None) or (
-            "sampled with solve_ivp" if method == "solve_ivp" else "not a controlkit block")
-    return sampled
+    def _output(self, t, x, u, params):
+        self.continuous._update_params(params)
+        return self.continuous._out(t, x, u)
 
 
 def time_grid(horizon, Ts, *, lazy=False):

@@ -12,12 +12,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import _checks
-from ..blocks import mec
-from ..blocks import spacecraft as sc
-from ..diagrams import spacecraft as diagrams
-from ..sampling import time_grid
-from ..simulation import initial_state, simulate
+from ... import _checks
+from ...blocks import frit, mec
+from ...blocks import spacecraft as sc
+from ...blocks.sampling import time_grid
+from ...simulation import initial_state, simulate
+from . import diagrams
 
 #: Horizon of the paper's figures (not printed in the paper: two periods of H0), s.
 HORIZON = 20_000.0
@@ -42,7 +42,7 @@ class SpacecraftCase:
         ``"none"`` (Fig. 2 loop), ``"fixed"`` (Fig. 3, constant ``K``) or
         ``"frit"`` (Fig. 4, on-line FRIT tuning of ``K``).
     tuner_options : dict, optional
-        Keywords of :func:`~controlkit.blocks.mec.frit_tuner` that define the case.
+        Keywords of :func:`~controlkit.blocks.frit.frit_tuner` that define the case.
 
     Examples
     --------
@@ -134,10 +134,10 @@ def true_plant(model_error: bool, *, inertia_error_scale=1.0, momentum_scale=1.0
     return sc.spacecraft_plant(name=name)
 
 
-#: Keywords of :func:`~controlkit.blocks.mec.frit_tuner` that ``tuner_options`` may set
+#: Keywords of :func:`~controlkit.blocks.frit.frit_tuner` that ``tuner_options`` may set
 #: (``F``, ``Ts`` and ``h0`` come from the loop).
 TUNER_OPTIONS = tuple(name for name in __import__("inspect").signature(
-    mec.frit_tuner).parameters if name not in ("F", "Ts", "h0", "name"))
+    frit.frit_tuner).parameters if name not in ("F", "Ts", "h0", "name"))
 #: Keywords of :func:`true_plant` that ``plant_options`` may set.
 PLANT_OPTIONS = ("inertia_error_scale", "momentum_scale")
 
@@ -177,7 +177,7 @@ def build_loop(case="ideal", *, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXED, h0=None
         Initial output: where the ideal model starts (``hn(0) = h(0)``) and the
         FRIT tuner's filters rest; default that of Table 2.
     tuner_options : dict, optional
-        Keywords for :func:`~controlkit.blocks.mec.frit_tuner` (``lambda_``,
+        Keywords for :func:`~controlkit.blocks.frit.frit_tuner` (``lambda_``,
         ``gamma``, ``kappa``, ``psi``, ``K0``) in the ``"frit"`` case.
 
     plant_options : dict, optional
@@ -209,7 +209,7 @@ def build_loop(case="ideal", *, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXED, h0=None
         if unknown:
             raise ValueError(f"tuner_options has unknown keys {unknown}; allowed: "
                              f"{list(TUNER_OPTIONS)}")
-        gain = mec.frit_tuner(F, Ts, h0=h0, **options)
+        gain = frit.frit_tuner(F, Ts, h0=h0, **options)
     return diagrams.mec_loop(plant, sc.io_linearizer(), sc.outer_controller(F, output="mu_n"),
                              K=gain, nominal=mec.nominal_model(Ts, h0=h0), Ts=Ts,
                              name=case.name)
