@@ -208,21 +208,6 @@ def test_saved_png_has_the_pixels_and_tags_of_savefig(tmp_path, sc_tables, cmg_t
             assert a.info == b.info  # dpi and the Software tag
 
 
-@pytest.mark.parametrize("deflater", ["zlib_ng", "zlib"])
-def test_png_bytes_decode_to_the_image_with_either_deflater(deflater, monkeypatch):
-    import io
-
-    from controlkit.outputs.style import png_bytes
-
-    if deflater == "zlib":  # zlib-ng not installed: the standard library's zlib
-        monkeypatch.setitem(sys.modules, "zlib_ng", None)
-    else:
-        pytest.importorskip("zlib_ng")
-    image = np.random.default_rng(0).integers(0, 256, (90, 160, 4), dtype=np.uint8)
-    with Image.open(io.BytesIO(png_bytes(image, 200))) as png:
-        assert np.array_equal(np.asarray(png), image) and round(png.info["dpi"][0]) == 200
-
-
 def test_figure_workers_run_background_work_outside_the_drawing_slots(tmp_path):
     marker = tmp_path / "done"
     with FigureWorkers(2) as pool:
