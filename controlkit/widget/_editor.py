@@ -250,8 +250,8 @@ class DiagramEditor(anywidget.AnyWidget):
         return []
 
     def _refresh(self, layout=False):
-        L = _view.place(self.model)
-        self.diagram = _view.view(self.model, L or None)
+        _view.place(self.model)
+        self.diagram = _view.view(self.model)
         self.problems = [p.as_dict() for p in self.model.problems()]
         self.variables = sorted(k for k, v in self.namespace().items()
                                 if not k.startswith("_") and _view._palette.is_system(v))
@@ -276,8 +276,16 @@ class DiagramEditor(anywidget.AnyWidget):
             elif op == "delete":
                 for name in content["blocks"]:
                     self.model.delete_block(name)
-            elif op == "add":
-                self.add_block(content["key"], position=tuple(content["position"]))
+            elif op == "add":  # a palette key, or "var:<name>" for a notebook variable
+                key = content["key"]
+                if key.startswith("var:"):
+                    key = key[4:]
+                    if key in _view._palette.PALETTE:  # a variable named like an entry
+                        self.model.add_variable(key, self.namespace()[key],
+                                                position=tuple(content["position"]))
+                        key = None
+                if key is not None:
+                    self.add_block(key, position=tuple(content["position"]))
             elif op == "set_parameter":
                 self.model.set_parameter(content["block"], content["name"], content["value"])
             elif op == "scopes":

@@ -43,12 +43,16 @@ class Block:
         Display name (TeX, e.g. ``"$L_a$"``).
     position : tuple of float or None
         Centre on the editor's canvas, in pixels.
+    look : dict or None
+        Size, orientation and port order the editor draws it with (``w``, ``h``,
+        ``flip``, ``order``), taken from the drawing's layout when first placed.
     """
 
     system: ct.InputOutputSystem
     recipe: dict | None = None
     label: str | None = None
     position: tuple | None = None
+    look: dict | None = None
 
 
 @dataclass
@@ -494,6 +498,7 @@ class DiagramModel:
             s = b.system
             blocks.append({"name": name, "recipe": b.recipe, "label": b.label,
                            "position": list(b.position) if b.position else None,
+                           "look": b.look,
                            "inputs": list(s.input_labels), "outputs": list(s.output_labels),
                            "dt": _dt_json(s.dt)})
         return {
@@ -561,7 +566,8 @@ class DiagramModel:
                                  f"{system.output_labels}, the saved diagram expects "
                                  f"{saved['inputs']} and {saved['outputs']}")
             model.blocks[name] = Block(system, recipe, saved["label"],
-                                       tuple(saved["position"]) if saved["position"] else None)
+                                       tuple(saved["position"]) if saved["position"] else None,
+                                       saved.get("look"))
         model.wires = [Wire((a, b), (c, d), g) for a, b, c, d, g in data["wires"]]
         model.inputs = [(n, [tuple(t) for t in targets]) for n, targets in data["inputs"]]
         model.outputs = [(n, [tuple(s) for s in sources]) for n, sources in data["outputs"]]

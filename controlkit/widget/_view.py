@@ -63,11 +63,21 @@ def shape_of(system):
     return "block", None
 
 
+def states_of(system):
+    """Number of states (a transfer function's, of its state-space realisation)."""
+    if isinstance(system, ct.TransferFunction):
+        try:
+            return int(ct.tf2ss(system).nstates)
+        except Exception:  # noqa: BLE001 - an improper tf has no realisation
+            return 0
+    return int(system.nstates or 0)
+
+
 def kind_of(system):
     """``static``, ``continuous`` or ``dt = 0.1``: how the block runs in time."""
     if isinstance(system, ct.InterconnectedSystem):
         return f"{len(system.syslist)} blocks"
-    if not system.nstates:
+    if not states_of(system):
         return "static"
     if system.dt is None or system.dt is True:
         return "discrete"
@@ -75,29 +85,34 @@ def kind_of(system):
 
 
 def place(model):
-    """Give every block without a position the drawing's position (in pixels)."""
-    missing = [n for n, b in model.blocks.items() if b.position is None]
+    """Give every block without a position (or look) the drawing's, in pixels."""
+    missing = [n for n, b in model.blocks.items() if b.position is None or b.look is None]
     if not missing:
-        return {}
+        return
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             L = _drawing_layout(model.system())
-    except ValueError:  # a diagram that cannot be built yet: a row of blocks
+    except ValueError:  # a diagram that cannot be built yet: default sizes, a row of blocks
         for k, n in enumerate(missing):
-            model.blocks[n].position = (160.0 * k, 0.0)
-        return {}
+            block = model.blocks[n]
+            block.position = block.position or (160.0 * k, 0.0)
+            block.look = block.look or {}
+        return
+    order = _port_order(L)
     for n in missing:
-        node = L.nodes[n]
-        model.blocks[n].position = (node["x"] * SCALE, -node["y"] * SCALE)
-    return L
+        block, node = model.blocks[n], L.nodes.get(n, {})
+        if block.position is None:
+            block.position = (node["x"] * SCALE, -node["y"] * SCALE)
+        heights = order.get(n, {})
+        block.look = {"w": node.get("w", 0.0) * SCALE, "h": node.get("h", 0.0) * SCALE,
+                      "flip": bool(node.get("flip", False)),
+                      "order": {side: {sig: y for (s, sig), y in heights.items() if s == side}
+                                for side in ("in", "out")}}
 
 
-def view(model, layout=None):
+def view(model):
     """The payload of the editor's ``diagram`` trait (see the front end's ``render``)."""
-    L = layout or {}
-    nodes = getattr(L, "nodes", {})
-    order = _port_order(L) if L else {}
     blocks = []
     sums = model.hints.get("sums", {})
     external_in = {}
@@ -113,16 +128,15 @@ def view(model, layout=None):
     for name, b in model.blocks.items():
         s = b.system
         shape, extra = shape_of(s)
-        node = nodes.get(name, {})
+        node = b.look or {}
         ins = model.ports(name, "in")
         outs = model.ports(name, "out")
-        if name in order:  # top to bottom as in the drawing
-            heights = order[name]
-            ins.sort(key=lambda p: min(heights.get(("in", sig), 0.0) for sig in p[1]))
-            outs.sort(key=lambda p: min(heights.get(("out", sig), 0.0) for sig in p[1]))
+        order = node.get("order", {})  # top to bottom as in the drawing
+        ins.sort(key=lambda p: min(order.get("in", {}).get(sig, 0.0) for sig in p[1]))
+        outs.sort(key=lambda p: min(order.get("out", {}).get(sig, 0.0) for sig in p[1]))
         n_ports = max(len(ins), len(outs), 1)
-        w = node.get("w", 0.0) * SCALE or (40.0 if shape == "sum" else 120.0)
-        h = node.get("h", 0.0) * SCALE or (40.0 if shape == "sum" else 60.0)
+        w = node.get("w") or (40.0 if shape == "sum" else 120.0)
+        h = node.get("h") or (40.0 if shape == "sum" else 60.0)
         if shape != "sum":  # room for the names, at the editor's font sizes
             h = max(h, PORT_PITCH * n_ports + 14.0)
             w = max(w, 6.2 * len(kind_of(s) if b.label is None else f"{name}, {kind_of(s)}")
@@ -158,7 +172,7 @@ def view(model, layout=None):
             "x": float(b.position[0]), "y": float(b.position[1]), "w": float(w), "h": float(h),
             "flip": bool(node.get("flip", False)), "inputs": inputs, "outputs": outputs,
             "params": {k: float(v) for k, v in params.items()},
-            "recipe": (b.recipe or {}).get("kind"), "nstates": int(s.nstates),
+            "recipe": (b.recipe or {}).get("kind"), "nstates": states_of(s),
             "dt": None if s.dt is None or s.dt is True else float(s.dt),
             "feedthrough": passes_input(s),
         })
