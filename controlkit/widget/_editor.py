@@ -196,10 +196,10 @@ class DiagramEditor(anywidget.AnyWidget):
         results = _run.run_diagram(self.model, horizon=self.horizon, initial=self.initial,
                                    inputs=self.inputs, measures=self.measures,
                                    scopes=self.scopes)
-        self.results = results
         self.status = (f"ran {results['steps']:,} steps in {results['seconds']:.2f} s"
                        + ("" if not results["warnings"] else
                           " - " + "; ".join(results["warnings"])))
+        self.results = results  # after the status: the page shows both once this arrives
         return results
 
     def namespace(self):

@@ -24,7 +24,7 @@ function fmt(v) {
 }
 
 export function Chart({ title, time, traces, log = false, limit = null, unit = "", testid }) {
-  const W = 560, H = 190, L = 58, R = 12, T = 22, B = 30;
+  const W = 560, H = 190, L = 58, R = 24, T = 22, B = 30;
   const values = [];
   for (const tr of traces) for (const v of tr.y) if (v !== null && (!log || v > 0)) values.push(v);
   if (limit !== null && (!log || limit > 0)) values.push(limit);
@@ -74,10 +74,11 @@ export function Chart({ title, time, traces, log = false, limit = null, unit = "
         </g>
       ))}
       {tticks.map((t) => (
-        <text key={`t${t}`} x={X(t)} y={H - B + 14} textAnchor="middle" className="ck-tick">
+        <text key={`t${t}`} x={X(t)} y={H - B + 14} className="ck-tick"
+          textAnchor={X(t) > W - R - 12 ? "end" : "middle"}>
           {fmt(t)}</text>
       ))}
-      <text x={W - R} y={H - 3} textAnchor="end" className="ck-tick">time [s]</text>
+      <text x={W - R} y={H - 2} textAnchor="end" className="ck-tick">time [s]</text>
       {limit !== null && (!log || limit > 0) && (
         <g>
           <line x1={L} x2={W - R} y1={Y(limit)} y2={Y(limit)} stroke="black"

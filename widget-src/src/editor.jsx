@@ -630,7 +630,7 @@ function Editor({ model }) {
           <Problems problems={problems} />
         </div>
       </div>
-      <div className={`ck-status ${status && !status.startsWith("ran") ? "ck-error" : ""}`}
+      <div className={`ck-status ${/^[A-Za-z]*Error/.test(status || "") ? "ck-error" : ""}`}
         data-testid="status">{status}</div>
       <Scopes results={results} scopes={scopes} signals={diagram.signals || []} send={send} />
     </div>
