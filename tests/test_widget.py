@@ -527,3 +527,25 @@ def test_the_bundle_is_committed_and_small():
     assert 100_000 < js.stat().st_size < 600_000
     assert css.stat().st_size < 40_000
     assert "react-flow" in css.read_text()
+
+
+def test_code_of_a_diagram_edited_with_palette_blocks_and_variables_builds_it():
+    """Built in the editor, then rebuilt from its code: same diagram, same numbers."""
+    original = speed_loop()
+    my_lag = ct.tf([1.0], [0.2, 1.0], name="my_lag", inputs="a", outputs="b")
+    model = DiagramModel.from_interconnect(original, source_name="original")
+    model.disconnect("pi", "v", "motor", "v")
+    model.add_from_palette("saturation", limit=0.8)
+    model.add_variable("my_lag", my_lag)
+    model.connect("pi", "v", "saturation", "u")
+    model.connect("saturation", "y", "my_lag", "a")
+    model.connect("my_lag", "b", "motor", "v")
+    assert not [p for p in model.problems() if p.severity != "note"]
+    built = model.system()
+    namespace = {"original": original, "my_lag": my_lag}
+    exec(model.code("edited"), namespace)
+    assert_same_diagram(built, namespace["edited"])
+    np.testing.assert_allclose(response(namespace["edited"], 300, {}, 1.0),
+                               response(built, 300, {}, 1.0), rtol=0, atol=1e-12)
+    v = response(built, 300, {}, 1.0)[1]  # the PI's output, before the limiter
+    assert v.max() > 0.8  # the limiter has something to do
