@@ -282,7 +282,6 @@ def _classify_nets(draft, sys):
         net.dests = [d for d in net.dests if d[0] != _OUT]
         net.dangling = not net.dests and net.out and layer.get(net.src, -1) != last
         net.kinds = {b: kind_of(net, b) for b, _, _ in net.dests}
-        net.virtual_src = nodes.get(net.src, {}).get("virtual", False)
     draft.nets = [n for n in draft.nets if n.dests or n.out]
     if sys.noutputs and not any(n.out and not n.dangling for n in draft.nets):
         # the loop's first output leaves on the right even when its block is not last
@@ -321,7 +320,7 @@ def _fill_gaps(draft):
     ends, an exit track for each net of column ``c - 1`` that branches, changes row or
     leaves along a lane (a flipped block's, in the gap on its left), and an entry track
     for each lane arriving at a block of column ``c`` from its side (a junction fed from
-    above or below needs none). ``net.track_gap`` records the gap right of a net's source.
+    above or below needs none).
     """
     nodes, layer, row = draft.nodes, draft.layer, draft.row
     f_sig, _, f_sub = draft.fonts
@@ -337,7 +336,6 @@ def _fill_gaps(draft):
             continue
         needs_track = (len(net.dests) > 1 or net.out and net.dests
                        or any(k != "next" for k in net.kinds.values()))
-        net.track_gap = src_col + 1
         if needs_track or net.src in nodes and any(
                 row[b] != row[net.src] for b in net.kinds):
             exits[src_col if flip else src_col + 1].append(net)
