@@ -6,10 +6,9 @@ shared :class:`_Draft` and leaves the rest to the next stages:
 1. :func:`_place_blocks` - each block's column and row (and the junctions of implicit sums);
 2. :func:`_size_blocks` - each block's width and height, from its text and its ports;
 3. :func:`_classify_nets` - each connection: to the next column, skipping columns, back, out;
-4. :func:`_place_rows` - the height of each row, with room for feedback inside a frame;
-5. :func:`_place_columns` - the width of each column and of the gaps between them;
-6. :func:`_place_ports` - where each net leaves and enters a block
-   (:mod:`._routing`);
+4. :func:`_place_rows` - the y of each row, with room for feedback inside a frame;
+5. :func:`_place_columns` - the x of each column and the width of the gaps between them;
+6. :func:`_place_ports` - where each net leaves and enters a block (:mod:`._routing`);
 7. :func:`_place_tracks` and :func:`_place_lanes` - the vertical runs in the gaps and the
    horizontal runs above and below the rows (:mod:`._routing`);
 8. :func:`_frame` - the title and the page's extent, as a :class:`DiagramLayout`.
