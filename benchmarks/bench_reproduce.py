@@ -34,7 +34,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-SERIAL = ("import gc, io, sys; from controlkit.cli import reproduce; "
+SERIAL = ("import gc, io, sys; from controlkit.studies.reproduce import reproduce; "
           "reproduce(out=sys.argv[1], log=io.StringIO(), workers=0); gc.freeze()")
 
 

@@ -7,7 +7,7 @@ Run from the repository root after ``pip install ".[fast]"``::
 It measures, in one process (plus one subprocess for the cold start):
 
 (a) the python-control reference path (``control.input_output_response``),
-(b) the fast engine (``controlkit.engine``, numba-compiled), warm and cold,
+(b) the fast engine (``controlkit.engines.fast``, numba-compiled), warm and cold,
 (c) a plain Python/numpy loop over time of the same equations: the blocks'
     kernels, uncompiled, called in signal order with the library's RK4 step -
     what a student would write by hand, without python-control and without
@@ -38,9 +38,9 @@ from controlkit.kernels import mec as mec_kernels
 from controlkit.kernels import spacecraft as sc_kernels
 from controlkit.kernels.mec import MEC_INPUTS, TUNER_INPUTS
 from controlkit.kernels.spacecraft import CONTROLLER_INPUTS, LINEARIZER_INPUTS
-from controlkit.scenarios import cmg as cmg_scenario
-from controlkit.scenarios import spacecraft as sc_scenario
 from controlkit.simulation import initial_state, simulate
+from controlkit.studies.cmg import scenario as cmg_scenario
+from controlkit.studies.spacecraft import scenario as sc_scenario
 
 SPACECRAFT_CASES = ("ideal", "without_mec", "proposed")
 SPACECRAFT_STEPS = 200_000  # 20 000 s at 0.1 s
@@ -127,7 +127,7 @@ def python_control_per_step(build, X0, dt, steps):
 
 def marginal_per_step(loop, X0, dt, steps):
     """Seconds per step of the compiled loop, called as simulate_fast calls it."""
-    from controlkit import engine
+    from controlkit.engines import fast as engine
 
     run, blocks = engine.compile_system(loop)
     T = np.arange(steps) * dt

@@ -3,7 +3,7 @@
     python benchmarks/bench_sweep.py [--runs 24] [--study-samples 67]
 
 Each run is one 20 000 s spacecraft case (``without_mec``, ``mec_fixed``, ``proposed`` in
-turn) with drawn model errors, through :func:`controlkit.robustness.spacecraft_study`.
+turn) with drawn model errors, through :func:`controlkit.studies.robustness.study`.
 Ratios are measured in one process, one after the other, so a loaded machine shifts both;
 the loops are compiled and cached once before anything is timed.
 """
@@ -14,14 +14,15 @@ import argparse
 import os
 import time
 
-from controlkit import robustness
+from controlkit.studies import robustness
+from controlkit.studies.spacecraft import robustness as sc_robustness
 
 CASES = ["without_mec", "mec_fixed", "proposed"]
 
 
 def timed(samples, workers, executor="processes"):
     started = time.perf_counter()
-    table, _ = robustness.spacecraft_study(samples=samples, seed=1, cases=CASES,
+    table, _ = robustness.study("spacecraft", samples=samples, seed=1, cases=CASES,
                                            executor=executor, workers=workers,
                                            progress=False)
     elapsed = time.perf_counter() - started
@@ -36,7 +37,7 @@ def main(argv=None):
     parser.add_argument("--study-samples", type=int, default=67,
                         help="draws of the timed study (x 3 cases; 67 -> 201 runs)")
     args = parser.parse_args(argv)
-    robustness.warm_cases(CASES)
+    sc_robustness.warm(CASES)
     samples = max(1, args.runs // len(CASES))
     print(f"machine: {os.cpu_count()} CPUs; {samples * len(CASES)} runs of 20 000 s each")
     n, serial = timed(samples, None, executor="serial")

@@ -16,8 +16,8 @@ fresh process, against python-control's time for the same call in that process:
   compiled).
 
 A loop not compiled yet runs as Python for short runs
-(``controlkit.engine.COMPILE_AFTER_STEPS``); the column "+ loop compiled" is what compiling
-it costs on top, paid by the first long run.
+(``controlkit.engines.fast.loader.COMPILE_AFTER_STEPS``); the column "+ loop compiled" is
+what compiling it costs on top, paid by the first long run.
 
 The machine is shared: compare the ratios, measured in the same run.
 """
@@ -39,7 +39,7 @@ sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 
 from user_diagrams import DIAGRAMS  # noqa: E402
 
-from controlkit import engine  # noqa: E402
+from controlkit.engines import fast as engine  # noqa: E402
 from controlkit.simulation import simulate  # noqa: E402
 
 
@@ -84,12 +84,13 @@ LATENCY = textwrap.dedent('''
                          states="level", dt=T[1], params={{"area": 1.5}}, name="tank")
         loop = ct.interconnect([plant, loop.syslist[1]], inputs="level_ref",
                                outputs=["level", "q"])
-    from controlkit import engine
+    from controlkit.engines import fast as engine
+    from controlkit.engines.fast import loader
     t0 = time.perf_counter()
     simulate(loop, T, X0, U, params=params, engine="fast")
     fast = time.perf_counter() - t0
     assert {{r.tier for r in engine.explain(loop, params)}} == {{"compiled"}}
-    engine.COMPILE_AFTER_STEPS = 0  # what a long run pays on top: the loop compiled
+    loader.COMPILE_AFTER_STEPS = 0  # what a long run pays on top: the loop compiled
     t0 = time.perf_counter()
     simulate(loop, T, X0, U, params=params, engine="fast")
     compiled = time.perf_counter() - t0

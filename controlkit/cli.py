@@ -1,7 +1,8 @@
-"""The ``controlkit`` command line: ``controlkit reproduce`` writes the papers' results.
+"""The ``controlkit`` command line: argument parsing for ``reproduce`` and ``sweep``.
 
-Each study is one :class:`Study` entry of :data:`STUDIES`; each case is one
-entry of its scenario's ``CASES``. Adding a study or a case adds no code here.
+``controlkit reproduce`` runs :func:`controlkit.studies.reproduce.reproduce`;
+``controlkit sweep`` runs :func:`controlkit.studies.robustness.study`. The studies
+and their options come from :data:`controlkit.studies.STUDIES`.
 """
 
 from __future__ import annotations
@@ -9,10 +10,6 @@ from __future__ import annotations
 import argparse
 import gc
 import sys
-import time
-from collections.abc import Callable
-from dataclasses import dataclass
-from pathlib import Path
 
 # Importing python-control (with scipy, matplotlib and numba) creates ~200 000 objects that
 # live as long as the process; the garbage collector's passes over them while they are
@@ -21,550 +18,15 @@ from pathlib import Path
 _COLLECTING = gc.isenabled()
 gc.disable()
 try:
-    from .blocks.spacecraft import SingularDecouplingError
-    from .outputs import cmg as cmg_out
-    from .outputs import frit as frit_out
-    from .outputs import spacecraft as sc_out
-    from .outputs.export import write_csv, write_json
-    from .outputs.workers import FigureWorkers
-    from .scenarios import cmg as cmg_scenario
-    from .scenarios import frit as frit_scenario
-    from .scenarios import spacecraft as sc_scenario
+    import numpy as np
+
+    from .studies import STUDIES
+    from .studies.registry import UsageError
+    from .studies.reproduce import reproduce
 except BaseException:
     if _COLLECTING:
         gc.enable()
     raise
-
-
-@dataclass(frozen=True)
-class Study:
-    """What ``controlkit reproduce <study>`` runs and writes.
-
-    Attributes
-    ----------
-    name : str
-        Study name on the command line and output sub-folder.
-    cases : tuple of str
-        Every case the study knows.
-    default_cases : tuple of str
-        Cases run when none is named.
-    run : callable
-        ``run(case, horizon, progress, engine) -> TimeResponseData``; ``horizon=None``
-        means the published one.
-    table : callable
-        Response to CSV columns (dict of arrays).
-    metrics : callable
-        CSV columns (of :attr:`table`) to a JSON-ready dict.
-    figures : callable
-        ``figures({case: table}, outdir) -> list of paths``.
-    default_stride : int
-        CSV row stride when ``--stride`` is not given.
-    csv_stem : callable
-        Case name to CSV file stem.
-    csv_columns : callable
-        Table to the columns written to CSV (default: all).
-    figure_stems : tuple of str
-        The figures ``figures`` can draw one at a time (``stems=[stem]``), so that they
-        are drawn in parallel worker processes; empty: ``figures`` is called once.
-    draw_first : tuple of str
-        Figures handed to the workers before the others because they take longest, so
-        that the workers finish together.
-    figure_columns : callable, optional
-        ``figure_columns(stem)``: the table columns a figure reads (the workers are sent
-        only those); default all.
-    simulation_cost : float
-        Relative time to simulate the study's cases; cheaper studies run first, so their
-        figures are drawn by the workers while the costlier simulations run.
-    write : callable, optional
-        For a study whose cases are not single runs: ``write({case: result}, folder)
-        -> (metrics, paths)`` writes all its files; ``table``, ``metrics`` and
-        ``figures`` are then unused.
-    in_all : bool
-        Whether ``controlkit reproduce all`` runs it (the papers' results do; the
-        sensitivity study is asked for by name).
-    Ts : float
-        Sampling period of its loops (to check a horizon before anything runs).
-    horizon : float
-        Its published horizon, s.
-    signals : int
-        About how many numbers one sample holds (states and outputs), to size a run.
-    streaming : callable, optional
-        ``streaming(case, horizon) -> accumulator`` for studies whose runs can be
-        streamed: the run then holds no more than the figures' samples, the CSV rows are
-        written as they are computed, and ``accumulator.metrics()`` gives the metrics
-        from every sample.
-    loop : callable, optional
-        ``loop(case) -> interconnect``: a case's published loop. For a study shorter
-        than :data:`controlkit.engine.COMPILE_AFTER_STEPS`, which the fast engine runs as
-        Python until its loop is compiled, a worker compiles the loop into the disk
-        cache during the first ``reproduce``, so that later ones load it compiled.
-
-    Examples
-    --------
-    >>> STUDIES["spacecraft"].default_cases
-    ('ideal', 'without_mec', 'proposed')
-    """
-
-    name: str
-    cases: tuple[str, ...]
-    default_cases: tuple[str, ...]
-    run: Callable
-    table: Callable
-    metrics: Callable
-    figures: Callable
-    default_stride: int = 1
-    csv_stem: Callable[[str], str] = str
-    csv_columns: Callable[[dict], dict] = lambda columns: columns
-    figure_stems: tuple[str, ...] = ()
-    draw_first: tuple[str, ...] = ()
-    figure_columns: Callable[[str], tuple[str, ...]] | None = None
-    simulation_cost: float = 1.0
-    write: Callable | None = None
-    in_all: bool = True
-    Ts: float = 0.1
-    horizon: float = 20_000.0
-    signals: int = 60
-    streaming: Callable | None = None
-    loop: Callable | None = None
-
-
-def _runner(scenario):
-    """``run(case, horizon, progress, engine, **options)`` of a scenarios module.
-
-    ``horizon=None`` means the published one (``scenario.HORIZON``); an option the
-    scenario's ``run`` does not take is refused with the ones it does.
-    """
-    import inspect
-
-    accepted = set(inspect.signature(scenario.run).parameters) - {"case", "horizon",
-                                                                 "progress", "engine"}
-
-    def check(options):
-        unknown = sorted(set(options) - accepted - {"record_every", "on_chunk"})
-        if unknown:
-            raise UsageError(f"unknown option {unknown} for {scenario.__name__}.run; "
-                             f"options: {sorted(accepted)}")
-
-    def run(case, horizon, progress, engine, **options):
-        check(options)
-        return scenario.run(case, horizon=horizon or scenario.HORIZON, progress=progress,
-                            engine=engine, **options)
-
-    run.check = check
-    return run
-
-
-def _spacecraft_watch(case, horizon):
-    return sc_out.StreamingMetrics(sc_scenario.build_loop(case).output_labels, horizon)
-
-
-STUDIES: dict[str, Study] = {
-    "spacecraft": Study(
-        "spacecraft", tuple(sc_scenario.CASES), sc_scenario.DEFAULT_CASES, _runner(sc_scenario),
-        sc_out.table, sc_out.metrics_from_table, sc_out.figures, default_stride=10,
-        figure_stems=tuple(spec[0] for spec in sc_out.FIGURES),
-        draw_first=("fig07_pointing_error",),  # a log axis: 1.5-2x the others
-        figure_columns=sc_out.figure_columns,
-        Ts=sc_scenario.sc.TS_PAPER, horizon=sc_scenario.HORIZON, signals=60,
-        streaming=_spacecraft_watch,
-    ),
-    "cmg": Study(
-        "cmg", tuple(cmg_scenario.CASES), cmg_scenario.DEFAULT_CASES, _runner(cmg_scenario),
-        cmg_out.table, cmg_out.metrics_from_table, cmg_out.figures,
-        csv_stem=lambda case: "run" if case == "thesis" else case,
-        csv_columns=cmg_out.csv_columns,
-        figure_stems=tuple(spec[0] for spec in cmg_out.FIGURES),
-        figure_columns=cmg_out.figure_columns,
-        simulation_cost=0.05,  # 12 000 steps of a 10-state loop vs 3 x 200 000 steps
-        Ts=cmg_scenario.cmg.TS_CMG, horizon=cmg_scenario.HORIZON, signals=32,
-        loop=cmg_scenario.build_loop,
-    ),
-    "frit": Study(
-        "frit", frit_scenario.CASES, frit_scenario.DEFAULT_CASES, _runner(frit_scenario),
-        None, None, None, write=frit_out.write, in_all=False, signals=0,
-        simulation_cost=16.0,  # 16 readings of the proposed loop per tuner
-    ),
-}
-
-
-def _progress_printer(label: str, stream=None):
-    stream = stream or sys.stderr
-    start = time.perf_counter()
-
-    def report(fraction):
-        elapsed = time.perf_counter() - start
-        stream.write(f"\r  {label}: {100 * fraction:5.1f} %  ({elapsed:6.1f} s)")
-        if fraction >= 1:
-            stream.write("\n")
-        stream.flush()
-
-    return report
-
-
-class UsageError(ValueError):
-    """A bad argument of ``reproduce`` (the command line exits with status 2).
-
-    Examples
-    --------
-    >>> try:
-    ...     reproduce("moon")
-    ... except UsageError as error:
-    ...     print(error)
-    unknown study 'moon'; choose from ['all', 'spacecraft', 'cmg', 'frit']
-    """
-
-
-#: Memory a run may hold (bytes); a request that needs more is refused before it starts.
-MEMORY_LIMIT = 4_000_000_000
-#: Samples per curve the figures are drawn from (independent of the CSV's --stride).
-FIGURE_POINTS = 20_000
-#: The manifest of a study's folder: what this run wrote, with its settings.
-MANIFEST = "run.json"
-#: Errors that end one case (its loop diverged or met a singular point) but not the run.
-CASE_FAILURES = (FloatingPointError, ArithmeticError, SingularDecouplingError)
-
-
-def _steps(s: Study, horizon) -> int:
-    """Samples of a ``s`` run over ``horizon`` seconds (``None``: its published horizon)."""
-    return round((horizon or s.horizon) / s.Ts) + 1
-
-
-def _select_cases(studies: list[Study], requested) -> dict[str, list[str]]:
-    if requested is None:
-        return {s.name: list(s.default_cases) for s in studies}
-    if isinstance(requested, str):  # one case given as a string, not its letters
-        requested = [requested]
-    requested = list(requested)
-    if not requested:
-        raise UsageError("cases must name at least one case (or be None for the defaults)")
-    known = {c for s in studies for c in s.cases}
-    unknown = [c for c in requested if c not in known]
-    if unknown:
-        allowed = {s.name: list(s.cases) for s in studies}
-        raise UsageError(f"unknown case {unknown}; known cases: {allowed}")
-    return {s.name: [c for c in requested if c in s.cases] for s in studies}
-
-
-def _horizons(studies, horizon) -> dict[str, float | None]:
-    """``horizon`` as one value for all studies, or ``{study: seconds}`` (checked now)."""
-    from .sampling import time_grid
-
-    if horizon is None or isinstance(horizon, dict):
-        given = dict(horizon or {})
-        unknown = sorted(set(given) - {s.name for s in STUDIES.values()})
-        if unknown:
-            raise UsageError(f"horizon names unknown studies {unknown}; studies: "
-                             f"{list(STUDIES)}")
-    else:
-        given = {s.name: horizon for s in studies}
-    out = {}
-    for s in studies:
-        value = given.get(s.name)
-        if value is None:
-            out[s.name] = None
-            continue
-        if isinstance(value, bool):
-            raise UsageError(f"horizon must be a number of seconds, got {value!r}")
-        try:
-            time_grid(value, s.Ts)
-        except ValueError as error:
-            raise UsageError(f"horizon for {s.name}: {error}") from None
-        out[s.name] = float(value)
-    return out
-
-
-def _writable(out) -> Path:
-    """Create ``out`` and prove it writable before anything is simulated."""
-    import tempfile
-
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise UsageError(f"out {str(out)!r} is a file, not a folder")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=out, prefix=".write-test-"):
-            pass
-    except OSError as error:
-        raise UsageError(f"cannot write to out {str(out)!r}: "
-                         f"{error.strerror or error}") from None
-    return out
-
-
-def _stale(folder: Path, keep: set[str]) -> None:
-    """Remove the files an earlier run listed in its manifest that this run does not write."""
-    import json
-
-    manifest = folder / MANIFEST
-    if not manifest.exists():
-        return
-    try:
-        earlier = json.loads(manifest.read_text())
-    except (OSError, ValueError):
-        return
-    for name in earlier.get("files", []):
-        if name not in keep and "/" not in name and (folder / name).is_file():
-            (folder / name).unlink()
-
-
-def reproduce(study="all", *, out="results", cases=None, horizon=None, stride=None,
-              engine="fast", log=None, workers=None, options=None) -> dict:
-    """Run studies and write their CSV, metrics and figures (the CLI's main job).
-
-    Every argument is checked, and the output folder created and written to, before
-    anything is simulated. Each file is written under a temporary name and renamed when
-    complete; each study's folder gets a manifest, ``run.json``, listing the files of
-    this run with its settings and the status of every case (an interrupted run says
-    which cases are missing), and files that an earlier run listed there are removed.
-    A case that fails (a loop that diverges) is recorded with its error while the
-    other cases complete.
-
-    Parameters
-    ----------
-    study : str
-        A key of :data:`STUDIES` or ``"all"`` (the studies with ``in_all``).
-    out : str or pathlib.Path
-        Output folder; each study writes to ``out/<study>/``.
-    cases : str or list of str, optional
-        Cases to run (default: each study's default cases).
-    horizon : float or dict, optional
-        Simulated time in seconds for every study, or ``{study: seconds}`` (default:
-        each study's published horizon).
-    stride : int, optional
-        Keep every ``stride``-th sample in the CSV (default 10 for the spacecraft,
-        i.e. 1 s; 1 for the CMG). The figures are drawn from enough samples whatever
-        the stride, and the metrics from every sample.
-    engine : {"fast", "python-control"}
-        Simulator; both give the same numbers, the fast one in seconds.
-    log : file-like, optional
-        Where progress goes (default stderr).
-    workers : int, optional
-        Processes drawing the figures while the next study is simulated (default: one
-        per CPU, at most 4; 0 draws them in this process).
-    options : dict, optional
-        Keyword arguments passed to every case's ``run`` (e.g. ``{"F": 0.002}``).
-
-    Returns
-    -------
-    dict
-        ``{study: {case: metrics}}``; a failed case has ``{"error": message}``.
-
-    Raises
-    ------
-    UsageError
-        A bad argument or an unusable output folder (nothing simulated, nothing written).
-
-    Examples
-    --------
-    >>> import io, tempfile
-    >>> m = reproduce("spacecraft", out=tempfile.mkdtemp(), cases=["ideal"], horizon=1.0,
-    ...               log=io.StringIO())
-    >>> sorted(m["spacecraft"])
-    ['ideal']
-    """
-    from .simulation import ENGINES
-
-    log = log or sys.stderr
-    if study != "all" and study not in STUDIES:
-        raise UsageError(f"unknown study {study!r}; choose from {['all', *STUDIES]}")
-    studies = ([s for s in STUDIES.values() if s.in_all] if study == "all"
-               else [STUDIES[study]])
-    selection = _select_cases(studies, cases)
-    horizons = _horizons(studies, horizon)
-    if stride is not None and (isinstance(stride, bool) or not isinstance(stride, int)
-                               or stride < 1):
-        raise UsageError(f"stride must be an integer >= 1, got {stride!r}")
-    if engine not in ENGINES:
-        raise UsageError(f"engine must be one of {ENGINES}, got {engine!r}")
-    options = dict(options or {})
-    for s in studies:
-        if not selection[s.name]:
-            continue
-        if options and hasattr(s.run, "check"):
-            s.run.check(options)
-        steps = _steps(s, horizons[s.name])
-        step = stride if stride is not None else s.default_stride
-        if stride is not None and steps // step < 2:
-            raise UsageError(f"stride {step} keeps {1 + (steps - 1) // step} sample(s) of the "
-                             f"{steps} of a {s.name} run; choose a stride below {steps // 2}")
-        held = steps if s.streaming is None or engine != "fast" else FIGURE_POINTS
-        need = held * s.signals * 8 * 3  # the run, its table and the CSV's copy
-        if need > MEMORY_LIMIT:
-            raise UsageError(
-                f"a {s.name} run of {steps} steps would hold about {need / 1e9:.1f} GB in "
-                f"memory (limit {MEMORY_LIMIT / 1e9:.0f} GB); shorten the horizon to at "
-                f"most {MEMORY_LIMIT // (s.signals * 24) * s.Ts:g} s")
-    out = _writable(out)
-    summary = {}
-    with FigureWorkers(workers) as pool:
-        if engine == "fast" and not options:
-            _compile_ahead(studies, selection, horizons, pool)
-        for s in sorted(studies, key=lambda study: study.simulation_cost):
-            if not selection[s.name]:
-                continue
-            summary[s.name] = _run_study(s, selection[s.name], out / s.name,
-                                         horizons[s.name], stride, engine, log, pool, options)
-        for path in pool.results():
-            log.write(f"  wrote {path}\n")
-    return {s.name: summary[s.name] for s in studies if s.name in summary}
-
-
-def _compile_ahead(studies, selection, horizons, pool) -> None:
-    """Have a worker compile the published loops that the fast engine would run as Python.
-
-    The engine runs a loop that is not in its disk cache as Python for its first
-    :data:`controlkit.engine.COMPILE_AFTER_STEPS` steps in a process, so that a diagram
-    being tried starts at once; the CMG study's 12 001 steps therefore ran as Python in
-    every ``reproduce`` (0.9 s with loading each kernel's cache; 0.05 s compiled). Its
-    loop is compiled (3-5 s) by a worker while this run goes on as before, so later
-    runs load it compiled and this one takes no longer. Looking the loop up costs this
-    process a few milliseconds: the kernels it loads are the ones its run needs.
-    """
-    from . import engine
-    from ._jit import HAVE_NUMBA
-
-    if not HAVE_NUMBA or pool.workers == 0:
-        return
-    for s in studies:
-        if s.loop is None or _steps(s, horizons[s.name]) >= engine.COMPILE_AFTER_STEPS:
-            continue
-        for case in selection[s.name]:
-            run, _ = engine.compile_system(s.loop(case), steps=0)
-            if not hasattr(run, "py_func"):  # not a numba function: not compiled yet
-                pool.run_in_background(_compile_case, s.name, case)
-
-
-def _compile_case(study: str, case: str) -> None:
-    """In a worker: compile a case's loop into the disk cache (see :func:`_compile_ahead`).
-
-    A run of two steps with the fast engine told to compile whatever the length gives
-    the loop the argument types of a full run.
-    """
-    from . import engine
-
-    s = STUDIES[study]
-    engine.COMPILE_AFTER_STEPS = 0  # this worker process only
-    s.run(case, 2 * s.Ts, None, "fast")
-
-
-def _run_study(s, cases, folder, horizon, stride, engine, log, pool, options) -> dict:
-    """Run one study's cases, writing files and the manifest as each finishes."""
-    folder.mkdir(parents=True, exist_ok=True)
-    step = stride if stride is not None else s.default_stride
-    manifest = {"study": s.name, "horizon_s": horizon or s.horizon, "stride": step,
-                "engine": engine, "options": options, "complete": False,
-                "cases": {case: {"status": "pending"} for case in cases}, "files": []}
-    _stale(folder, keep=set())
-    write_json(folder / MANIFEST, manifest)
-
-    def done(name, **entry):
-        manifest["cases"][name] = entry
-        manifest["files"] = sorted({f for c in manifest["cases"].values()
-                                    for f in c.get("files", [])} | set(manifest["files"]))
-        write_json(folder / MANIFEST, manifest)
-
-    study_metrics, tables, results = {}, {}, {}
-    try:
-        for case in cases:
-            log.write(f"{s.name}/{case}\n")
-            manifest["cases"][case] = {"status": "running"}
-            started = time.perf_counter()
-            progress = _progress_printer(f"{s.name}/{case}", log)
-            csv_name = f"{s.csv_stem(case)}.csv"
-            try:
-                if s.write is not None:
-                    results[case] = s.run(case, horizon, progress, engine, **options)
-                    done(case, status="done")
-                    continue
-                if s.streaming is not None and engine == "fast":
-                    columns, metrics = _streamed(s, case, horizon or s.horizon, step,
-                                                 folder / csv_name, progress, options)
-                else:
-                    resp = s.run(case, horizon, progress, engine, **options)
-                    columns = s.table(resp)
-                    write_csv(folder / csv_name, s.csv_columns(columns), stride=step)
-                    metrics = s.metrics(columns)
-            except CASE_FAILURES as error:
-                log.write(f"  {s.name}/{case} failed: {error}\n")
-                study_metrics[case] = {"error": str(error)}
-                done(case, status="failed", error=str(error))
-                continue
-            elapsed = time.perf_counter() - started
-            every = max(1, len(next(iter(columns.values()))) // FIGURE_POINTS)
-            tables[case] = {name: values[::every] for name, values in columns.items()}
-            study_metrics[case] = {**metrics, "wall_time_s": round(elapsed, 3)}
-            done(case, status="done", files=[csv_name])
-        if s.write is not None:
-            study_metrics, paths = s.write(results, folder) if results else ({}, [])
-            log.writelines(f"  wrote {path}\n" for path in paths)
-            manifest["files"] = sorted({p.name for p in paths})
-        else:
-            write_json(folder / "metrics.json", study_metrics)
-            manifest["files"] = sorted(set(manifest["files"]) | {"metrics.json"})
-            if tables:
-                names = _figure_files(s, tables)
-                manifest["files"] = sorted(set(manifest["files"]) | set(names))
-                if s.figure_stems:  # drawn by the workers while the next study runs
-                    pool.submit(s.figures, tables, folder, s.figure_stems,
-                                first=s.draw_first, columns=s.figure_columns)
-                else:
-                    for path in s.figures(tables, folder):
-                        log.write(f"  wrote {path}\n")
-        manifest["complete"] = all(c["status"] == "done" for c in manifest["cases"].values())
-    except KeyboardInterrupt:
-        for entry in manifest["cases"].values():
-            if entry["status"] in ("pending", "running"):
-                entry["status"] = "interrupted"
-        manifest["interrupted"] = True
-        raise
-    finally:
-        write_json(folder / MANIFEST, manifest)
-    return study_metrics
-
-
-def _streamed(s, case, horizon, stride, csv_path, progress, options):
-    """Run one case streamed: CSV rows written as computed, metrics from every sample.
-
-    Returns the figures' columns (about :data:`FIGURE_POINTS` samples) and the metrics.
-    """
-    from types import SimpleNamespace
-
-    import numpy as np
-
-    from .outputs.export import atomic, write_rows
-
-    watch = s.streaming(case, horizon)
-    steps = _steps(s, horizon)
-    seen = [0]
-    with atomic(csv_path) as partial, partial.open("w") as handle:
-        header = None
-
-        def on_chunk(t, y, x):
-            nonlocal header
-            watch(t, y, x)
-            cols = s.csv_columns(s.table(SimpleNamespace(
-                time=t, outputs=y, states=x, output_labels=watch.labels)))
-            if header is None:
-                header = ",".join(cols)
-                handle.write(header + "\n")
-            first = (-seen[0]) % stride  # rows 0, stride, 2 stride, ... of the whole run
-            rows = np.column_stack([np.asarray(v, dtype=float) for v in cols.values()])
-            write_rows(handle, rows[first::stride])
-            seen[0] += t.size
-
-        resp = s.run(case, horizon, progress, "fast", on_chunk=on_chunk,
-                     record_every=max(1, steps // FIGURE_POINTS), **options)
-    return s.table(resp), watch.metrics()
-
-
-def _figure_files(s, tables) -> list[str]:
-    """The figure files a study will write for these tables (PNG and vector copies)."""
-    from .outputs.style import VECTOR_FORMATS
-
-    stems = s.figure_stems or ()
-    if s.name == "spacecraft" and not any(
-            sc_scenario.CASES[c].compensator != "none" for c in tables):
-        stems = tuple(x for x in stems if x != "fig08_K")
-    return [f"{stem}.{ext}" for stem in stems for ext in ("png", *VECTOR_FORMATS)]
 
 
 HELP = """Reproduce the papers' results and study their robustness.
@@ -603,6 +65,106 @@ def _set_arg(text):
         return name, float(value)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{name}: expected a number, got {value!r}") from None
+
+
+def _vary(text, known):
+    """``NAME=LOW:HIGH`` (drawn uniformly) or ``NAME=LOW:HIGH:N`` (an N-point grid)."""
+    name, _, span = text.partition("=")
+    parts = span.split(":")
+    if not name or len(parts) not in (2, 3):
+        raise ValueError(f"--vary {text!r}: expected NAME=LOW:HIGH or NAME=LOW:HIGH:N")
+    if name not in known:
+        raise ValueError(f"--vary {text!r}: unknown parameter {name!r}; known: "
+                         f"{list(known)}")
+    try:
+        low, high = float(parts[0]), float(parts[1])
+        n = int(parts[2]) if len(parts) == 3 else None
+    except ValueError:
+        raise ValueError(f"--vary {text!r}: LOW and HIGH must be numbers and N an "
+                         "integer") from None
+    if not (np.isfinite(low) and np.isfinite(high) and low <= high) or (n is not None
+                                                                         and n < 1):
+        raise ValueError(f"--vary {text!r}: needs finite LOW <= HIGH and N >= 1")
+    return name, (low, high), n
+
+
+def _add_sweep(subparsers) -> None:
+    """Add ``controlkit sweep`` to the command line's subcommands: one study's robustness
+    sweep (:func:`controlkit.studies.robustness.study`), for every study that has one."""
+    swept = {name: s.robustness for name, s in STUDIES.items() if s.robustness is not None}
+    p = subparsers.add_parser(
+        "sweep", help="robustness study: many model errors, on all cores or a Dask cluster",
+        description="Run the robustness study of the spacecraft paper: seeded draws of the "
+                    "inertia error, the amplitude of H0 and the initial attitude, each run "
+                    "for every case; writes sweep.csv, summary.json and figures.")
+    p.add_argument("study", choices=list(swept),
+                   help="spacecraft (model error of the MEC paper) or cmg (friction and "
+                        "inertia of the gyroscope)")
+    p.add_argument("--case", action="append", dest="cases", metavar="NAME",
+                   help="case to run (repeatable; spacecraft default: without_mec, "
+                        "mec_fixed, proposed, safeguarded; cmg default: thesis)")
+    p.add_argument("--samples", type=int, default=200, metavar="N",
+                   help="number of draws (default 200)")
+    p.add_argument("--seed", type=int, default=0, metavar="S", help="seed (default 0)")
+    p.add_argument("--horizon", type=float, metavar="SECONDS",
+                   help="simulated time per run (default 20000)")
+    p.add_argument("--vary", action="append", default=[], metavar="NAME=LOW:HIGH[:N]",
+                   help="range of a drawn parameter ("
+                        + "; ".join(f"{name}: {', '.join(r.ranges)}" for name, r in swept.items())
+                        + "); with :N it is an N-point grid crossed with the draws")
+    p.add_argument("--workers", type=int, metavar="N", help="workers (default: all cores)")
+    p.add_argument("--executor", choices=["processes", "threads", "serial", "dask"],
+                   default="processes", help="where runs go (default: local processes)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="a running Dask scheduler, e.g. tcp://host:8786 (with --executor dask)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    p.add_argument("--resume", action="store_true",
+                   help="complete the interrupted sweep in DIR without repeating its runs")
+
+
+def _sweep(args) -> dict:
+    """Run ``controlkit sweep`` from parsed arguments and print the summary.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> main(["sweep", "spacecraft", "--samples", "2", "--horizon", "20", "--case", "ideal",
+    ...       "--executor", "serial", "--out", tempfile.mkdtemp()])  # doctest: +ELLIPSIS
+    sweep/ideal: runs=2, requirement_met=...
+    0
+    """
+    if args.samples < 1:
+        raise ValueError(f"--samples must be >= 1, got {args.samples}")
+    if args.horizon is not None and not (np.isfinite(args.horizon) and args.horizon > 0):
+        raise ValueError(f"--horizon must be finite and > 0, got {args.horizon}")
+    if args.scheduler and args.executor != "dask":
+        raise ValueError("--scheduler goes with --executor dask")
+    from .studies import robustness
+    from .sweep import check_folder
+
+    spec = STUDIES[args.study].robustness
+    unknown = [c for c in args.cases or [] if c not in spec.cases()]
+    if unknown:
+        raise ValueError(f"unknown --case {unknown}; known: {list(spec.cases())}")
+    ranges, grid = {}, {}
+    for text in args.vary:
+        name, span, n = _vary(text, spec.ranges)
+        if n is None:
+            ranges[name] = span
+        else:
+            grid[name] = np.linspace(span[0], span[1], n).tolist()
+    out = check_folder(args.out, "--out")
+    _, summary = robustness.study(args.study, samples=args.samples, seed=args.seed,
+                                  cases=args.cases,
+                                  horizon=args.horizon, ranges=ranges, grid=grid,
+                                  executor=args.executor, workers=args.workers,
+                                  scheduler=args.scheduler, out=out, resume=args.resume)
+    for case, s in summary.items():
+        low_ci, high_ci = s["success_rate_95ci"]
+        print(f"sweep/{case}: runs={s['runs']}, requirement_met={s['requirement_met']}, "
+              f"success_rate={s['success_rate']:.3f} (95% CI {low_ci:.3f}-{high_ci:.3f}), "
+              f"failed_runs={s['failed_runs']}, median_error={s['median_error']:.4g}")
+    return summary
 
 
 def main(argv=None) -> int:
@@ -679,14 +241,12 @@ def _main(argv) -> int:
                      metavar="NAME=VALUE",
                      help="a keyword of every case's run, e.g. --set F=0.002 (the outer "
                           "gain of the spacecraft cases)")
-    from . import robustness
-
-    robustness.add_cli(sub)
+    _add_sweep(sub)
     args = parser.parse_args(argv)
     try:
         if args.command == "sweep":
             try:
-                robustness.run_cli(args)
+                _sweep(args)
             except ValueError as error:  # failed runs are rows: what escapes is an argument
                 raise UsageError(str(error)) from error
             return 0

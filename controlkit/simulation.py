@@ -1,7 +1,7 @@
-"""Running diagrams: initial states built by block name, and long runs with progress.
+"""Running diagrams: initial states built by block name, and runs on any backend.
 
-Both wrap :func:`control.input_output_response`; the results are ordinary
-:class:`control.TimeResponseData`.
+:func:`simulate` checks its arguments once and hands them to a backend of
+:mod:`controlkit.engines`; the results are ordinary :class:`control.TimeResponseData`.
 """
 
 from __future__ import annotations
@@ -11,14 +11,25 @@ from collections.abc import Callable
 
 import control as ct
 import numpy as np
+from control.timeresp import TimeResponseList
+
+from . import engines
+from .engines.contract import (
+    UnsupportedSystem,
+    check_arguments,
+    python_control_arguments,
+    response,
+    result_flags,
+)
+from .engines.params import check_params
 
 
 def initial_state(sys, **by_block) -> np.ndarray:
     """State vector of an interconnect, given per block name.
 
     Blocks not named start from their ``x0`` attribute when they have one
-    (controlkit blocks with a natural initial state, such as the FRIT tuner's
-    ``P(0) = gamma I``), otherwise from zero.
+    (a :class:`~controlkit.blocks.contract.KernelBlock`'s natural initial state,
+    such as the FRIT tuner's ``P(0) = gamma I``), otherwise from zero.
 
     Parameters
     ----------
@@ -34,7 +45,7 @@ def initial_state(sys, **by_block) -> np.ndarray:
 
     Examples
     --------
-    >>> from controlkit.diagrams.spacecraft import output_zeroing_loop
+    >>> from controlkit.studies.spacecraft.diagrams import output_zeroing_loop
     >>> initial_state(output_zeroing_loop(), plant=[1, 0, 0, 0]).tolist()
     [1.0, 0.0, 0.0, 0.0]
     """
@@ -60,140 +71,6 @@ def initial_state(sys, **by_block) -> np.ndarray:
     return np.concatenate(parts) if parts else np.zeros(0)
 
 
-ENGINES = ("fast", "python-control")
-
-
-def check_arguments(sys, T, X0, U=0.0):
-    """``T``, ``X0`` and ``U`` checked and shaped once, the same way for both engines.
-
-    Parameters
-    ----------
-    sys : control.InputOutputSystem
-        The system they are meant for.
-    T, X0, U : array_like
-        As for :func:`simulate`.
-
-    Returns
-    -------
-    T : numpy.ndarray
-        Time points, 1-D, finite, increasing (spaced by ``sys.dt`` if discrete).
-    X0 : numpy.ndarray
-        Initial state with exactly ``sys.nstates`` values (never zero-padded).
-    U : numpy.ndarray
-        Inputs, shape ``(ninputs, len(T))`` (a read-only view when constant).
-
-    Raises
-    ------
-    ValueError
-        Naming the argument, what it must be and what it is.
-
-    Examples
-    --------
-    >>> import control as ct
-    >>> sys = ct.ss([[0.5]], [[1.0, 1.0]], [[1.0]], [[0.0, 0.0]], dt=1)
-    >>> T, X0, U = check_arguments(sys, [0, 1, 2], [1.0], [1.0, -1.0])  # U per input
-    >>> U.tolist()
-    [[1.0, 1.0, 1.0], [-1.0, -1.0, -1.0]]
-    >>> check_arguments(sys, [0, 1, 2], [1.0, 0.0])
-    Traceback (most recent call last):
-    ...
-    ValueError: X0 must have 1 values (x[0]), got 2
-    """
-    from .sampling import TimeGrid
-
-    discrete = sys.isdtime(strict=True) and sys.dt is not True
-    if isinstance(T, TimeGrid):  # a lazy grid stays lazy (long streamed runs)
-        if T.size == 0 or not np.isfinite(T.Ts) or T.Ts <= 0:
-            raise ValueError(f"T must be a non-empty grid with a positive step, got {T.size} "
-                             f"samples of {T.Ts:g}")
-        if discrete and T.size > 1 and not np.isclose(T.Ts, sys.dt):
-            raise ValueError(f"time steps of T must equal the sampling time {sys.dt} of "
-                             f"{sys.name!r}, got steps from {T.Ts:g} to {T.Ts:g}")
-    else:
-        T = np.asarray(T, dtype=float)
-        if T.ndim != 1 or T.size == 0:
-            raise ValueError(f"T must be a non-empty 1-D array of time points, "
-                             f"got shape {T.shape}")
-        if not np.isfinite(T).all():
-            raise ValueError("T must hold finite time points")
-        steps = np.diff(T)
-        if (steps <= 0).any():
-            raise ValueError("T must be increasing")
-        if discrete and T.size > 1 and not np.allclose(steps, sys.dt):
-            raise ValueError(f"time steps of T must equal the sampling time {sys.dt} of "
-                             f"{sys.name!r}, got steps from {steps.min():g} to "
-                             f"{steps.max():g}")
-    X0 = np.asarray(X0 if X0 is not None else 0.0, dtype=float)
-    if X0.ndim == 0 and sys.nstates != 1 and X0 == 0:
-        X0 = np.zeros(sys.nstates)
-    X0 = X0.reshape(-1)
-    if X0.size != sys.nstates:
-        labels = ", ".join(sys.state_labels) if sys.nstates <= 6 else f"{sys.nstates} states"
-        raise ValueError(f"X0 must have {sys.nstates} values ({labels or 'none'}), "
-                         f"got {X0.size}")
-    if not np.isfinite(X0).all():
-        raise ValueError("X0 must be finite")
-    n, N = sys.ninputs, T.size
-    U = np.asarray(U, dtype=float)
-    if U.ndim == 0 or U.ndim == 1 and U.size == n:
-        # a view: a constant input costs no memory per step
-        U = np.broadcast_to(U.reshape(-1, 1), (n, N))
-    elif U.ndim == 1 and n == 1 and U.size == N:
-        U = U.reshape(1, N)
-    elif U.shape != (n, N):
-        raise ValueError(f"U must be a scalar, one value per input ({n}), or an array of "
-                         f"shape ({n}, {N}) (inputs by time points), got shape {U.shape}")
-    if not np.isfinite(U).all():
-        raise ValueError("U must be finite")
-    return T, X0, U
-
-
-def chunk_bounds(n: int, chunks: int) -> np.ndarray:
-    """Where ``n`` steps are cut into ``chunks`` near-equal runs (at least one step each).
-
-    Examples
-    --------
-    >>> chunk_bounds(10, 3).tolist()
-    [0, 3, 7, 10]
-    >>> chunk_bounds(2, 5).tolist()
-    [0, 1, 2]
-    """
-    return np.linspace(0, n, max(1, min(int(chunks), n)) + 1).round().astype(int)
-
-
-def response(sys, time, outputs, states, inputs, **overrides) -> ct.TimeResponseData:
-    """The :class:`control.TimeResponseData` of a run of ``sys``, as python-control labels it.
-
-    Both simulators (and a run pieced together from parts) build their result here, so a
-    result looks the same whichever made it: signal labels from ``sys``, its name, and
-    ``plot_inputs`` only when it has inputs (``.plot()`` fails on an empty input panel).
-
-    Parameters
-    ----------
-    sys : control.InputOutputSystem
-        The simulated system.
-    time : array_like
-        Sample times, shape ``(N,)``.
-    outputs, states, inputs : numpy.ndarray
-        Shapes ``(noutputs, N)``, ``(nstates, N)`` and ``(ninputs, N)``.
-    **overrides
-        Other keywords of :class:`control.TimeResponseData` (``title``, ``sysname``).
-
-    Examples
-    --------
-    >>> import control as ct
-    >>> sys = ct.nlsys(None, lambda t, x, u, p: u, inputs=1, outputs=1, name="gain")
-    >>> resp = response(sys, np.arange(2.0), np.ones((1, 2)), np.zeros((0, 2)), np.ones((1, 2)))
-    >>> resp.title, resp.output_labels
-    ('Input/output response for gain', ['y[0]'])
-    """
-    options = dict(
-        output_labels=sys.output_labels, state_labels=sys.state_labels,
-        input_labels=sys.input_labels, sysname=sys.name, issiso=sys.issiso(),
-        title="Input/output response for " + sys.name, plot_inputs=sys.ninputs > 0,
-    )
-    return ct.TimeResponseData(time, outputs, states, inputs, **{**options, **overrides})
-
 
 def simulate(
     sys, T, X0, U=0.0, *, params=None, progress: Callable[[float], None] | None = None,
@@ -202,11 +79,11 @@ def simulate(
 ) -> ct.TimeResponseData:
     """Simulate a system, optionally in chunks with progress reports.
 
-    ``engine="python-control"`` runs :func:`control.input_output_response` (the
-    reference). ``engine="fast"`` runs :func:`controlkit.engine.simulate_fast`,
-    which gives the same response much faster for a discrete interconnect of
-    controlkit blocks; a system it cannot compile runs on the python-control
-    path with a warning naming the block.
+    ``engine`` names a backend of :mod:`controlkit.engines`: ``"python-control"``
+    runs :func:`control.input_output_response` (the reference); ``"fast"`` runs
+    :func:`controlkit.engines.fast.simulate`, which gives the same response much
+    faster for a discrete interconnect; a system it cannot compile runs on the
+    python-control path with a warning naming the block.
 
     A discrete system run in chunks gives the same numbers, bit for bit, as one
     run: each chunk restarts from the state the previous one reached.
@@ -224,13 +101,13 @@ def simulate(
         ``(ninputs, len(T))``.
     params : dict, optional
         Parameter values, as for :func:`control.input_output_response`; a key
-        no block reads is refused (:func:`controlkit.engine.check_params`).
+        no block reads is refused (:func:`controlkit.engines.params.check_params`).
     progress : callable, optional
         Called with the fraction done (0 < f <= 1) after each chunk.
     chunks : int
         Number of pieces the run is cut into (for progress reports).
     engine : {"python-control", "fast"}
-        Which simulator to use (see above).
+        Which backend to use (see above).
     record_every : int
         Keep every ``record_every``-th sample (and the last) in the result. On the fast
         engine the run is then streamed through fixed buffers, so a long horizon needs
@@ -253,42 +130,106 @@ def simulate(
     >>> simulate(sys, np.arange(4), [1.0], chunks=2).outputs.tolist()
     [[1.0, 0.5, 0.25, 0.125]]
     """
-    if engine not in ENGINES:
-        raise ValueError(f"engine must be one of {ENGINES}, got {engine!r}")
-    from . import engine as fast
-
+    backend = engines.backend(engine)
     T, X0, U = check_arguments(sys, T, X0, U)
-    fast.check_params(sys, params)
+    check_params(sys, params)
+    options = dict(params=params, progress=progress, chunks=chunks,
+                   record_every=record_every, on_chunk=on_chunk)
+    if engine != "python-control":
+        try:
+            return backend.simulate(sys, T, X0, U, **options)
+        except UnsupportedSystem as reason:
+            warnings.warn(f"{engine} engine not used, running python-control instead: "
+                          f"{reason} (controlkit.engines.fast.explain(sys) lists every "
+                          f"block's tier)", stacklevel=2)
+    return engines.backend("python-control").simulate(sys, T, X0, U, **options)
+
+
+def input_output_response(sys, timepts=None, inputs=0.0, initial_state=0.0, params=None,
+                          ignore_errors=False, transpose=False, return_states=False,
+                          squeeze=None, solve_ivp_kwargs=None, evaluation_times="T", *,
+                          engine="fast", **kwargs):
+    """:func:`control.input_output_response`, compiled where it can be, for any diagram.
+
+    Takes python-control's arguments in python-control's order, with its aliases
+    (``T``, ``U``, ``X0``, ``return_x``, ``t_eval``, ``solve_ivp_method``, ``method``) and
+    rules (a list of systems gives a list of responses; a short ``X0`` is padded with
+    zeros, with python-control's warning), and returns what it returns, a
+    :class:`control.TimeResponseData`: a user switches by changing one import. Where the
+    diagram can run on the fast engine (:mod:`controlkit.engines.fast`) it does, with the
+    same numbers; otherwise python-control runs it, with a warning naming the block and
+    why (:func:`controlkit.engines.fast.explain`). A diagram of continuous and discrete
+    blocks (:func:`controlkit.interconnect`), which python-control cannot simulate, runs
+    with the semantics described in :mod:`controlkit.sampled_data`.
+
+    Parameters
+    ----------
+    sys, timepts, inputs, initial_state, params, ignore_errors, transpose, \
+return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
+        As for :func:`control.input_output_response` (python-control 0.10).
+    engine : {"fast", "python-control"}
+        ``"python-control"`` always runs python-control (for a sampled-data diagram,
+        controlkit's plain-Python reference, :func:`controlkit.engines.reference.
+        simulate_sampled_data`).
+
+    Returns
+    -------
+    control.TimeResponseData or control.TimeResponseList
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> sys = ct.nlsys(lambda t, x, u, p: 0.5 * x + u, inputs=1, states=1, outputs=1, dt=1)
+    >>> input_output_response(sys, np.arange(4.0), 1.0, 1.0).outputs.tolist()
+    [1.0, 1.5, 1.75, 1.875]
+    """
+    from control.config import _process_kwargs, _process_param
+    from control.timeresp import _timeresp_aliases
+
+    _process_kwargs(kwargs, _timeresp_aliases)
+    T = _process_param("timepts", timepts, kwargs, _timeresp_aliases)
+    U = _process_param("inputs", inputs, kwargs, _timeresp_aliases, sigval=0.0)
+    X0 = _process_param("initial_state", initial_state, kwargs, _timeresp_aliases,
+                        sigval=0.0)
+    return_x = _process_param("return_states", return_states, kwargs, _timeresp_aliases,
+                              sigval=False)
+    t_eval = _process_param("evaluation_times", evaluation_times, kwargs,
+                            _timeresp_aliases, sigval="T")
+    options = dict(params=params, ignore_errors=ignore_errors, transpose=transpose,
+                   return_states=return_x, squeeze=squeeze, evaluation_times=t_eval,
+                   solve_ivp_kwargs=dict(solve_ivp_kwargs or {}), **kwargs)
+    if engine not in engines.ENGINES:
+        raise ValueError(f"engine must be one of {engines.ENGINES}, got {engine!r}")
+    if isinstance(sys, list | tuple):
+        return TimeResponseList([input_output_response(s, T, U, X0, engine=engine, **options)
+                                 for s in sys])
+    from .sampled_data import SampledDataSystem
+
+    if isinstance(sys, SampledDataSystem):
+        return _sampled_data_response(sys, T, U, X0, engine, options)
     if engine == "fast":
         try:
-            return fast.simulate_fast(sys, T, X0, U, params=params, progress=progress,
-                                      chunks=chunks, record_every=record_every,
-                                      on_chunk=on_chunk)
-        except fast.UnsupportedSystem as reason:
+            return engines.backend("fast").response(sys, T, U, X0, **options)
+        except UnsupportedSystem as reason:
             warnings.warn(f"fast engine not used, running python-control instead: {reason} "
-                          f"(controlkit.engine.explain(sys) lists every block's tier)",
-                          stacklevel=2)
-    bounds = chunk_bounds(len(T) - 1, chunks)  # chunks share their end samples
-    x = np.asarray(X0, dtype=float)
-    pieces = []
-    for k, (i0, i1) in enumerate(zip(bounds[:-1], bounds[1:], strict=True)):
-        resp = ct.input_output_response(sys, T[i0 : i1 + 1], U[:, i0 : i1 + 1], x,
-                                        params=params, squeeze=False)
-        first = 0 if k == 0 else 1  # the previous chunk already holds this sample
-        states = resp.x if resp.x is not None else np.zeros((0, resp.time.size))
-        arrays = (resp.time, resp.outputs, states, resp.inputs)
-        pieces.append([a[..., first:] for a in arrays])
-        x = states[:, -1]
-        if progress is not None:
-            progress(i1 / (len(T) - 1))
-    time, outputs, states, inputs = (np.concatenate(a, axis=-1) for a in zip(*pieces, strict=True))
-    if on_chunk is not None:  # the reference path holds the whole run anyway
-        on_chunk(time, outputs, states)
-    if record_every != 1:
-        from .engine import recorded_indices
+                          f"(controlkit.explain(sys) lists every block's tier)", stacklevel=2)
+    return ct.input_output_response(sys, T, U, X0, **options)
 
-        kept = recorded_indices(time.size, record_every)
-        time, outputs, states = time[kept], outputs[:, kept], states[:, kept]
-        inputs = inputs[:, kept]
-    return response(sys, time, outputs, states, inputs)
 
+def _sampled_data_response(sys, T, U, X0, engine, options):
+    """A sampled-data diagram: compiled where it can be, else the plain-Python reference."""
+    from .engines import reference
+
+    arguments = python_control_arguments(sys, T, U, X0, options)
+    if engine == "fast":
+        try:
+            return engines.backend("fast").response(sys, T, U, X0, **options)
+        except UnsupportedSystem as reason:
+            warnings.warn(f"fast engine not used, running controlkit's Python reference "
+                          f"instead: {reason}", stacklevel=3)
+    T, U, X0, t_eval, method, solve_ivp_kwargs = arguments
+    resp = reference.simulate_sampled_data(sys, T, X0, U, params=options["params"],
+                                           t_eval=t_eval, method=method,
+                                           solve_ivp_kwargs=solve_ivp_kwargs)
+    return response(sys, resp.time, resp.outputs, resp.states, resp.inputs,
+                    **result_flags(options))

@@ -11,13 +11,16 @@ import numpy as np
 import pytest
 
 from controlkit import cli
-from controlkit.blocks import cmg, mec
+from controlkit.blocks import cmg, frit, mec
 from controlkit.blocks import spacecraft as sc
-from controlkit.diagrams.spacecraft import output_zeroing_loop
-from controlkit.sampling import time_grid
-from controlkit.scenarios import frit
-from controlkit.scenarios import spacecraft as scenario
+from controlkit.blocks.sampling import time_grid
 from controlkit.simulation import initial_state, simulate
+from controlkit.studies import STUDIES
+from controlkit.studies.frit import scenario as frit_study
+from controlkit.studies.registry import UsageError
+from controlkit.studies.reproduce import reproduce as run_reproduce
+from controlkit.studies.spacecraft import scenario as scenario
+from controlkit.studies.spacecraft.diagrams import output_zeroing_loop
 
 
 def reproduce(**kwargs):
@@ -25,7 +28,7 @@ def reproduce(**kwargs):
     import tempfile
 
     kwargs.setdefault("out", tempfile.mkdtemp())
-    return cli.reproduce(log=io.StringIO(), **kwargs)
+    return run_reproduce(log=io.StringIO(), **kwargs)
 
 
 def a_file():
@@ -62,7 +65,7 @@ API_CASES = {
                          r"cannot write to out '.*': Not a directory"),
     "unknown option": (lambda: reproduce(study="spacecraft", cases=["ideal"], horizon=1.0,
                                          options={"G": 1.0}),
-                       r"unknown option \['G'\] for controlkit.scenarios.spacecraft.run"),
+                       r"unknown option \['G'\] for controlkit.studies.spacecraft.scenario.run"),
     "cmg too long": (lambda: reproduce(study="cmg", horizon=1e6),
                      r"a cmg run of 1000000001 steps would hold about 768.0 GB in memory"),
     # blocks: the wrong number of signals is refused, never read past
@@ -102,19 +105,19 @@ API_CASES = {
     "horizon API 0": (lambda: scenario.run("ideal", horizon=0.0),
                       r"horizon must be finite and > 0"),
     "time grid": (lambda: time_grid(0.05, 0.1), r"horizon must be a positive multiple of Ts"),
-    "unknown cmg case": (lambda: __import__("controlkit.scenarios.cmg", fromlist=["run"])
+    "unknown cmg case": (lambda: __import__("controlkit.studies.cmg.scenario", fromlist=["run"])
                          .run("nope"), r"case must be one of"),
     # the FRIT tuner's options
-    "lambda 0": (lambda: mec.frit_tuner(lambda_=0.0), r"lambda_"),
-    "kappa 2": (lambda: mec.frit_tuner(kappa=2.0), r"kappa"),
-    "gamma < 0": (lambda: mec.frit_tuner(gamma=-1.0), r"gamma must be finite and > 0"),
-    "psi < 0": (lambda: mec.frit_tuner(psi=-1.0), r"psi must be >= 0"),
-    "F 0": (lambda: mec.frit_tuner(F=0.0), r"F must be > 0 for the FRIT tuner"),
-    "filter": (lambda: mec.frit_tuner(filter="tustin"), r"filter must be one of"),
-    "units": (lambda: mec.frit_tuner(units="rad"), r"units must be one of"),
-    "safeguard key": (lambda: mec.frit_tuner(safeguard={"rate": 1}),
+    "lambda 0": (lambda: frit.frit_tuner(lambda_=0.0), r"lambda_"),
+    "kappa 2": (lambda: frit.frit_tuner(kappa=2.0), r"kappa"),
+    "gamma < 0": (lambda: frit.frit_tuner(gamma=-1.0), r"gamma must be finite and > 0"),
+    "psi < 0": (lambda: frit.frit_tuner(psi=-1.0), r"psi must be >= 0"),
+    "F 0": (lambda: frit.frit_tuner(F=0.0), r"F must be > 0 for the FRIT tuner"),
+    "filter": (lambda: frit.frit_tuner(filter="tustin"), r"filter must be one of"),
+    "units": (lambda: frit.frit_tuner(units="rad"), r"units must be one of"),
+    "safeguard key": (lambda: frit.frit_tuner(safeguard={"rate": 1}),
                       r"safeguard has unknown keys \['rate'\]"),
-    "reading key": (lambda: frit.run_reading("paper", {"filters": "zoh"}, horizon=1.0),
+    "reading key": (lambda: frit_study.run_reading("paper", {"filters": "zoh"}, horizon=1.0),
                     r"reading has unknown keys \['filters'\]"),
     "gain text": (lambda: mec.constant_gain("big"),
                   r"K must be a number or a 2x2 matrix of numbers, got 'big'"),
@@ -192,8 +195,8 @@ def test_cli_out_is_a_file_is_refused_before_simulating(tmp_path, capsys):
 
 def test_cli_unwritable_location_fails_before_simulating(tmp_path, capsys, monkeypatch):
     calls = []
-    for name, study in cli.STUDIES.items():
-        monkeypatch.setitem(cli.STUDIES, name, dataclasses.replace(
+    for name, study in STUDIES.items():
+        monkeypatch.setitem(STUDIES, name, dataclasses.replace(
             study, run=lambda *a, **k: calls.append(a)))
     blocker = tmp_path / "file"
     blocker.write_text("")
@@ -205,7 +208,7 @@ def test_cli_unwritable_location_fails_before_simulating(tmp_path, capsys, monke
 def test_one_string_is_one_case_not_its_letters(tmp_path):
     import io
 
-    m = cli.reproduce("spacecraft", out=tmp_path, cases="ideal", horizon=1.0,
+    m = run_reproduce("spacecraft", out=tmp_path, cases="ideal", horizon=1.0,
                       log=io.StringIO())
     assert list(m["spacecraft"]) == ["ideal"]
 
@@ -218,7 +221,7 @@ def test_help_is_plain_text(capsys):
 
 
 def test_debug_shows_the_traceback():
-    with pytest.raises(cli.UsageError, match="unknown case"):
+    with pytest.raises(UsageError, match="unknown case"):
         cli.main(["--debug", "reproduce", "--case", "nope"])
 
 
@@ -237,7 +240,7 @@ def test_a_failing_case_is_in_the_manifest_and_the_others_complete(tmp_path, mon
     import io
     import json
 
-    study = cli.STUDIES["spacecraft"]
+    study = STUDIES["spacecraft"]
     original = study.run
 
     def run(case, horizon, progress, engine, **options):  # F = 50: the loop diverges
@@ -245,8 +248,8 @@ def test_a_failing_case_is_in_the_manifest_and_the_others_complete(tmp_path, mon
             options = {**options, "F": 50.0}
         return original(case, horizon, progress, engine, **options)
 
-    monkeypatch.setitem(cli.STUDIES, "spacecraft", dataclasses.replace(study, run=run))
-    m = cli.reproduce("spacecraft", out=tmp_path, cases=["ideal", "without_mec", "proposed"],
+    monkeypatch.setitem(STUDIES, "spacecraft", dataclasses.replace(study, run=run))
+    m = run_reproduce("spacecraft", out=tmp_path, cases=["ideal", "without_mec", "proposed"],
                       horizon=20.0, log=io.StringIO(), workers=0)
     assert "the loop diverged at t = " in m["spacecraft"]["without_mec"]["error"]
     manifest = json.loads((tmp_path / "spacecraft" / "run.json").read_text())

@@ -12,7 +12,7 @@ import pytest
 
 from controlkit.cli import main
 from controlkit.outputs import export
-from controlkit.outputs.spacecraft import COLUMNS
+from controlkit.studies.spacecraft.outputs import COLUMNS
 
 FIGS = ["fig05_h1", "fig06_h2", "fig07_pointing_error", "fig08_K", "fig09_u1", "fig10_u2"]
 

@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 
 from controlkit.blocks import cmg
-from controlkit.diagrams.cmg import cmg_loop
-from controlkit.outputs.cmg import metrics, table
-from controlkit.sampling import sample_nlsys
-from controlkit.scenarios import cmg as scenario
+from controlkit.blocks.sampling import sample_nlsys
+from controlkit.studies.cmg import scenario as scenario
+from controlkit.studies.cmg.diagrams import cmg_loop
+from controlkit.studies.cmg.outputs import metrics, table
 
 RNG = np.random.default_rng(11)
 J = cmg.Inertias()

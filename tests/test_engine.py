@@ -8,14 +8,16 @@ import control as ct
 import numpy as np
 import pytest
 
-from controlkit import engine
+from controlkit import _jit
 from controlkit.blocks import cmg, mec
 from controlkit.blocks import spacecraft as sc
-from controlkit.diagrams.spacecraft import mec_loop, output_zeroing_loop
-from controlkit.sampling import sample_nlsys
-from controlkit.scenarios import cmg as cmg_scenario
-from controlkit.scenarios import spacecraft as scenario
+from controlkit.blocks.sampling import sample_nlsys
+from controlkit.engines import fast as engine
+from controlkit.engines.contract import UnsupportedSystem
 from controlkit.simulation import initial_state, simulate
+from controlkit.studies.cmg import scenario as cmg_scenario
+from controlkit.studies.spacecraft import scenario as scenario
+from controlkit.studies.spacecraft.diagrams import mec_loop, output_zeroing_loop
 
 Q0 = scenario.initial_attitude()
 H0 = Q0[1:3]
@@ -72,7 +74,7 @@ def test_rewired_loop_with_saturation_and_reference_matches():
     U = np.vstack([0.01 * np.ones_like(T), -0.02 * np.ones_like(T)])
     X0 = initial_state(loop, plant=Q0)
     ref = ct.input_output_response(loop, T, U, X0)
-    fast = engine.simulate_fast(loop, T, X0, U)
+    fast = engine.simulate(loop, T, X0, U)
     np.testing.assert_array_equal(fast.outputs, ref.outputs)
     assert np.abs(ref.outputs[2]).max() == pytest.approx(1.0)  # the limiter is active
 
@@ -97,7 +99,7 @@ def test_momentum_given_as_python_function_runs_in_python_inside_the_fast_loop()
     assert row.tier == "python"
     assert "H0 is a Python" in row.reason
     T = np.arange(21) * 0.1
-    fast = engine.simulate_fast(loop, T, start(loop))
+    fast = engine.simulate(loop, T, start(loop))
     ref = simulate(loop, T, start(loop))
     np.testing.assert_allclose(fast.outputs, ref.outputs, rtol=0, atol=1e-12)
 
@@ -106,14 +108,14 @@ def test_singular_attitude_gives_the_same_message_on_the_fast_path():
     loop = scenario.build_loop("ideal")
     X0 = initial_state(loop, plant=[0.0, 0.6, 0.8, 0.0])
     with pytest.raises(sc.SingularDecouplingError, match=r"undefined at attitude q = \[0.0, 0.6"):
-        engine.simulate_fast(loop, np.arange(5) * 0.1, X0)
+        engine.simulate(loop, np.arange(5) * 0.1, X0)
 
 
 def test_continuous_diagram_is_refused():
     loop = ct.interconnect([sc.spacecraft_plant(), sc.attitude_output(), sc.outer_controller(),
                             sc.io_linearizer()], inputs=["r[0]", "r[1]"], outputs=["h[0]"])
-    with pytest.raises(engine.UnsupportedSystem, match=r"is continuous time"):
-        engine.simulate_fast(loop, [0.0, 0.1], Q0)
+    with pytest.raises(UnsupportedSystem, match=r"is continuous time"):
+        engine.simulate(loop, [0.0, 0.1], Q0)
 
 
 def test_algebraic_loop_is_named():
@@ -126,14 +128,14 @@ def test_algebraic_loop_is_named():
     gain = mec.nominal_model(0.1)  # makes the diagram discrete
     loop = ct.interconnect([gain, a, b], inputs=["mu_n[0]", "mu_n[1]", "r[0]", "r[1]"],
                            outputs=["hn[0]", "y[0]"])
-    with pytest.raises(engine.UnsupportedSystem,
+    with pytest.raises(UnsupportedSystem,
                        match=r"algebraic loop through blocks \['a', 'b'\]"):
-        engine.simulate_fast(loop, [0.0, 0.1], [0.0, 0.0])
+        engine.simulate(loop, [0.0, 0.1], [0.0, 0.0])
 
 
 def test_engine_without_numba_gives_the_same_numbers(tmp_path):
     code = (
-        "import numpy as np; from controlkit.scenarios import spacecraft as s;"
+        "import numpy as np; from controlkit.studies.spacecraft import scenario as s;"
         "r = s.run('proposed', horizon=100.0, engine='fast');"
         "np.save(r'%s', r.outputs)" % (tmp_path / "plain.npy")
     )
@@ -158,7 +160,7 @@ print(next(iter(f.overloads.values())).fndesc.unique_name)
 """
 
 
-@pytest.mark.skipif(not engine._jit.HAVE_NUMBA, reason="numba not installed")
+@pytest.mark.skipif(not _jit.HAVE_NUMBA, reason="numba not installed")
 def test_two_processes_name_the_same_compiled_function_differently():
     # numba numbered compiled functions 1, 2, 3 in every process, so the same kernel
     # compiled by two processes (a loop's copy, the kernel's own cache) had one name and
@@ -172,12 +174,13 @@ _LOOP_COMPILED = """
 import sys
 import numpy as np
 sys.path.insert(0, sys.argv[2])
-from controlkit import engine
+from controlkit.engines import fast as engine
+from controlkit.engines.fast import loader
 from controlkit.simulation import simulate
 from user_diagrams import lti_loop
 loop, T, X0, U, _ = lti_loop(steps=10)
 if sys.argv[1] == "compile":
-    engine.COMPILE_AFTER_STEPS = 0  # compile and cache it whatever the length
+    loader.COMPILE_AFTER_STEPS = 0  # compile and cache it whatever the length
     simulate(loop, T, X0, U, engine="fast")
 else:  # a short run in a new process: the compiled loop, found in the cache
     run, _ = engine.compile_system(loop, steps=len(T))
@@ -185,7 +188,7 @@ else:  # a short run in a new process: the compiled loop, found in the cache
 """
 
 
-@pytest.mark.skipif(not engine._jit.HAVE_NUMBA, reason="numba not installed")
+@pytest.mark.skipif(not _jit.HAVE_NUMBA, reason="numba not installed")
 def test_a_compiled_loop_is_found_under_numba_cache_dir(tmp_path):
     # the loop's cache was looked for next to its file only, so with NUMBA_CACHE_DIR every
     # short run (the CMG study's) ran as Python and was compiled again in the background

@@ -5,12 +5,12 @@ import numpy as np
 
 from controlkit.blocks import spacecraft as sc
 from controlkit.blocks.common import lowpass_filter
-from controlkit.diagrams.spacecraft import linearized_plant, output_zeroing_loop
+from controlkit.blocks.sampling import sample_nlsys
 from controlkit.outputs.common import signal
-from controlkit.outputs.spacecraft import metrics
-from controlkit.sampling import sample_nlsys
-from controlkit.scenarios import spacecraft as scenario
 from controlkit.simulation import initial_state, simulate
+from controlkit.studies.spacecraft import scenario as scenario
+from controlkit.studies.spacecraft.diagrams import linearized_plant, output_zeroing_loop
+from controlkit.studies.spacecraft.outputs import metrics
 
 F, TS = sc.F_PAPER, sc.TS_PAPER
 

@@ -9,12 +9,12 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.ticker import LogFormatterSciNotation
 from PIL import Image
 
-from controlkit.outputs import cmg as cmg_out
-from controlkit.outputs import spacecraft as sc_out
 from controlkit.outputs.style import PNG_DPI, PowerOfTenFormatter, save, slide_style
 from controlkit.outputs.workers import FigureWorkers
-from controlkit.scenarios import cmg as cmg_scenario
-from controlkit.scenarios import spacecraft as sc_scenario
+from controlkit.studies.cmg import outputs as cmg_out
+from controlkit.studies.cmg import scenario as cmg_scenario
+from controlkit.studies.spacecraft import outputs as sc_out
+from controlkit.studies.spacecraft import scenario as sc_scenario
 
 
 @pytest.fixture(scope="module")
@@ -164,8 +164,8 @@ def test_bad_stems_and_paths_are_named(sc_tables, tmp_path):
 
 def test_library_never_switches_the_backend():
     code = ("import matplotlib; matplotlib.use('svg'); "
-            "from controlkit.outputs import spacecraft as o; from controlkit.scenarios import "
-            "spacecraft as s; import tempfile; "
+            "from controlkit.studies.spacecraft import outputs as o; "
+            "from controlkit.studies.spacecraft import scenario as s; import tempfile; "
             "o.figures({'ideal': o.table(s.run('ideal', horizon=1.0))}, tempfile.mkdtemp()); "
             "print(matplotlib.get_backend())")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
@@ -206,21 +206,6 @@ def test_saved_png_has_the_pixels_and_tags_of_savefig(tmp_path, sc_tables, cmg_t
         with Image.open(reference) as a, Image.open(ours) as b:
             assert np.array_equal(np.asarray(a), np.asarray(b))
             assert a.info == b.info  # dpi and the Software tag
-
-
-@pytest.mark.parametrize("deflater", ["zlib_ng", "zlib"])
-def test_png_bytes_decode_to_the_image_with_either_deflater(deflater, monkeypatch):
-    import io
-
-    from controlkit.outputs.style import png_bytes
-
-    if deflater == "zlib":  # zlib-ng not installed: the standard library's zlib
-        monkeypatch.setitem(sys.modules, "zlib_ng", None)
-    else:
-        pytest.importorskip("zlib_ng")
-    image = np.random.default_rng(0).integers(0, 256, (90, 160, 4), dtype=np.uint8)
-    with Image.open(io.BytesIO(png_bytes(image, 200))) as png:
-        assert np.array_equal(np.asarray(png), image) and round(png.info["dpi"][0]) == 200
 
 
 def test_figure_workers_run_background_work_outside_the_drawing_slots(tmp_path):

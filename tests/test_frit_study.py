@@ -6,10 +6,12 @@ import io
 import numpy as np
 import pytest
 
-from controlkit.blocks import mec
-from controlkit.cli import STUDIES, main, reproduce
-from controlkit.outputs import frit as out
-from controlkit.scenarios import frit as study
+from controlkit.blocks import frit
+from controlkit.cli import main
+from controlkit.studies import STUDIES
+from controlkit.studies.frit import outputs as out
+from controlkit.studies.frit import scenario as study
+from controlkit.studies.reproduce import reproduce
 
 COLUMNS = ("tuner,filter,start,freeze,units,horizon_s,max_pointing_error_last_half_deg,"
            "final_pointing_error_deg,max_abs_K,peak_abs_u_after_1000s_rad_s,diverged,"
@@ -21,7 +23,7 @@ def test_the_readings_are_every_combination_of_the_four_details():
     assert len({tuple(r.values()) for r in study.READINGS}) == 16
     assert study.READINGS[0] == {"filter": "zoh", "start": "rest", "freeze": "row",
                                  "units": "deg"}
-    assert set(study.READINGS[0]) == set(mec.READINGS)
+    assert set(study.READINGS[0]) == set(frit.READINGS)
 
 
 def test_study_writes_one_row_per_reading_with_the_required_columns(tmp_path):
@@ -40,8 +42,8 @@ def test_study_writes_one_row_per_reading_with_the_required_columns(tmp_path):
 
 
 def test_default_reading_row_equals_the_proposed_case():
-    from controlkit.outputs.spacecraft import metrics
-    from controlkit.scenarios import spacecraft
+    from controlkit.studies.spacecraft import scenario as spacecraft
+    from controlkit.studies.spacecraft.outputs import metrics
 
     row = study.run_reading("paper", horizon=500.0).metrics
     reference = metrics(spacecraft.run("proposed", horizon=500.0))
@@ -60,7 +62,7 @@ def test_a_diverging_reading_is_a_row_with_its_time_not_a_crash():
     assert result.metrics["diverged_at_s"] == pytest.approx(10_281.2, abs=1.0)
     assert "diverged" in result.error
     # the K trace is kept up to the last chunk of the run that stayed finite
-    from controlkit.engine import STREAM_CHUNK_STEPS
+    from controlkit.engines.fast import STREAM_CHUNK_STEPS
     chunk_s = STREAM_CHUNK_STEPS * 0.1
     assert result.time[-1] < result.metrics["diverged_at_s"] <= result.time[-1] + chunk_s
     assert result.K.shape == (4, result.time.size) and np.isfinite(result.K).all()

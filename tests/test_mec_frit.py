@@ -5,14 +5,14 @@ import numpy as np
 import pytest
 import scipy.optimize
 
-from controlkit.blocks import mec
+from controlkit.blocks import frit, mec
 from controlkit.blocks import spacecraft as sc
-from controlkit.diagrams.spacecraft import mec_loop, output_zeroing_loop
 from controlkit.kernels.mec import TUNER_STATE
 from controlkit.outputs.common import signal
-from controlkit.outputs.spacecraft import metrics
-from controlkit.scenarios import spacecraft as scenario
 from controlkit.simulation import initial_state, simulate
+from controlkit.studies.spacecraft import scenario as scenario
+from controlkit.studies.spacecraft.diagrams import mec_loop, output_zeroing_loop
+from controlkit.studies.spacecraft.outputs import metrics
 
 RNG = np.random.default_rng(3)
 F, TS = sc.F_PAPER, sc.TS_PAPER
@@ -28,7 +28,7 @@ def synthetic(n, noise):
 def run_rls(xi, eta, lambda_, gamma):
     Khat, P1, P2 = np.zeros((2, 2)), gamma * np.eye(2), gamma * np.eye(2)
     for x, y in zip(xi, eta, strict=True):
-        Khat, P1, P2 = mec.rls_step(Khat, P1, P2, x, y, lambda_)
+        Khat, P1, P2 = frit.rls_step(Khat, P1, P2, x, y, lambda_)
     return Khat
 
 
@@ -69,7 +69,7 @@ def tuner_inputs(n, error_scale):
 
 
 def test_threshold_freezes_updates_exactly_while_error_is_small():
-    tuner = mec.frit_tuner(psi=1e-4, output_scale=1.0)  # psi in units of h
+    tuner = frit.frit_tuner(psi=1e-4, output_scale=1.0)  # psi in units of h
     inputs = tuner_inputs(1000, error_scale=5e-4)
     states = drive_tuner(tuner, inputs)
     e = inputs[:, 4:6] - inputs[:, 2:4]
@@ -87,7 +87,7 @@ def test_threshold_freezes_updates_exactly_while_error_is_small():
 
 def test_low_pass_law_eq30_holds_step_by_step():
     kappa = 0.3
-    tuner = mec.frit_tuner(kappa=kappa, psi=0.0)
+    tuner = frit.frit_tuner(kappa=kappa, psi=0.0)
     states = drive_tuner(tuner, tuner_inputs(300, error_scale=5e-4))
     Khat, K = states[:, TUNER_STATE.slice("Khat")], states[:, TUNER_STATE.slice("K")]
     np.testing.assert_allclose(K[1:], (1 - kappa) * K[:-1] + kappa * Khat[1:], rtol=0, atol=1e-15)
@@ -111,9 +111,9 @@ def test_rls_target_minimises_the_frit_criterion():
     e = hn - h
     a = np.exp(-F * TS)
     # batch least squares of eq. (21) on the tuner's own regressors
-    tuner = mec.frit_tuner(h0=h[:, 0], psi=0.0, lambda_=1.0, gamma=1e6, output_scale=1.0)
+    tuner = frit.frit_tuner(h0=h[:, 0], psi=0.0, lambda_=1.0, gamma=1e6, output_scale=1.0)
     states = drive_tuner(tuner, np.vstack([mu, h, hn]).T[:-1])
-    pairs = [mec.frit_regressors(x, h[:, i], tuner.F) for i, x in enumerate(states)]
+    pairs = [frit.frit_regressors(x, h[:, i], tuner.F) for i, x in enumerate(states)]
     xi = np.array([p[0][0] for p in pairs])  # F1 = F2: both rows share one regressor
     eta = np.array([p[1] for p in pairs])
     K_ls = np.linalg.lstsq(xi, eta, rcond=None)[0].T
@@ -178,7 +178,7 @@ def test_frit_tuner_moves_K_away_from_zero_under_model_error():
 ])
 def test_tuner_rejects_bad_settings(kwargs, message):
     with pytest.raises(ValueError, match=message):
-        mec.frit_tuner(**kwargs)
+        frit.frit_tuner(**kwargs)
 
 
 @pytest.mark.parametrize("K", [[1.0, 2.0, 3.0], np.ones((3, 3)), [[np.nan, 0], [0, 1]]])
@@ -190,7 +190,7 @@ def test_constant_gain_rejects_wrong_shape(K):
 def test_tuner_period_must_match_the_loop():
     with pytest.raises(ValueError, match=r"block 'tuner' runs at dt = 0.2 s but the loop runs "
                                          r"at Ts = 0.1 s"):
-        mec_loop(K=mec.frit_tuner(Ts=0.2), Ts=0.1)
+        mec_loop(K=frit.frit_tuner(Ts=0.2), Ts=0.1)
 
 
 def test_gain_source_must_output_K():
@@ -235,11 +235,11 @@ def test_literal_reading_of_table3_lets_the_gain_burst():
 
 
 def test_output_scale_is_the_tuner_seeing_scaled_data():
-    s = mec.DEGREES_PER_QUATERNION_UNIT
+    s = frit.DEGREES_PER_QUATERNION_UNIT
     inputs = tuner_inputs(600, error_scale=5e-4)
     h0 = inputs[0, 2:4]
-    scaled = drive_tuner(mec.frit_tuner(output_scale=s, h0=h0), inputs)
-    plain = drive_tuner(mec.frit_tuner(h0=s * h0, output_scale=1.0), s * inputs)
+    scaled = drive_tuner(frit.frit_tuner(output_scale=s, h0=h0), inputs)
+    plain = drive_tuner(frit.frit_tuner(h0=s * h0, output_scale=1.0), s * inputs)
     K = TUNER_STATE.slice("K")
     np.testing.assert_allclose(scaled[:, K], plain[:, K], rtol=1e-9, atol=1e-12)
     assert np.abs(scaled[-1, K]).max() > 1e-3  # the gain did move
@@ -247,7 +247,7 @@ def test_output_scale_is_the_tuner_seeing_scaled_data():
 
 def test_output_scale_must_be_positive():
     with pytest.raises(ValueError, match=r"output_scale must be finite and > 0"):
-        mec.frit_tuner(output_scale=0.0)
+        frit.frit_tuner(output_scale=0.0)
 
 
 # --- the readings the paper leaves open (filter, start, freeze, units) -------------------
@@ -256,15 +256,15 @@ def test_output_scale_must_be_positive():
 def test_filter_reading_sets_which_sample_the_regressors_come_from(filter_, ahead):
     # kappa = 1 and psi = 0 make each step a bare RLS step on that step's regressors
     inputs = tuner_inputs(200, error_scale=5e-4)
-    tuner = mec.frit_tuner(h0=inputs[0, 2:4], psi=0.0, kappa=1.0, units="q", filter=filter_)
+    tuner = frit.frit_tuner(h0=inputs[0, 2:4], psi=0.0, kappa=1.0, units="q", filter=filter_)
     states = drive_tuner(tuner, inputs)
     S = TUNER_STATE
     for k in range(0, 200, 17):
         # "zoh" reads the filters before sample k (m[k]); "feedthrough" after it (m[k+1])
-        xi, eta = mec.frit_regressors(states[k + ahead], inputs[k, 2:4], tuner.F)
+        xi, eta = frit.frit_regressors(states[k + ahead], inputs[k, 2:4], tuner.F)
         np.testing.assert_array_equal(xi[0], xi[1])  # F1 = F2: one regressor for both rows
         P1, P2 = (states[k, S.slice(name)].reshape(2, 2) for name in ("P1", "P2"))
-        Khat, P1n, _ = mec.rls_step(states[k, S.slice("Khat")].reshape(2, 2), P1, P2,
+        Khat, P1n, _ = frit.rls_step(states[k, S.slice("Khat")].reshape(2, 2), P1, P2,
                                     xi[0], eta, tuner.lambda_)
         np.testing.assert_allclose(states[k + 1, S.slice("Khat")], Khat.ravel(),
                                    rtol=1e-12, atol=1e-15)
@@ -273,7 +273,7 @@ def test_filter_reading_sets_which_sample_the_regressors_come_from(filter_, ahea
 
 def test_filter_readings_share_the_filter_states_and_differ_in_the_gain():
     inputs = tuner_inputs(300, error_scale=5e-4)
-    zoh, ft = (drive_tuner(mec.frit_tuner(h0=inputs[0, 2:4], filter=f, units="q", psi=0.0),
+    zoh, ft = (drive_tuner(frit.frit_tuner(h0=inputs[0, 2:4], filter=f, units="q", psi=0.0),
                            inputs) for f in ("zoh", "feedthrough"))
     filters = np.r_[TUNER_STATE.slice("Mxi1"), TUNER_STATE.slice("Mxi2"),
                     TUNER_STATE.slice("Mmu"), TUNER_STATE.slice("Mh")]
@@ -284,7 +284,7 @@ def test_filter_readings_share_the_filter_states_and_differ_in_the_gain():
 
 def test_start_reading_changes_only_the_initial_state_of_the_M_h_filters():
     h0 = [0.01, -0.02]
-    rest, zero = mec.frit_tuner(h0=h0, start="rest"), mec.frit_tuner(h0=h0, start="zero")
+    rest, zero = frit.frit_tuner(h0=h0, start="rest"), frit.frit_tuner(h0=h0, start="zero")
     np.testing.assert_array_equal(rest.kernels.params, zero.kernels.params)
     differs = np.nonzero(rest.x0 != zero.x0)[0]
     np.testing.assert_array_equal(differs, np.arange(*TUNER_STATE.slice("Mh").indices(24)))
@@ -296,7 +296,7 @@ def test_joint_freeze_freezes_both_rows_exactly_when_the_larger_error_is_below_p
     psi = 3e-4
     inputs = tuner_inputs(1500, error_scale=5e-4)
     e = np.abs(inputs[:, 4:6] - inputs[:, 2:4])
-    states = drive_tuner(mec.frit_tuner(psi=psi, units="q", freeze="joint",
+    states = drive_tuner(frit.frit_tuner(psi=psi, units="q", freeze="joint",
                                         h0=inputs[0, 2:4]), inputs)
     S = TUNER_STATE
     frozen = e.max(axis=1) < psi
@@ -313,8 +313,8 @@ def test_joint_freeze_freezes_both_rows_exactly_when_the_larger_error_is_below_p
 
 @pytest.mark.parametrize(("units", "scale"), [("deg", 360 / np.pi), ("q", 1.0)])
 def test_units_reading_is_an_output_scale(units, scale):
-    by_units = mec.frit_tuner(units=units, h0=[0.01, 0.02])
-    by_scale = mec.frit_tuner(output_scale=scale, h0=[0.01, 0.02])
+    by_units = frit.frit_tuner(units=units, h0=[0.01, 0.02])
+    by_scale = frit.frit_tuner(output_scale=scale, h0=[0.01, 0.02])
     np.testing.assert_array_equal(by_units.kernels.params, by_scale.kernels.params)
     np.testing.assert_array_equal(by_units.x0, by_scale.x0)
     assert by_units.readings["units"] == units
@@ -324,4 +324,4 @@ def test_units_reading_is_an_output_scale(units, scale):
                                                ("freeze", "both"), ("units", "rad")])
 def test_unknown_reading_is_refused_with_the_allowed_ones(option, value):
     with pytest.raises(ValueError, match=rf"{option} must be one of \("):
-        mec.frit_tuner(**{option: value})
+        frit.frit_tuner(**{option: value})

@@ -4,7 +4,7 @@ under all 16 readings, re-tuning after a change of plant, and its argument check
 import numpy as np
 import pytest
 
-from controlkit.blocks import mec
+from controlkit.blocks import frit
 from controlkit.blocks.spacecraft import TS_PAPER
 from controlkit.kernels.mec import (
     TUNER,
@@ -15,12 +15,12 @@ from controlkit.kernels.mec import (
     project_stable_gain,
     tuner_update,
 )
-from controlkit.scenarios import frit
-from controlkit.scenarios import spacecraft as scenario
+from controlkit.studies.frit import scenario as frit_study
+from controlkit.studies.spacecraft import scenario as scenario
 
 RNG = np.random.default_rng(5)
-RHO = mec.SAFEGUARD_DEFAULTS["rho"]
-DEADZONE = mec.SAFEGUARD_DEFAULTS["deadzone"]
+RHO = frit.SAFEGUARD_DEFAULTS["rho"]
+DEADZONE = frit.SAFEGUARD_DEFAULTS["deadzone"]
 
 
 def spectral_norm_of_error_loop(K):
@@ -52,10 +52,10 @@ def test_covariance_bound_clips_eigenvalues_and_keeps_eigenvectors():
                                    atol=1e-12)
 
 
-@pytest.mark.parametrize("reading", [frit.READINGS[0], frit.READINGS[9]],
+@pytest.mark.parametrize("reading", [frit_study.READINGS[0], frit_study.READINGS[9]],
                          ids=lambda r: " ".join(r.values()))
 def test_invariants_hold_at_every_step(reading):
-    tuner = mec.frit_tuner(safeguard=True, **reading)
+    tuner = frit.frit_tuner(safeguard=True, **reading)
     p_min, p_max = tuner.safeguard["p_min"], tuner.safeguard["p_max"]
     resp = scenario.run("proposed", horizon=5000.0, tuner_options={"safeguard": True,
                                                                    **reading})
@@ -75,7 +75,7 @@ def test_invariants_hold_at_every_step(reading):
         assert np.linalg.norm(M, 2, axis=(1, 2)).max() <= RHO + 1e-9
 
 
-@pytest.mark.parametrize("reading", [frit.READINGS[0], frit.READINGS[10]],
+@pytest.mark.parametrize("reading", [frit_study.READINGS[0], frit_study.READINGS[10]],
                          ids=lambda r: " ".join(r.values()))
 def test_dead_zone_freezes_the_estimator_exactly_when_both_errors_are_inside(reading):
     # replay the recorded run: at step k the normalised prediction errors come from the
@@ -87,7 +87,7 @@ def test_dead_zone_freezes_the_estimator_exactly_when_both_errors_are_inside(rea
                        for n in TUNER_STATE.labels()]).T
     labels = list(resp.output_labels)
     h = resp.outputs[[labels.index("h[0]"), labels.index("h[1]")]].T
-    p = mec.frit_tuner(safeguard=True, **reading).kernels.params
+    p = frit.frit_tuner(safeguard=True, **reading).kernels.params
     ahead = 1 if reading["filter"] == "feedthrough" else 0
     S, moved, inside_both = TUNER_STATE, 0, 0
     for k in range(resp.time.size - 1):
@@ -114,8 +114,8 @@ def test_units_change_nothing_under_the_safeguard():
                          tuner_options={"safeguard": True, "units": units})
             for units in ("deg", "q")]
     np.testing.assert_array_equal(runs[0].outputs, runs[1].outputs)
-    scaled = mec.frit_tuner(safeguard=True, output_scale=1e3)
-    np.testing.assert_array_equal(scaled.kernels.params, mec.frit_tuner(safeguard=True)
+    scaled = frit.frit_tuner(safeguard=True, output_scale=1e3)
+    np.testing.assert_array_equal(scaled.kernels.params, frit.frit_tuner(safeguard=True)
                                   .kernels.params)
 
 
@@ -144,18 +144,18 @@ def test_the_estimator_keeps_learning_after_a_long_run_and_retunes_when_the_plan
     n = 40_000
     xi = 1e-4 * RNG.normal(size=(2 * n, 2))
     eta = np.vstack([xi[:n] @ K1.T, xi[n:] @ K2.T])
-    Khat = drive_estimator(mec.frit_tuner(safeguard=True, kappa=1.0), xi, eta)
+    Khat = drive_estimator(frit.frit_tuner(safeguard=True, kappa=1.0), xi, eta)
     np.testing.assert_allclose(Khat[n - 1].reshape(2, 2), K1, atol=2 * DEADZONE)
     np.testing.assert_allclose(Khat[n + 2000].reshape(2, 2), K2, atol=2 * DEADZONE)
     assert np.abs(Khat[n + 100].reshape(2, 2) - K1).max() > 1.0  # it left K1 at once
-    big = drive_estimator(mec.frit_tuner(safeguard=True, kappa=1.0), 1e4 * xi, 1e4 * eta)
+    big = drive_estimator(frit.frit_tuner(safeguard=True, kappa=1.0), 1e4 * xi, 1e4 * eta)
     np.testing.assert_allclose(big, Khat, rtol=1e-9, atol=1e-12)
 
 
 def test_safeguarded_tuner_meets_the_claim_under_all_16_readings():
     # the bar at 20 000 s: <= 0.05 deg over the last half, |K_ij| <= 20, wheels
     # after the first 1 000 s never above 2.5 rad/s (the ideal loop's initial peak)
-    results = frit.run("safeguarded", horizon=20_000.0)
+    results = frit_study.run("safeguarded", horizon=20_000.0)
     assert len(results) == 16
     for r in results:
         m = r.metrics
@@ -168,27 +168,27 @@ def test_safeguarded_tuner_meets_the_claim_under_all_16_readings():
 def test_every_reading_meets_the_requirement_again_after_the_inertia_error_doubles():
     # measured: under all 16 readings the safeguarded loop never leaves 0.05 deg after the
     # step (recovery 0 s); the bar is recovery within 5 000 s
-    for reading in frit.READINGS:
-        _, recovery = frit.run_inertia_step("safeguarded", reading, horizon=40_000.0)
+    for reading in frit_study.READINGS:
+        _, recovery = frit_study.run_inertia_step("safeguarded", reading, horizon=40_000.0)
         assert recovery <= 5000.0, reading
 
 
 def test_safeguarded_tuner_retunes_after_the_inertia_error_doubles():
-    resp, recovery = frit.run_inertia_step("safeguarded", horizon=40_000.0)
+    resp, recovery = frit_study.run_inertia_step("safeguarded", horizon=40_000.0)
     assert recovery <= 5000.0
     labels = list(resp.output_labels)
     K = resp.outputs[[labels.index(f"K[{i}]") for i in range(4)]]
     step = np.searchsorted(resp.time, 20_000.0)
     assert np.abs(K[:, step:] - K[:, step:step + 1]).max() > 1e-2  # it keeps adapting
-    _, paper_recovery = frit.run_inertia_step("paper", {"units": "q"}, horizon=40_000.0)
+    _, paper_recovery = frit_study.run_inertia_step("paper", {"units": "q"}, horizon=40_000.0)
     assert paper_recovery > recovery  # the paper's literal reading does not recover
 
 
 def test_no_safeguard_is_the_papers_tuner():
-    paper, off = mec.frit_tuner(), mec.frit_tuner(safeguard=False)
+    paper, off = frit.frit_tuner(), frit.frit_tuner(safeguard=False)
     np.testing.assert_array_equal(paper.kernels.params, off.kernels.params)
     assert paper.kernels.params[TUNER.safeguard] == 0.0 and paper.safeguard is None
-    guarded = mec.frit_tuner(safeguard={"rho": 0.9})
+    guarded = frit.frit_tuner(safeguard={"rho": 0.9})
     assert guarded.safeguard["rho"] == 0.9
     assert spectral_norm_of_error_loop(guarded.x0[TUNER_STATE.slice("K")]) <= 0.9 + 1e-12
 
@@ -203,21 +203,21 @@ def test_no_safeguard_is_the_papers_tuner():
 ])
 def test_bad_safeguard_settings_are_refused(safeguard, message):
     with pytest.raises(ValueError, match=message):
-        mec.frit_tuner(safeguard=safeguard)
+        frit.frit_tuner(safeguard=safeguard)
 
 
 def test_psi_is_refused_with_the_safeguard_which_replaces_it():
     with pytest.raises(ValueError, match=r"psi is the paper's threshold; the safeguarded "
                                          r"tuner replaces it by its dead zone"):
-        mec.frit_tuner(psi=1e-3, safeguard=True)
-    assert mec.frit_tuner(safeguard=True).psi is None
-    np.testing.assert_array_equal(mec.frit_tuner().psi,
-                                  mec.frit_tuner(psi=mec.PSI_PAPER).psi)
+        frit.frit_tuner(psi=1e-3, safeguard=True)
+    assert frit.frit_tuner(safeguard=True).psi is None
+    np.testing.assert_array_equal(frit.frit_tuner().psi,
+                                  frit.frit_tuner(psi=frit.PSI_PAPER).psi)
 
 
 @pytest.mark.slow
 def test_safeguarded_tuner_meets_the_claim_over_a_million_seconds():
-    for r in frit.run("safeguarded", horizon=1_000_000.0):
+    for r in frit_study.run("safeguarded", horizon=1_000_000.0):
         m = r.metrics
         assert not m["diverged"] and m["max_pointing_error_last_half_deg"] <= 0.05, r.reading
         assert m["max_abs_K"] <= 20.0 and m["peak_abs_u_after_1000s_rad_s"] <= 2.5, r.reading

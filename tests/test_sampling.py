@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import scipy.integrate
 
-from controlkit.sampling import sample_nlsys, time_grid
+from controlkit.blocks.sampling import sample_nlsys, time_grid
 
 A = np.array([[0.0, 1.0], [-2.0, -3.0]])
 B = np.array([[0.0], [1.0]])

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from controlkit.blocks import spacecraft as sc
-from controlkit.diagrams.spacecraft import output_zeroing_loop
-from controlkit.scenarios import spacecraft as scenario
 from controlkit.simulation import initial_state, simulate
+from controlkit.studies.spacecraft import scenario as scenario
+from controlkit.studies.spacecraft.diagrams import output_zeroing_loop
 
 RNG = np.random.default_rng(7)
 

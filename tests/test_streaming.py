@@ -4,8 +4,9 @@ sample reaches on_chunk exactly once, in order, on both engines."""
 import numpy as np
 import pytest
 
-from controlkit import engine
-from controlkit.scenarios import spacecraft
+from controlkit.engines.contract import recorded_indices
+from controlkit.engines.fast import run as fast_run
+from controlkit.studies.spacecraft import scenario as spacecraft
 
 
 @pytest.mark.parametrize("engine_name", ["fast", "python-control"])
@@ -15,7 +16,7 @@ def test_decimated_run_keeps_exactly_the_full_runs_samples(engine_name):
     seen = []
     kept = spacecraft.run("proposed", horizon=horizon, engine=engine_name, record_every=7,
                           on_chunk=lambda t, y, x: seen.append((t.copy(), y.copy(), x.copy())))
-    index = engine.recorded_indices(full.time.size, 7)
+    index = recorded_indices(full.time.size, 7)
     assert index[-1] == full.time.size - 1
     np.testing.assert_array_equal(kept.time, full.time[index])
     np.testing.assert_array_equal(kept.outputs, full.outputs[:, index])
@@ -26,7 +27,7 @@ def test_decimated_run_keeps_exactly_the_full_runs_samples(engine_name):
 
 
 def test_streaming_crosses_chunk_boundaries(monkeypatch):
-    monkeypatch.setattr(engine, "STREAM_CHUNK_STEPS", 64)  # many chunks on a short run
+    monkeypatch.setattr(fast_run, "STREAM_CHUNK_STEPS", 64)  # many chunks on a short run
     full = spacecraft.run("without_mec", horizon=100.0)
     chunks = []
     kept = spacecraft.run("without_mec", horizon=100.0, record_every=10,

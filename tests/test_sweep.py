@@ -8,7 +8,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from controlkit import robustness
+from controlkit.studies import robustness
+from controlkit.studies.spacecraft import robustness as sc_robustness
 from controlkit.sweep import draw_points, plan, sweep, wilson_interval
 
 CALLS = []
@@ -94,7 +95,7 @@ def test_interrupted_sweep_resumes_without_repeating_finished_runs(tmp_path):
 
 
 def _study(executor, **kwargs):
-    table, summary = robustness.spacecraft_study(
+    table, summary = robustness.study("spacecraft",
         samples=3, seed=11, cases=["without_mec", "proposed"], horizon=200.0,
         executor=executor, progress=False, **kwargs)
     return table.drop(columns="wall_time_s"), summary
@@ -123,10 +124,10 @@ def test_user_executor_is_used_and_not_closed():
 
 
 def test_study_rows_and_summary_are_consistent(tmp_path):
-    table, summary = robustness.spacecraft_study(
+    table, summary = robustness.study("spacecraft",
         samples=2, seed=3, cases=["without_mec"], horizon=100.0, executor="serial",
         out=tmp_path, progress=False)
-    assert set(robustness.RANGES) <= set(table.columns)
+    assert set(sc_robustness.RANGES) <= set(table.columns)
     assert ((table["inertia_error_x"] >= 0) & (table["inertia_error_x"] <= 3)).all()
     assert ((table["angle_deg"] >= 10) & (table["angle_deg"] <= 60)).all()
     s = summary["without_mec"]
@@ -140,7 +141,7 @@ def test_study_rows_and_summary_are_consistent(tmp_path):
 
 
 def test_trajectories_are_kept_per_run():
-    table = sweep(robustness.spacecraft_run, grid={"angle_deg": [10.0, 20.0]},
+    table = sweep(sc_robustness.run, grid={"angle_deg": [10.0, 20.0]},
                   cases=["ideal"], fixed={"horizon": 10.0, "keep_every": 10},
                   executor="serial", progress=False)
     assert sorted(table.attrs["trajectories"]) == [0, 1]
@@ -220,7 +221,7 @@ def test_cmg_study_draws_friction_and_inertia_and_counts_tracking(tmp_path, caps
 
 
 def test_cmg_plant_options_are_checked():
-    from controlkit.scenarios import cmg
+    from controlkit.studies.cmg import scenario as cmg
 
     with pytest.raises(ValueError, match=r"plant_options has unknown keys \['mass'\]"):
         cmg.build_loop(plant_options={"mass": 2.0})

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from user_diagrams import DIAGRAMS
 
-from controlkit import engine
+from controlkit.engines import fast as engine
 from controlkit.simulation import simulate
 
 
@@ -26,26 +26,26 @@ def test_user_diagram_is_compiled_and_equals_python_control(name):
 import control as ct  # noqa: E402
 from user_diagrams import TS, lti_loop, sampled_lti_plant, tank_with_params  # noqa: E402
 
-from controlkit._block import kernel_block  # noqa: E402
 from controlkit.blocks import spacecraft as sc  # noqa: E402
-from controlkit.diagrams.spacecraft import output_zeroing_loop  # noqa: E402
+from controlkit.blocks.contract import KernelBlock  # noqa: E402
+from controlkit.blocks.sampling import SamplingError, sample_nlsys  # noqa: E402
 from controlkit.kernels.common import saturation_output  # noqa: E402
-from controlkit.sampling import SamplingError, sample_nlsys  # noqa: E402
-from controlkit.scenarios.spacecraft import initial_attitude  # noqa: E402
 from controlkit.simulation import initial_state  # noqa: E402
+from controlkit.studies.spacecraft.diagrams import output_zeroing_loop  # noqa: E402
+from controlkit.studies.spacecraft.scenario import initial_attitude  # noqa: E402
 
 ENGINES = ["python-control", "fast"]
 
 
 def test_block_declared_without_feedthrough_whose_output_moves_with_its_input_is_refused():
-    limiter = kernel_block(saturation_output, params=[1.0], feedthrough=False,
+    limiter = KernelBlock(saturation_output, params=[1.0], feedthrough=False,
                            inputs="v", outputs="u", dt=None, name="limiter")
     loop, T, X0, U, _ = lti_loop(steps=10)
     loop = ct.interconnect([*[s for s in loop.syslist if s.name != "disturbance"], limiter,
                             ct.summing_junction(["u", "d"], "u_plant", name="disturbance")],
                            inputs=["r", "d"], outputs=["y"])
     with pytest.raises(ValueError, match=r"block 'limiter' is declared without feedthrough"):
-        engine.simulate_fast(loop, T, np.zeros(loop.nstates), U)
+        engine.simulate(loop, T, np.zeros(loop.nstates), U)
 
 
 @pytest.mark.parametrize("which", ENGINES)
@@ -162,7 +162,8 @@ def test_continuous_diagram_falls_back_with_a_warning_pointing_to_explain():
     rows = engine.explain(loop)
     assert {r.tier for r in rows} == {"python-control"}
     assert "continuous time" in rows[0].reason
-    with pytest.warns(UserWarning, match=r"continuous time.*controlkit.engine.explain\(sys\)"):
+    with pytest.warns(UserWarning,
+                      match=r"continuous time.*controlkit.engines.fast.explain\(sys\)"):
         simulate(loop, np.linspace(0.0, 1.0, 11), [0.0], 1.0, engine="fast")
 
 

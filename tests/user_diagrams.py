@@ -32,7 +32,7 @@ def lti_loop(steps=400):
 def pendulum_under_pi(steps=400):
     """A continuous nonlinear pendulum (user nlsys, params) sampled by sample_nlsys, under a
     sampled PI transfer function."""
-    from controlkit.sampling import sample_nlsys
+    from controlkit.blocks.sampling import sample_nlsys
 
     def pendulum(t, x, u, params):
         g, length = params.get("g", 9.81), params["length"]
@@ -129,7 +129,7 @@ def gain_scheduled(steps=400):
 def sampled_lti_plant(steps=400):
     """A continuous LTI plant (mass-spring-damper) sampled by sample_nlsys under a static
     state feedback with reference gain (an LTI static block) and an output summing junction."""
-    from controlkit.sampling import sample_nlsys
+    from controlkit.blocks.sampling import sample_nlsys
 
     msd = ct.ss([[0.0, 1.0], [-4.0, -0.4]], [[0.0], [1.0]], np.eye(2), np.zeros((2, 1)),
                 name="msd", inputs="F", outputs=["p", "v"], states=["p", "v"])

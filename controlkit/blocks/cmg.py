@@ -17,7 +17,6 @@ import control as ct
 import numpy as np
 
 from .. import _checks
-from .._block import kernel_block
 from ..kernels import cmg as kernels
 from ..kernels import common
 from ..kernels.cmg import (
@@ -31,6 +30,7 @@ from ..kernels.cmg import (
     STATE,
     TORQUES,
 )
+from .contract import KernelBlock
 
 STATES = STATE.labels()
 REFERENCE_SIGNALS = REFERENCE.labels()
@@ -209,7 +209,7 @@ def cmg_plant(inertias=None, *, delta_IG4x=0.0, friction=None, name="cmg") -> ct
             f"got {delta_IG4x}"
         )
 
-    sys = kernel_block(common.state_output, kernels.plant_rhs,
+    sys = KernelBlock(common.state_output, kernels.plant_rhs,
                        params=_plant_parameters(inertias, delta_IG4x, friction),
                        feedthrough=False, inputs=TORQUES.labels(), outputs=STATES, states=STATES,
                        name=name)
@@ -253,7 +253,7 @@ def reference_generator(*, name="reference") -> ct.NonlinearIOSystem:
     >>> reference_generator().output(0.0, [], []).round(4).tolist()
     [0.1745, 0.0, 0.0, 0.0, 0.0, 0.0]
     """
-    return kernel_block(kernels.reference_output, feedthrough=False, inputs=0,
+    return KernelBlock(kernels.reference_output, feedthrough=False, inputs=0,
                         outputs=REFERENCE_SIGNALS, dt=None, name=name)
 
 
@@ -412,7 +412,7 @@ def adaptive_smc(
     boundary_layer = _checks.positive_scalar("boundary_layer", boundary_layer, allow_zero=True)
     a_hat0 = _checks.vector("a_hat0", a_hat0, 4)
 
-    sys = kernel_block(
+    sys = KernelBlock(
         kernels.smc_output, kernels.smc_update,
         params=_controller_parameters(inertias, g, boundary_layer, 1e-3, Ts),
         check=_explain_smc_failure,
@@ -445,7 +445,7 @@ def torque_saturation(T1_max=T1_MAX, T2_max=T2_MAX, *, name="saturation") -> ct.
     """
     limits = np.array([_checks.positive_scalar("T1_max", T1_max),
                        _checks.positive_scalar("T2_max", T2_max)])
-    sys = kernel_block(common.saturation_output, params=limits,
+    sys = KernelBlock(common.saturation_output, params=limits,
                        inputs=["T1_cmd", "T2_cmd"], outputs=["T1", "T2"], dt=None, name=name)
     sys.limits = limits
     return sys

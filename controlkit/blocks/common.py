@@ -6,8 +6,8 @@ import control as ct
 import numpy as np
 
 from .. import _checks
-from .._block import kernel_block
 from ..kernels import common
+from .contract import KernelBlock
 
 
 def lowpass_filter(tau, Ts, *, input="v", output="mu", size=2, y0=0.0,
@@ -56,7 +56,7 @@ def lowpass_filter(tau, Ts, *, input="v", output="mu", size=2, y0=0.0,
     y0 = np.broadcast_to(np.asarray(y0, dtype=float), (size,)) if np.ndim(y0) == 0 else y0
     y0 = _checks.vector("y0", y0, size)
     signals = [f"{output}[{i}]" for i in range(size)]
-    sys = kernel_block(common.state_output, common.lowpass_update,
+    sys = KernelBlock(common.state_output, common.lowpass_update,
                        params=common.LOWPASS.pack(a=np.exp(-Ts / tau)), feedthrough=False,
                        inputs=[f"{input}[{i}]" for i in range(size)], outputs=signals,
                        states=signals, dt=Ts, name=name)

@@ -18,7 +18,6 @@ import control as ct
 import numpy as np
 
 from .. import _checks
-from .._block import kernel_block
 from ..kernels import common
 from ..kernels import spacecraft as kernels
 from ..kernels.spacecraft import (
@@ -29,6 +28,7 @@ from ..kernels.spacecraft import (
     MOMENTUM,
     PLANT,
 )
+from .contract import KernelBlock
 
 # --- Paper values (Tables 2 and 3) -------------------------------------------------
 
@@ -289,7 +289,7 @@ def spacecraft_plant(
         q, u = _checks.vector("q", q, 4), _checks.vector("u", u, 2)
         return np.array(kernels.body_rate(t, q, u, fit(t, params)))
 
-    sys = kernel_block(
+    sys = KernelBlock(
         common.state_output, rhs, params=params, feedthrough=False, uncompiled=uncompiled,
         inputs=_U_SIGNALS, outputs=_Q_SIGNALS, states=_Q_SIGNALS, name=name,
     )
@@ -398,7 +398,7 @@ def io_linearizer(
             f"paper's wheels: a 180 deg rotation about an axis in the body x-y plane)"
         )
 
-    return kernel_block(
+    return KernelBlock(
         output, params=params, feedthrough=True, check=refuse, uncompiled=uncompiled,
         inputs=LINEARIZER_INPUTS.labels(), outputs=_U_SIGNALS, dt=None, name=name,
     )
@@ -420,7 +420,7 @@ def attitude_output(*, name="output") -> ct.NonlinearIOSystem:
     [0.1, 0.2]
     """
 
-    return kernel_block(kernels.attitude_output, inputs=_Q_SIGNALS,
+    return KernelBlock(kernels.attitude_output, inputs=_Q_SIGNALS,
                         outputs=["h[0]", "h[1]"], dt=None, name=name)
 
 
@@ -451,7 +451,7 @@ def outer_controller(F=F_PAPER, *, output="mu", name="controller") -> ct.Nonline
     [-0.5, 1.0]
     """
     F = _checks.gain_pair("F", F)
-    sys = kernel_block(
+    sys = KernelBlock(
         kernels.controller_output, params=CONTROLLER.pack(F=F), inputs=CONTROLLER_INPUTS.labels(),
         outputs=[f"{output}[0]", f"{output}[1]"], dt=None, name=name,
     )

@@ -93,7 +93,7 @@ def diagram_graph(sys):
 
     Examples
     --------
-    >>> from controlkit.diagrams.spacecraft import output_zeroing_loop
+    >>> from controlkit.studies.spacecraft.diagrams import output_zeroing_loop
     >>> g = diagram_graph(output_zeroing_loop())
     >>> g["edges"][("plant", "output")]
     ['q[0]', 'q[1]', 'q[2]', 'q[3]']

@@ -4,5 +4,5 @@ One module per family of blocks, mirroring :mod:`controlkit.blocks`
 (``common``, ``spacecraft``, ``mec``, ``cmg``). A kernel is named after its
 block and role: ``<block>_output``, ``<block>_update`` (discrete) or
 ``<block>_rhs`` (continuous). What a kernel must be and do is the block
-contract in :mod:`controlkit._block`.
+contract in :class:`controlkit.blocks.contract.KernelBlock`.
 """

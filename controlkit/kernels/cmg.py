@@ -1,6 +1,6 @@
 """Kernels of the control moment gyroscope blocks (thesis eq. 1-45).
 
-Signature and rules: see the block contract in :mod:`controlkit._block`. The
+Signature and rules: see the block contract in :class:`controlkit.blocks.contract.KernelBlock`. The
 packed vectors are declared here, once, by name; the blocks pack them and
 the kernels read them through these layouts.
 """
@@ -11,8 +11,8 @@ import math
 
 import numpy as np
 
-from .._block import layout
 from .._jit import jit
+from .layout import layout
 
 #: Angles and rates of rotor 1, gimbal 2 and gimbal 4: the plant's state and outputs.
 STATE = layout("CMG state", q1=1, q2=1, q4=1, w1=1, w2=1, w4=1)

@@ -1,13 +1,13 @@
 """Kernels of the generic blocks: state output, constant source, integrator, saturation,
 first-order low-pass filter.
 
-Signature and rules: see the block contract in :mod:`controlkit._block`.
+Signature and rules: see the block contract in :class:`controlkit.blocks.contract.KernelBlock`.
 """
 
 from __future__ import annotations
 
-from .._block import layout
 from .._jit import jit
+from .layout import layout
 
 #: Parameters of the discrete integrator: its sampling period.
 INTEGRATOR = layout("integrator parameters", Ts=1)
@@ -113,7 +113,7 @@ def rk4_step(rhs, t, x, u, p, h, work, out):
         k_3 = f(t + h/2,\\ x + (h/2) k_2), \\quad k_4 = f(t + h,\\ x + h k_3), \\\\
         x^+ &= x + (h/6)(k_1 + 2 k_2 + 2 k_3 + k_4)
 
-    This is the only RK4 of controlkit: :func:`controlkit.sampling.sample_nlsys` calls
+    This is the only RK4 of controlkit: :func:`controlkit.blocks.sampling.sample_nlsys` calls
     it from Python (with its plain-Python version) and the fast engine's compiled loop
     calls it inlined, so both paths do the same operations in the same order.
 

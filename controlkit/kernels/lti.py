@@ -6,7 +6,7 @@ when it joins an interconnect, so every LTI block of a diagram is a
 One pair of kernels runs all of them: the matrices are packed row-major
 into ``p`` after the three sizes, by :func:`pack`.
 
-Signature and rules: see the block contract in :mod:`controlkit._block`.
+Signature and rules: see the block contract in :class:`controlkit.blocks.contract.KernelBlock`.
 """
 
 from __future__ import annotations

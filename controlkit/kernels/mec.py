@@ -1,6 +1,6 @@
 """Kernels of the model error compensator and the FRIT tuner (spacecraft paper, eq. 13-30).
 
-Signature and rules: see the block contract in :mod:`controlkit._block`. The
+Signature and rules: see the block contract in :class:`controlkit.blocks.contract.KernelBlock`. The
 packed vectors are declared here, once, by name; the blocks pack them and
 the kernels read them through these layouts.
 """
@@ -11,8 +11,8 @@ import math
 
 import numpy as np
 
-from .._block import layout
 from .._jit import jit
+from .layout import layout
 
 #: Inputs of the compensator, in order: ``mu_n, hn, h, K`` (``K`` row-major).
 MEC_INPUTS = layout("MEC inputs", mu_n=2, hn=2, h=2, K=4)
@@ -131,7 +131,7 @@ def tuner_update(t, x, u, p, out):
     Examples
     --------
     >>> import numpy as np
-    >>> from controlkit.blocks.mec import frit_tuner
+    >>> from controlkit.blocks.frit import frit_tuner
     >>> tuner = frit_tuner(F=1.0, Ts=np.log(2.0))  # a = exp(-F Ts) = 1/2
     >>> u = TUNER_INPUTS.pack(mu=[0, 0], h=[1.0, 1.0], hn=[1.0, 1.0])
     >>> x = tuner_update(0.0, tuner.x0, u, tuner.kernels.params, np.empty(TUNER_STATE.size))
@@ -337,7 +337,7 @@ def tuner_output(t, x, u, p, out):
     Examples
     --------
     >>> import numpy as np
-    >>> from controlkit.blocks.mec import frit_tuner
+    >>> from controlkit.blocks.frit import frit_tuner
     >>> tuner = frit_tuner(K0=0.25)  # K(0) = 0.25 I
     >>> K = tuner_output(0.0, tuner.x0, np.zeros(6), tuner.kernels.params, np.empty(4))
     >>> K.tolist()

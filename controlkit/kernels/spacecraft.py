@@ -1,6 +1,6 @@
 """Kernels of the two-wheel spacecraft blocks (spacecraft paper, eq. 1-12).
 
-Signature and rules: see the block contract in :mod:`controlkit._block`.
+Signature and rules: see the block contract in :class:`controlkit.blocks.contract.KernelBlock`.
 """
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ import math
 
 import numpy as np
 
-from .._block import layout
 from .._jit import jit
+from .layout import layout
 
 #: A total angular momentum ``H(t) = c + a_s sin(w t) + a_c cos(w t)`` (N m s), packed.
 MOMENTUM = layout("momentum profile", constant=3, sine=3, cosine=3, omega=1)

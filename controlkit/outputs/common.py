@@ -13,7 +13,7 @@ def signal(resp, label: str) -> np.ndarray:
 
     Examples
     --------
-    >>> from controlkit.scenarios import spacecraft
+    >>> from controlkit.studies.spacecraft import scenario as spacecraft
     >>> resp = spacecraft.run("ideal", horizon=0.2)
     >>> signal(resp, "q[0]").round(4).tolist()
     [0.9659, 0.9659, 0.9659]

@@ -9,13 +9,13 @@ text is 12-14 pt at that size, so it stays legible when the figure fills a slide
 
 from __future__ import annotations
 
+import contextlib
+import os
 import re
 from pathlib import Path
 
 from matplotlib import rcParams
 from matplotlib.ticker import LogFormatterSciNotation
-
-from .export import atomic
 
 #: Saved figure size in inches, the shape of a 16 by 9 slide.
 SLIDE_SIZE = (8.0, 4.5)
@@ -195,22 +195,22 @@ def save(fig, path) -> list[Path]:
     >>> [p.name for p in save(fig, pathlib.Path(tempfile.mkdtemp()) / "a.png")]
     ['a.png', 'a.svg']
     """
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-
     path = Path(path)
     if path.suffix != ".png":
         raise ValueError(f"path must end in .png (the SVG is written beside it), got {path}")
     path.parent.mkdir(parents=True, exist_ok=True)
-    canvas = FigureCanvasAgg(fig)  # a canvas of our own: no pyplot, no global backend
     written = []
     with slide_style():
         for target, fmt in [(path, "png")] + [
                 (path.with_suffix(f".{v}"), v) for v in VECTOR_FORMATS]:
-            with atomic(target) as partial:  # a temporary name unique to this writer
-                if fmt == "png":
-                    _write_png(fig, canvas, partial)
-                else:
-                    fig.savefig(partial, format=fmt, dpi="figure")
+            # a name of this process's own: two runs writing one folder never share it
+            partial = target.with_name(f".{target.name}.{os.getpid()}.partial")
+            try:
+                fig.savefig(partial, format=fmt, dpi=PNG_DPI if fmt == "png" else "figure")
+                os.replace(partial, target)
+            finally:
+                with contextlib.suppress(FileNotFoundError):
+                    partial.unlink()
             written.append(target)
             # the layout is in figure coordinates and does not depend on the dpi: keep the
             # PNG's for the vector copies instead of solving it again (a third of the time).
@@ -219,85 +219,3 @@ def save(fig, path) -> list[Path]:
             # nothing (a fifth of the SVG's time)
             fig.set_layout_engine(None)
     return written
-
-
-def _write_png(fig, canvas, target) -> None:
-    """``fig.savefig(target, format="png", dpi=PNG_DPI)``, drawing the figure once, not twice.
-
-    For a figure with a layout engine, savefig first draws the whole figure without
-    rendering to solve the layout, then draws it again to render. Rendering on the Agg
-    canvas solves the layout within that one draw (the pixels are the same as savefig's,
-    checked on every figure of ``controlkit reproduce all``); :func:`png_bytes` writes
-    them. Settings that make savefig do more (``savefig.bbox: tight``, colours,
-    transparency) keep savefig.
-    """
-    import matplotlib
-
-    rc = matplotlib.rcParams
-    if rc["savefig.bbox"] is not None or rc["savefig.transparent"] or any(
-            not (isinstance(rc[f"savefig.{key}"], str) and rc[f"savefig.{key}"] == "auto")
-            for key in ("facecolor", "edgecolor")):
-        fig.savefig(target, format="png", dpi=PNG_DPI)
-        return
-    dpi = fig.dpi
-    fig.dpi = PNG_DPI
-    try:
-        canvas.draw()
-        Path(target).write_bytes(png_bytes(canvas.buffer_rgba(), PNG_DPI))
-    finally:
-        fig.dpi = dpi
-
-
-def png_bytes(rgba, dpi) -> bytes:
-    """A PNG file of an RGBA image (8 bits a channel), its resolution and matplotlib's tag.
-
-    The same chunks as matplotlib's PNG (``IHDR``, ``pHYs``, the ``Software`` text,
-    ``IDAT``), with the rows stored unfiltered: Pillow's encoder tries five filters on
-    every row and keeps the most compressible, which took 40 % of its time (0.037 s of
-    a 1600 x 900 figure, 0.023 s here); the unfiltered rows of a plot (mostly flat
-    colour) deflate as well, the files being 5 % smaller. With the optional ``zlib-ng``
-    (installed with ``controlkit[fast]``) the rows are deflated by zlib-ng, the same
-    format at the same level 2.5 times as fast (7 ms instead of 18 ms a figure), files
-    1-2 % smaller.
-
-    Examples
-    --------
-    >>> import io, numpy as np
-    >>> from PIL import Image
-    >>> image = np.zeros((2, 3, 4), np.uint8); image[..., 3] = 255; image[0, 1] = 200
-    >>> png = Image.open(io.BytesIO(png_bytes(image, 200)))
-    >>> np.array_equal(np.asarray(png), image), round(png.info["dpi"][0])
-    (True, 200)
-    """
-    import struct
-    import zlib
-
-    import matplotlib
-    import numpy as np
-
-    try:
-        from zlib_ng import zlib_ng as deflate
-    except ImportError:  # the standard library's zlib: the same file, more slowly
-        deflate = zlib
-
-    rgba = np.asarray(rgba, dtype=np.uint8)
-    if rgba.ndim != 3 or rgba.shape[2] != 4:
-        raise ValueError(f"rgba must be height x width x 4, got shape {rgba.shape}")
-    height, width, _ = rgba.shape
-    rows = np.zeros((height, 1 + 4 * width), np.uint8)  # each row: filter type 0, pixels
-    rows[:, 1:] = rgba.reshape(height, 4 * width)
-    per_metre = int(dpi / 0.0254 + 0.5)
-    software = f"Matplotlib version{matplotlib.__version__}, https://matplotlib.org/"
-
-    def chunk(kind: bytes, data: bytes) -> bytes:
-        return (struct.pack(">I", len(data)) + kind + data
-                + struct.pack(">I", zlib.crc32(kind + data)))
-
-    return b"".join([
-        b"\x89PNG\r\n\x1a\n",
-        chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 6, 0, 0, 0)),
-        chunk(b"pHYs", struct.pack(">IIB", per_metre, per_metre, 1)),
-        chunk(b"tEXt", b"Software\0" + software.encode("latin-1")),
-        chunk(b"IDAT", deflate.compress(rows, 6)),
-        chunk(b"IEND", b""),
-    ])

@@ -61,8 +61,8 @@ class FigureWorkers:
     Examples
     --------
     >>> import tempfile
-    >>> from controlkit.outputs import spacecraft as out
-    >>> from controlkit.scenarios.spacecraft import run
+    >>> from controlkit.studies.spacecraft import outputs as out
+    >>> from controlkit.studies.spacecraft.scenario import run
     >>> tables = {"ideal": out.table(run("ideal", horizon=1.0))}
     >>> with FigureWorkers(workers=0) as pool:
     ...     pool.submit(out.figures, tables, tempfile.mkdtemp(), ["fig05_h1", "fig06_h2"])
@@ -113,7 +113,7 @@ class FigureWorkers:
         Parameters
         ----------
         figures : callable
-            A module-level function such as :func:`controlkit.outputs.spacecraft.figures`.
+            A module-level function such as :func:`controlkit.studies.spacecraft.outputs.figures`.
         tables : dict
             Case name to table columns.
         outdir : str or pathlib.Path

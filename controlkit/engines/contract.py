@@ -1,0 +1,236 @@
+"""What every simulation backend shares: argument checks, chunking, the result.
+
+A backend (one module of :mod:`controlkit.engines`, found through its registry)
+takes the arguments checked here, may refuse a system it cannot run by raising
+:class:`UnsupportedSystem` with the reason, and returns the
+:class:`control.TimeResponseData` built by :func:`response`, so a result looks
+the same whichever backend made it.
+"""
+
+from __future__ import annotations
+
+import control as ct
+import numpy as np
+
+from ..blocks.sampling import TimeGrid
+
+
+class UnsupportedSystem(ValueError):
+    """The fast engine cannot run this system (the message names the block and why).
+
+    Examples
+    --------
+    >>> from controlkit.blocks.spacecraft import spacecraft_plant
+    >>> from controlkit.engines.fast import compile_system
+    >>> try:
+    ...     compile_system(spacecraft_plant())
+    ... except UnsupportedSystem as reason:
+    ...     print(reason)
+    'plant' is a single block; the fast engine runs interconnects
+    """
+
+
+def check_arguments(sys, T, X0, U=0.0):
+    """``T``, ``X0`` and ``U`` checked and shaped once, the same way for both engines.
+
+    Parameters
+    ----------
+    sys : control.InputOutputSystem
+        The system they are meant for.
+    T, X0, U : array_like
+        As for :func:`simulate`.
+
+    Returns
+    -------
+    T : numpy.ndarray
+        Time points, 1-D, finite, increasing (spaced by ``sys.dt`` if discrete).
+    X0 : numpy.ndarray
+        Initial state with exactly ``sys.nstates`` values (never zero-padded).
+    U : numpy.ndarray
+        Inputs, shape ``(ninputs, len(T))`` (a read-only view when constant).
+
+    Raises
+    ------
+    ValueError
+        Naming the argument, what it must be and what it is.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> sys = ct.ss([[0.5]], [[1.0, 1.0]], [[1.0]], [[0.0, 0.0]], dt=1)
+    >>> T, X0, U = check_arguments(sys, [0, 1, 2], [1.0], [1.0, -1.0])  # U per input
+    >>> U.tolist()
+    [[1.0, 1.0, 1.0], [-1.0, -1.0, -1.0]]
+    >>> check_arguments(sys, [0, 1, 2], [1.0, 0.0])
+    Traceback (most recent call last):
+    ...
+    ValueError: X0 must have 1 values (x[0]), got 2
+    """
+
+    discrete = sys.isdtime(strict=True) and sys.dt is not True
+    if isinstance(T, TimeGrid):  # a lazy grid stays lazy (long streamed runs)
+        if T.size == 0 or not np.isfinite(T.Ts) or T.Ts <= 0:
+            raise ValueError(f"T must be a non-empty grid with a positive step, got {T.size} "
+                             f"samples of {T.Ts:g}")
+        if discrete and T.size > 1 and not np.isclose(T.Ts, sys.dt):
+            raise ValueError(f"time steps of T must equal the sampling time {sys.dt} of "
+                             f"{sys.name!r}, got steps from {T.Ts:g} to {T.Ts:g}")
+    else:
+        T = np.asarray(T, dtype=float)
+        if T.ndim != 1 or T.size == 0:
+            raise ValueError(f"T must be a non-empty 1-D array of time points, "
+                             f"got shape {T.shape}")
+        if not np.isfinite(T).all():
+            raise ValueError("T must hold finite time points")
+        steps = np.diff(T)
+        if (steps <= 0).any():
+            raise ValueError("T must be increasing")
+        if discrete and T.size > 1 and not np.allclose(steps, sys.dt):
+            raise ValueError(f"time steps of T must equal the sampling time {sys.dt} of "
+                             f"{sys.name!r}, got steps from {steps.min():g} to "
+                             f"{steps.max():g}")
+    X0 = np.asarray(X0 if X0 is not None else 0.0, dtype=float)
+    if X0.ndim == 0 and sys.nstates != 1 and X0 == 0:
+        X0 = np.zeros(sys.nstates)
+    X0 = X0.reshape(-1)
+    if X0.size != sys.nstates:
+        labels = ", ".join(sys.state_labels) if sys.nstates <= 6 else f"{sys.nstates} states"
+        raise ValueError(f"X0 must have {sys.nstates} values ({labels or 'none'}), "
+                         f"got {X0.size}")
+    if not np.isfinite(X0).all():
+        raise ValueError("X0 must be finite")
+    n, N = sys.ninputs, T.size
+    U = np.asarray(U, dtype=float)
+    if U.ndim == 0 or U.ndim == 1 and U.size == n:
+        # a view: a constant input costs no memory per step
+        U = np.broadcast_to(U.reshape(-1, 1), (n, N))
+    elif U.ndim == 1 and n == 1 and U.size == N:
+        U = U.reshape(1, N)
+    elif U.shape != (n, N):
+        raise ValueError(f"U must be a scalar, one value per input ({n}), or an array of "
+                         f"shape ({n}, {N}) (inputs by time points), got shape {U.shape}")
+    if not np.isfinite(U).all():
+        raise ValueError("U must be finite")
+    return T, X0, U
+
+
+def chunk_bounds(n: int, chunks: int) -> np.ndarray:
+    """Where ``n`` steps are cut into ``chunks`` near-equal runs (at least one step each).
+
+    Examples
+    --------
+    >>> chunk_bounds(10, 3).tolist()
+    [0, 3, 7, 10]
+    >>> chunk_bounds(2, 5).tolist()
+    [0, 1, 2]
+    """
+    return np.linspace(0, n, max(1, min(int(chunks), n)) + 1).round().astype(int)
+
+
+def recorded_indices(N: int, record_every: int) -> np.ndarray:
+    """Indices kept when every ``record_every``-th of ``N`` samples is recorded (and the last).
+
+    Examples
+    --------
+    >>> recorded_indices(10, 4).tolist()
+    [0, 4, 8, 9]
+    """
+    if isinstance(record_every, bool) or not isinstance(record_every, int | np.integer) \
+            or record_every < 1:
+        raise ValueError(f"record_every must be an integer >= 1, got {record_every!r}")
+    kept = np.arange(0, N, int(record_every))
+    return kept if N == 0 or kept[-1] == N - 1 else np.append(kept, N - 1)
+
+
+def response(sys, time, outputs, states, inputs, **overrides) -> ct.TimeResponseData:
+    """The :class:`control.TimeResponseData` of a run of ``sys``, as python-control labels it.
+
+    Both simulators (and a run pieced together from parts) build their result here, so a
+    result looks the same whichever made it: signal labels from ``sys``, its name, and
+    ``plot_inputs`` only when it has inputs (``.plot()`` fails on an empty input panel).
+
+    Parameters
+    ----------
+    sys : control.InputOutputSystem
+        The simulated system.
+    time : array_like
+        Sample times, shape ``(N,)``.
+    outputs, states, inputs : numpy.ndarray
+        Shapes ``(noutputs, N)``, ``(nstates, N)`` and ``(ninputs, N)``.
+    **overrides
+        Other keywords of :class:`control.TimeResponseData` (``title``, ``sysname``).
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> sys = ct.nlsys(None, lambda t, x, u, p: u, inputs=1, outputs=1, name="gain")
+    >>> resp = response(sys, np.arange(2.0), np.ones((1, 2)), np.zeros((0, 2)), np.ones((1, 2)))
+    >>> resp.title, resp.output_labels
+    ('Input/output response for gain', ['y[0]'])
+    """
+    options = dict(
+        output_labels=sys.output_labels, state_labels=sys.state_labels,
+        input_labels=sys.input_labels, sysname=sys.name, issiso=sys.issiso(),
+        title="Input/output response for " + sys.name, plot_inputs=sys.ninputs > 0,
+    )
+    return ct.TimeResponseData(time, outputs, states, inputs, **{**options, **overrides})
+
+
+def python_control_arguments(sys, T, U, X0, options):
+    """``T, U, X0, t_eval, method, solve_ivp_kwargs`` read as python-control reads them.
+
+    The input may be a list of per-signal parts, broadcast over time; a short initial
+    state is padded with zeros (with python-control's warning); ``t_eval`` defaults to
+    ``T``.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> sys = ct.nlsys(lambda t, x, u, p: -x + u, inputs=2, states=2, outputs=2)
+    >>> T, U, X0, t_eval, method, _ = python_control_arguments(
+    ...     sys, [0.0, 1.0, 2.0], [1.0, [2.0, 3.0, 4.0]], [1.0, 2.0], {})
+    >>> U.tolist(), X0.tolist(), method
+    ([[1.0, 1.0, 1.0], [2.0, 3.0, 4.0]], [1.0, 2.0], 'RK45')
+    """
+    from control.nlsys import _process_vector_argument
+    from control.timeresp import _check_convert_array
+
+    T = np.atleast_1d(np.asarray(T, dtype=float))
+    kwargs = dict(options.get("solve_ivp_kwargs") or {})
+    method = options.get("solve_ivp_method") or options.get("method") or kwargs.pop(
+        "method", None) or "RK45"
+    kwargs.pop("method", None)
+    t_eval = options.get("evaluation_times", "T")
+    if kwargs.get("t_eval") is not None:
+        t_eval = kwargs.pop("t_eval")
+    t_eval = T if isinstance(t_eval, str) and t_eval == "T" else np.asarray(t_eval, float)
+    if isinstance(U, tuple | list) and len(U) != T.size:
+        parts = []
+        for i, u in enumerate(U):
+            u = np.array(u, dtype=float)
+            if u.ndim == 0 or u.ndim == 1 and u.shape[0] != T.shape[0]:
+                u = np.outer(u, np.ones_like(T))
+            elif not (u.ndim == 1 and u.shape[0] == T.shape[0]
+                      or u.ndim == 2 and u.shape[1] == T.shape[0]):
+                raise ValueError(f"Input element {i} has inconsistent shape")
+            parts.append(u)
+        U = np.vstack(parts)
+    n = sys.ninputs
+    legal = [(T.size,), (1, T.size)] if n is None or n == 1 else [(n, T.size)]
+    U = _check_convert_array(U, legal, "Parameter `U`: ", squeeze=False)
+    U = np.asarray(U, dtype=float).reshape(-1, T.size)
+    X0, _ = _process_vector_argument(X0, "X0", sys.nstates)
+    return T, U, np.asarray(X0, dtype=float), t_eval, method, kwargs
+
+
+def result_flags(options) -> dict:
+    """The keywords of :class:`control.TimeResponseData` that python-control passes on.
+
+    Examples
+    --------
+    >>> result_flags({"params": {"k": 1.0}, "transpose": True})["transpose"]
+    True
+    """
+    return {"params": options.get("params"), "transpose": options.get("transpose", False),
+            "return_x": options.get("return_states", False),
+            "squeeze": options.get("squeeze")}

@@ -1,0 +1,275 @@
+"""How the fast engine runs each block: compiled, called from Python, or not at all.
+
+Every block of a diagram gets :class:`BlockKernels` and one of :data:`TIERS`:
+controlkit blocks and LTI blocks bring compiled kernels; a user's ``nlsys`` is
+compiled from its source where it can be (:mod:`.usercode`), else its Python
+functions are called from the generated loop; a system the engine does not know
+sends the whole diagram to python-control. :func:`explain` lists the result.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import control as ct
+import numpy as np
+
+from ... import _jit
+from ...blocks.contract import BlockKernels, KernelBlock
+from ...blocks.sampling import SampledSystem
+from ...kernels import common, lti
+from .. import source
+from ..contract import UnsupportedSystem
+from . import usercode
+from .codegen import evaluation_order
+from .loader import cache_folder
+
+
+@dataclass(frozen=True)
+class PlacedBlock:
+    """A block of a diagram with its kernels, tier and offsets in the stacked vectors.
+
+    Examples
+    --------
+    >>> from controlkit.studies.cmg.diagrams import cmg_loop
+    >>> [(b.system.name, b.x0) for b in blocks_of(cmg_loop())]
+    [('reference', 0), ('cmg', 0), ('smc', 6), ('saturation', 10)]
+    """
+
+    index: int
+    system: object
+    kernel: object
+    x0: int  # state offset
+    u0: int  # offset in the list of all subsystem inputs
+    y0: int  # offset in the list of all subsystem outputs
+    p0: int  # parameter offset
+    tier: str = "compiled"
+    reason: str = ""
+
+
+#: The tiers a block can get, fastest first (see :func:`explain`).
+TIERS = ("compiled", "python", "python-control")
+
+
+class BlockTier(NamedTuple):
+    """How the fast engine runs one block: ``tier`` is one of :data:`TIERS`.
+
+    Examples
+    --------
+    >>> row = BlockTier("pi", "compiled", "LTI block (state space)")
+    >>> row.tier
+    'compiled'
+    """
+
+    name: str
+    tier: str
+    reason: str
+
+
+def _local_params(sys, block, params):
+    """The parameters python-control hands ``block`` inside ``sys`` (see its _update_params)."""
+    local = dict(block.params)
+    local.update(sys.params)
+    if params:
+        local.update(params)
+    return local
+
+
+def _probe_feedthrough(output, nx, nu, ny, on_error=True):
+    """Whether ``output(t, x, u, out)`` moves with ``u`` at random trial points
+    (``on_error`` where the output cannot be evaluated there)."""
+    if nu == 0 or ny == 0:
+        return False
+    rng = np.random.default_rng(1)
+    for _ in range(3):
+        x = rng.uniform(-1, 1, nx)
+        u = rng.uniform(-1, 1, nu)
+        try:
+            a = np.array(output(0.0, x, np.zeros(nu), np.empty(ny)), dtype=float)
+            b = np.array(output(0.0, x, u, np.empty(ny)), dtype=float)
+        except Exception:  # undefined at this point
+            return on_error
+        if not np.array_equal(a, b, equal_nan=True):
+            return True
+    return False
+
+
+def _python_kernels(block, local, reason):
+    """Kernels calling ``block``'s own functions from Python, inside the engine's loop."""
+    if isinstance(block, ct.InterconnectedSystem):  # a nested diagram: its own sweeps
+        def output(t, x, u, p, out):
+            block._update_params(local)
+            out[:] = block._out(t, x, u)
+            return out
+
+        def update(t, x, u, p, out):
+            block._update_params(local)
+            out[:] = block._rhs(t, x, u)
+            return out
+        feed = None
+    else:
+        output = (usercode.python_kernel(block.outfcn, local) if block.outfcn is not None
+                  else common.state_output)
+        update = usercode.python_kernel(block.updfcn, local) if block.nstates else None
+        feed = source.reads_input(block.outfcn) if block.outfcn is not None else False
+    if feed is None or isinstance(block, KernelBlock):
+        feed = _probe_feedthrough(lambda t, x, u, out: output(t, x, u, None, out),
+                                  block.nstates, block.ninputs, block.noutputs)
+    return BlockKernels(output, update, np.zeros(0), feed), "python", reason
+
+
+def _user_kernels(block, local):
+    """A user's ``nlsys``: compiled with its parameters frozen, else called from Python."""
+    folder = cache_folder()
+    try:
+        output = common.state_output
+        if block.outfcn is not None:
+            output, _ = usercode.compiled_kernel(block.outfcn, local, folder, block.noutputs,
+                                                 block.nstates, block.ninputs)
+        update = None
+        if block.nstates:
+            update, _ = usercode.compiled_kernel(block.updfcn, local, folder, block.nstates,
+                                                 block.nstates, block.ninputs)
+    except source.NotCompilable as why:
+        return _python_kernels(block, local, f"user function not compiled: {why}")
+    feed = source.reads_input(block.outfcn) if block.outfcn is not None else False
+    if feed is None:
+        feed = True
+    return (BlockKernels(output, update, np.zeros(0), feed), "compiled",
+            "user nlsys compiled with its parameters frozen")
+
+
+def _lti_kernels(block):
+    """Any ``StateSpace`` (a transfer function is one inside an interconnect)."""
+    D = np.asarray(block.D, dtype=float)
+    return (BlockKernels(lti.lti_output, lti.lti_update if block.nstates else None,
+                         lti.pack(block.A, block.B, block.C, D), bool(D.any())),
+            "compiled", "LTI block (state space)")
+
+
+def _sampled_kernels(sys, block, local):
+    """A continuous block under ZOH: its own kernels (or its user functions) under RK4."""
+    if block.method != "rk4":
+        return _python_kernels(block, local, "sampled with solve_ivp")
+    continuous = block.continuous
+    if isinstance(continuous, KernelBlock) and continuous.kernels is not None:
+        kernel, tier, reason = _resolve(sys, continuous, None)
+    else:
+        kernel, tier, reason = _resolve_with(continuous, {**continuous.params, **local})
+    return (kernel.sampled(block.dt, block.substeps), tier, f"{reason}, sampled by RK4")
+
+
+def _resolve_with(block, local):
+    """A block that is not a controlkit block, given the parameters it is handed."""
+    if isinstance(block, ct.InterconnectedSystem):
+        return _python_kernels(block, local, "a nested interconnect")
+    if isinstance(block, KernelBlock):  # one whose kernels call Python objects
+        return _python_kernels(block, local, block.uncompiled_reason)
+    return _user_kernels(block, local)
+
+
+def _resolve(sys, block, params):
+    """``(BlockKernels, tier, reason)`` for one block of ``sys``."""
+    if isinstance(block, KernelBlock) and block.kernels is not None:
+        _check_feedthrough(block, block.kernels)
+        return block.kernels, "compiled", "controlkit block"
+    local = _local_params(sys, block, params)
+    if isinstance(block, ct.StateSpace):
+        return _lti_kernels(block)
+    if isinstance(block, SampledSystem):
+        return _sampled_kernels(sys, block, local)
+    if isinstance(block, ct.NonlinearIOSystem):
+        return _resolve_with(block, local)
+    raise UnsupportedSystem(f"block {block.name!r} cannot be compiled: "
+                            f"a {type(block).__name__}, not an I/O system the engine knows")
+
+
+def _check_feedthrough(block, kernel):
+    """Refuse a block declared without feedthrough whose output moves with its input."""
+    if kernel.feedthrough or not block.ninputs or not block.noutputs:
+        return
+    p = kernel.params
+    if _probe_feedthrough(lambda t, x, u, out: kernel.output(t, x, u, p, out),
+                          block.nstates, block.ninputs, block.noutputs, on_error=False):
+        raise ValueError(
+            f"block {block.name!r} is declared without feedthrough (feedthrough=False) but "
+            f"its output changes with its input; declare feedthrough=True")
+
+
+def blocks_of(sys, params=None):
+    """The blocks of ``sys`` with their kernels, tiers and offsets (or UnsupportedSystem).
+
+    Examples
+    --------
+    >>> from controlkit.studies.cmg.diagrams import cmg_loop
+    >>> [b.tier for b in blocks_of(cmg_loop())]
+    ['compiled', 'compiled', 'compiled', 'compiled']
+    """
+    if not isinstance(sys, ct.InterconnectedSystem):
+        name = getattr(sys, "name", type(sys).__name__)
+        raise UnsupportedSystem(
+            f"{name!r} is a single block; the fast engine runs interconnects")
+    if not sys.isdtime(strict=True):
+        raise UnsupportedSystem(
+            f"{sys.name!r} is continuous time (dt = {sys.dt}); sample its continuous blocks "
+            f"with controlkit.blocks.sampling.sample_nlsys so that the diagram is discrete")
+    blocks, xs, us, ys, ps = [], 0, 0, 0, 0
+    for i, block in enumerate(sys.syslist):
+        kernel, tier, reason = _resolve(sys, block, params)
+        if kernel.update is not None and kernel.rk4 is None and not block.isdtime(strict=True):
+            raise UnsupportedSystem(f"block {block.name!r} is continuous and not sampled")
+        blocks.append(PlacedBlock(i, block, kernel, xs, us, ys, ps, tier, reason))
+        xs += block.nstates
+        us += block.ninputs
+        ys += block.noutputs
+        ps += kernel.params.size
+    return blocks
+
+
+def explain(sys, params=None) -> list[BlockTier]:
+    """How the fast engine runs each block of ``sys``: its tier and the reason.
+
+    Tiers (:data:`TIERS`): ``"compiled"`` (numba, in the generated loop),
+    ``"python"`` (the block's own Python function called from the generated
+    loop: no python-control sweeps, but slower) and ``"python-control"``
+    (the whole diagram falls back to :func:`control.input_output_response`;
+    the reason says why).
+
+    Parameters
+    ----------
+    sys : control.InterconnectedSystem
+        The diagram.
+    params : dict, optional
+        Parameters as for :func:`controlkit.simulation.simulate` (they decide
+        the values frozen into compiled user functions).
+
+    Returns
+    -------
+    list of BlockTier
+        ``(name, tier, reason)`` per block, in ``sys.syslist`` order.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> pi = ct.sample_system(ct.tf([1.0, 0.5], [1.0, 0.0]), 0.1, name="pi",
+    ...                       inputs="e", outputs="u")
+    >>> plant = ct.nlsys(lambda t, x, u, p: x + 0.1 * (u - p.get("a", 1.0) * x ** 3),
+    ...                  lambda t, x, u, p: x, inputs="u", outputs="y", states=1,
+    ...                  dt=0.1, name="plant")
+    >>> error = ct.summing_junction(["r", "-y"], "e", name="error")
+    >>> loop = ct.interconnect([plant, pi, error], inputs="r", outputs="y")
+    >>> for row in explain(loop):
+    ...     print(row.name, "|", row.tier, "|", row.reason)
+    plant | compiled | user nlsys compiled with its parameters frozen
+    pi | compiled | LTI block (state space)
+    error | compiled | LTI block (state space)
+    """
+    try:
+        blocks = blocks_of(sys, params)
+        evaluation_order(sys, blocks)
+    except UnsupportedSystem as why:
+        return [BlockTier(s.name, "python-control", str(why))
+                for s in getattr(sys, "syslist", [sys])]
+    note = "" if _jit.HAVE_NUMBA else " (numba not installed: the loop runs as Python)"
+    return [BlockTier(b.system.name, b.tier, b.reason + note) for b in blocks]

@@ -1,0 +1,68 @@
+"""The thesis's closed loop of the CMG (its Fig. 2), wired with ``control.interconnect``."""
+
+from __future__ import annotations
+
+import control as ct
+
+from ...blocks import cmg
+from .._period import require_period, sampled
+
+
+def cmg_loop(plant=None, controller=None, *, reference=None, saturation=None, Ts=cmg.TS_CMG,
+             name="cmg_loop"):
+    """References -> adaptive SMC -> torque saturation -> CMG -> controller, sampled at ``Ts``.
+
+    The controller computes from the sampled state; the continuous plant is
+    held under zero-order hold between samples (:func:`~controlkit.blocks.sampling.sample_nlsys`).
+
+    Parameters
+    ----------
+    plant : control.NonlinearIOSystem, optional
+        Continuous (sampled here) or discrete at ``Ts``;
+        default :func:`~controlkit.blocks.cmg.cmg_plant`.
+    controller : control.NonlinearIOSystem, optional
+        Default :func:`~controlkit.blocks.cmg.adaptive_smc` at ``Ts``.
+    reference, saturation : control.NonlinearIOSystem, optional
+        Defaults :func:`~controlkit.blocks.cmg.reference_generator` and
+        :func:`~controlkit.blocks.cmg.torque_saturation`.
+    Ts : float
+        Sampling period (s), default 1 ms.
+    name : str
+        System name.
+
+    Returns
+    -------
+    control.InterconnectedSystem
+        Discrete at ``Ts``, no inputs. Outputs ``q1, q2, q4, w1, w2, w4, q2d, q4d,
+        T1, T2, T1_cmd, T2_cmd, a1, a2, a3, a4``.
+
+    Examples
+    --------
+    >>> [s.name for s in cmg_loop().syslist]
+    ['reference', 'cmg', 'smc', 'saturation']
+    """
+    plant = sampled(plant if plant is not None else cmg.cmg_plant(), Ts)
+    controller = require_period(
+        controller if controller is not None else cmg.adaptive_smc(Ts=Ts), Ts)
+    reference = reference if reference is not None else cmg.reference_generator()
+    saturation = saturation if saturation is not None else cmg.torque_saturation()
+
+    #  +-----------+ q2d, q4d  +-----------------+ T_cmd +------------+ T1, T2 +-----------+
+    #  | reference |---------->|  adaptive SMC   |------>| saturation |------->| CMG (ZOH) |--+
+    #  | section 6 | + derivs  | eq. 20-45, a^'s |       | |T1|<=0.6  |        | eq. 1-3   |  |
+    #  +-----------+           +-----------------+       | |T2|<=2.4  |        +-----------+  |
+    #                                   ^                +------------+                       |
+    #                                   +------------ q1, q2, q4, w1, w2, w4 -----------------+
+    loop = ct.interconnect(
+        [reference, plant, controller, saturation],
+        inputs=[],
+        outputs=cmg.STATES + ["q2d", "q4d", "T1", "T2", "T1_cmd", "T2_cmd",
+                              "a1", "a2", "a3", "a4"],
+        name=name,
+    )
+    loop.drawing_hints = {  # how controlkit.drawing shows it: the thesis's names
+        "title": "CMG: adaptive backstepping SMC, sampled at Ts",
+        "labels": {reference.name: "references", controller.name: "adaptive SMC",
+                   saturation.name: "torque limits", plant.name: "CMG"},
+    }
+    return loop

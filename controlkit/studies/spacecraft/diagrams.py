@@ -1,0 +1,245 @@
+"""Block diagrams of the two-wheel spacecraft paper, wired with ``control.interconnect``.
+
+Signals are connected by name: an input called ``q[0]`` is fed by the output
+called ``q[0]``. Each builder takes its blocks as arguments, so a reader can
+swap one (another plant, another controller) without touching the wiring.
+"""
+
+from __future__ import annotations
+
+import control as ct
+
+from ...blocks import frit, mec
+from ...blocks import spacecraft as sc
+from .._period import require_period, sampled
+
+Q = [f"q[{i}]" for i in range(4)]
+U = ["u[0]", "u[1]"]
+H = ["h[0]", "h[1]"]
+MU = ["mu[0]", "mu[1]"]
+R = ["r[0]", "r[1]"]
+
+
+def _drawing_hints(plant, linearizer, output, controller=None, nominal=None, gain=None,
+                   compensator=None):
+    """How :func:`~controlkit.drawing.draw_block_diagram` shows these blocks: the papers'
+    symbols, the red frame of Fig. 2 (the linearized plant ``L_a``) and, in Fig. 3-4,
+    the nominal model ``L_n`` in parallel to the plant."""
+    labels = {linearizer.name: r"$\beta(q)\,\mu - \alpha(q)$", output.name: "$h(q)$"}
+    hints = {"labels": labels, "title": "Fig. 2: the linearized plant closed by the outer loop",
+             "groups": {r"$L_a$: linearized plant (Fig. 2)": [linearizer.name, plant.name,
+                                                                output.name]}}
+    if controller is not None:  # eq. 12, mu = F (r - h): the junction, then the gain F
+        labels[controller.name] = "$F$"
+        hints["sums"] = {controller.name: {"r": 1, "h": -1}}
+    frit = gain is not None and hasattr(gain, "lambda_") and hasattr(gain, "kappa")
+    if nominal is not None:
+        hints["title"] = ("Fig. 4: MEC with the on-line FRIT tuner" if frit
+                          else "Fig. 3: MEC with a constant gain K" if hasattr(gain, "K")
+                          else "MEC with the gain from " + gain.name)
+        labels[nominal.name] = "$L_n$"
+        hints["beside"] = {nominal.name: plant.name}
+    if compensator is not None:
+        labels[compensator.name] = r"$\mu_n + K\,(h_n - h)$"
+    if frit:  # the tuner (eq. 15-30) reads mu, hn and h: drawn under the output
+        labels[gain.name] = "FRIT"
+        hints.setdefault("beside", {})[gain.name] = output.name
+    elif hasattr(gain, "K"):  # constant_gain
+        labels[gain.name] = "$K$"
+    return hints
+
+
+def linearized_plant(plant=None, linearizer=None, *, Ts=sc.TS_PAPER, name="linearized_plant"):
+    """Fig. 2 (red frame): the plant made linear by the linearizer, ``mu -> h``.
+
+    With an exact model the result is ``h' = mu`` between samples (eq. 10-11).
+
+    Parameters
+    ----------
+    plant : control.NonlinearIOSystem, optional
+        Continuous (sampled here under ZOH at ``Ts``) or already discrete at ``Ts``.
+        Default: :func:`~controlkit.blocks.spacecraft.spacecraft_plant` with nominal values.
+    linearizer : control.NonlinearIOSystem, optional
+        Default: :func:`~controlkit.blocks.spacecraft.io_linearizer` (nominal model).
+    Ts : float
+        Sampling period, default 0.1 s.
+    name : str
+        System name.
+
+    Returns
+    -------
+    control.InterconnectedSystem
+        Discrete at ``Ts``. Inputs ``mu[0], mu[1]``; outputs ``h[0], h[1], u[0], u[1],
+        q[0]..q[3]``.
+
+    Examples
+    --------
+    >>> sys = linearized_plant()
+    >>> sys.input_labels, sys.output_labels[:2]
+    (['mu[0]', 'mu[1]'], ['h[0]', 'h[1]'])
+    """
+    plant = sampled(plant if plant is not None else sc.spacecraft_plant(), Ts)
+    linearizer = linearizer if linearizer is not None else sc.io_linearizer()
+    output = sc.attitude_output()
+
+    #        +------------+  u   +-------------+  q   +--------+  h
+    #  mu -->| linearizer |----->| plant (ZOH) |--+-->|  h(q)  |----->
+    #        |  eq. 11    |      |  eq. 1-8    |  |   |  eq. 9 |
+    #        +------------+      +-------------+  |   +--------+
+    #              ^                              |
+    #              +--------------- q ------------+
+    sys = ct.interconnect(
+        [plant, output, linearizer],  # listed in signal order: fewest feedthrough sweeps
+        inputs=MU,
+        outputs=H + U + Q,
+        name=name,
+    )
+    sys.drawing_hints = _drawing_hints(plant, linearizer, output)
+    sys.drawing_hints["title"] = "Fig. 2 (red frame): the linearized plant"
+    return sys
+
+
+def output_zeroing_loop(
+    plant=None, linearizer=None, controller=None, *, Ts=sc.TS_PAPER, name="fig2_loop"
+):
+    """Fig. 2 closed by the outer controller ``mu = F (r - h)`` (eq. 12), sampled at ``Ts``.
+
+    The blocks are wired flat (not as a nested ``linearized_plant``) so that the
+    simulation sweeps one level of blocks.
+
+    Parameters
+    ----------
+    plant, linearizer : control.NonlinearIOSystem, optional
+        As in :func:`linearized_plant`.
+    controller : control.NonlinearIOSystem, optional
+        Default :func:`~controlkit.blocks.spacecraft.outer_controller` with ``F = 0.0009``.
+    Ts : float
+        Sampling period, default 0.1 s.
+    name : str
+        System name.
+
+    Returns
+    -------
+    control.InterconnectedSystem
+        Discrete at ``Ts``. Inputs ``r[0], r[1]`` (leave at 0 for output zeroing);
+        outputs ``h[0], h[1], u[0], u[1], q[0]..q[3], mu[0], mu[1]``; states
+        ``plant_q[0]..plant_q[3]`` (python-control prefixes the block name).
+
+    Examples
+    --------
+    >>> loop = output_zeroing_loop()
+    >>> loop.nstates, loop.dt
+    (4, 0.1)
+    """
+    plant = sampled(plant if plant is not None else sc.spacecraft_plant(), Ts)
+    linearizer = linearizer if linearizer is not None else sc.io_linearizer()
+    controller = controller if controller is not None else sc.outer_controller()
+    output = sc.attitude_output()
+
+    #          +------------+  mu  +------------+  u   +-------------+  q   +-------+
+    #  r=0 -->o| controller |----->| linearizer |----->| plant (ZOH) |--+-->| h(q)  |--+--> h
+    #        -^| mu=F(r-h)  |      |  eq. 11    |      |  eq. 1-8    |  |   | eq. 9 |  |
+    #         | +------------+      +------------+      +-------------+  |   +-------+  |
+    #         |                          ^                               |              |
+    #         |                          +-------------- q --------------+              |
+    #         +---------------------------------- h -----------------------------------+
+    sys = ct.interconnect(
+        [plant, output, controller, linearizer],
+        inputs=R,
+        outputs=H + U + Q + MU,
+        name=name,
+    )
+    sys.drawing_hints = _drawing_hints(plant, linearizer, output, controller)
+    return sys
+
+
+def mec_loop(
+    plant=None, linearizer=None, controller=None, *, K="frit", nominal=None, h0=(0.0, 0.0),
+    Ts=sc.TS_PAPER, name="mec_loop",
+):
+    """Fig. 3 / Fig. 4: the linearized loop with a model error compensator.
+
+    ``mu_n = F (r - h)`` drives the ideal model ``hn' = mu_n`` (erratum E3) and
+    the compensator adds ``K (hn - h)``: ``mu = mu_n + K (hn - h)`` (eq. 13-15).
+    The gain comes from a source block chosen by ``K``:
+
+    - a number or 2x2 matrix: a :func:`~controlkit.blocks.mec.constant_gain` (Fig. 3);
+    - ``"frit"``: the on-line FRIT tuner with the paper's settings (Fig. 4);
+    - a block with outputs ``K[0]..K[3]`` (e.g. a :func:`~controlkit.blocks.frit.frit_tuner`
+      with other settings, or your own tuner).
+
+    For the loop without MEC use :func:`output_zeroing_loop`.
+
+    Parameters
+    ----------
+    plant, linearizer : control.NonlinearIOSystem, optional
+        As in :func:`linearized_plant`.
+    controller : control.NonlinearIOSystem, optional
+        Outer controller with output ``mu_n``; default
+        ``outer_controller(F=0.0009, output="mu_n")``.
+    K : float, array_like, "frit" or control.NonlinearIOSystem
+        The gain source (see above).
+    nominal : control.NonlinearIOSystem, optional
+        Ideal model; default :func:`~controlkit.blocks.mec.nominal_model` at ``Ts``.
+    h0 : array_like
+        Initial output, used by the default tuner (``K="frit"``).
+    Ts : float
+        Sampling period (s).
+    name : str
+        System name.
+
+    Returns
+    -------
+    control.InterconnectedSystem
+        Discrete at ``Ts``. Inputs ``r[0], r[1]``; outputs ``h[0], h[1], u[0], u[1],
+        q[0]..q[3], mu[0], mu[1], mu_n[0], mu_n[1], hn[0], hn[1], K[0]..K[3]``.
+
+    Examples
+    --------
+    >>> loop = mec_loop(K=0.1)
+    >>> [s.name for s in loop.syslist]
+    ['plant', 'output', 'nominal', 'gain', 'controller', 'mec', 'linearizer']
+    """
+    plant = sampled(plant if plant is not None else sc.spacecraft_plant(), Ts)
+    linearizer = linearizer if linearizer is not None else sc.io_linearizer()
+    controller = controller if controller is not None else sc.outer_controller(output="mu_n")
+    nominal = nominal if nominal is not None else mec.nominal_model(Ts)
+    if isinstance(K, str):
+        if K != "frit":
+            raise ValueError(f'K must be a gain, "frit" or a gain-source block, got {K!r}')
+        gain = frit.frit_tuner(controller.F if hasattr(controller, "F") else sc.F_PAPER, Ts,
+                              h0=h0)
+    elif isinstance(K, ct.InputOutputSystem):
+        gain = K
+    else:
+        gain = mec.constant_gain(K)
+    if gain.output_labels != mec.K_SIGNALS:
+        raise ValueError(f"the gain source must output {mec.K_SIGNALS}, got {gain.output_labels}")
+    for block in (nominal, gain):
+        require_period(block, Ts, static_ok=True)
+    compensator = mec.mec_compensator()
+    MU_N, HN = ["mu_n[0]", "mu_n[1]"], ["hn[0]", "hn[1]"]
+
+    #                    +-----------+ hn
+    #           +------->|  nominal  |------------+
+    #           |  mu_n  | hn' = mu_n|            v
+    #     +------------+ +-----------+       +---------+  mu   +------------+  u
+    # r ->| controller |-------------------->|   MEC   |------>| linearizer |----+
+    #   +>| F (r - h)  |      mu_n           | mu_n +  |   |   |   eq. 11   |    |
+    #   | +------------+    +-------------+K | K(hn-h) |   |   +------------+    |
+    #   |                   | gain source |->|         |   |         ^ q         v
+    #   |                   | const. (3)  |  +---------+   |   +-----------+ +-------------+
+    #   |                   | FRIT (4)    |<-- mu, h, hn --+   | h(q) eq.9 |<| plant (ZOH) |
+    #   |                   +-------------+                    +-----------+ +-------------+
+    #   +------------------------------ h --------------------------+
+    output = sc.attitude_output()
+    sys = ct.interconnect(
+        [plant, output, nominal, gain, controller, compensator,
+         linearizer],
+        inputs=R,
+        outputs=H + U + Q + MU + MU_N + HN + mec.K_SIGNALS,
+        name=name,
+    )
+    sys.drawing_hints = _drawing_hints(plant, linearizer, output, controller, nominal, gain,
+                                       compensator)
+    return sys

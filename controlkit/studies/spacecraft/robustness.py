@@ -1,0 +1,264 @@
+"""How robust is MEC? The spacecraft paper's claim over many model errors.
+
+The paper shows one model error (Table 2). This study draws many: each
+diagonal entry of ``Delta J`` scaled by a factor from 0 to 3, the amplitude of
+``H0(t)`` from 0.5 to 5 times the paper's, and the initial attitude (a random
+axis, 10 to 60 deg); every draw runs each case (the same draw for every case,
+so the cases are compared on equal terms), and the study reports how often
+the 0.05 deg requirement holds over the last half of the run, with a Wilson
+95 % interval, the distribution of the error per case, and the success rate
+against the size of the inertia error. :data:`ROBUSTNESS` is the study's entry;
+:func:`controlkit.studies.robustness.study` runs it.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ...blocks.spacecraft import (
+    POINTING_REQUIREMENT_DEG,
+    TS_PAPER,
+    pointing_error_deg,
+    quaternion_from_axis_angle,
+)
+from ..registry import Robustness
+from . import scenario
+
+#: Cases compared by default (``safeguarded`` joins when the scenario has it).
+BASE_CASES = ("without_mec", "mec_fixed", "proposed")
+
+#: The drawn parameters and their ranges (uniform): factors on Table 2's model error
+#: and the initial rotation angle in degrees. The axis is drawn by ``_axis``.
+RANGES = {
+    "inertia_error_x": (0.0, 3.0),
+    "inertia_error_y": (0.0, 3.0),
+    "inertia_error_z": (0.0, 3.0),
+    "momentum_scale": (0.5, 5.0),
+    "angle_deg": (10.0, 60.0),
+}
+
+
+def default_cases() -> tuple[str, ...]:
+    """The study's cases: :data:`BASE_CASES`, plus ``safeguarded`` where it exists.
+
+    Examples
+    --------
+    >>> default_cases()[:3]
+    ('without_mec', 'mec_fixed', 'proposed')
+    """
+    return BASE_CASES + (("safeguarded",) if "safeguarded" in scenario.CASES else ())
+
+
+def _normal(rng):
+    return float(rng.normal())
+
+
+def run(case, *, inertia_error_x=1.0, inertia_error_y=1.0, inertia_error_z=1.0,
+                   momentum_scale=1.0, axis_x=1.0, axis_y=2.0, axis_z=3.0, angle_deg=30.0,
+                   horizon=None, keep_every=0) -> dict:
+    """One run of the study: the metrics of a case under one model error and attitude.
+
+    Parameters
+    ----------
+    case : str
+        A case of :data:`controlkit.studies.spacecraft.scenario.CASES`.
+    inertia_error_x, inertia_error_y, inertia_error_z : float
+        Factors on the diagonal of Table 2's ``Delta J`` (1: the paper's).
+    momentum_scale : float
+        Factor on the amplitude of ``H0(t)``.
+    axis_x, axis_y, axis_z, angle_deg : float
+        Initial attitude: a rotation of ``angle_deg`` about this axis (the paper's:
+        30 deg about ``[1, 2, 3]``).
+    horizon : float, optional
+        Simulated time, s (default the paper's 20 000 s).
+    keep_every : int
+        When > 0, also return the pointing error every ``keep_every`` samples as
+        ``"trajectory"`` (kept by :func:`~controlkit.sweep.sweep` per run).
+
+    Returns
+    -------
+    dict
+        ``max_pointing_error_last_half_deg``, ``final_pointing_error_deg``,
+        ``requirement_met_last_half``, ``peak_abs_u_rad_s``, ``max_abs_K``.
+
+    Examples
+    --------
+    >>> m = run("without_mec", horizon=100.0)
+    >>> m["requirement_met_last_half"]
+    False
+    """
+
+    kwargs = {} if horizon is None else {"horizon": horizon}
+    q0 = quaternion_from_axis_angle([axis_x, axis_y, axis_z], angle_deg)
+    resp = scenario.run(case, q_initial=q0, plant_options={
+        "inertia_error_scale": [inertia_error_x, inertia_error_y, inertia_error_z],
+        "momentum_scale": momentum_scale}, **kwargs)
+    labels = list(resp.output_labels)
+
+    def rows(name, n):
+        present = [f"{name}[{i}]" for i in range(n) if f"{name}[{i}]" in labels]
+        return resp.outputs[[labels.index(label) for label in present]]
+
+    t = resp.time
+    error = pointing_error_deg(rows("q", 4))
+    worst = float(error[t >= t[-1] / 2].max())
+    K = rows("K", 4)
+    result = {
+        "max_pointing_error_last_half_deg": worst,
+        "final_pointing_error_deg": float(error[-1]),
+        "requirement_met_last_half": bool(worst <= POINTING_REQUIREMENT_DEG),
+        "peak_abs_u_rad_s": float(np.abs(rows("u", 2)).max()),
+        "max_abs_K": float(np.abs(K).max()) if K.size else 0.0,
+    }
+    if keep_every:
+        result["trajectory"] = {"time": t[::keep_every], "error_deg": error[::keep_every]}
+    return result
+
+
+def warm(cases) -> None:
+    """Compile each case's simulation loop once (numba's disk cache), before workers start.
+
+    Examples
+    --------
+    >>> warm(["ideal"])
+    """
+    for case in cases:
+        scenario.run(case, horizon=2 * TS_PAPER)
+
+
+def binned(rows, span) -> tuple[str, list[dict]]:
+    """Success rate in six bins of the mean inertia-error factor, over ``span``'s range.
+
+    Examples
+    --------
+    >>> import pandas as pd
+    >>> rows = pd.DataFrame({"inertia_error_x": [0.2, 2.8], "inertia_error_y": [0.2, 2.8],
+    ...                      "inertia_error_z": [0.2, 2.8], "error": ["", ""],
+    ...                      "requirement_met_last_half": [True, False]})
+    >>> key, bins = binned(rows, RANGES)
+    >>> key, [b["success_rate"] for b in bins][::5]
+    ('success_by_inertia_error', [1.0, 0.0])
+    """
+    low = np.mean([span[f"inertia_error_{a}"][0] for a in "xyz"])
+    high = np.mean([span[f"inertia_error_{a}"][1] for a in "xyz"])
+    edges = np.linspace(low, high, 7)
+    factor = rows[["inertia_error_x", "inertia_error_y", "inertia_error_z"]].mean(axis=1)
+    met = rows["requirement_met_last_half"].fillna(False).astype(bool) & (rows["error"] == "")
+    out = []
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
+        inside = (factor >= a) & (factor < b if b < edges[-1] else factor <= b)
+        n = int(inside.sum())
+        out.append({"mean_factor_low": float(a), "mean_factor_high": float(b), "runs": n,
+                    "success_rate": float(met[inside].mean()) if n else float("nan")})
+    return "success_by_inertia_error", out
+
+
+def write(table, summary, out, **settings) -> list[Path]:
+    """Write ``sweep.csv``, ``summary.json`` and the study's figures into ``out``.
+
+    Each file is written under a temporary name and renamed when complete.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from controlkit.studies import robustness
+    >>> t, s = robustness.study("spacecraft", samples=2, cases=["without_mec"], horizon=20.0,
+    ...                           executor="serial", progress=False)
+    >>> sorted(p.name for p in write(t, s, tempfile.mkdtemp()))[-2:]
+    ['summary.json', 'sweep.csv']
+    """
+    from ...outputs.export import atomic
+    from ...outputs.style import save
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    with atomic(out / "sweep.csv") as partial:
+        table.to_csv(partial, index=False)
+    with atomic(out / "summary.json") as partial:
+        partial.write_text(json.dumps({"settings": settings, "requirement_deg":
+                                       POINTING_REQUIREMENT_DEG, "cases": summary},
+                                      indent=2) + "\n")
+    paths += [out / "sweep.csv", out / "summary.json"]
+    for stem, fig in figures(table, summary).items():
+        paths += save(fig, out / f"{stem}.png")
+    return paths
+
+
+#: Colour of each case in the study's figures (the paper's where it has one).
+CASE_COLORS = {"without_mec": "tab:green", "mec_fixed": "tab:purple", "proposed": "tab:red",
+               "safeguarded": "tab:blue"}
+
+
+def figures(table, summary) -> dict:
+    """The study's two figures, as slide-sized :class:`matplotlib.figure.Figure` objects.
+
+    ``robustness_errors``: the worst last-half error of every run, per case (box plot
+    and the runs as dots) on a log axis with the 0.05 deg requirement.
+    ``robustness_success_vs_inertia``: success rate against the mean inertia-error
+    factor (1 = Table 2), per case.
+
+    Examples
+    --------
+    >>> from controlkit.studies import robustness
+    >>> t, s = robustness.study("spacecraft", samples=3, cases=["without_mec"], horizon=20.0,
+    ...                           executor="serial", progress=False)
+    >>> sorted(figures(t, s))
+    ['robustness_errors', 'robustness_success_vs_inertia']
+    """
+    from ...outputs.style import legend_outside, log_scale, new_figure, slide_style
+
+    cases = list(summary)
+    out = {}
+    with slide_style():
+        fig, (ax,) = new_figure()
+        ok = table["error"] == ""
+        data = [table.loc[(table["case"] == c) & ok, "max_pointing_error_last_half_deg"]
+                .to_numpy() for c in cases]
+        data = [np.clip(d, 1e-6, None) for d in data]
+        positions = np.arange(1, len(cases) + 1)
+        ax.boxplot([d if d.size else [np.nan] for d in data], positions=positions,
+                   widths=0.5, showfliers=False)
+        rng = np.random.default_rng(0)  # jitter only, so the dots do not hide each other
+        for x, case, d in zip(positions, cases, data, strict=True):
+            ax.plot(x + rng.uniform(-0.18, 0.18, d.size), d, "o", markersize=3.5, alpha=0.5,
+                    color=CASE_COLORS.get(case, "k"))
+        ax.axhline(POINTING_REQUIREMENT_DEG, color="k", linestyle=":", linewidth=1.6,
+                   label=f"requirement {POINTING_REQUIREMENT_DEG} deg")
+        log_scale(ax)
+        labels = [f"{c}\n{100 * summary[c]['success_rate']:.1f} % met" for c in cases]
+        ax.set_xticks(positions, labels)
+        ax.set_ylabel("worst error, last half [deg]")
+        runs = summary[cases[0]]["runs"] if cases else 0
+        ax.set_title(f"Pointing error over {runs} drawn model errors")
+        legend_outside(fig)
+        out["robustness_errors"] = fig
+
+        fig, (ax,) = new_figure()
+        # distinct markers and dashes: cases at the same rate (often 100 %) stay visible
+        styles = ["o-", "s--", "^-.", "D:", "v-"]
+        for i, case in enumerate(cases):
+            bins = summary[case]["success_by_inertia_error"]
+            centres = [(b["mean_factor_low"] + b["mean_factor_high"]) / 2 for b in bins]
+            rates = [100 * b["success_rate"] for b in bins]
+            ax.plot(centres, rates, styles[i % len(styles)], color=CASE_COLORS.get(case, "k"),
+                    label=case, markersize=8 - i, linewidth=2.0)
+        ax.axvline(1.0, color="0.4", linestyle="--", linewidth=1.2, label="Table 2's error")
+        ax.set_ylim(-5, 105)
+        ax.set_xlabel("mean factor on Table 2's inertia error")
+        ax.set_ylabel("requirement met [% of runs]")
+        ax.set_title("Success rate against the size of the inertia error")
+        legend_outside(fig)
+        out["robustness_success_vs_inertia"] = fig
+    return out
+
+
+#: The study's registry entry (``controlkit sweep spacecraft``).
+ROBUSTNESS = Robustness(
+    run=run, ranges=RANGES, default_cases=default_cases, cases=lambda: tuple(scenario.CASES),
+    success="requirement_met_last_half", error="max_pointing_error_last_half_deg",
+    binned=binned, warmup=warm, write=write,
+    extra_draws={"axis_x": _normal, "axis_y": _normal, "axis_z": _normal})
