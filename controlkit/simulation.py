@@ -231,5 +231,4 @@ def _sampled_data_response(sys, T, U, X0, engine, options):
     resp = reference.simulate_sampled_data(sys, T, X0, U, params=options["params"],
                                            t_eval=t_eval, method=method,
                                            solve_ivp_kwargs=solve_ivp_kwargs)
-    return response(sys, resp.time, resp.outputs, resp.states, resp.inputs,
-                    **result_flags(options))
+    return response(sys, resp.t, resp.y, resp.x, resp.u, **result_flags(options))

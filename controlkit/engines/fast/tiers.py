@@ -210,15 +210,9 @@ def blocks_of(sys, params=None):
         name = getattr(sys, "name", type(sys).__name__)
         raise UnsupportedSystem(
             f"{name!r} is a single block; the fast engine runs interconnects")
-    if not sys.isdtime(strict=True):
-        raise UnsupportedSystem(
-            f"{sys.name!r} is continuous time (dt = {sys.dt}); sample its continuous blocks "
-            f"with controlkit.blocks.sampling.sample_nlsys so that the diagram is discrete")
     blocks, xs, us, ys, ps = [], 0, 0, 0, 0
     for i, block in enumerate(sys.syslist):
         kernel, tier, reason = _resolve(sys, block, params)
-        if kernel.update is not None and kernel.rk4 is None and not block.isdtime(strict=True):
-            raise UnsupportedSystem(f"block {block.name!r} is continuous and not sampled")
         blocks.append(PlacedBlock(i, block, kernel, xs, us, ys, ps, tier, reason))
         xs += block.nstates
         us += block.ninputs
