@@ -12,11 +12,12 @@ from .loader import load
 from .tiers import blocks_of
 
 
-def compile_system(sys, params=None, *, steps=None):
+def compile_system(sys, params=None, *, steps=None, start=None):
     """Generate (and compile, with numba) the simulation loop of an interconnect.
 
     With ``steps`` (the length of the run it is for), a loop not compiled yet runs as
-    Python while the runs are short (:data:`COMPILE_AFTER_STEPS`).
+    Python while the runs are short (:data:`COMPILE_AFTER_STEPS`). ``start`` is the run's
+    ``(t0, X0, U0)``, where compiled user functions are checked against Python's.
 
     Raises
     ------
@@ -37,7 +38,7 @@ def compile_system(sys, params=None, *, steps=None):
     >>> [b.system.name for b in blocks]
     ['reference', 'cmg', 'smc', 'saturation']
     """
-    blocks = blocks_of(sys, params)
+    blocks = blocks_of(sys, params, start)
     order = evaluation_order(sys, blocks)
     return load(*generate(sys, blocks, order), steps=steps), blocks
 
@@ -73,7 +74,7 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
     (10, 3)
     """
     T, X0, U = check_arguments(sys, T, X0, U)  # a lazy TimeGrid stays lazy, U a view
-    run, blocks = compile_system(sys, params, steps=T.size)
+    run, blocks = compile_system(sys, params, steps=T.size, start=(T[0], X0, U[:, 0]))
     streamed = record_every != 1 or on_chunk is not None
     if not streamed:
         T = np.ascontiguousarray(T, dtype=float)
