@@ -1,46 +1,130 @@
 """Loading a generated loop: the disk cache, numba, and the Python loop meanwhile.
 
-The loop's source is written into :data:`CACHE_DIR` under a name made from its
-text and the kernels' source, imported from there and compiled with numba
-(``cache=True``: a later process loads the machine code). A loop not compiled yet
+The loop's source is written into the cache folder (:func:`cache_folder`: :data:`CACHE_DIR`
+when it is the user's own) under a name made from its text and the kernels' source,
+imported from there and compiled with numba (``cache=True``: a later process loads the
+machine code). A loop not compiled yet
 runs as plain Python for its first :data:`COMPILE_AFTER_STEPS` steps.
 """
 
 from __future__ import annotations
 
+import atexit
 import hashlib
 import importlib.util
 import os
+import shutil
+import stat
 import sys as pysys
 import tempfile
+import warnings
 from pathlib import Path
 
 from ... import _jit
 from ...kernels import common
 
-#: Where generated simulation loops are written (and numba caches them).
+#: Where generated simulation loops and compiled user functions are written (and numba
+#: caches them). Code is imported from there, so it is used only when it is the user's own:
+#: see :func:`cache_folder`.
 CACHE_DIR = Path(os.environ.get("CONTROLKIT_CACHE_DIR",
                                 Path.home() / ".cache" / "controlkit" / "engine"))
 
 #: Loops loaded in this process, by generated source (the kernels imported here are fixed).
 _LOADED: dict[str, object] = {}
 
+#: Why each folder asked for was refused (None: it is the user's own), checked once.
+_REFUSED: dict[Path, str | None] = {}
+
+#: This process's private folder, made when the configured one is refused.
+_PRIVATE: list[Path] = []
+
 
 def cache_folder() -> Path:
-    """:data:`CACHE_DIR`, or a temporary folder when it cannot be written.
+    """:data:`CACHE_DIR` when it is the user's own, else a private folder for this process.
+
+    The generated modules in this folder are imported and run, so whoever can write
+    into it decides what code runs. It is used only if it is a folder owned by the
+    user, that nobody else can write into, inside folders that nobody else can
+    rename it out of (each owned by the user or root, and not writable by others
+    unless sticky, as ``/tmp`` is). When it fails that check or cannot be created,
+    compiled code is kept for this process only, in a folder made by
+    :func:`tempfile.mkdtemp` (owner only, removed at exit), and a warning says why.
 
     Examples
     --------
-    >>> cache_folder().is_dir()
+    >>> folder = cache_folder()
+    >>> folder.is_dir(), _not_own(folder) is None
+    (True, True)
+    """
+    folder = Path(CACHE_DIR)
+    if folder not in _REFUSED:
+        try:
+            folder.mkdir(mode=0o700, parents=True, exist_ok=True)
+            _REFUSED[folder] = _not_own(folder)
+        except OSError as error:
+            _REFUSED[folder] = f"it cannot be created ({error.strerror or error})"
+        if _REFUSED[folder] is not None:
+            warnings.warn(f"controlkit does not use the compiled-code cache {folder}: "
+                          f"{_REFUSED[folder]}; compiled code is kept for this process only "
+                          f"(set CONTROLKIT_CACHE_DIR to a folder of your own)", stacklevel=2)
+    if _REFUSED[folder] is None:
+        return folder
+    if not _PRIVATE:
+        private = Path(tempfile.mkdtemp(prefix="controlkit-engine-"))
+        atexit.register(shutil.rmtree, private, ignore_errors=True)
+        _PRIVATE.append(private)
+    return _PRIVATE[0]
+
+
+def _not_own(folder: Path) -> str | None:
+    """Why ``folder`` is not the user's own (None when it is), as :func:`cache_folder` asks.
+
+    Group write is allowed where the group is the user's private group (the user's own
+    primary group, with no other members), as a umask of 002 leaves folders.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> shared = Path(tempfile.mkdtemp())
+    >>> shared.chmod(0o777)
+    >>> _not_own(shared).endswith("can be written by others (mode 777)")
     True
     """
-    folder = CACHE_DIR
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError:  # a read-only home: keep the loops for this machine's session only
-        folder = Path(tempfile.gettempdir()) / "controlkit-engine"
-        folder.mkdir(parents=True, exist_ok=True)
-    return folder
+    if not hasattr(os, "getuid"):  # Windows: the profile folder's ACLs decide
+        return None
+    uid = os.getuid()
+    link = os.lstat(folder)
+    if stat.S_ISLNK(link.st_mode) and link.st_uid not in (uid, 0):
+        return f"it is a link owned by another user (uid {link.st_uid})"
+    info = os.stat(folder)
+    if not stat.S_ISDIR(info.st_mode):
+        return "it is not a folder"
+    if info.st_uid != uid:
+        return f"it is owned by another user (uid {info.st_uid})"
+    if _writable_by_others(info):
+        return f"it can be written by others (mode {stat.S_IMODE(info.st_mode):o})"
+    for parent in Path(os.path.realpath(folder)).parents:
+        info = os.stat(parent)
+        if info.st_uid not in (uid, 0):
+            return f"{parent} is owned by another user (uid {info.st_uid})"
+        if _writable_by_others(info) and not info.st_mode & stat.S_ISVTX:
+            return (f"{parent} can be written by others (mode "
+                    f"{stat.S_IMODE(info.st_mode):o}), who could replace the folder")
+    return None
+
+
+def _writable_by_others(info) -> bool:
+    if info.st_mode & stat.S_IWOTH:
+        return True
+    if not info.st_mode & stat.S_IWGRP:
+        return False
+    try:  # the user's private group (umask 002) is not "others"
+        import grp
+
+        group = grp.getgrgid(info.st_gid)
+        return not (info.st_gid == os.getgid() and not group.gr_mem)
+    except (ImportError, KeyError):
+        return True
 
 
 #: A diagram's loop that is not compiled yet (neither in this process nor in the disk cache)
