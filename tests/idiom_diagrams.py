@@ -351,8 +351,10 @@ def estimation(steps=200):
                      ["observer.p", "spring.p"]],
         inplist=[["car.v", "estimator.v"], ["car.delta", "estimator.delta"],
                  ["spring.f", "observer.f"]],
-        inputs=["v", "delta", "f"], outlist=["car.y", "estimator.yh", "spring.p", "observer.ph"],
-        outputs=["y", "yh", "p", "ph"], name="estimation")
+        inputs=["v", "delta", "f"],
+        outlist=["car.x", "car.y", "car.theta", "estimator.xh", "estimator.yh",
+                 "estimator.thetah", "spring.p", "observer.ph"],
+        outputs=["x", "y", "theta", "xh", "yh", "thetah", "p", "ph"], name="estimation")
     T = np.arange(steps) * TS
     U = np.vstack([10.0 * np.ones_like(T), 0.1 * np.sin(0.5 * T), np.cos(T)])
     X0 = [0.0, 0.5, 0.05, 0.0, 0.0, 0.0, 0.3, 0.0, 0.0, 0.0]
