@@ -25,6 +25,9 @@ suppress_warnings = ["mystnb.unknown_mime_type"]
 # sliders are for a live kernel: their cells' output is removed from the pages, and no
 # page loads the widget manager's scripts from the network
 nb_ipywidgets_js = {}
+# the diagram editor (notebook 7) also sends its static drawing as SVG: a page without a kernel
+# shows that drawing; widgets without such a picture (sliders) are chosen as before
+nb_mime_priority_overrides = [("html", "application/vnd.jupyter.widget-view+json", 45)]
 
 # the notebooks live in ../notebooks; render copies of them, executed at the papers' horizons
 # (the fast engine takes seconds) so the numbers printed on each page are the papers' ones.

@@ -1,0 +1,233 @@
+"""Diagrams that mix continuous and discrete blocks: :func:`interconnect`.
+
+python-control refuses to connect a continuous block (``dt = 0``) with a discrete one
+(``dt = Ts``): "Systems have incompatible timebases" (its issue #451). Yet the loop every
+digital-control course is about is exactly that, a continuous plant under a sampled
+controller. :func:`interconnect` takes :func:`control.interconnect`'s arguments; when all
+blocks share one timebase it returns what python-control returns, and otherwise a
+:class:`SampledDataSystem`, which :func:`controlkit.input_output_response` simulates with
+the semantics of Simulink and of the digital-control textbooks (Franklin, Powell &
+Workman, *Digital Control of Dynamic Systems*, ch. 4; Astrom & Wittenmark,
+*Computer-Controlled Systems*, ch. 2):
+
+- a discrete block updates at its own sample instants ``k Ts`` and holds its output in
+  between (zero-order hold); it reads the signals it is fed at the instant;
+- continuous blocks are integrated between instants, the integrator stopping exactly at
+  each, with the discrete outputs held;
+- static blocks (``dt = None``) are evaluated wherever their inputs are;
+- the rates are integer multiples of the shortest one.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib
+import math
+
+import control as ct
+
+#: Relative tolerance when a rate is checked to be an integer multiple of the shortest.
+RATE_TOLERANCE = 1e-9
+
+
+class SampledDataSystem(ct.InterconnectedSystem):
+    """An interconnect of continuous, discrete and static blocks (see :func:`interconnect`).
+
+    It is an ordinary :class:`control.InterconnectedSystem` with ``dt = 0`` (its
+    signals live in continuous time), built by python-control's own signal matching, so
+    it draws, lists its signals and states, and joins a larger :func:`interconnect`
+    like any diagram. What python-control cannot do with it is simulate it: its
+    right-hand side would integrate a discrete block's next state as if it were a
+    derivative, so :meth:`_rhs` and :meth:`_out` refuse, naming the remedy.
+
+    Attributes
+    ----------
+    rates : dict
+        Block name to its sampling period, for the discrete blocks.
+    base_period : float
+        The shortest period: every instant of every discrete block is a multiple of it.
+
+    Examples
+    --------
+    >>> plant = ct.tf([1.0], [1.0, 1.0], name="plant", inputs="u", outputs="y")
+    >>> pi = ct.sample_system(ct.tf([1.0, 0.5], [1.0, 0.0]), 0.1, name="pi",
+    ...                       inputs="e", outputs="u")
+    >>> error = ct.summing_junction(["r", "-y"], "e", name="error")
+    >>> loop = interconnect([plant, pi, error], inputs="r", outputs="y")
+    >>> type(loop).__name__, loop.dt, loop.rates, loop.base_period
+    ('SampledDataSystem', 0, {'pi': 0.1}, 0.1)
+    """
+
+    rates: dict
+    base_period: float
+
+    def _refuse(self):
+        continuous = [s.name for s in self.syslist if s.isctime(strict=True) and s.nstates]
+        raise ValueError(
+            f"{self.name!r} is a sampled-data diagram (continuous blocks {continuous}, "
+            f"discrete blocks {self.rates}): python-control cannot simulate it; use "
+            f"controlkit.input_output_response")
+
+    def _rhs(self, t, x, u):
+        self._refuse()
+
+    def _out(self, t, x, u):
+        self._refuse()
+
+
+def interconnect(syslist, connections=None, inplist=None, outlist=None, **kwargs):
+    """:func:`control.interconnect`, also for blocks of different timebases.
+
+    Takes exactly :func:`control.interconnect`'s arguments. When every block shares one
+    timebase (python-control's rules: ``dt = None`` joins anything) the result is
+    :func:`control.interconnect`'s. Otherwise continuous blocks (``dt = 0``), discrete
+    blocks (``dt = Ts``, several rates allowed when each is an integer multiple of the
+    shortest) and static blocks make a :class:`SampledDataSystem`; see the module's
+    description for how it is simulated.
+
+    Parameters
+    ----------
+    syslist, connections, inplist, outlist, **kwargs
+        As for :func:`control.interconnect`.
+
+    Returns
+    -------
+    control.InputOutputSystem
+        :func:`control.interconnect`'s result, or a :class:`SampledDataSystem`.
+
+    Raises
+    ------
+    ValueError
+        Rates that are not integer multiples of the shortest, or a discrete block of
+        unspecified period (``dt = True``) beside a continuous one, naming the blocks.
+
+    Examples
+    --------
+    A continuous plant under a PI controller sampled at 0.1 s:
+
+    >>> plant = ct.tf([1.0], [1.0, 1.0], name="plant", inputs="u", outputs="y")
+    >>> pi = ct.sample_system(ct.tf([1.0, 0.5], [1.0, 0.0]), 0.1, name="pi",
+    ...                       inputs="e", outputs="u")
+    >>> error = ct.summing_junction(["r", "-y"], "e", name="error")
+    >>> interconnect([plant, pi, error], inputs="r", outputs="y").rates
+    {'pi': 0.1}
+
+    Blocks at 0.1 s and 0.25 s cannot share instants:
+
+    >>> slow = ct.sample_system(ct.tf([1.0], [1.0, 1.0]), 0.25, name="filter",
+    ...                         inputs="y", outputs="yf")
+    >>> try:
+    ...     interconnect([plant, pi, error, slow], inputs="r", outputs="yf")
+    ... except ValueError as error:
+    ...     print(error)  # doctest: +NORMALIZE_WHITESPACE
+    the sampling periods must be integer multiples of the shortest (0.1 s of 'pi'); got
+    'filter' at 0.25 s
+    """
+    systems = list(syslist)
+    rates = _rates(systems)
+    if rates is None:  # one timebase: python-control's own result
+        return ct.interconnect(systems, connections, inplist, outlist, **kwargs)
+    if kwargs.get("dt") not in (None, 0):
+        raise ValueError(f"dt must be None or 0 for a diagram of continuous and discrete "
+                         f"blocks, got dt={kwargs['dt']!r}")
+    kwargs.pop("dt", None)
+    with _python_control_accepting_mixed_timebases():
+        sys = ct.interconnect(systems, connections, inplist, outlist, **kwargs)
+    sys.rates = {s.name: float(s.dt) for s in sys.syslist
+                 if s.isdtime(strict=True) and s.dt is not True}
+    sys.base_period = min(sys.rates.values())
+    return sys
+
+
+def _rates(systems):
+    """None when ``systems`` share a timebase; else checks the rates of a mixed diagram."""
+    kinds = {"continuous": [], "discrete": [], "unspecified": []}
+    for s in systems:
+        if s.dt is None:
+            continue
+        if s.dt is True:
+            kinds["unspecified"].append(s)
+        elif s.dt == 0:
+            kinds["continuous"].append(s)
+        else:
+            kinds["discrete"].append(s)
+    discrete = kinds["discrete"]
+    if not kinds["continuous"] and len({round(s.dt, 12) for s in discrete}) <= 1:
+        return None
+    if not discrete and not kinds["unspecified"]:
+        return None
+    if kinds["unspecified"]:
+        names = [s.name for s in kinds["unspecified"]]
+        raise ValueError(f"blocks {names} are discrete with no sampling period (dt=True); "
+                         f"give them their period (dt=Ts) to join continuous blocks or "
+                         f"blocks of other periods")
+    shortest = min(discrete, key=lambda s: s.dt)
+    off = [s for s in discrete if not _is_multiple(s.dt, shortest.dt)]
+    if off:
+        listed = ", ".join(f"{s.name!r} at {s.dt:g} s" for s in off)
+        raise ValueError(f"the sampling periods must be integer multiples of the shortest "
+                         f"({shortest.dt:g} s of {shortest.name!r}); got {listed}")
+    return {s.name: s.dt for s in discrete}
+
+
+def _is_multiple(period, base):
+    ratio = period / base
+    return abs(ratio - round(ratio)) <= RATE_TOLERANCE * max(1.0, ratio)
+
+
+@contextlib.contextmanager
+def _python_control_accepting_mixed_timebases():
+    """python-control's interconnect, building a :class:`SampledDataSystem`.
+
+    Three of python-control's names are swapped for the duration of the call, so that its
+    own signal matching builds the diagram: the timebase check (which would refuse),
+    the class it builds, and the conversion of an all-LTI diagram into one state-space
+    system (which would merge continuous and discrete matrices into a wrong model).
+    """
+    nlsys = importlib.import_module("control.nlsys")
+    statesp = importlib.import_module("control.statesp")
+    names = ((nlsys, "common_timebase"), (nlsys, "InterconnectedSystem"),
+             (statesp, "LinearICSystem"))
+    missing = [f"{m.__name__}.{n}" for m, n in names if not hasattr(m, n)]
+    if missing:
+        raise RuntimeError(f"this python-control ({ct.__version__}) lacks {missing}; "
+                           f"controlkit.interconnect needs python-control 0.10")
+    saved = {(m, n): getattr(m, n) for m, n in names}
+    common_timebase, linear_ic = saved[(nlsys, "common_timebase")], saved[
+        (statesp, "LinearICSystem")]
+
+    def mixed_timebase(dt1, dt2):
+        try:
+            return common_timebase(dt1, dt2)
+        except ValueError:
+            return 0  # the diagram's signals live in continuous time
+
+    def keep_sampled_data(sys, *args, **kwargs):
+        if isinstance(sys, SampledDataSystem):
+            return sys
+        return linear_ic(sys, *args, **kwargs)
+
+    nlsys.common_timebase = mixed_timebase
+    nlsys.InterconnectedSystem = SampledDataSystem
+    statesp.LinearICSystem = keep_sampled_data
+    try:
+        yield
+    finally:
+        for (module, name), value in saved.items():
+            setattr(module, name, value)
+
+
+def sample_instants(sys, T0, Tf):
+    """The instants ``T0 + k base_period`` up to ``Tf`` of a :class:`SampledDataSystem`.
+
+    Examples
+    --------
+    >>> plant = ct.tf([1.0], [1.0, 1.0], name="plant", inputs="u", outputs="y")
+    >>> gain = ct.ss([], [], [], [[2.0]], dt=0.5, name="k", inputs="y", outputs="u")
+    >>> sample_instants(interconnect([plant, gain]), 0.0, 1.2).tolist()
+    [0.0, 0.5, 1.0]
+    """
+    import numpy as np
+
+    n = math.floor((Tf - T0) / sys.base_period * (1 + RATE_TOLERANCE)) + 1
+    return T0 + np.arange(n) * sys.base_period

@@ -1,0 +1,270 @@
+"""What the editor's front end draws: blocks with ports, edges, frames, in pixels.
+
+Blocks of an opened diagram are placed where :func:`controlkit.drawing.draw_block_diagram`
+places them (its layout, read once through :func:`_drawing_layout`), so the editor
+opens looking like the drawing; blocks added later sit where they were dropped.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import control as ct
+import numpy as np
+
+from . import _palette
+from ._model import passes_input
+from ._ports import port_groups
+
+#: Pixels per inch of the drawing's layout.
+SCALE = 80.0
+PORT_PITCH = 22.0
+
+
+def _drawing_layout(sys):
+    """The drawing's layout of ``sys`` (the one place this module reads controlkit.drawing).
+
+    Uses the fields ``nodes`` (``x``, ``y``, ``w``, ``h``, ``flip``, ``virtual``),
+    ``nets`` (``src``, ``signals``, ``dests``), ``in_xy`` and ``port_xy``.
+    """
+    from controlkit.drawing._layout import layout
+
+    return layout(sys)
+
+
+def shape_of(system):
+    """``("sum", {input: sign})``, ``("gain", text)``, ``("group", None)`` or ``("block", None)``.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> shape_of(ct.summing_junction(inputs=["r", "-y"], output="e"))
+    ('sum', {'r': 1.0, 'y': -1.0})
+    >>> shape_of(ct.tf(2.5, 1, dt=None))
+    ('gain', '2.5')
+    """
+    if isinstance(system, ct.InterconnectedSystem):
+        return "group", None
+    if not isinstance(system, (ct.StateSpace, ct.TransferFunction)):
+        return "block", None
+    try:
+        ss = system if isinstance(system, ct.StateSpace) else ct.tf2ss(system)
+    except Exception:  # noqa: BLE001 - an improper tf is drawn as a block
+        return "block", None
+    if ss.nstates:
+        return "block", None
+    D = np.asarray(ss.D, dtype=float)
+    if (D.size and set(np.unique(D).tolist()) <= {-1.0, 0.0, 1.0} and D.shape[1] >= 2
+            and np.count_nonzero(D, axis=1).min() >= 2
+            and np.count_nonzero(D, axis=0).max() == 1):
+        return "sum", {label: float(D[:, c].sum()) for c, label in enumerate(system.input_labels)}
+    if D.shape[0] == D.shape[1] and D.size and np.allclose(D, D[0, 0] * np.eye(D.shape[0])):
+        return "gain", f"{D[0, 0]:.4g}"
+    return "block", None
+
+
+def states_of(system):
+    """Number of states (a transfer function's, of its state-space realisation)."""
+    if isinstance(system, ct.TransferFunction):
+        try:
+            return int(ct.tf2ss(system).nstates)
+        except Exception:  # noqa: BLE001 - an improper tf has no realisation
+            return 0
+    return int(system.nstates or 0)
+
+
+def kind_of(system):
+    """``static``, ``continuous`` or ``dt = 0.1``: how the block runs in time."""
+    if isinstance(system, ct.InterconnectedSystem):
+        return f"{len(system.syslist)} blocks"
+    if not states_of(system):
+        return "static"
+    if system.dt is None or system.dt is True:
+        return "discrete"
+    return "continuous" if system.dt == 0 else f"dt = {system.dt:g}"
+
+
+def place(model):
+    """Give every block without a position (or look) the drawing's, in pixels."""
+    missing = [n for n, b in model.blocks.items() if b.position is None or b.look is None]
+    if not missing:
+        return
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            L = _drawing_layout(model.system())
+    except ValueError:  # a diagram that cannot be built yet: default sizes, a row of blocks
+        for k, n in enumerate(missing):
+            block = model.blocks[n]
+            block.position = block.position or (160.0 * k, 0.0)
+            block.look = block.look or {}
+        return
+    order = _port_order(L)
+    for n in missing:
+        block, node = model.blocks[n], L.nodes.get(n, {})
+        if block.position is None:
+            block.position = (node["x"] * SCALE, -node["y"] * SCALE)
+        heights = order.get(n, {})
+        block.look = {"w": node.get("w", 0.0) * SCALE, "h": node.get("h", 0.0) * SCALE,
+                      "flip": bool(node.get("flip", False)),
+                      "order": {side: {sig: y for (s, sig), y in heights.items() if s == side}
+                                for side in ("in", "out")}}
+
+
+def view(model):
+    """The payload of the editor's ``diagram`` trait (see the front end's ``render``)."""
+    blocks = []
+    sums = model.hints.get("sums", {})
+    external_in = {}
+    for name, targets in model.inputs:
+        for block, signal, gain in targets:
+            external_in.setdefault((block, signal), []).append((name, gain))
+    external_out = {}
+    for name, sources in model.outputs:
+        for side, block, signal, _ in sources:
+            if side == "out":
+                external_out.setdefault((block, signal), []).append(name)
+    driven = {w.dst for w in model.wires} | set(external_in)
+    for name, b in model.blocks.items():
+        s = b.system
+        shape, extra = shape_of(s)
+        node = b.look or {}
+        ins = model.ports(name, "in")
+        outs = model.ports(name, "out")
+        order = node.get("order", {})  # top to bottom as in the drawing
+        ins.sort(key=lambda p: min(order.get("in", {}).get(sig, 0.0) for sig in p[1]))
+        outs.sort(key=lambda p: min(order.get("out", {}).get(sig, 0.0) for sig in p[1]))
+        n_ports = max(len(ins), len(outs), 1)
+        w = node.get("w") or (40.0 if shape == "sum" else 120.0)
+        h = node.get("h") or (40.0 if shape == "sum" else 60.0)
+        if shape != "sum":  # room for the names, at the editor's font sizes
+            h = max(h, PORT_PITCH * n_ports + 14.0)
+            w = max(w, 6.2 * len(kind_of(s) if b.label is None else f"{name}, {kind_of(s)}")
+                    + 26.0)
+            w = max(w, 96.0 if shape != "gain" else 56.0)
+        hint_signs = sums.get(name, {})
+        inputs = []
+        for k, (port, signals) in enumerate(ins):
+            base = port.split("[")[0]
+            sign = None
+            if shape == "sum":
+                sign = extra.get(signals[0], 1.0)
+            elif base in hint_signs:
+                sign = float(hint_signs[base])
+            inputs.append({
+                "port": port, "signals": signals, "sign": sign,
+                "side": _sum_side(k, len(ins)) if shape == "sum" else "left",
+                "junction": base in hint_signs,
+                "loose": any((name, sig) not in driven for sig in signals),
+                "external": sorted({e for sig in signals for e, _ in
+                                    external_in.get((name, sig), [])})})
+        outputs = [{"port": port, "signals": signals,
+                    "external": sorted({e for sig in signals
+                                        for e in external_out.get((name, sig), [])})}
+                   for port, signals in outs]
+        label = b.label
+        kind = kind_of(s)
+        sub = (f"{name}, {kind}" if kind != "static" else name) if label else kind
+        params = model.parameters(name)
+        blocks.append({
+            "name": name, "label": label or name, "math": bool(label), "sub": sub,
+            "shape": shape, "gain": extra if shape == "gain" else None,
+            "x": float(b.position[0]), "y": float(b.position[1]), "w": float(w), "h": float(h),
+            "flip": bool(node.get("flip", False)), "inputs": inputs, "outputs": outputs,
+            "params": {k: float(v) for k, v in params.items()},
+            "recipe": (b.recipe or {}).get("kind"), "nstates": states_of(s),
+            "dt": None if s.dt is None or s.dt is True else float(s.dt),
+            "feedthrough": passes_input(s),
+        })
+    return {"name": model.name, "title": model.hints.get("title") or model.name,
+            "blocks": blocks, "edges": _edges(model), "inputs": _external_inputs(model),
+            "groups": [{"label": g, "members": [m for m in members if m in model.blocks]}
+                       for g, members in model.hints.get("groups", {}).items()],
+            "signals": [f"{n}.{label}" for n, b in model.blocks.items()
+                        for label in b.system.output_labels],
+            "palette": palette_entries()}
+
+
+def _sum_side(k, n):
+    """Inputs of a junction: the first from the left, the second from below, then above."""
+    return ("left", "bottom", "top")[k] if n <= 3 else "left"
+
+
+def _port_of(model, block, side, signal):
+    for port, signals in model.ports(block, side):
+        if signal in signals:
+            return port, signals
+    raise ValueError(f"{block}.{signal} is in no port")
+
+
+def _edges(model):
+    """Wires grouped by the ports they join (one edge per port pair and sign)."""
+    groups = {}
+    for w in model.wires:
+        sport, ssig = _port_of(model, w.src[0], "out", w.src[1])
+        dport, dsig = _port_of(model, w.dst[0], "in", w.dst[1])
+        key = (w.src[0], sport, w.dst[0], dport, float(np.sign(w.gain)))
+        groups.setdefault(key, {"pairs": [], "gains": set(), "swidth": len(ssig),
+                                "dwidth": len(dsig), "ssig": ssig, "dsig": dsig})
+        groups[key]["pairs"].append((w.src[1], w.dst[1]))
+        groups[key]["gains"].add(w.gain)
+    edges = []
+    for (src, sport, dst, dport, sign), g in groups.items():
+        whole = (g["swidth"] == g["dwidth"] == len(g["pairs"])
+                 and all(a == g["ssig"][i] and b == g["dsig"][i]
+                         for i, (a, b) in enumerate(sorted(
+                             g["pairs"], key=lambda p: g["dsig"].index(p[1])))))
+        label = sport.split("[")[0] if whole else ", ".join(a for a, _ in g["pairs"])
+        gains = g["gains"]
+        gain = gains.pop() if len(gains) == 1 else None
+        if gain not in (None, 1.0, -1.0):
+            label = f"{gain:g}*{label}"
+        edges.append({"id": f"{src}|{sport}|{dst}|{dport}|{'-' if sign < 0 else '+'}",
+                      "source": src, "sourcePort": sport, "target": dst, "targetPort": dport,
+                      "label": label, "sign": sign, "whole": whole,
+                      "signals": [list(p) for p in g["pairs"]]})
+    return edges
+
+
+def _external_inputs(model):
+    """External inputs grouped per target port: ``{label, names, target, port}``."""
+    out = {}
+    for name, targets in model.inputs:
+        for block, signal, gain in targets:
+            port, signals = _port_of(model, block, "in", signal)
+            entry = out.setdefault((block, port), {"names": [], "target": block, "port": port,
+                                                   "sign": float(np.sign(gain))})
+            entry["names"].append(name)
+    result = []
+    for (block, port), entry in out.items():
+        names = entry["names"]
+        groups = port_groups(names)
+        entry["label"] = ", ".join(g for g, _ in groups)
+        entry["id"] = f"in:{block}:{port}"
+        result.append(entry)
+    return result
+
+
+def _port_order(L):
+    """Height of each signal's port in the drawing: ``{block: {(side, signal): -y}}``."""
+    order = {}
+    for net in L.nets:
+        if (net, net.src) in L.port_xy and not L.nodes.get(net.src, {}).get("virtual"):
+            y = L.port_xy[(net, net.src)][1]
+            for sig in net.signals:
+                order.setdefault(net.src, {})[("out", sig)] = -y
+        for b, ports, _ in net.dests:
+            if (net, b) not in L.in_xy:
+                continue
+            y = L.in_xy[(net, b)][1]
+            owner = b.split(":")[0] if L.nodes.get(b, {}).get("virtual") else b
+            for sig in ports:
+                order.setdefault(owner, {})[("in", sig.split("~")[-1])] = -y
+    return order
+
+
+def palette_entries():
+    """The palette as the front end lists it."""
+    return [{"key": e.key, "title": e.title, "group": e.group,
+             "tip": e.source(e.name, _palette.defaults(e.key, None), None)}
+            for e in _palette.ENTRIES]

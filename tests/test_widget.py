@@ -1,0 +1,551 @@
+"""The diagram editor's Python side: round trips, wiring checks, edits and runs.
+
+Round trip: an interconnect built in code -> the editor's model -> an interconnect (from
+the model, from the code the editor writes, and from its saved JSON) must have the same
+connection maps and labels, and simulate to the same numbers (1e-12), for the papers'
+diagrams and for three diagrams written the way a python-control user writes them.
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import control as ct
+import numpy as np
+import pytest
+
+from controlkit.blocks import mec
+from controlkit.blocks import spacecraft as sc
+from controlkit.studies.cmg.diagrams import cmg_loop
+from controlkit.studies.spacecraft import scenario as scenario
+from controlkit.studies.spacecraft.diagrams import mec_loop, output_zeroing_loop
+from controlkit.widget import PALETTE, PROBLEM_KINDS, DiagramModel, _run, passes_input
+
+# ---------------------------------------------------------------------- diagrams
+
+
+def speed_loop():
+    """A continuous PI speed loop: transfer functions and a summing junction."""
+    motor = ct.tf2ss(ct.tf([1.0], [0.5, 1.0]), name="motor", inputs="v", outputs="w")
+    pi = ct.tf2ss(ct.tf([2.0, 1.0], [1.0, 0.0]), name="pi", inputs="e", outputs="v")
+    error = ct.summing_junction(inputs=["w_ref", "-w"], output="e", name="error")
+    return ct.interconnect([error, pi, motor], inputs="w_ref", outputs=["w", "v"],
+                           name="speed_loop")
+
+
+def tank_loop():
+    """A discrete tank under a saturated valve: nlsys with a params dict, lambdas, np.clip."""
+    Ts = 0.5
+
+    def tank_update(t, x, u, params):
+        area, leak = map(params.get, ("area", "leak"))
+        return x + Ts * (u[0] - leak * np.sqrt(max(x[0], 0.0))) / area
+
+    tank = ct.nlsys(tank_update, lambda t, x, u, params: x, inputs="q", outputs="level",
+                    states="level", dt=Ts, params={"area": 1.5, "leak": 0.3}, name="tank")
+    valve = ct.nlsys(None, lambda t, x, u, params: np.clip(2.0 * (u[0] - u[1]), 0.0, 1.0),
+                     inputs=["level_ref", "level"], outputs="q", dt=None, name="valve")
+    return ct.interconnect([tank, valve], inputs="level_ref", outputs=["level", "q"],
+                           name="tank_loop")
+
+
+def summed_loop():
+    """Discrete, with an implicit sum (two drivers on one input, written in code with a
+    minus sign), an external input feeding two blocks, a gain of 0.5 on a wire and an
+    output taken from a block's input."""
+    Ts = 0.1
+    plant = ct.ss([[0.9, 0.1], [0.0, 0.8]], [[0.0], [1.0]], [[1.0, 0.0]], [[0.0]], dt=Ts,
+                  name="plant", inputs="u", outputs="y")
+    ctrl = ct.ss([[1.0]], [[Ts]], [[0.6]], [[1.5]], dt=Ts, name="ctrl", inputs="e",
+                 outputs="c")
+    ff = ct.tf(0.3, 1, dt=None, name="ff", inputs="r", outputs="f")
+    return ct.interconnect(
+        [plant, ctrl, ff],
+        connections=[["ctrl.e", "-plant.y"], ["plant.u", "ctrl.c", ("ff", "f", 0.5)]],
+        inplist=[["ctrl.e", "ff.r"]], inputs=["r"],
+        outlist=["plant.y", "ctrl.e"], outputs=["y", "e"], name="summed_loop")
+
+
+def fig3():
+    return mec_loop(scenario.true_plant(model_error=True), K=0.1, name="fig3")
+
+
+def fig4():
+    return mec_loop(scenario.true_plant(model_error=True), K="frit",
+                    h0=scenario.initial_attitude()[1:3], name="fig4")
+
+
+Q0 = scenario.initial_attitude()
+SPACECRAFT_X0 = {"plant": Q0, "nominal": Q0[1:3]}
+DIAGRAMS = {  # builder, steps, initial states, constant inputs
+    "fig2": (output_zeroing_loop, 300, SPACECRAFT_X0, 0.0),
+    "fig3": (fig3, 300, SPACECRAFT_X0, 0.0),
+    "fig4": (fig4, 300, SPACECRAFT_X0, 0.0),
+    "cmg": (cmg_loop, 300, {}, 0.0),
+    "speed_loop": (speed_loop, 400, {"motor": [0.2]}, 1.0),
+    "tank_loop": (tank_loop, 200, {"tank": [0.1]}, 1.0),
+    "summed_loop": (summed_loop, 200, {"plant": [1.0, -0.5]}, 1.0),
+}
+
+
+def response(sys, steps, initial, U):
+    T = _run.time_points(steps * sys.dt if sys.dt else steps * 0.01, sys.dt)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # a user block runs on python-control, with a warning
+        resp = _run.simulate(sys, T, _run.stacked_state(sys, initial), U)
+    return np.asarray(resp.outputs).reshape(sys.noutputs, -1)
+
+
+def assert_same_diagram(a, b):
+    assert [s.name for s in a.syslist] == [s.name for s in b.syslist]
+    for field in ("connect_map", "input_map", "output_map"):
+        np.testing.assert_array_equal(getattr(a, field), getattr(b, field), err_msg=field)
+    assert (a.input_labels, a.output_labels, a.state_labels) == (
+        b.input_labels, b.output_labels, b.state_labels)
+    assert a.dt == b.dt
+
+
+# ---------------------------------------------------------------------- round trips
+
+
+@pytest.mark.parametrize("key", DIAGRAMS)
+def test_code_to_model_to_interconnect_is_the_same_diagram(key, tmp_path):
+    build, steps, initial, U = DIAGRAMS[key]
+    original = build()
+    model = DiagramModel.from_interconnect(original, source_name="original")
+    rebuilt = model.system()
+    assert_same_diagram(original, rebuilt)
+    # the code the editor writes builds the same interconnect
+    namespace = {"original": original}
+    exec(model.code("edited"), namespace)
+    from_code = namespace["edited"]
+    assert_same_diagram(original, from_code)
+    # and so does the saved JSON, loaded again
+    model.to_json(tmp_path / "diagram.json")
+    loaded = DiagramModel.from_dict(json.loads((tmp_path / "diagram.json").read_text()),
+                                    systems=original).system()
+    assert_same_diagram(original, loaded)
+    # the display names, frames and junction hints travel along
+    assert rebuilt.drawing_hints.get("labels", {}) == {
+        **getattr(original, "drawing_hints", {}).get("labels", {})}
+    assert getattr(from_code, "drawing_hints", {}) == rebuilt.drawing_hints
+    expected = response(original, steps, initial, U)
+    assert np.isfinite(expected).all()
+    for other in (rebuilt, from_code, loaded):
+        np.testing.assert_allclose(response(other, steps, initial, U), expected, rtol=0,
+                                   atol=1e-12)
+
+
+def test_an_interconnect_built_from_the_editors_code_opens_identically():
+    original = fig3()
+    model = DiagramModel.from_interconnect(original, source_name="original")
+    namespace = {"original": original}
+    exec(model.code("edited"), namespace)
+    again = DiagramModel.from_interconnect(namespace["edited"], source_name="original")
+    assert again.to_dict()["wires"] == model.to_dict()["wires"]
+    assert again.to_dict()["inputs"] == model.to_dict()["inputs"]
+    assert again.to_dict()["outputs"] == model.to_dict()["outputs"]
+    assert {n: b.label for n, b in again.blocks.items()} == {
+        n: b.label for n, b in model.blocks.items()}
+    assert again.hints == model.hints
+
+
+def test_code_reads_like_a_students_interconnect_call():
+    code = DiagramModel.from_interconnect(fig3(), source_name="fig3").code()
+    assert "fig3_blocks = {s.name: s for s in fig3.syslist}" in code
+    # blocks whose factory can be read back are written as the factory call
+    assert "controller = sc.outer_controller(F=0.0009, output='mu_n', name='controller')" in code
+    assert "gain = mec.constant_gain(K=0.1, name='gain')" in code
+    # a block named like an imported module gets a variable of its own
+    assert "mec_block = fig3_blocks['mec']" in code
+    # vectors are connected as python-control ranges
+    assert "['linearizer.mu[0:2]', 'mec.mu[0:2]']," in code
+    assert "inplist=['controller.r[0:2]']," in code
+
+
+def test_implicit_sums_written_in_code_are_kept_and_not_reported():
+    model = DiagramModel.from_interconnect(summed_loop())
+    assert ("plant", "u") in model.summed and ("ctrl", "e") in model.summed
+    assert not [p for p in model.problems() if p.kind == "two drivers"]
+    code = model.code()
+    assert "['plant.u', 'ctrl.c', ('ff', 'f', 0.5)]," in code
+    assert "['ctrl.e', '-plant.y']," in code
+    assert "inplist=[['ctrl.e', 'ff.r']]," in code
+
+
+# ---------------------------------------------------------------------- wrong wiring
+
+
+def without_mec():
+    model = DiagramModel.from_interconnect(fig3())
+    model.delete_block("mec")
+    return model
+
+
+def test_deleting_a_block_leaves_its_inputs_unconnected_named():
+    model = without_mec()
+    messages = [p.message for p in model.problems() if p.kind == "unconnected input"]
+    assert messages == ["unconnected input: linearizer.mu of block 'linearizer' has no driver "
+                        "(python-control reads it as 0)"]
+    assert PROBLEM_KINDS["unconnected input"] == "warning"
+    model.system()  # a warning does not stop the build
+
+
+def test_two_drivers_on_one_signal_name_both():
+    model = without_mec()
+    model.connect("controller", "mu_n", "linearizer", "mu")
+    model.connect("nominal", "hn", "linearizer", "mu")
+    problems = [p for p in model.problems() if p.kind == "two drivers"]
+    assert [p.message for p in problems] == [
+        "two drivers on one signal: linearizer.mu[0] is driven by controller.mu_n[0] and "
+        "nominal.hn[0]; remove one wire, or add them in a summing junction",
+        "two drivers on one signal: linearizer.mu[1] is driven by controller.mu_n[1] and "
+        "nominal.hn[1]; remove one wire, or add them in a summing junction"]
+    assert problems[0].blocks == ["linearizer", "controller", "nominal"]
+    with pytest.raises(ValueError, match=r"cannot be built: two drivers on one signal: "
+                                         r"linearizer\.mu\[0\]"):
+        model.system()
+    model.disconnect("nominal", "hn", "linearizer", "mu")
+    assert not [p for p in model.problems() if p.severity == "error"]
+
+
+def test_an_algebraic_loop_names_its_blocks_in_order():
+    model = DiagramModel.from_interconnect(speed_loop())
+    model.add_from_palette("gain", k=0.5)  # static: passes its input on at once
+    model.disconnect("motor", "w", "error", "w")
+    model.connect("error", "e", "gain", "u")
+    model.connect("gain", "y", "error", "w")
+    (loop,) = [p for p in model.problems() if p.kind == "algebraic loop"]
+    assert loop.message == (
+        "algebraic loop through blocks 'error' -> 'gain' -> 'error': each passes its input "
+        "straight to its output, so no order of computing them exists; put a block with a "
+        "state (a delay, a plant, a filter) in the loop")
+    with pytest.raises(ValueError, match="algebraic loop through blocks 'error' -> 'gain'"):
+        model.system()
+
+
+def test_a_loop_through_a_block_with_state_is_no_algebraic_loop():
+    for build in (output_zeroing_loop, fig3, fig4, cmg_loop, speed_loop, tank_loop):
+        model = DiagramModel.from_interconnect(build())
+        assert not [p for p in model.problems() if p.kind == "algebraic loop"], build
+
+
+def test_mismatched_timebases_name_the_blocks():
+    model = without_mec()
+    model.add_from_palette("pi")  # continuous design, sampled at the diagram's 0.1 s
+    assert model.blocks["pi"].system.dt == 0.1
+    model.add_block(ct.tf([1.0], [1.0, 1.0], name="lag", inputs="u", outputs="y"))
+    model.add_block(mec.nominal_model(0.2, name="slow"))
+    (problem,) = [p for p in model.problems() if p.kind == "mismatched timebases"]
+    assert problem.message == (
+        "mismatched timebases: 'plant', 'nominal', 'pi' run at dt = 0.1 s; 'lag' runs "
+        "continuous; 'slow' runs at dt = 0.2 s; sample the continuous blocks "
+        "(controlkit.blocks.sampling.sample_nlsys, control.sample_system)")
+    assert set(problem.blocks) == {"plant", "nominal", "pi", "lag", "slow"}
+    model.delete_block("lag")
+    (problem,) = [p for p in model.problems() if p.kind == "mismatched timebases"]
+    assert problem.message.endswith("build all discrete blocks with one dt")
+
+
+def test_unused_outputs_are_notes():
+    model = without_mec()
+    assert not [p for p in model.problems() if p.kind == "unused output"]  # loop outputs
+    model.add_from_palette("gain")
+    notes = [p.message for p in model.problems() if p.kind == "unused output"]
+    assert notes == ["unused output: gain2.y of block 'gain2' goes nowhere"]
+    assert PROBLEM_KINDS["unused output"] == "note"
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda m: m.connect("controller", "mu_n", "linearizer", "q"),
+     r"cannot connect controller\.mu_n \(2 signals\) to linearizer\.q \(4 signals\): the "
+     r"ports must be equally wide"),
+    (lambda m: m.connect("controller", "nope", "linearizer", "mu"),
+     r"block 'controller' has no output port 'nope'; its outputs: \['mu_n'\]"),
+    (lambda m: m.connect("ghost", "y", "linearizer", "mu"),
+     r"no block named 'ghost' in the diagram"),
+    (lambda m: m.disconnect("controller", "mu_n", "linearizer", "mu"),
+     r"no wire runs from controller\.mu_n to linearizer\.mu"),
+    (lambda m: m.delete_block("ghost"), r"no block named 'ghost'"),
+    (lambda m: m.add_block(sc.attitude_output()),
+     r"a block named 'output' is already in the diagram"),
+    (lambda m: m.add_block(np.eye(2)), r"a block must be a python-control I/O system"),
+    (lambda m: m.add_from_palette("lqr"), r"palette entry must be one of"),
+    (lambda m: m.set_parameter("controller", "G", 1.0),
+     r"block 'controller' has no parameter 'G'; its parameters: \['F'\]"),
+    (lambda m: m.set_parameter("controller", "F", float("nan")),
+     r"parameter 'F' of 'controller' must be finite"),
+])
+def test_every_refused_edit_says_why(call, message):
+    with pytest.raises(ValueError, match=message):
+        call(without_mec())
+
+
+def test_from_interconnect_refuses_a_single_block():
+    with pytest.raises(ValueError, match="sys must be a control.InterconnectedSystem"):
+        DiagramModel.from_interconnect(sc.attitude_output())
+
+
+def test_loading_json_needs_the_opened_blocks(tmp_path):
+    model = DiagramModel.from_interconnect(fig3())
+    data = model.to_dict()
+    with pytest.raises(ValueError, match="block 'plant' was taken from an opened diagram"):
+        DiagramModel.from_dict(data)
+    with pytest.raises(ValueError, match="not a saved diagram"):
+        DiagramModel.from_dict({"format": "other"})
+    other = {s.name: s for s in fig3().syslist}
+    other["output"] = sc.outer_controller(name="output")
+    with pytest.raises(ValueError, match=r"block 'output' has inputs \['r\[0\]'"):
+        DiagramModel.from_dict(data, systems=other)
+
+
+# ---------------------------------------------------------------------- the lecture's edit
+
+
+def test_fig3_without_mec_misses_the_pointing_requirement():
+    """The browser test's edit, from Python: delete MEC, wire the controller to the
+    linearized plant; the pointing error then misses 0.05 deg (the paper's claim)."""
+    model = DiagramModel.from_interconnect(fig3())
+    measure = _run.Measure("pointing error", [f"plant.q[{i}]" for i in range(4)],
+                           sc.pointing_error_deg, "deg", 0.05)
+    kwargs = dict(horizon=20000.0, initial=SPACECRAFT_X0, inputs={}, measures=[measure],
+                  scopes=["output.h[0]"])
+    before = _run.run_diagram(model, **kwargs)["measures"][0]
+    assert before["met"] and before["worst"] < 0.01
+    model.delete_block("mec")
+    model.connect("controller", "mu_n", "linearizer", "mu")
+    after = _run.run_diagram(model, **kwargs)
+    summary = after["measures"][0]
+    assert summary["met"] is False and 0.5 < summary["worst"] < 0.8
+    assert summary["text"].endswith("> 0.05 deg: requirement missed")
+    assert after["steps"] == 200_000 and len(after["time"]) == 1500
+    assert len(after["traces"][0]["y"]) == 1500
+
+
+def test_scoped_signals_are_the_blocks_outputs():
+    model = DiagramModel.from_interconnect(speed_loop())
+    result = _run.run_diagram(model, horizon=2.0, initial={}, inputs={"w_ref": 1.0},
+                              measures=[], scopes=["motor.w", "pi.v", "nothing.x"])
+    assert [t["name"] for t in result["traces"]] == ["motor.w", "pi.v"]
+    w = result["traces"][0]["y"]
+    assert w[0] == 0.0 and 0.5 < w[-1] < 1.1  # the PI drives w towards w_ref = 1
+    with pytest.raises(ValueError, match=r"inputs \['u'\] are not inputs of the diagram"):
+        _run.run_diagram(model, horizon=1.0, initial={}, inputs={"u": 1.0}, measures=[],
+                         scopes=[])
+
+
+def test_time_points_and_initial_state_checks():
+    with pytest.raises(ValueError, match="horizon must be a positive number of seconds"):
+        _run.time_points(-1.0, 0.1)
+    with pytest.raises(ValueError, match=r"horizon must be at least one sample \(0.1 s\)"):
+        _run.time_points(0.01, 0.1)
+    with pytest.raises(ValueError, match=r"initial state of block 'plant' must have 4 values"):
+        _run.stacked_state(output_zeroing_loop(), {"plant": [1.0]})
+
+
+# ---------------------------------------------------------------------- palette and sliders
+
+
+@pytest.mark.parametrize("key", PALETTE)
+def test_every_palette_block_builds_and_its_code_builds_the_same(key):
+    model = DiagramModel.from_interconnect(output_zeroing_loop(), source_name="original")
+    name = model.add_from_palette(key)
+    block = model.blocks[name].system
+    assert block.name == name
+    namespace = {"original": None}
+    source = model.code("edited")
+    line = next(line for line in source.splitlines() if f"name={name!r}" in line)
+    for head in source.splitlines():
+        if head.startswith(("import ", "from ")):
+            exec(head, namespace)
+    exec(line, namespace)
+    again = namespace[line.split(" = ")[0]]
+    assert (again.input_labels, again.output_labels, again.nstates, again.dt) == (
+        block.input_labels, block.output_labels, block.nstates, block.dt)
+    if block.nstates == 0 and block.ninputs:
+        u = np.linspace(0.3, 0.9, block.ninputs)
+        np.testing.assert_array_equal(again.output(0.0, [], u), block.output(0.0, [], u))
+
+
+def test_a_slider_rebuilds_the_block_from_its_recipe():
+    model = DiagramModel.from_interconnect(speed_loop())
+    model.add_from_palette("pi", kp=1.0, ki=0.5)
+    model.connect("error", "e", "pi2", "u")
+    assert model.parameters("pi2") == {"kp": 1.0, "ki": 0.5}
+    model.set_parameter("pi2", "kp", 3.0)
+    assert model.blocks["pi2"].system.num[0][0].tolist() == [3.0, 0.5]
+    assert [(w.src, w.dst) for w in model.wires if w.dst[0] == "pi2"] == [
+        (("error", "e"), ("pi2", "u"))]
+    assert "pi2 = ct.tf(ct.tf([3.0, 0.5], [1, 0]), inputs='u', outputs='y', name='pi2')" in (
+        model.code())
+
+
+def test_a_slider_on_an_opened_block_of_ours_changes_its_factory_argument():
+    model = DiagramModel.from_interconnect(fig3())
+    assert model.parameters("controller") == {"F": 0.0009}
+    model.set_parameter("controller", "F", 0.003)
+    assert np.array_equal(model.blocks["controller"].system.F, [0.003, 0.003])
+    assert model.blocks["controller"].system.output_labels == ["mu_n[0]", "mu_n[1]"]
+    assert len([w for w in model.wires if "controller" in (w.src[0], w.dst[0])]) == 6
+    assert model.inputs == [("r[0]", [("controller", "r[0]", 1.0)]),
+                            ("r[1]", [("controller", "r[1]", 1.0)])]
+
+
+def test_a_slider_on_a_params_dict_copies_the_block():
+    original = tank_loop()
+    model = DiagramModel.from_interconnect(original)
+    assert model.parameters("tank") == {"area": 1.5, "leak": 0.3}
+    model.set_parameter("tank", "leak", 0.6)
+    assert model.blocks["tank"].system.params == {"area": 1.5, "leak": 0.6}
+    assert original.syslist[0].params == {"area": 1.5, "leak": 0.3}  # the user's is untouched
+    assert model.system().params["leak"] == 0.6
+
+
+def test_a_notebook_variable_joins_by_name_and_is_written_by_name():
+    my_filter = ct.tf([1.0], [2.0, 1.0], name="my_filter", inputs="x", outputs="xf")
+    model = DiagramModel.from_interconnect(speed_loop(), source_name="loop")
+    model.add_variable("my_filter", my_filter)
+    model.add_variable("my_filter", my_filter)  # twice: a renamed copy
+    assert list(model.blocks)[-2:] == ["my_filter", "my_filter2"]
+    code = model.code()
+    assert "my_filter2 = my_filter.copy(name='my_filter2')" in code
+    assert "\nmy_filter = " not in code  # the variable itself is used as it is
+    with pytest.raises(ValueError, match="variable 'x' holds a int, not a python-control"):
+        model.add_variable("x", 3)
+
+
+@pytest.mark.parametrize("system, expected", [
+    (ct.tf([1.0], [1.0, 1.0]), False),
+    (ct.tf([1.0, 0.0], [1.0, 1.0]), True),
+    (sc.attitude_output(), True),          # declared by the controlkit block
+    (mec.nominal_model(0.1), False),
+    (ct.nlsys(lambda t, x, u, p: -x + u, lambda t, x, u, p: x, states=1, inputs=1,
+              outputs=1), False),           # probed: the output reads the state only
+    (ct.nlsys(None, lambda t, x, u, p: np.clip(u, -1, 1), inputs=1, outputs=1), True),
+])
+def test_feedthrough_is_read_or_probed(system, expected):
+    assert passes_input(system) is expected
+
+
+# ---------------------------------------------------------------------- the widget
+
+
+@pytest.fixture
+def editor():
+    pytest.importorskip("anywidget", reason="the widget extra (anywidget) is not installed")
+    from controlkit.widget import DiagramEditor
+
+    fig = fig3()
+    widget = DiagramEditor(fig, horizon=20000.0, initial=SPACECRAFT_X0,
+                           namespace={"fig": fig, "lag": ct.tf([1], [1, 1], name="lag"),
+                                      "number": 3})
+    widget.add_measure("pointing error", [f"plant.q[{i}]" for i in range(4)],
+                       sc.pointing_error_deg, unit="deg", limit=0.05, log=True)
+    return widget
+
+
+def test_the_widget_opens_where_the_drawing_places_the_blocks(editor):
+    from controlkit.drawing._layout import layout
+
+    L = layout(fig3())
+    blocks = {b["name"]: b for b in editor.diagram["blocks"]}
+    assert set(blocks) == {"plant", "output", "nominal", "gain", "controller", "mec",
+                           "linearizer"}
+    for name, b in blocks.items():  # 80 pixels per inch, y downwards
+        assert (b["x"], b["y"]) == pytest.approx((80 * L.nodes[name]["x"],
+                                                  -80 * L.nodes[name]["y"]))
+    assert blocks["linearizer"]["label"] == r"$\beta(q)\,\mu - \alpha(q)$"
+    assert blocks["plant"]["sub"] == "dt = 0.1"
+    # the junction F (r - h): signs on the controller's ports r and h
+    ports = {p["port"]: p for p in blocks["controller"]["inputs"]}
+    assert (ports["r"]["sign"], ports["h"]["sign"], ports["h"]["junction"]) == (1.0, -1.0, True)
+    assert editor.diagram["groups"] == [{"label": "$L_a$: linearized plant (Fig. 2)",
+                                         "members": ["linearizer", "plant", "output"]}]
+    assert editor.diagram["inputs"][0]["label"] == "r"
+    assert editor.variables == ["fig", "lag"]
+    assert editor.scopes == ["output.h[0]", "output.h[1]"]
+
+
+def test_the_widget_applies_the_front_ends_messages(editor):
+    editor._on_message(editor, {"op": "delete", "blocks": ["mec"]}, [])
+    assert "mec" not in editor.model.blocks
+    assert [p["kind"] for p in editor.problems if p["severity"] == "warning"] == [
+        "unconnected input"]
+    editor._on_message(editor, {"op": "connect", "source": ["controller", "mu_n"],
+                                "target": ["linearizer", "mu"]}, [])
+    assert not [p for p in editor.problems if p["severity"] != "note"]
+    editor._on_message(editor, {"op": "connect", "source": ["controller", "mu_n"],
+                                "target": ["linearizer", "q"]}, [])
+    assert editor.status.startswith("ValueError: cannot connect controller.mu_n (2 signals)")
+    editor._on_message(editor, {"op": "move", "positions": {"plant": [10, 20]}}, [])
+    assert editor.model.blocks["plant"].position == (10.0, 20.0)
+    editor._on_message(editor, {"op": "add", "key": "var:lag", "position": [0, 300]}, [])
+    editor._on_message(editor, {"op": "add", "key": "pi", "position": [0, 400]}, [])
+    assert list(editor.model.blocks)[-2:] == ["lag", "pi"]
+    assert editor.model.blocks["pi"].position == (0.0, 400.0)
+    editor._on_message(editor, {"op": "set_parameter", "block": "pi", "name": "kp",
+                                "value": 2.0}, [])
+    assert editor.model.parameters("pi") == {"kp": 2.0, "ki": 0.1}
+    editor._on_message(editor, {"op": "disconnect",
+                                "edges": [["controller", "mu_n", "linearizer", "mu"]]}, [])
+    assert "unconnected input: linearizer.mu" in editor.problems[0]["message"]
+    editor._on_message(editor, {"op": "scopes", "signals": ["plant.q[1]"]}, [])
+    assert editor.scopes == ["plant.q[1]"]
+    editor._on_message(editor, {"op": "wiggle"}, [])
+    assert editor.status == "ValueError: unknown operation 'wiggle'"
+
+
+def test_the_run_button_reports_the_requirement(editor):
+    editor.delete_block("mec")
+    editor.connect("controller", "mu_n", "linearizer", "mu")
+    editor._on_message(editor, {"op": "run", "horizon": 20000.0}, [])
+    assert editor.status.startswith("ran 200,000 steps in ")
+    (measure,) = editor.results["measures"]
+    assert measure["met"] is False
+    assert "requirement missed" in measure["text"]
+    assert editor.system.syslist[-1].name == "linearizer"
+    assert "['linearizer.mu[0:2]', 'controller.mu_n[0:2]']," in editor.code()
+
+
+def test_without_a_kernel_the_page_shows_the_drawing(editor, tmp_path):
+    data, _ = editor._repr_mimebundle_()
+    assert "application/vnd.jupyter.widget-view+json" in data
+    svg = data["image/svg+xml"]
+    assert svg.startswith("<?xml") and "Fig. 3: MEC with a constant gain K" in svg
+    editor.save(tmp_path / "fig3.json")
+    from controlkit.widget import DiagramEditor
+
+    again = DiagramEditor.load(tmp_path / "fig3.json", systems=fig3(), namespace={})
+    assert again.diagram["blocks"] == editor.diagram["blocks"]
+
+
+def test_the_bundle_is_committed_and_small():
+    from controlkit.widget._editor import STATIC
+
+    js, css = STATIC / "editor.js", STATIC / "editor.css"
+    assert 100_000 < js.stat().st_size < 600_000
+    assert css.stat().st_size < 40_000
+    assert "react-flow" in css.read_text()
+
+
+def test_code_of_a_diagram_edited_with_palette_blocks_and_variables_builds_it():
+    """Built in the editor, then rebuilt from its code: same diagram, same numbers."""
+    original = speed_loop()
+    my_lag = ct.tf([1.0], [0.2, 1.0], name="my_lag", inputs="a", outputs="b")
+    model = DiagramModel.from_interconnect(original, source_name="original")
+    model.disconnect("pi", "v", "motor", "v")
+    model.add_from_palette("saturation", limit=0.8)
+    model.add_variable("my_lag", my_lag)
+    model.connect("pi", "v", "saturation", "u")
+    model.connect("saturation", "y", "my_lag", "a")
+    model.connect("my_lag", "b", "motor", "v")
+    assert not [p for p in model.problems() if p.severity != "note"]
+    built = model.system()
+    namespace = {"original": original, "my_lag": my_lag}
+    exec(model.code("edited"), namespace)
+    assert_same_diagram(built, namespace["edited"])
+    np.testing.assert_allclose(response(namespace["edited"], 300, {}, 1.0),
+                               response(built, 300, {}, 1.0), rtol=0, atol=1e-12)
+    v = response(built, 300, {}, 1.0)[1]  # the PI's output, before the limiter
+    assert v.max() > 0.8  # the limiter has something to do
