@@ -183,7 +183,7 @@ def ecosystem(steps=200):
     loop = ct.interconnect([sample_nlsys(continuous, Ts, substeps=2), controller],
                            inputs="r", outputs=["H", "L", "u"], name="ecosystem_loop")
     T = np.arange(steps) * Ts
-    return loop, T, [xe[0] + 5.0, xe[1] - 3.0, 0.0], xe[1], {"growth": 1.65}
+    return loop, T, [xe[0] + 5.0, xe[1] - 3.0, 0.0], xe[1] * np.ones_like(T), {"growth": 1.65}
 
 
 # --- a bicycle following a lane change with gain-scheduled steering ------------------------
@@ -257,8 +257,8 @@ def steering(steps=200):
         outputs=["x", "y", "theta", "delta"], name="steering",
         params=reference.params | vehicle.params | controller.params)
     T = np.arange(steps) * TS
-    return loop, T, [0.0, -1.0, 0.0], [8.0, 1.0], {"pole_1": -0.8 + 0.8j,
-                                                   "pole_2": -0.8 - 0.8j}
+    U = np.vstack([8.0 * np.ones_like(T), np.ones_like(T)])
+    return loop, T, [0.0, -1.0, 0.0], U, {"pole_1": -0.8 + 0.8j, "pole_2": -0.8 - 0.8j}
 
 
 # --- model-reference adaptive control by the MIT rule ------------------------------------

@@ -177,6 +177,21 @@ def test_a_compiled_function_is_checked_at_the_runs_initial_state():
     assert ref.outputs[0, 1] == pytest.approx(0.9 * 7.0 + 0.5)
 
 
+def test_a_division_python_refuses_is_not_turned_into_inf_by_compiled_code():
+    # compiled code divides like numpy (inf); two Python floats divided by zero raise
+    def update(t, x, u, params):
+        return [x[0] + TS * params["a"] / params["b"]]
+
+    block = ct.nlsys(update, None, inputs=0, outputs="y", states=1, dt=TS, name="ratio",
+                     params={"a": 1.0, "b": 0.0})
+    loop = ct.interconnect([block], outputs="y")
+    row = engine.explain(loop)[0]
+    assert row.tier == "python" and "raises at every trial point" in row.reason
+    for which in ENGINES:
+        with pytest.raises(ZeroDivisionError):
+            simulate(loop, np.arange(3) * TS, [0.0], np.zeros((0, 3)), engine=which)
+
+
 def test_an_integer_parameter_used_as_an_index_compiles_as_an_integer():
     table = np.array([0.5, 1.0, 2.0, 4.0])
 
