@@ -177,6 +177,27 @@ def test_a_compiled_function_is_checked_at_the_runs_initial_state():
     assert ref.outputs[0, 1] == pytest.approx(0.9 * 7.0 + 0.5)
 
 
+class Settings:
+    """Values and a function a user function reads through an object."""
+
+
+def test_values_and_helpers_read_through_objects_are_read_again_at_each_run():
+    settings = Settings()
+    settings.umax, settings.shape = 1.0, lambda v: 2.0 * v
+
+    def limited(t, x, u, params):
+        return min(max(settings.shape(u[0]), -settings.umax), settings.umax)
+
+    loop = integrating(ct.nlsys(None, limited, inputs="u", outputs="v", dt=None,
+                                name="limited"))
+    T = np.arange(5) * TS
+    first = both_engines_agree(loop, T, [0.0], 0.4)
+    settings.umax, settings.shape = 0.5, lambda v: -3.0 * v  # changed between two runs
+    second = both_engines_agree(loop, T, [0.0], 0.4)
+    assert first.outputs[0, 0] == 0.8 and second.outputs[0, 0] == -0.5
+    assert engine.explain(loop)[0].tier == "compiled"
+
+
 def test_a_division_python_refuses_is_not_turned_into_inf_by_compiled_code():
     # compiled code divides like numpy (inf); two Python floats divided by zero raise
     def update(t, x, u, params):

@@ -41,6 +41,7 @@ import importlib
 import inspect
 import linecache
 import types
+import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -96,27 +97,32 @@ def _lambda_body(code):
     return node.body if isinstance(node, ast.Lambda) else node
 
 
-#: Parsed definitions by code object: ``(ast.arguments, body)`` or the NotCompilable.
+#: Definitions by code object: the def's source, written out once (or the NotCompilable).
 _PARSED: dict = {}
 
 
 def _definition(code):
-    """``(arguments, body)`` of the def or lambda whose code is ``code``.
+    """``(arguments, body)`` of the def or lambda whose code is ``code``, a fresh tree.
 
     The source is found from the code object itself, never through ``__wrapped__``
-    (``inspect.getsource`` of a decorated function gives the function it wraps).
+    (``inspect.getsource`` of a decorated function gives the function it wraps). It is
+    read once per code object and parsed again for each plan (``ast.parse`` is ten times
+    faster than copying the tree).
     """
     hit = _PARSED.get(code)
     if hit is None:
         try:
-            hit = _parse_definition(code)
+            arguments, body = _parse_definition(code)
+            node = ast.FunctionDef(name="f", args=arguments, body=body, decorator_list=[],
+                                   returns=None, type_params=[])
+            hit = ast.unparse(ast.fix_missing_locations(ast.Module([node], [])))
         except NotCompilable as why:
             hit = why
         _PARSED[code] = hit
     if isinstance(hit, NotCompilable):
         raise NotCompilable(str(hit))
-    arguments, body = hit
-    return arguments, copy.deepcopy(body)
+    node = ast.parse(hit).body[0]
+    return node.args, node.body
 
 
 def _parse_definition(code):
@@ -269,6 +275,21 @@ class Plan:
     opaque: str | None = None
     problem: str | None = None
     input_name: str | None = None
+    checks: list = field(default_factory=list)
+
+    def valid(self) -> bool:
+        """Whether everything this plan (and each plan it calls) read from outside its
+        function is still what it was: the same code and defaults, the same objects under
+        the same names, the same numbers in the same attributes and dicts. Arrays are
+        compared by identity: their contents are read again whenever code is written."""
+        for plan in self.tree():
+            fn = plan.function
+            if fn.__code__ is not plan.code or fn.__defaults__ is not plan.defaults \
+                    or fn.__kwdefaults__ is not plan.kwdefaults:
+                return False
+            if not all(_same(getter(), value) for getter, value in plan.checks):
+                return False
+        return True
 
     def tree(self):
         """This plan and every plan it calls, each once (callers first)."""
@@ -318,6 +339,12 @@ def plan_function(fn):
     >>> sorted(plan.params_read()), plan.why_not()
     (['J', 'b'], None)
     """
+    try:
+        cached = _PLANS.get(fn)
+    except TypeError:  # not hashable or not weakly referable: planned each time
+        cached = None
+    if cached is not None and cached.valid():
+        return cached
     target, bound, keywords = call_target(fn)
     build = _Build()
     call = [Frozen(v) for v in bound] + [RUNTIME, RUNTIME, RUNTIME, PARAMS]
@@ -327,7 +354,16 @@ def plan_function(fn):
     _definition(target.__code__)  # no source: NotCompilable, nothing is known
     plan = build.plan(target, bindings, name="user")
     plan.input_name = _input_name(bindings)
+    try:
+        _PLANS[fn] = plan
+    except TypeError:
+        pass
     return plan
+
+
+#: Plans by the callable they were made for, kept while it lives and used again while
+#: :meth:`Plan.valid` (a simulation asks for each block's plans several times).
+_PLANS = weakref.WeakKeyDictionary()
 
 
 def _input_name(bindings):
@@ -385,6 +421,8 @@ class _Build:
         self.count += 1
         plan = Plan(fn, name or f"_h{self.count}_{fn.__name__.strip('<>')}")
         plan.index = self.count
+        plan.code, plan.defaults, plan.kwdefaults = (fn.__code__, fn.__defaults__,
+                                                     fn.__kwdefaults__)
         self.plans[key] = plan
         try:
             _, body = _definition(fn.__code__)
@@ -470,16 +508,20 @@ def _store_counts(body):
     return counts
 
 
-def _string_items(node, scope):
-    """The strings of a literal list/tuple of strings (or of a name holding one), else None."""
+def _string_items(node, lookup):
+    """The strings of a literal list/tuple of strings (or of a name holding one), else None.
+
+    ``lookup(name)`` is ``(found, value)`` for a name read from outside the function.
+    """
     if isinstance(node, ast.List | ast.Tuple):
         if node.elts and all(isinstance(e, ast.Constant) and isinstance(e.value, str)
                              for e in node.elts):
             return [e.value for e in node.elts]
         return None
-    if isinstance(node, ast.Name) and node.id in scope:
-        value = scope[node.id]
-        if isinstance(value, list | tuple) and value and all(isinstance(v, str) for v in value):
+    if isinstance(node, ast.Name):
+        found, value = lookup(node.id)
+        if found and isinstance(value, list | tuple) and value \
+                and all(isinstance(v, str) for v in value):
             return list(value)
     return None
 
@@ -507,12 +549,12 @@ class _Unroll(ast.NodeTransformer):
     """Loops and comprehensions over a literal sequence of strings (params keys), written
     out one copy per string, so that each key is a constant."""
 
-    def __init__(self, scope):
-        self.scope = scope
+    def __init__(self, lookup):
+        self.lookup = lookup
 
     def visit_For(self, node):
         node = self.generic_visit(node)
-        keys = _string_items(node.iter, self.scope)
+        keys = _string_items(node.iter, self.lookup)
         if keys is None or not isinstance(node.target, ast.Name) or node.orelse \
                 or _has_jump(node.body):
             return node
@@ -526,7 +568,7 @@ class _Unroll(ast.NodeTransformer):
         if len(node.generators) != 1:
             return node
         gen = node.generators[0]
-        keys = _string_items(gen.iter, self.scope)
+        keys = _string_items(gen.iter, self.lookup)
         if keys is None or gen.ifs or not isinstance(gen.target, ast.Name):
             return node
         items = [_Substitute(gen.target.id, k).visit(copy.deepcopy(node.elt)) for k in keys]
@@ -546,11 +588,7 @@ class _Translator(ast.NodeTransformer):
 
     def __init__(self, build, plan, fn, bindings):
         self.build, self.plan, self.fn, self.bindings = build, plan, fn, bindings
-        self.scope = dict(vars(builtins))
-        self.scope.update(fn.__globals__)
-        if fn.__closure__:
-            self.scope.update(zip(fn.__code__.co_freevars,
-                                  (_cell(c) for c in fn.__closure__), strict=True))
+        self.fixed = {}       # names bound for this plan only: hoisted imports, objects
         self.sources = {}     # name -> RUNTIME (the params vector) or a frozen dict
         self.objects = set()  # names bound to objects read by attribute only
         self.renamed = {}     # free name -> module-level name
@@ -577,9 +615,9 @@ class _Translator(ast.NodeTransformer):
                                            ast.Name(frozen, ast.Load()), lineno=0))
                 kept.add(name)
             else:
-                self.scope[name] = binding.value  # an object, a module, a function
+                self.fixed[name] = binding.value  # an object, a module, a function
         body = self._hoist_imports(body)
-        body = [_Unroll(self.scope).visit(stmt) for stmt in body]
+        body = [_Unroll(self._lookup).visit(stmt) for stmt in body]
         body = [s for stmt in body for s in (stmt if isinstance(stmt, list) else [stmt])]
         counts = _store_counts(body)
         self._find_aliases(body, counts)
@@ -600,9 +638,9 @@ class _Translator(ast.NodeTransformer):
                 for alias in stmt.names:
                     module = importlib.import_module(alias.name)
                     if alias.asname:
-                        self.scope[alias.asname] = module
+                        self.fixed[alias.asname] = module
                     else:
-                        self.scope[alias.name.split(".")[0]] = importlib.import_module(
+                        self.fixed[alias.name.split(".")[0]] = importlib.import_module(
                             alias.name.split(".")[0])
             elif isinstance(stmt, ast.ImportFrom) and not stmt.level:
                 module = importlib.import_module(stmt.module)
@@ -610,7 +648,7 @@ class _Translator(ast.NodeTransformer):
                     if alias.name == "*":
                         self._problem("it imports * inside itself")
                         continue
-                    self.scope[alias.asname or alias.name] = getattr(module, alias.name)
+                    self.fixed[alias.asname or alias.name] = getattr(module, alias.name)
             else:
                 kept.append(stmt)
         return kept
@@ -661,8 +699,10 @@ class _Translator(ast.NodeTransformer):
         if isinstance(node, ast.Name) and node.id in self.strings:
             return self.strings[node.id]
         if isinstance(node, ast.Name) and node.id not in self.local \
-                and isinstance(self.scope.get(node.id), str):
-            return self.scope[node.id]
+                and node.id not in self.sources:
+            found, value = self._lookup(node.id)
+            if found and isinstance(value, str):
+                return value
         return _UNKNOWN
 
     def _read(self, source_name, key, how, default, node):
@@ -680,6 +720,8 @@ class _Translator(ast.NodeTransformer):
                              ast.Constant(how), default or ast.Constant(None)], [])
             return ast.copy_location(call, node)
         # a dict known when the plan is made (a default {}, a dict handed to a helper)
+        self.plan.checks.append((functools.partial(_global, source, key), source.get(
+            key, _MISSING)))
         if how == "in":
             return ast.copy_location(ast.Constant(key in source), node)
         if key in source:
@@ -772,7 +814,7 @@ class _Translator(ast.NodeTransformer):
                 and len(node.args) == 2 and isinstance(node.args[0], ast.Attribute) \
                 and self._is_source(node.args[0].value) \
                 and node.args[0].attr in ("get", "__getitem__"):
-            keys = _string_items(node.args[1], self.scope)
+            keys = _string_items(node.args[1], self._lookup)
             if keys is None:
                 self._opaque("params is mapped over keys that are not known")
                 return node
@@ -802,9 +844,32 @@ class _Translator(ast.NodeTransformer):
     # -- names and objects from outside -------------------------------------------------------
 
     def _lookup(self, name):
-        if name in self.scope:
-            return True, self.scope[name]
-        return False, None
+        """``(found, value)`` of a name read from outside the function, as Python finds it
+        now (closure, module, builtins); the read is recorded for :meth:`Plan.valid`."""
+        found, value, getter = self._lookup_getter(name)
+        if getter is not None:  # (a builtin is checked for not being shadowed since)
+            self.plan.checks.append((getter, getter()))
+        return found, value
+
+    def _lookup_getter(self, name):
+        if name in self.fixed:
+            return True, self.fixed[name], None
+        code = self.fn.__code__
+        if self.fn.__closure__ and name in code.co_freevars:
+            cell = self.fn.__closure__[code.co_freevars.index(name)]
+            return True, _cell(cell), functools.partial(_cell, cell)
+        module = self.fn.__globals__
+        getter = functools.partial(_global, module, name)
+        value = getter()
+        if value is not _MISSING:
+            return True, value, getter
+        if name in vars(builtins):
+            return True, vars(builtins)[name], getter
+        return False, None, getter
+
+    def _root_getter(self, name):
+        found, value, getter = self._lookup_getter(name)
+        return getter if getter is not None else (lambda: value)
 
     def _free(self, node):
         """A name read from outside the function: frozen, imported, or a helper."""
@@ -882,6 +947,9 @@ class _Translator(ast.NodeTransformer):
                 value, types.ModuleType)):
             value = self._evaluate(value, steps[done:done + 1])
             done += 1
+        if done:
+            self.plan.checks.append((functools.partial(
+                _reevaluate, self._root_getter(root), tuple(steps[:done])), value))
         text = root + "".join(f".{s}" if kind == "attr" else f"[{s!r}]"
                               for kind, s in steps[:done])
         return value, text, steps[done:]
@@ -1060,6 +1128,38 @@ def _cell(cell):
         return cell.cell_contents
     except ValueError:  # an empty cell: a name defined later in the enclosing function
         return None
+
+
+class _Missing:
+    def __repr__(self):
+        return "<missing>"
+
+
+_MISSING = _Missing()
+
+
+def _global(namespace, name):
+    return namespace.get(name, _MISSING)
+
+
+def _reevaluate(root, steps):
+    try:
+        return _Translator._evaluate(root(), steps)
+    except Exception:  # noqa: BLE001 - not readable now: the plan is out of date
+        return _MISSING
+
+
+def _same(a, b) -> bool:
+    """Whether a value read now is the one a plan was made with."""
+    if a is b:
+        return True
+    if type(a) is not type(b):
+        return False
+    if isinstance(a, str) or _is_number(a):
+        return bool(a == b) or (a != a and b != b)
+    if isinstance(a, types.MethodType):  # a new bound method object at each read
+        return a.__func__ is b.__func__ and a.__self__ is b.__self__
+    return False
 
 
 def _clip():

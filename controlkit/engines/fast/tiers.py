@@ -131,17 +131,18 @@ def _user_kernels(block, local, trial=None):
                  if f is not None]
     trials = [trial] if trial is not None else []
     try:
-        layout = usercode.ParamLayout.of([source.plan_function(f) for f in functions], local)
+        plans = [source.plan_function(f) for f in functions]
+        layout = usercode.ParamLayout.of(plans, local)
         output = common.state_output
         if block.outfcn is not None:
             output = usercode.compiled_kernel(block.outfcn, local, folder, block.noutputs,
                                               block.nstates, block.ninputs, layout=layout,
-                                              trials=trials).kernel
+                                              trials=trials, plan=plans[0]).kernel
         update = None
         if block.nstates:
             update = usercode.compiled_kernel(block.updfcn, local, folder, block.nstates,
                                               block.nstates, block.ninputs, layout=layout,
-                                              trials=trials).kernel
+                                              trials=trials, plan=plans[-1]).kernel
         params = layout.pack(local)
     except source.NotCompilable as why:
         return _python_kernels(block, local, f"user function not compiled: {why}")
