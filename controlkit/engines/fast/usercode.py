@@ -492,8 +492,8 @@ def load_kernel(source: str, folder: Path):
     >>> kernel(0.0, np.zeros(0), np.ones(1), np.zeros(0), np.empty(1)).tolist()
     [3.0]
     """
-    key = hashlib.sha256((source + str(_jit.HAVE_NUMBA) + str(_jit.CACHE_FORMAT)).encode()
-                         ).hexdigest()[:20]
+    key = hashlib.sha256((source + str(_jit.HAVE_NUMBA) + str(_jit.CACHE_FORMAT)
+                          + _COMPILE_OPTIONS).encode()).hexdigest()[:20]
     name = f"controlkit_user_{key}"
     if name in pysys.modules:
         return pysys.modules[name].kernel, name
@@ -524,6 +524,11 @@ def load_kernel(source: str, folder: Path):
         raise NotCompilable(f"its compiled module does not load ({type(error).__name__}: "
                             f"{error})") from None
     return kernel, name
+
+
+#: How the modules' functions are compiled, part of their names: numba's disk cache would
+#: otherwise hand back code compiled with other options from the same source.
+_COMPILE_OPTIONS = "inline=always,error_model=numpy"
 
 
 class CompiledKernel(NamedTuple):
