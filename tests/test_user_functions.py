@@ -213,6 +213,28 @@ def test_a_division_python_refuses_is_not_turned_into_inf_by_compiled_code():
             simulate(loop, np.arange(3) * TS, [0.0], np.zeros((0, 3)), engine=which)
 
 
+def optional_offset(t, x, u, params):
+    gain = params["gain"] if params["enabled"] else 0.0
+    if "offset" in params:  # read only when given
+        gain = gain + params["offset"]
+    low, high = params["band"]
+    extra = 0.0 if params.get("note") is None else 1.0
+    return [x[0] + TS * (gain * np.clip(u[0], low, high) - x[0] + extra + params["M"][1, 0])]
+
+
+@pytest.mark.parametrize("params", [None, {"enabled": False}, {"offset": 1.5},
+                                    {"band": [-1, 2], "gain": 0.5, "note": 3}])
+def test_bool_none_tuple_and_matrix_values_and_optional_keys_compile(params):
+    block = ct.nlsys(optional_offset, None, inputs="u", outputs="y", states=1, dt=TS,
+                     name="block", params={"gain": 2, "enabled": True, "band": (-0.5, 0.5),
+                                           "note": None, "M": np.array([[1.0, 2.0],
+                                                                        [3.0, 4.0]])})
+    loop = ct.interconnect([block], inputs="u", outputs="y")
+    assert engine.explain(loop, params=params)[0].tier == "compiled"
+    T = np.arange(20) * TS
+    both_engines_agree(loop, T, [0.0], np.sin(T), params=params)
+
+
 def test_an_integer_parameter_used_as_an_index_compiles_as_an_integer():
     table = np.array([0.5, 1.0, 2.0, 4.0])
 

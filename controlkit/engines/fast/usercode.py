@@ -122,6 +122,22 @@ if _jit.HAVE_NUMBA:
         return impl
 
 
+@_jit.jit
+def missing_parameter(key):
+    """What a compiled ``params[key]`` becomes when ``params`` has no ``key``: Python's
+    ``KeyError`` if it runs (numba refuses to compile it unless it is in a branch that
+    can never run, such as one under ``if key in params:``).
+
+    Examples
+    --------
+    >>> missing_parameter("kp")
+    Traceback (most recent call last):
+    ...
+    KeyError: 'kp'
+    """
+    raise KeyError(key)
+
+
 # --- the packed parameter vector ----------------------------------------------------------
 
 #: Integers up to this size are exact in a float64 (larger ones run as Python).
@@ -264,8 +280,10 @@ class _Reads(ast.NodeTransformer):
         if e.kind == "absent":
             if how.value == "in":
                 return ast.copy_location(ast.Constant(False), node)
-            if how.value == "item":
-                raise NotCompilable(f"params has no key {key.value!r}")
+            if how.value == "item":  # KeyError if run, as in Python (``if "k" in params:``
+                # around it compiles to ``if False:``, which numba drops)
+                return ast.copy_location(ast.Call(ast.Name("_ck_missing", ast.Load()),
+                                                  [ast.Constant(key.value)], []), node)
             return default
         if how.value == "in":
             return ast.copy_location(ast.Constant(True), node)
@@ -431,7 +449,9 @@ def kernel_source(fn, values: dict, direct: bool = False, *, layout=None, exact=
     if isinstance(written[key], NotCompilable):
         raise NotCompilable(str(written[key]))
     functions, call = written[key]
-    imports = ["import numpy as _np_", "from controlkit.engines.fast.usercode import store"]
+    imports = ["import numpy as _np_",
+               "from controlkit.engines.fast.usercode import missing_parameter as _ck_missing",
+               "from controlkit.engines.fast.usercode import store"]
     lines = []
     for each in plan.tree():  # read now: an array may have been changed in place
         for name, value in each.frozen.items():
