@@ -263,10 +263,16 @@ class Plan:
         Why it cannot be compiled.
     input_name : str or None
         The name of its argument bound to ``u`` (for the top plan).
+    checks : list
+        ``(read, value)`` for each value read from outside the function: ``read()`` reads
+        it again (see :meth:`valid`).
+    written : dict
+        The compiler's text of the plan's functions, by parameter layout.
     """
 
     function: object
     name: str
+    index: int = 0
     arguments: list = field(default_factory=list)
     body: list = field(default_factory=list)
     frozen: dict = field(default_factory=dict)
@@ -276,6 +282,10 @@ class Plan:
     problem: str | None = None
     input_name: str | None = None
     checks: list = field(default_factory=list)
+    code: object = None
+    defaults: object = None
+    kwdefaults: object = None
+    written: dict = field(default_factory=dict)
 
     def valid(self) -> bool:
         """Whether everything this plan (and each plan it calls) read from outside its
@@ -419,10 +429,8 @@ class _Build:
         if key in self.plans:
             return self.plans[key]
         self.count += 1
-        plan = Plan(fn, name or f"_h{self.count}_{fn.__name__.strip('<>')}")
-        plan.index = self.count
-        plan.code, plan.defaults, plan.kwdefaults = (fn.__code__, fn.__defaults__,
-                                                     fn.__kwdefaults__)
+        plan = Plan(fn, name or f"_h{self.count}_{fn.__name__.strip('<>')}", self.count,
+                    code=fn.__code__, defaults=fn.__defaults__, kwdefaults=fn.__kwdefaults__)
         self.plans[key] = plan
         try:
             _, body = _definition(fn.__code__)
@@ -431,7 +439,11 @@ class _Build:
             if any(b == PARAMS or _is_dict_binding(b) for b in bindings.values()):
                 plan.opaque = f"params is handed to {fn.__qualname__}, whose source is unknown"
             return plan
-        _Translator(self, plan, fn, bindings).translate(body)
+        try:
+            _Translator(self, plan, fn, bindings).translate(body)
+        except Exception as error:  # noqa: BLE001 - a construct not foreseen: nothing known
+            plan.problem = plan.opaque = (f"it could not be read ({type(error).__name__}: "
+                                          f"{error})")
         return plan
 
 
@@ -590,7 +602,6 @@ class _Translator(ast.NodeTransformer):
         self.build, self.plan, self.fn, self.bindings = build, plan, fn, bindings
         self.fixed = {}       # names bound for this plan only: hoisted imports, objects
         self.sources = {}     # name -> RUNTIME (the params vector) or a frozen dict
-        self.objects = set()  # names bound to objects read by attribute only
         self.renamed = {}     # free name -> module-level name
         self.strings = {}     # name -> the one string it is assigned
 
@@ -886,7 +897,6 @@ class _Translator(ast.NodeTransformer):
             return node if plan is None else ast.copy_location(ast.Name(plan.name, ast.Load()),
                                                                node)
         if not _is_plain(value):
-            self.objects.add(name)
             self._problem(f"it reads {name!r}, a {type(value).__name__}, which numba "
                           f"cannot compile")
             return node

@@ -439,7 +439,7 @@ def kernel_source(fn, values: dict, direct: bool = False, *, layout=None, exact=
     if why is not None:
         raise NotCompilable(why)
     layout = layout or ParamLayout.of([plan], values)
-    written = plan.__dict__.setdefault("written", {})  # the functions' text, per layout
+    written = plan.written  # the functions' text, per layout
     key = (layout.entries, bool(direct), bool(exact))
     if key not in written:
         try:
