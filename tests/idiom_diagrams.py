@@ -132,8 +132,8 @@ def servo(steps=200):
         limit = params.get("umax_ctrl", actuator.params["umax"])  # read from another block
         error, command = pid_terms(x, u, params)
         saturated = np.clip(command, -limit, limit)
-        a = params["a"]
-        return [x[0] + TS * (ki * error + params["kaw"] * (saturated - command)),
+        kaw, a = [params[name] for name in ("kaw", "a")]
+        return [x[0] + TS * (ki * error + kaw * (saturated - command)),
                 x[1] + TS * (-a * x[1] - a * u[1])]
 
     def pid_output(t, x, u, params):
