@@ -230,7 +230,13 @@ PARAMS = "params"
 @dataclass(eq=False)
 class Frozen:
     """A function argument bound to a value known when the plan is made (dropped from
-    the compiled signature): a partial's argument, a default, a method's ``self``."""
+    the compiled signature): a partial's argument, a default, a method's ``self``.
+
+    Examples
+    --------
+    >>> Frozen(2.0).value
+    2.0
+    """
 
     value: object
 
@@ -268,6 +274,14 @@ class Plan:
         it again (see :meth:`valid`).
     written : dict
         The compiler's text of the plan's functions, by parameter layout.
+
+    Examples
+    --------
+    >>> def pi_output(t, x, u, params):
+    ...     return params.get("kp", 0.5) * u[0] + params["ki"] * x[0]
+    >>> plan = plan_function(pi_output)
+    >>> plan.arguments, sorted(plan.keys), plan.why_not()
+    (['t', 'x', 'u', 'params'], ['ki', 'kp'], None)
     """
 
     function: object

@@ -146,7 +146,13 @@ _EXACT_INT = 2 ** 53
 
 class ParamEntry(NamedTuple):
     """Where one parameter sits in ``p``: ``kind`` is ``float``, ``int``, ``bool``,
-    ``complex``, ``none``, ``absent`` or ``array-f``/``array-i``/``array-b``."""
+    ``complex``, ``none``, ``absent`` or ``array-f``/``array-i``/``array-b``.
+
+    Examples
+    --------
+    >>> ParamLayout(["pole"], {"pole": -0.5 + 1j}).entries[0]
+    ParamEntry(key='pole', kind='complex', shape=(), offset=0, size=2)
+    """
 
     key: object
     kind: str
@@ -552,7 +558,16 @@ _COMPILE_OPTIONS = "inline=always,error_model=numpy"
 
 
 class CompiledKernel(NamedTuple):
-    """A user function compiled: ``kernel(t, x, u, p, out)``, and ``pack(values) -> p``."""
+    """A user function compiled: ``kernel(t, x, u, p, out)``, and ``pack(values) -> p``.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> f = lambda t, x, u, params: [params["k"] * u[0]]
+    >>> compiled = compiled_kernel(f, {"k": 2.0}, Path(tempfile.mkdtemp()), 1, 0, 1)
+    >>> compiled.pack({"k": 5.0}).tolist(), compiled.layout.size
+    ([5.0], 1)
+    """
 
     kernel: object
     pack: object
