@@ -588,6 +588,8 @@ def _trial_points(n_x, n_u, trials):
 
 
 def _is_compile_error(error) -> bool:
+    if isinstance(error, RecursionError):  # a recursive helper, inlined without end
+        return True
     if not _jit.HAVE_NUMBA:
         return False
     from numba.core.errors import NumbaError
