@@ -11,10 +11,17 @@ from collections.abc import Callable
 
 import control as ct
 import numpy as np
+from control.timeresp import TimeResponseList
 
 from . import _checks, engines
 from .blocks.contract import check_initial_state
-from .engines.contract import UnsupportedSystem, check_arguments
+from .engines.contract import (
+    UnsupportedSystem,
+    check_arguments,
+    python_control_arguments,
+    response,
+    result_flags,
+)
 from .engines.params import check_params
 
 
@@ -145,3 +152,93 @@ def simulate(
                           f"{reason} (controlkit.engines.fast.explain(sys) lists every "
                           f"block's tier)", stacklevel=2)
     return engines.backend("python-control").simulate(sys, T, X0, U, **options)
+
+
+def input_output_response(sys, timepts=None, inputs=0.0, initial_state=0.0, params=None,
+                          ignore_errors=False, transpose=False, return_states=False,
+                          squeeze=None, solve_ivp_kwargs=None, evaluation_times="T", *,
+                          engine="fast", **kwargs):
+    """:func:`control.input_output_response`, compiled where it can be, for any diagram.
+
+    Takes python-control's arguments in python-control's order, with its aliases
+    (``T``, ``U``, ``X0``, ``return_x``, ``t_eval``, ``solve_ivp_method``, ``method``) and
+    rules (a list of systems gives a list of responses; a short ``X0`` is padded with
+    zeros, with python-control's warning), and returns what it returns, a
+    :class:`control.TimeResponseData`: a user switches by changing one import. Where the
+    diagram can run on the fast engine (:mod:`controlkit.engines.fast`) it does, with the
+    same numbers; otherwise python-control runs it, with a warning naming the block and
+    why (:func:`controlkit.engines.fast.explain`). A diagram of continuous and discrete
+    blocks (:func:`controlkit.interconnect`), which python-control cannot simulate, runs
+    with the semantics described in :mod:`controlkit.sampled_data`.
+
+    Parameters
+    ----------
+    sys, timepts, inputs, initial_state, params, ignore_errors, transpose, \
+return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
+        As for :func:`control.input_output_response` (python-control 0.10).
+    engine : {"fast", "python-control"}
+        ``"python-control"`` always runs python-control (for a sampled-data diagram,
+        controlkit's plain-Python reference, :func:`controlkit.engines.reference.
+        simulate_sampled_data`).
+
+    Returns
+    -------
+    control.TimeResponseData or control.TimeResponseList
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> sys = ct.nlsys(lambda t, x, u, p: 0.5 * x + u, inputs=1, states=1, outputs=1, dt=1)
+    >>> input_output_response(sys, np.arange(4.0), 1.0, 1.0).outputs.tolist()
+    [1.0, 1.5, 1.75, 1.875]
+    """
+    from control.config import _process_kwargs, _process_param
+    from control.timeresp import _timeresp_aliases
+
+    _process_kwargs(kwargs, _timeresp_aliases)
+    T = _process_param("timepts", timepts, kwargs, _timeresp_aliases)
+    U = _process_param("inputs", inputs, kwargs, _timeresp_aliases, sigval=0.0)
+    X0 = _process_param("initial_state", initial_state, kwargs, _timeresp_aliases,
+                        sigval=0.0)
+    return_x = _process_param("return_states", return_states, kwargs, _timeresp_aliases,
+                              sigval=False)
+    t_eval = _process_param("evaluation_times", evaluation_times, kwargs,
+                            _timeresp_aliases, sigval="T")
+    options = dict(params=params, ignore_errors=ignore_errors, transpose=transpose,
+                   return_states=return_x, squeeze=squeeze, evaluation_times=t_eval,
+                   solve_ivp_kwargs=dict(solve_ivp_kwargs or {}), **kwargs)
+    if engine not in engines.ENGINES:
+        raise ValueError(f"engine must be one of {engines.ENGINES}, got {engine!r}")
+    if isinstance(sys, list | tuple):
+        return TimeResponseList([input_output_response(s, T, U, X0, engine=engine, **options)
+                                 for s in sys])
+    from .sampled_data import SampledDataSystem
+
+    if isinstance(sys, SampledDataSystem):
+        return _sampled_data_response(sys, T, U, X0, engine, options)
+    if engine == "fast":
+        try:
+            return engines.backend("fast").response(sys, T, U, X0, **options)
+        except UnsupportedSystem as reason:
+            warnings.warn(f"fast engine not used, running python-control instead: {reason} "
+                          f"(controlkit.explain(sys) lists every block's tier)", stacklevel=2)
+    return ct.input_output_response(sys, T, U, X0, **options)
+
+
+def _sampled_data_response(sys, T, U, X0, engine, options):
+    """A sampled-data diagram: compiled where it can be, else the plain-Python reference."""
+    from .engines import reference
+
+    arguments = python_control_arguments(sys, T, U, X0, options)
+    if engine == "fast":
+        try:
+            return engines.backend("fast").response(sys, T, U, X0, **options)
+        except UnsupportedSystem as reason:
+            warnings.warn(f"fast engine not used, running controlkit's Python reference "
+                          f"instead: {reason}", stacklevel=3)
+    T, U, X0, t_eval, method, solve_ivp_kwargs = arguments
+    resp = reference.simulate_sampled_data(sys, T, X0, U, params=options["params"],
+                                           t_eval=t_eval, method=method,
+                                           solve_ivp_kwargs=solve_ivp_kwargs)
+    return response(sys, resp.time, resp.outputs, resp.states, resp.inputs,
+                    **result_flags(options))

@@ -300,3 +300,73 @@ def test_two_external_inputs_into_a_junction_keep_their_own_arrows_and_signs():
                      and (p.get_gid() or "").startswith("net:inputs:")]
     assert len(into_junction) == 2
     plt.close(fig)
+
+
+# --- the layout's invariants, on the numbers it hands to the renderer -----------------------
+
+def feedforward_loop_with_sensor():
+    """A prefilter, a feedforward gain in parallel, a disturbance and a sensor H in the loop."""
+    F = ct.tf2ss(ct.tf([1], [0.5, 1]), name="prefilter", inputs="r", outputs="rf")
+    FF = ct.ss([], [], [], [[0.8]], inputs="r", outputs="uff", name="ff")
+    C = ct.tf2ss(ct.tf([2, 1], [1, 0]), name="C", inputs="e", outputs="ufb")
+    err = ct.summing_junction(inputs=["rf", "-ym"], output="e", name="err")
+    usum = ct.summing_junction(inputs=["ufb", "uff", "d"], output="u", name="usum")
+    P = ct.tf2ss(ct.tf([1], [1, 2, 1]), name="P", inputs="u", outputs="y")
+    H = ct.tf2ss(ct.tf([1], [0.02, 1]), name="H", inputs="y", outputs="ym")
+    return ct.interconnect([F, FF, err, C, usum, P, H], inputs=["r", "d"], outputs=["y", "u"],
+                           name="feedforward")
+
+
+@pytest.mark.parametrize("build", [feedforward_loop_with_sensor, user_loop, sampled_loop,
+                                   PAPER["fig4"], PAPER["cmg"]])
+def test_layout_keeps_blocks_apart_ports_on_edges_and_runs_outside_blocks(build):
+    from controlkit.drawing._layout import layout
+
+    L = layout(build())
+    nodes, eps = L.nodes, 1e-9
+    box = {n: (d["x"] - d["w"] / 2, d["x"] + d["w"] / 2, d["y"] - d["h"] / 2, d["y"] + d["h"] / 2)
+           for n, d in nodes.items()}
+    names = list(nodes)
+    for i, a in enumerate(names):  # no two blocks overlap: a gap of at least 0.4 in
+        for b in names[i + 1:]:
+            (ax0, ax1, ay0, ay1), (bx0, bx1, by0, by1) = box[a], box[b]
+            apart = max(bx0 - ax1, ax0 - bx1, by0 - ay1, ay0 - by1)
+            assert apart >= 0.4, (a, b, apart)
+    for (_net, n), (x, y) in L.port_xy.items():  # outputs leave from the block's side
+        x0, x1, y0, y1 = box[n]
+        assert x == pytest.approx(x0 if nodes[n].get("flip") else x1) and y0 < y < y1, n
+    for (_net, n), (x, y, side) in L.in_xy.items():  # inputs arrive on the block's edge
+        x0, x1, y0, y1 = box[n]
+        if nodes[n]["shape"] == "sum":
+            assert np.hypot(x - nodes[n]["x"], y - nodes[n]["y"]) == pytest.approx(0.2), n
+        else:
+            assert x == pytest.approx(x1 if side == "right" else x0) and y0 < y < y1, n
+    for net in L.nets:  # a "next" arrow goes one column right (or into a flipped sensor)
+        for b, kind in net.kinds.items():
+            src = L.layer.get(net.src, -1)
+            expected = {"next": L.layer[b] == src + 1 or nodes[b].get("feeder") == net.src,
+                        "skip": L.layer[b] > src + 1, "back": L.layer[b] <= src}[kind]
+            assert expected, (net.label, b, kind)
+    for x in L.track_x.values():  # vertical runs lie in the gaps, through no block
+        assert not any(x0 - eps <= x <= x1 + eps for x0, x1, _, _ in box.values()), x
+    top = max(y1 for *_, y1 in box.values())
+    bottom = min(y0 for _, _, y0, _ in box.values())
+    assert all(y > top for y in L.lane_top.values())
+    assert all(y < bottom for net, y in L.lane_bottom.items()
+               if net not in L.local_nets and not nodes[net.src].get("flip"))
+    left, right = L.x_mid - L.width / 2, L.x_mid + L.width / 2
+    for n, (x0, x1, y0, y1) in box.items():  # every block on the page
+        assert left < x0 and x1 < right and L.y_bottom < y0 and y1 < L.y_top, n
+    assert L.width / L.height <= 2.5 + 1e-9
+
+
+def test_the_feedback_sensor_and_the_feedforward_get_rows_below_the_main_path():
+    from controlkit.drawing._layout import layout
+
+    L = layout(feedforward_loop_with_sensor())
+    main = [n for n in L.nodes if L.row[n] == 0]
+    assert [n for n in sorted(main, key=L.layer.get)] == ["prefilter", "err", "C", "usum", "P"]
+    assert L.nodes["H"].get("flip") and L.layer["H"] == L.layer["P"] and L.row["H"] == 1
+    assert L.layer["ff"] == L.layer["prefilter"] and L.row["ff"] == 1
+    ym = next(net for net in L.nets if net.src == "H")
+    assert ym.kinds == {"err": "back"}

@@ -1,12 +1,28 @@
-"""Layered layout of a block diagram: columns, rows, ports, tracks and lanes."""
+"""Layered layout of a block diagram: columns, rows, ports, tracks and lanes.
+
+:func:`layout` runs named stages in order. Each decides one thing, writes it into the
+shared :class:`_Draft` and leaves the rest to the next stages:
+
+1. :func:`_place_blocks` - each block's column and row (and the junctions of implicit sums);
+2. :func:`_size_blocks` - each block's width and height, from its text and its ports;
+3. :func:`_classify_nets` - each connection: to the next column, skipping columns, back, out;
+4. :func:`_place_rows` - the y of each row, with room for feedback inside a frame;
+5. :func:`_place_columns` - the x of each column and the width of the gaps between them;
+6. :func:`_place_ports` - where each net leaves and enters a block (:mod:`._routing`);
+7. :func:`_place_tracks` and :func:`_place_lanes` - the vertical runs in the gaps and the
+   horizontal runs above and below the rows (:mod:`._routing`);
+8. :func:`_frame` - the title and the page's extent, as a :class:`DiagramLayout`.
+
+Lengths are in inches (the figure is drawn one unit per inch, so text keeps its size in
+points), x to the right, y up, row 0 at ``y = 0``.
+"""
 
 from __future__ import annotations
 
 from collections import defaultdict
-from types import SimpleNamespace
+from dataclasses import dataclass, field
 
-import numpy as np
-
+from ._draft import _LANE_PITCH, _PORT_PITCH, _TRACK_PITCH, _Draft, _text_size
 from ._graph import (
     _IN,
     _OUT,
@@ -17,178 +33,205 @@ from ._graph import (
     compress_signals,
     diagram_graph,
 )
-
-# ----------------------------------------------------------------------------- text sizes
-
-def _text_size(text, size, math=False, weight="normal"):
-    """Width and height of ``text`` in inches."""
-    from matplotlib.font_manager import FontProperties
-    from matplotlib.textpath import text_to_path
-
-    prop = FontProperties(size=size, weight=weight)
-    lines = text.split("\n")
-    w = max(text_to_path.get_text_width_height_descent(line, prop, ismath=bool(math))[0]
-            for line in lines)
-    return float(w) / 72.0, len(lines) * size * 1.25 / 72.0
+from ._ordering import _columns, _feedback_elements, _rows, _vertical_ok
+from ._routing import _place_lanes, _place_ports, _place_tracks
 
 
-# ----------------------------------------------------------------------------- layout
+@dataclass(frozen=True)
+class DiagramLayout:
+    """Where everything of a block diagram goes, in inches: what the renderer draws.
 
-def _columns(nodes, nets, beside):
-    """Columns by longest path once the DFS back edges (feedback) are removed."""
-    names = [n for n in nodes]
-    succ = defaultdict(list)
-    for net in nets:
-        if net.src in nodes and net.src not in beside:
-            for b, _, _ in net.dests:
-                if b in nodes and b != net.src and b not in succ[net.src]:
-                    succ[net.src].append(b)
-    entries = [b for net in nets if net.src == _IN for b, _, _ in net.dests if b in nodes]
-    fed = {b for a in succ for b in succ[a]}
-    roots = list(dict.fromkeys(entries)) + [n for n in names if n not in fed]
-    state, back = {}, set()
+    Attributes
+    ----------
+    nodes : dict
+        ``{block: node}``; a node dict holds ``shape`` (``"block"``, ``"group"``,
+        ``"gain"``, ``"sum"``), ``label``/``math``/``sub`` (the texts), the centre
+        ``x``, ``y`` and the size ``w``, ``h``, ``flip`` for a block drawn pointing back
+        (a sensor in the feedback path) and ``spare_xy``/``unused_xy`` for loose ends.
+    nets : list
+        The drawn signals (``_graph._Net``), each with ``kinds`` (``{block: "next" |
+        "skip" | "back"}``), ``out``, ``far`` and ``dangling`` (how it leaves the loop).
+    layer, row : dict
+        ``{block: column}``, ``{block: row}`` (row 0 the main path, others below).
+    port_xy : dict
+        ``{(net, block): (x, y)}`` where a net leaves its source block.
+    in_xy : dict
+        ``{(net, block): (x, y, side)}`` where it enters, and from which side.
+    track_x : dict
+        ``{(net, "exit") | (net, column): x}``: the vertical runs in the gaps.
+    lane_top, lane_bottom : dict
+        ``{net: y}``: horizontal runs above the rows (skips) and below them (feedback).
+    local_nets : set
+        Feedback inside one frame on one row, run under that row instead of the page.
+    groups : dict
+        ``{frame label: [blocks]}``, the frames to draw.
+    graph : dict
+        :func:`~controlkit.drawing.diagram_graph` of the system (loose ends).
+    gap_x : dict
+        ``{gap: x}``, the left edge of the gap left of each column (gap ``ncol`` the last).
+    x_right : float
+        Where signals leaving the loop end.
+    fonts : tuple of float
+        Sizes in points of signal labels, block names and second lines.
+    title : str
+        The title; ``title_math`` says whether it is TeX.
+    y_title, x_mid : float
+        The title's centre.
+    width, height : float
+        The page, at most 2.5 times wider than high.
+    y_top, y_bottom : float
+        The page's top and bottom edges.
+    """
 
-    def visit(n):
-        state[n] = 1
-        for m in succ[n]:
-            if state.get(m) == 1:
-                back.add((n, m))
-            elif m not in state:
-                visit(m)
-        state[n] = 2
-
-    for n in roots + names:
-        if n not in state:
-            visit(n)
-    layer = dict.fromkeys(names, 0)
-    for _ in names:
-        for a in names:
-            for b in succ[a]:
-                if (a, b) not in back:
-                    layer[b] = max(layer[b], layer[a] + 1)
-    fed_forward = {b for a in names for b in succ[a] if (a, b) not in back}
-    for n in names:  # a source (a constant gain) sits just before the block it feeds
-        after = [layer[b] for b in succ[n] if (n, b) not in back]
-        if n not in fed_forward and n not in entries and after:
-            layer[n] = max(layer[n], min(after) - 1)
-    for n, other in beside.items():
-        if other in layer:
-            layer[n] = layer[other]
-    used = sorted(set(layer.values()))
-    return {n: used.index(v) for n, v in layer.items()}, entries
-
-
-def _rows(nodes, nets, layer, entries, order, row_hint):
-    """Row 0 for the longest chain of neighbouring columns, parallel branches below."""
-    preds = defaultdict(set)
-    for net in nets:
-        for b, _, _ in net.dests:
-            if net.src in nodes and b in nodes and layer[b] == layer[net.src] + 1:
-                preds[b].add(net.src)
-    best, prev = {}, {}
-    for n in sorted(nodes, key=lambda n: (layer[n], order[n])):
-        cands = sorted(preds[n], key=lambda p: (-best[p], p not in entries, order[p]))
-        best[n] = 1 + (best[cands[0]] if cands else 0)
-        prev[n] = cands[0] if cands else None
-    end = min(nodes, key=lambda n: (-best[n], -layer[n], order[n]))
-    row, n = {}, end
-    while n is not None:
-        row[n] = 0
-        n = prev[n]
-    columns = defaultdict(list)
-    for n in nodes:
-        columns[layer[n]].append(n)
-    for c in sorted(columns):
-        rest = [n for n in columns[c] if n not in row]
-        taken = {row[n] for n in columns[c] if n in row}
-
-        def pull(n):
-            ys = [row[p] for p in preds[n] if p in row]
-            return (row_hint.get(n, 0), np.mean(ys) if ys else 0.0, order[n])
-
-        r = 1
-        for n in sorted(rest, key=pull):
-            r = max(r, row_hint.get(n, r))
-            while r in taken:
-                r += 1
-            row[n] = r
-            taken.add(r)
-    return row
+    nodes: dict
+    nets: list
+    layer: dict
+    row: dict
+    port_xy: dict
+    in_xy: dict
+    track_x: dict
+    lane_top: dict
+    lane_bottom: dict
+    local_nets: set
+    groups: dict
+    graph: dict
+    gap_x: dict
+    x_right: float
+    fonts: tuple[float, float, float]
+    title: str
+    title_math: bool
+    y_title: float
+    x_mid: float
+    width: float
+    height: float
+    y_top: float
+    y_bottom: float
 
 
-# ----------------------------------------------------------------------------- drawing
+@dataclass
+class _Hints:
+    """How the diagram is asked to look: ``sys.drawing_hints`` merged with the arguments.
 
-def _hints(sys, labels, groups):
-    hints = dict(getattr(sys, "drawing_hints", None) or {})
-    merged_labels = dict(hints.get("labels", {}))
-    for s in sys.syslist:
-        if getattr(s, "display_name", None):
-            merged_labels.setdefault(s.name, s.display_name)
-    merged_labels.update(labels or {})
-    merged_groups = dict(hints.get("groups", {}))
-    merged_groups.update(groups or {})
-    return (merged_labels, merged_groups, dict(hints.get("beside", {})),
-            dict(hints.get("rows", {})), dict(hints.get("notes", {})))
+    ``labels`` (display names, TeX: the hints', then blocks' ``display_name``, then the
+    ``labels`` argument), ``groups`` (frames), ``beside`` (``{block: other}``: share a
+    column), ``rows`` (``{block: row}``), ``notes`` (second lines), ``sums``
+    (``{block: {input: sign}}``) and ``title``.
+    """
+
+    labels: dict
+    groups: dict
+    beside: dict = field(default_factory=dict)
+    rows: dict = field(default_factory=dict)
+    notes: dict = field(default_factory=dict)
+    sums: dict = field(default_factory=dict)
+    title: str | None = None
+
+    @classmethod
+    def of(cls, sys, labels, groups):
+        """The hints of ``sys``, with the ``labels`` and ``groups`` arguments on top."""
+        hints = dict(getattr(sys, "drawing_hints", None) or {})
+        merged_labels = dict(hints.get("labels", {}))
+        for s in sys.syslist:
+            if getattr(s, "display_name", None):
+                merged_labels.setdefault(s.name, s.display_name)
+        merged_labels.update(labels or {})
+        merged_groups = dict(hints.get("groups", {}))
+        merged_groups.update(groups or {})
+        return cls(merged_labels, merged_groups, dict(hints.get("beside", {})),
+                   dict(hints.get("rows", {})), dict(hints.get("notes", {})),
+                   hints.get("sums", {}), hints.get("title"))
 
 
-def layout(sys, *, labels=None, groups=None, fontsize=10.0, title=None):
+def layout(sys, *, labels=None, groups=None, fontsize=10.0, title=None) -> DiagramLayout:
     """Place every block, port, track and lane of ``sys``'s diagram, in inches.
 
-    Returns a namespace with what :func:`~controlkit.drawing.draw_block_diagram`
-    draws: ``nodes`` (shape, label, centre and size), ``nets`` (with their kinds
-    of destination), ``port_xy``/``in_xy`` (where a net leaves and enters a block),
-    ``track_x`` (vertical runs between columns), ``lane_top``/``lane_bottom``
-    (horizontal runs above and below the rows) and the page's extent.
+    Returns the :class:`DiagramLayout` that :func:`~controlkit.drawing.draw_block_diagram`
+    draws. The arguments are those of ``draw_block_diagram``.
     """
     _require_interconnect(sys)
-    labels, groups, beside, row_hint, notes = _hints(sys, labels, groups)
-    sums = (getattr(sys, "drawing_hints", None) or {}).get("sums", {})
-    hint_title = (getattr(sys, "drawing_hints", None) or {}).get("title")
-    f_sig, f_name, f_sub = fontsize, fontsize + 2, fontsize - 0.5
-    graph = diagram_graph(sys)
+    hints = _Hints.of(sys, labels, groups)
+    draft = _Draft(fonts=(fontsize, fontsize + 2, fontsize - 0.5), graph=diagram_graph(sys),
+                   groups=hints.groups)
+    _place_blocks(draft, sys, hints)
+    _size_blocks(draft)
+    _classify_nets(draft, sys)
+    _place_rows(draft)
+    _place_columns(draft)
+    _place_ports(draft)
+    _place_tracks(draft)
+    _place_lanes(draft)
+    return _frame(draft, sys, title, hints.title)
 
-    # --- nodes
-    nodes = {}
-    order = {}
+
+# ----------------------------------------------------------------------------- the stages
+
+def _blocks(sys, hints):
+    """A node for each block of ``sys`` with its shape and texts, and the blocks' order."""
+    nodes, order = {}, {}
     for i, s in enumerate(sys.syslist):
         shape, extra = _shape(s)
-        label = labels.get(s.name)
+        label = hints.labels.get(s.name)
         nodes[s.name] = {"shape": shape, "signs": extra if shape == "sum" else {},
                          "gain": extra if shape == "gain" else None,
                          "label": label if label is not None else s.name,
                          "math": label is not None, "virtual": False,
-                         "sub": notes.get(s.name) or (
+                         "sub": hints.notes.get(s.name) or (
                              (f"{s.name}, {_kind(s)}" if _kind(s) != "static" else s.name)
                              if label is not None else _kind(s))}
         order[s.name] = i
-    nets, _ = _nets(sys, nodes, sums)
+    return nodes, order
+
+
+def _place_blocks(draft, sys, hints):
+    """Decide each block's column and row: the diagram's reading order.
+
+    Columns follow the signal (longest path without the feedback edges, see
+    :func:`._ordering._columns`), so forward arrows point right; row 0 is the longest
+    chain of neighbouring columns and parallel branches go below it. A block at the end
+    of the main row that only feeds back (a sensor) moves under the block feeding it, as
+    textbooks draw a feedback path. The nets are made here too, because a sum that the
+    connection map or ``hints.sums`` implies becomes a junction node with a place of its
+    own. Sets ``nodes``, ``nets``, ``layer`` (columns numbered without gaps) and ``row``.
+    """
+    nodes, order = _blocks(sys, hints)
+    nets, _ = _nets(sys, nodes, hints.sums)
     for n in nodes:
         order.setdefault(n, len(order))
-    layer, entries = _columns(nodes, nets, beside)
-    row = _rows(nodes, nets, layer, entries, order, row_hint)
+    layer, entries = _columns(nodes, nets, hints.beside)
+    row = _rows(nodes, nets, layer, entries, order, hints.rows)
     for n, feeder in _feedback_elements(nodes, nets, layer, row, entries).items():
         # a sensor or gain in the feedback path: under its feeder, pointing back
         nodes[n]["flip"], nodes[n]["feeder"] = True, feeder
         layer[n] = layer[feeder]
         row[n] = max(row[m] for m in nodes if layer[m] == layer[n] and m != n) + 1
     used = sorted(set(layer.values()))
-    layer = {n: used.index(c) for n, c in layer.items()}
-    ncol = max(layer.values()) + 1
+    draft.nodes, draft.nets, draft.row = nodes, nets, row
+    draft.layer = {n: used.index(c) for n, c in layer.items()}
 
-    # --- node sizes (inches)
-    pitch = 0.34
+
+def _size_blocks(draft):
+    """Decide each block's width ``w`` and height ``h`` (and a gain's ``text``).
+
+    A block is as wide as its name (bold) or its second line, plus a margin, and tall
+    enough for both lines and for its ports one pitch apart,
+    ``h = max(text + 0.3, 0.34 * max(inputs, outputs, 1) + 0.15)``, so arrows never
+    crowd. A junction is a circle of diameter 0.4; a gain's triangle grows with its text.
+    A loose end counts as a port, since it is drawn as one.
+    """
+    f_sig, f_name, f_sub = draft.fonts
+    pitch = _PORT_PITCH
     n_in, n_out = defaultdict(int), defaultdict(int)
-    for net in nets:
-        if net.src in nodes:
+    for net in draft.nets:
+        if net.src in draft.nodes:
             n_out[net.src] += 1
         for b, _, _ in net.dests:
-            if b in nodes:
+            if b in draft.nodes:
                 n_in[b] += 1
-    for n in graph["unconnected_inputs"]:
+    for n in draft.graph["unconnected_inputs"]:
         n_in[n] += 1
-    for n in graph["unused_outputs"]:
+    for n in draft.graph["unused_outputs"]:
         n_out[n] += 1
-    for n, node in nodes.items():
+    for n, node in draft.nodes.items():
         if node["shape"] == "sum":
             node["w"] = node["h"] = 0.4
             continue
@@ -205,7 +248,21 @@ def layout(sys, *, labels=None, groups=None, fontsize=10.0, title=None):
         node["w"] = max(1.0, tw + 0.35, sw + 0.3)
         node["h"] = max(th + sh + 0.3, pitch * max(n_in[n], n_out[n], 1) + 0.15)
 
-    # --- net classes
+
+def _classify_nets(draft, sys):
+    """Decide how each net runs: its ``kinds`` and whether it leaves the loop.
+
+    A destination in the next column (or a sensor fed by its block) is ``"next"`` (a
+    short arrow), one further right ``"skip"`` (a lane above the rows), one to the left
+    or in the same column ``"back"`` (feedback, a lane below). A loop output of the last
+    column leaves on the right (``out``). One made further left is a short grey stub
+    (``dangling``) if the signal goes nowhere else, and is not drawn again if it feeds
+    blocks (it is on the page already) - unless no output leaves on the right: then the
+    loop's first output does, along a top lane (``far``), where a reader looks for the
+    result. Nets that go nowhere are dropped.
+    """
+    nodes, layer = draft.nodes, draft.layer
+
     def kind_of(net, b):
         if b == _OUT:
             return "out"
@@ -214,8 +271,8 @@ def layout(sys, *, labels=None, groups=None, fontsize=10.0, title=None):
             return "next"
         return "skip" if layer[b] > ls + 1 else "back"
 
-    last = ncol - 1
-    for net in nets:
+    last = draft.ncol - 1
+    for net in draft.nets:
         internal = [b for b, _, _ in net.dests if b != _OUT]
         net.out_ports = [p for b, ports, _ in net.dests if b == _OUT for p in ports]
         net.far = False
@@ -224,44 +281,50 @@ def layout(sys, *, labels=None, groups=None, fontsize=10.0, title=None):
         net.dests = [d for d in net.dests if d[0] != _OUT]
         net.dangling = not net.dests and net.out and layer.get(net.src, -1) != last
         net.kinds = {b: kind_of(net, b) for b, _, _ in net.dests}
-        net.virtual_src = nodes.get(net.src, {}).get("virtual", False)
-    nets = [n for n in nets if n.dests or n.out]
-    if sys.noutputs and not any(n.out and not n.dangling for n in nets):
+    draft.nets = [n for n in draft.nets if n.dests or n.out]
+    if sys.noutputs and not any(n.out and not n.dangling for n in draft.nets):
         # the loop's first output leaves on the right even when its block is not last
-        for net in nets:
+        for net in draft.nets:
             if sys.output_labels[0] in net.out_ports and net.dests:
                 net.out, net.far, net.dangling = True, True, False
 
-    # --- column x, row y
-    col_w = [max(nodes[n]["w"] for n in nodes if layer[n] == c) for c in range(ncol)]
+
+def _place_rows(draft):
+    """Decide the y of each row: ``y_row`` and the frame-local feedback lanes ``local``.
+
+    Row 0 is at ``y = 0``; each next row sits below the one above with 0.55 in between
+    their tallest blocks. Feedback inside one frame and one row runs in a lane just under
+    that row (so the frame can enclose it), and those lanes widen the space under their
+    row by ``0.3 + 0.22`` per lane.
+    """
+    nodes, row, local = draft.nodes, draft.row, draft.local
     row_ids = sorted(set(row.values()))
     row_h = {r: max(nodes[n]["h"] for n in nodes if row[n] == r) for r in row_ids}
-    frame_of = {}
-    for glabel, members in groups.items():
-        for m in members:
-            frame_of.setdefault(m, glabel)
-    lane_pitch = 0.22
-
-    def inner(net):  # nets inside one frame get the lanes nearest the blocks
+    for net in draft.nets:
         ends = [net.src] + list(net.kinds)
-        f = {frame_of.get(e) for e in ends}
-        return 0 if len(f) == 1 and None not in f else 1
-
-    local = defaultdict(list)  # feedback inside a frame on one row: a lane under that row
-    for net in nets:
-        ends = [net.src] + list(net.kinds)
-        if ("back" in net.kinds.values() and inner(net) == 0
+        if ("back" in net.kinds.values() and draft.inner(net) == 0
                 and len({row.get(e) for e in ends}) == 1):
             local[row[net.src]].append(net)
-    y_row = {row_ids[0]: 0.0}
+    draft.y_row = {row_ids[0]: 0.0}
     for above, r in zip(row_ids[:-1], row_ids[1:], strict=True):
-        room = 0.3 + lane_pitch * len(local[above]) if local[above] else 0.0
-        y_row[r] = y_row[above] - (row_h[above] / 2 + 0.55 + room + row_h[r] / 2)
+        room = 0.3 + _LANE_PITCH * len(local[above]) if local[above] else 0.0
+        draft.y_row[r] = draft.y_row[above] - (row_h[above] / 2 + 0.55 + room + row_h[r] / 2)
 
-    # gap c is left of column c; exit tracks of column c-1 and entry tracks of column c
-    label_w = defaultdict(float)
-    exits, entries_in = defaultdict(list), defaultdict(list)
-    for net in nets:
+
+def _fill_gaps(draft):
+    """Decide what each gap between columns holds: labels and vertical tracks.
+
+    Gap ``c`` is left of column ``c``. It holds the labels of the signals leaving column
+    ``c - 1`` (a loop output is labelled where it leaves instead), the red notes of loose
+    ends, an exit track for each net of column ``c - 1`` that branches, changes row or
+    leaves along a lane (a flipped block's, in the gap on its left), and an entry track
+    for each lane arriving at a block of column ``c`` from its side (a junction fed from
+    above or below needs none).
+    """
+    nodes, layer, row = draft.nodes, draft.layer, draft.row
+    f_sig, _, f_sub = draft.fonts
+    label_w, exits, entries = draft.label_w, draft.exits, draft.entries
+    for net in draft.nets:
         src_col = layer[net.src] if net.src in nodes else -1
         w, _ = _text_size(net.label, f_sig)
         flip = nodes.get(net.src, {}).get("flip", False)
@@ -272,7 +335,6 @@ def layout(sys, *, labels=None, groups=None, fontsize=10.0, title=None):
             continue
         needs_track = (len(net.dests) > 1 or net.out and net.dests
                        or any(k != "next" for k in net.kinds.values()))
-        net.track_gap = src_col + 1
         if needs_track or net.src in nodes and any(
                 row[b] != row[net.src] for b in net.kinds):
             exits[src_col if flip else src_col + 1].append(net)
@@ -280,136 +342,60 @@ def layout(sys, *, labels=None, groups=None, fontsize=10.0, title=None):
             if k in ("skip", "back") and not (nodes[b]["shape"] == "sum" and
                                               _vertical_ok(b, k, nodes, layer, row)):
                 key = (net, layer[b])
-                if key not in entries_in[layer[b]]:
-                    entries_in[layer[b]].append(key)
-    for n, ports in graph["unconnected_inputs"].items():
+                if key not in entries[layer[b]]:
+                    entries[layer[b]].append(key)
+    for n, ports in draft.graph["unconnected_inputs"].items():
         w, _ = _text_size("unconnected: " + ", ".join(compress_signals(ports)), f_sub)
         label_w[layer[n]] = max(label_w[layer[n]], w + 0.6)
-    for n, ports in graph["unused_outputs"].items():
+    for n, ports in draft.graph["unused_outputs"].items():
         w, _ = _text_size("unused: " + ", ".join(compress_signals(ports)), f_sub)
         label_w[layer[n] + 1] = max(label_w[layer[n] + 1], w + 0.3)
-    track = 0.17
-    gap_w = {g: max(0.6, label_w[g] + 0.4 + track * (len(exits[g]) + len(entries_in[g])))
+
+
+def _place_columns(draft):
+    """Decide the x of each column and gap: ``gap_x``, ``x_right`` and the blocks' centres.
+
+    A column is as wide as its widest block. A gap is as wide as what :func:`_fill_gaps`
+    put in it, ``max(0.6, labels + 0.4 + 0.17 * tracks)``, so a label never meets a track.
+    """
+    _fill_gaps(draft)
+    nodes, layer, ncol = draft.nodes, draft.layer, draft.ncol
+    label_w, exits, entries = draft.label_w, draft.exits, draft.entries
+    col_w = [max(nodes[n]["w"] for n in nodes if layer[n] == c) for c in range(ncol)]
+    gap_w = {g: max(0.6, label_w[g] + 0.4 + _TRACK_PITCH * (len(exits[g]) + len(entries[g])))
              for g in range(ncol + 1)}
-    gap_w[0] = max(gap_w[0] - label_w[0], 0.55) if not graph["unconnected_inputs"] else gap_w[0]
     x_col, x = {}, 0.0
-    gap_x = {}
     for c in range(ncol):
-        gap_x[c] = x
+        draft.gap_x[c] = x
         x += gap_w[c]
         x_col[c] = x + col_w[c] / 2
         x += col_w[c]
-    gap_x[ncol] = x
-    x_right = x + gap_w[ncol]
+    draft.gap_x[ncol] = x
+    draft.x_right = x + gap_w[ncol]
     for n, node in nodes.items():
-        node["x"], node["y"] = x_col[layer[n]], y_row[row[n]]
+        node["x"], node["y"] = x_col[layer[n]], draft.y_row[draft.row[n]]
 
-    # --- ports
-    top_rows = max(node["y"] + node["h"] / 2 for node in nodes.values())
-    bottom_rows = min(node["y"] - node["h"] / 2 for node in nodes.values())
 
-    def towards(net):  # where a net heads to, for ordering ports top to bottom
-        ys = []
-        for b, k in net.kinds.items():
-            ys.append(+1e3 if k == "skip" else -1e3 if k == "back" else nodes[b]["y"])
-        return max(ys) if ys else nodes[net.src]["y"]
+def _frame(draft, sys, title, hint_title):
+    """Decide the title and the page: the finished :class:`DiagramLayout`.
 
-    def source_y(net):
-        return nodes[net.src]["y"] if net.src in nodes else 0.0
-
-    out_ports, in_ports = defaultdict(list), defaultdict(list)
-    for net in nets:
-        if net.src in nodes:
-            out_ports[net.src].append(net)
-        for b, k in net.kinds.items():
-            in_ports[b].append((net, k))
-    port_xy, in_xy = {}, {}
-    for n, node in nodes.items():
-        outs = sorted(out_ports[n], key=lambda net: -towards(net))
-        extra_out = 1 if n in graph["unused_outputs"] else 0
-        k = len(outs) + extra_out
-        side = -1 if node.get("flip") else 1
-        for i, net in enumerate(outs):
-            port_xy[(net, n)] = (node["x"] + side * node["w"] / 2,
-                                 node["y"] + pitch * ((k - 1) / 2 - i))
-        node["unused_xy"] = (node["x"] + node["w"] / 2, node["y"] + pitch * ((k - 1) / 2 - k + 1))
-        ins = sorted(in_ports[n], key=lambda port: -(1e3 if port[1] == "skip" else -1e3
-                                                   if port[1] == "back" else source_y(port[0])))
-        extra_in = 1 if n in graph["unconnected_inputs"] else 0
-        k = len(ins) + extra_in
-        if node["shape"] == "sum":
-            _sum_ports(n, node, ins, source_y, in_xy, nodes, layer, row)
-            continue
-        xl = node["x"] - node["w"] / 2
-        if node.get("flip"):
-            xl = node["x"] + node["w"] / 2
-        for i, (net, _) in enumerate(ins):
-            in_xy[(net, n)] = (xl, node["y"] + pitch * ((k - 1) / 2 - i),
-                               "right" if node.get("flip") else "left")
-        node["spare_xy"] = (xl, node["y"] + pitch * ((k - 1) / 2 - k + 1))
-
-    # --- tracks and lanes
-    track_x = {}
-    for g in range(ncol + 1):
-        x0 = gap_x[g] + max(label_w[g], 0.15) + 0.1 if g > 0 else gap_x[g] + 0.15
-
-        def exit_key(net):
-            y0 = port_xy[(net, net.src)][1] if net.src in nodes else 0.0
-            up = towards(net) > y0
-            return (0, -y0) if up else (1, y0)
-
-        for i, net in enumerate(sorted(exits[g], key=exit_key)):
-            track_x[(net, "exit")] = x0 + track * (i + 0.5)
-        x1 = x0 + track * len(exits[g])
-
-        def entry_key(item):
-            net, c = item
-            yp = max(in_xy[(net, b)][1] for b in net.kinds if layer[b] == c)
-            return (0, yp) if any(net.kinds[b] == "skip" for b in net.kinds
-                                  if layer[b] == c) else (1, -yp)
-
-        for i, item in enumerate(sorted(entries_in[g], key=entry_key)):
-            track_x[item] = x1 + track * (i + 0.5)
-
-    def span(net):
-        xs = [nodes[b]["x"] for b in net.kinds] + [nodes[net.src]["x"] if net.src in nodes
-                                                   else 0.0]
-        return max(xs) - min(xs)
-
-    top_nets = sorted([n for n in nets if "skip" in n.kinds.values() or n.far],
-                      key=lambda n: (inner(n), span(n)))
-    local_nets = {net for nets_r in local.values() for net in nets_r}
-    # the output of a feedback element runs back along its own row when that row is free
-    own_row = {net for net in nets if nodes.get(net.src, {}).get("flip")
-               and all(k == "back" for k in net.kinds.values())
-               and not any(row[m] == row[net.src] and m != net.src
-                           and min(layer[b] for b in net.kinds) <= layer[m] <= layer[net.src]
-                           for m in nodes)}
-    bottom_nets = sorted([n for n in nets if "back" in n.kinds.values()
-                          and n not in local_nets and n not in own_row],
-                         key=lambda n: (inner(n), span(n)))
-    frame_pad = 0.45 if groups else 0.0
-    lane_top = {net: top_rows + frame_pad + 0.3 + lane_pitch * i
-                for i, net in enumerate(top_nets)}
-    last_row = row_ids[-1]
-    start = bottom_rows - 0.3 - (lane_pitch * len(local[last_row]) + 0.15 if local[last_row]
-                                 else 0.0)
-    lane_bottom = {net: start - lane_pitch * i for i, net in enumerate(bottom_nets)}
-    for net in own_row:
-        lane_bottom[net] = port_xy[(net, net.src)][1]
-    for r, nets_r in local.items():
-        low = min(nodes[n]["y"] - nodes[n]["h"] / 2 for n in nodes if row[n] == r)
-        for i, net in enumerate(sorted(nets_r, key=span)):
-            lane_bottom[net] = low - 0.3 - lane_pitch * i
-
-    # --- figure
+    The page spans the lanes, the blocks and the names of the signals entering on the
+    left and leaving on the right, with the title above. A page wider than 2.5 times its
+    height gets equal bands above and below (a slide's proportions, so a wide loop's
+    text is not shrunk to nothing when the picture is fitted to a page). A title given as
+    an argument or a hint is TeX; the system's own name is drawn literally.
+    """
+    f_sig, f_name, _ = draft.fonts
+    top_rows, bottom_rows = draft.blocks_top(), draft.blocks_bottom()
     title_math = title is not None or bool(hint_title)  # the system's own name is literal
     title = title if title is not None else hint_title or sys.name
-    y_top = (max(lane_top.values()) if lane_top else top_rows + frame_pad) + 0.25
-    y_bottom = min([bottom_rows] + list(lane_bottom.values())) - 0.2
-    x_left = -max([_text_size(n.label, f_sig)[0] + 0.1 for n in nets if n.src == _IN] + [0])
-    x_right_text = x_right + max([_text_size(n.label, f_sig)[0] + 0.1 for n in nets
-                                  if n.out and not n.dangling] + [0])
+    y_top = (max(draft.lane_top.values()) if draft.lane_top
+             else top_rows + draft.frame_pad) + 0.25
+    y_bottom = min([bottom_rows] + list(draft.lane_bottom.values())) - 0.2
+    x_left = -max([_text_size(n.label, f_sig)[0] + 0.1 for n in draft.nets if n.src == _IN]
+                  + [0])
+    x_right_text = draft.x_right + max([_text_size(n.label, f_sig)[0] + 0.1 for n in draft.nets
+                                        if n.out and not n.dangling] + [0])
     tw, th = _text_size(title, f_name + 1, title_math and title.count("$") >= 2)
     y_title = y_top + th * 0.6
     y_top = y_title + th * 0.6
@@ -421,65 +407,10 @@ def layout(sys, *, labels=None, groups=None, fontsize=10.0, title=None):
         y_top += extra / 2
         y_bottom -= extra / 2
         height = width / 2.5
-    return SimpleNamespace(
-        nodes=nodes, nets=nets, layer=layer, row=row, port_xy=port_xy, in_xy=in_xy,
-        track_x=track_x, lane_top=lane_top, lane_bottom=lane_bottom, local_nets=local_nets,
-        groups=groups, graph=graph, gap_x=gap_x, x_right=x_right, fonts=(f_sig, f_name, f_sub),
-        title=title, title_math=title_math, y_title=y_title, x_mid=x_mid, width=width,
-        height=height, y_top=y_top, y_bottom=y_bottom)
-
-
-def _sum_ports(n, node, ins, source_y, in_xy, nodes, layer, row):
-    """Where signals enter a junction: one from the left, those from other rows and
-    lanes from above or below (lanes outermost), so no two entries share a line."""
-    r, x, y = node["w"] / 2, node["x"], node["y"]
-    vertical = [port for port in ins if port[1] in ("skip", "back")
-                and _vertical_ok(n, port[1], nodes, layer, row)]
-    rest = [port for port in ins if port not in vertical]
-    left = sorted(rest, key=lambda port: abs(source_y(port[0]) - y))[:1]
-    below = sorted([port for port in rest if port not in left and port[1] == "next"
-                    and source_y(port[0]) < y - r], key=lambda port: -source_y(port[0]))
-    above = sorted([port for port in rest if port not in left and port[1] == "next"
-                    and source_y(port[0]) > y + r], key=lambda port: source_y(port[0]))
-    left = [port for port in rest if port not in below and port not in above]
-    sides = (("left", left), ("bottom", below + [port for port in vertical if port[1] == "back"]),
-             ("top", above + [port for port in vertical if port[1] == "skip"]))
-    for side, ports in sides:
-        m = len(ports)
-        for j, (net, _) in enumerate(ports):
-            t = 0.0 if m == 1 else 0.7 * (2 * j / (m - 1) - 1)
-            if side == "left":
-                in_xy[(net, n)] = (x - r * np.sqrt(1 - t * t), y - r * t, side)
-            else:
-                s = -1 if side == "bottom" else 1
-                in_xy[(net, n)] = (x + r * t, y + s * r * np.sqrt(1 - t * t), side)
-
-
-def _feedback_elements(nodes, nets, layer, row, entries):
-    """Blocks at the end of the main row whose outputs only feed back: ``{block: feeder}``.
-
-    A sensor or a gain in the feedback path of a textbook loop. Such a block is drawn
-    under the block that feeds it, pointing back.
-    """
-    found = {}
-    last = max(layer.values())
-    for n, node in nodes.items():
-        outs = [net for net in nets if net.src == n]
-        ins = [net for net in nets if any(b == n for b, _, _ in net.dests)]
-        if (node["virtual"] or node["shape"] == "sum" or n in entries or row[n] != 0
-                or layer[n] != last or not outs or len(ins) != 1 or ins[0].src not in nodes):
-            continue
-        feeder = ins[0].src
-        if layer[feeder] != layer[n] - 1 or row[feeder] != 0:
-            continue
-        dests = [b for net in outs for b, _, _ in net.dests]
-        if all(b in nodes and layer[b] < layer[feeder] for b in dests):
-            found[n] = feeder
-    return found
-
-
-def _vertical_ok(n, kind, nodes, layer, row):
-    """A sum fed from a lane takes it from above/below unless a block sits in the way."""
-    side = 1 if kind == "skip" else -1
-    return not any(layer[m] == layer[n] and m != n and np.sign(row[n] - row[m]) == side
-                   for m in nodes)
+    return DiagramLayout(
+        nodes=draft.nodes, nets=draft.nets, layer=draft.layer, row=draft.row,
+        port_xy=draft.port_xy, in_xy=draft.in_xy, track_x=draft.track_x,
+        lane_top=draft.lane_top, lane_bottom=draft.lane_bottom, local_nets=draft.local_nets,
+        groups=draft.groups, graph=draft.graph, gap_x=draft.gap_x, x_right=draft.x_right,
+        fonts=draft.fonts, title=title, title_math=title_math, y_title=y_title, x_mid=x_mid,
+        width=width, height=height, y_top=y_top, y_bottom=y_bottom)

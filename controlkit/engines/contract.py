@@ -178,3 +178,63 @@ def response(sys, time, outputs, states, inputs, **overrides) -> ct.TimeResponse
         title="Input/output response for " + sys.name, plot_inputs=sys.ninputs > 0,
     )
     return ct.TimeResponseData(time, outputs, states, inputs, **{**options, **overrides})
+
+
+def python_control_arguments(sys, T, U, X0, options):
+    """``T, U, X0, t_eval, method, solve_ivp_kwargs`` read as python-control reads them.
+
+    The input may be a list of per-signal parts, broadcast over time; a short initial
+    state is padded with zeros (with python-control's warning); ``t_eval`` defaults to
+    ``T``.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> sys = ct.nlsys(lambda t, x, u, p: -x + u, inputs=2, states=2, outputs=2)
+    >>> T, U, X0, t_eval, method, _ = python_control_arguments(
+    ...     sys, [0.0, 1.0, 2.0], [1.0, [2.0, 3.0, 4.0]], [1.0, 2.0], {})
+    >>> U.tolist(), X0.tolist(), method
+    ([[1.0, 1.0, 1.0], [2.0, 3.0, 4.0]], [1.0, 2.0], 'RK45')
+    """
+    from control.nlsys import _process_vector_argument
+    from control.timeresp import _check_convert_array
+
+    T = np.atleast_1d(np.asarray(T, dtype=float))
+    kwargs = dict(options.get("solve_ivp_kwargs") or {})
+    method = options.get("solve_ivp_method") or options.get("method") or kwargs.pop(
+        "method", None) or "RK45"
+    kwargs.pop("method", None)
+    t_eval = options.get("evaluation_times", "T")
+    if kwargs.get("t_eval") is not None:
+        t_eval = kwargs.pop("t_eval")
+    t_eval = T if isinstance(t_eval, str) and t_eval == "T" else np.asarray(t_eval, float)
+    if isinstance(U, tuple | list) and len(U) != T.size:
+        parts = []
+        for i, u in enumerate(U):
+            u = np.array(u, dtype=float)
+            if u.ndim == 0 or u.ndim == 1 and u.shape[0] != T.shape[0]:
+                u = np.outer(u, np.ones_like(T))
+            elif not (u.ndim == 1 and u.shape[0] == T.shape[0]
+                      or u.ndim == 2 and u.shape[1] == T.shape[0]):
+                raise ValueError(f"Input element {i} has inconsistent shape")
+            parts.append(u)
+        U = np.vstack(parts)
+    n = sys.ninputs
+    legal = [(T.size,), (1, T.size)] if n is None or n == 1 else [(n, T.size)]
+    U = _check_convert_array(U, legal, "Parameter `U`: ", squeeze=False)
+    U = np.asarray(U, dtype=float).reshape(-1, T.size)
+    X0, _ = _process_vector_argument(X0, "X0", sys.nstates)
+    return T, U, np.asarray(X0, dtype=float), t_eval, method, kwargs
+
+
+def result_flags(options) -> dict:
+    """The keywords of :class:`control.TimeResponseData` that python-control passes on.
+
+    Examples
+    --------
+    >>> result_flags({"params": {"k": 1.0}, "transpose": True})["transpose"]
+    True
+    """
+    return {"params": options.get("params"), "transpose": options.get("transpose", False),
+            "return_x": options.get("return_states", False),
+            "squeeze": options.get("squeeze")}

@@ -13,8 +13,8 @@ same system.
 from __future__ import annotations
 
 from .loader import CACHE_DIR
-from .run import STREAM_CHUNK_STEPS, compile_system, simulate
+from .run import STREAM_CHUNK_STEPS, compile_system, response, simulate
 from .tiers import TIERS, BlockTier, explain
 
 __all__ = ["CACHE_DIR", "STREAM_CHUNK_STEPS", "TIERS", "BlockTier", "compile_system",
-           "explain", "simulate"]
+           "explain", "response", "simulate"]

@@ -5,7 +5,15 @@ from __future__ import annotations
 import control as ct
 import numpy as np
 
-from ..contract import check_arguments, chunk_bounds, recorded_indices, response
+from ..contract import (
+    UnsupportedSystem,
+    check_arguments,
+    chunk_bounds,
+    python_control_arguments,
+    recorded_indices,
+    result_flags,
+)
+from ..contract import response as base_response
 from .codegen import evaluation_order, generate
 from .diagnose import explain_divergence, explain_failure
 from .loader import load
@@ -97,7 +105,7 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
             explain_divergence(sys, blocks, T, X, x, k1, U, params)
         if progress is not None:
             progress(k1 / N)
-    return response(sys, T, Y, X, U)
+    return base_response(sys, T, Y, X, U)
 
 
 def _stream(sys, run, blocks, T, x, U, P, kept, on_chunk, progress, params=None):
@@ -126,4 +134,34 @@ def _stream(sys, run, blocks, T, x, U, P, kept, on_chunk, progress, params=None)
         X[:, mine] = Xb[:, kept[mine] - k0]
         if progress is not None:
             progress(k1 / N)
-    return response(sys, T[kept], Y, X, U[:, kept])
+    return base_response(sys, T[kept], Y, X, U[:, kept])
+
+
+def response(sys, T, U, X0, **options) -> ct.TimeResponseData:
+    """The fast engine behind :func:`controlkit.input_output_response` (same arguments).
+
+    Raises
+    ------
+    UnsupportedSystem
+        For what the engine does not run (the caller then runs python-control).
+
+    Examples
+    --------
+    >>> sys = ct.nlsys(lambda t, x, u, p: 0.5 * x + u, inputs=1, states=1, outputs=1, dt=1)
+    >>> loop = ct.interconnect([sys], inputs="u[0]", outputs="y[0]")
+    >>> response(loop, np.arange(3.0), 1.0, 1.0).outputs.tolist()
+    [1.0, 1.5, 1.75]
+    """
+    if not isinstance(sys, ct.InterconnectedSystem) or not sys.isdtime(strict=True):
+        raise UnsupportedSystem(f"{sys.name!r} is not a discrete interconnect")
+    T, U, X0, t_eval, _, _ = python_control_arguments(sys, T, U, X0, options)
+    if t_eval is not T and not np.array_equal(t_eval, T):
+        raise UnsupportedSystem("evaluation times other than T")
+    resp = simulate(sys, T, X0, U, params=options.get("params"))
+    return response_of(sys, resp, options)
+
+
+def response_of(sys, resp, options) -> ct.TimeResponseData:
+    """``resp`` with python-control's result flags (params, transpose, return_x, squeeze)."""
+    return base_response(sys, resp.time, resp.outputs, resp.states, resp.inputs,
+                         **result_flags(options))
