@@ -138,10 +138,10 @@ def test_one_value_per_input_and_stateless_diagrams_work_on_both_engines():
 
 
 def test_function_numba_cannot_compile_runs_in_python_inside_the_fast_loop():
-    table = {"gain": 0.5}  # a dict read by the function: numba cannot freeze it
+    table = {0: 0.5, 1: 2.0}  # a dict looked up by a signal: numba cannot compile it
 
     def update(t, x, u, params):
-        return x + TS * (table["gain"] * u[0] - x[0])
+        return x + TS * (table[int(u[0] > 0.5)] * u[0] - x[0])
 
     plant = ct.nlsys(update, None, inputs="u", outputs="y", states=1, dt=TS, name="plant")
     loop = ct.interconnect([plant, ct.summing_junction(["r", "-y"], "u", name="error")],

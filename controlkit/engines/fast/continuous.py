@@ -59,8 +59,8 @@ def response(sys, T, U, X0, **options) -> ct.TimeResponseData:
             U = _interpolated(T, U, t_eval)
         resp = simulate(sys, t_eval, X0, U, params=params)
     else:
-        resp = run_continuous(prepare(sys, params), T, U, X0, t_eval=t_eval, method=method,
-                              **solver)
+        resp = run_continuous(prepare(sys, params, (T[0], X0, U[:, 0])), T, U, X0,
+                              t_eval=t_eval, method=method, **solver)
     return base_response(sys, resp.t, resp.y, resp.x, resp.u, **result_flags(options))
 
 

@@ -15,18 +15,24 @@ plain Python, calling the compiled kernels of the other blocks.
 
 from __future__ import annotations
 
+import atexit
 import hashlib
 import importlib.util
 import os
+import shutil
+import stat
 import subprocess
 import sys as pysys
 import tempfile
+import warnings
 from pathlib import Path
-from types import SimpleNamespace
+from types import FunctionType, SimpleNamespace
 
 from ... import _jit
 
-#: Where diagrams' modules are written (and numba caches them).
+#: Where diagrams' modules and compiled user functions are written (and numba caches
+#: them). Code is imported from there, so it is used only when it is the user's own: see
+#: :func:`cache_folder`.
 CACHE_DIR = Path(os.environ.get("CONTROLKIT_CACHE_DIR",
                                 Path.home() / ".cache" / "controlkit" / "engine"))
 
@@ -45,21 +51,99 @@ _LOADED: dict[str, object] = {}
 _BACKGROUND: dict[str, subprocess.Popen] = {}
 
 
+#: Why each folder asked for was refused (None: it is the user's own), checked once.
+_REFUSED: dict[Path, str | None] = {}
+
+#: This process's private folder, made when the configured one is refused.
+_PRIVATE: list[Path] = []
+
+
 def cache_folder() -> Path:
-    """:data:`CACHE_DIR`, or a temporary folder when it cannot be written.
+    """:data:`CACHE_DIR` when it is the user's own, else a private folder for this process.
+
+    The generated modules in this folder are imported and run, so whoever can write
+    into it decides what code runs. It is used only if it is a folder owned by the
+    user, that nobody else can write into, inside folders that nobody else can
+    rename it out of (each owned by the user or root, and not writable by others
+    unless sticky, as ``/tmp`` is). When it fails that check or cannot be created,
+    compiled code is kept for this process only, in a folder made by
+    :func:`tempfile.mkdtemp` (owner only, removed at exit), and a warning says why.
 
     Examples
     --------
-    >>> cache_folder().is_dir()
+    >>> folder = cache_folder()
+    >>> folder.is_dir(), _not_own(folder) is None
+    (True, True)
+    """
+    folder = Path(CACHE_DIR)
+    if folder not in _REFUSED:
+        try:
+            folder.mkdir(mode=0o700, parents=True, exist_ok=True)
+            _REFUSED[folder] = _not_own(folder)
+        except OSError as error:
+            _REFUSED[folder] = f"it cannot be created ({error.strerror or error})"
+        if _REFUSED[folder] is not None:
+            warnings.warn(f"controlkit does not use the compiled-code cache {folder}: "
+                          f"{_REFUSED[folder]}; compiled code is kept for this process only "
+                          f"(set CONTROLKIT_CACHE_DIR to a folder of your own)", stacklevel=2)
+    if _REFUSED[folder] is None:
+        return folder
+    if not _PRIVATE:
+        private = Path(tempfile.mkdtemp(prefix="controlkit-engine-"))
+        atexit.register(shutil.rmtree, private, ignore_errors=True)
+        _PRIVATE.append(private)
+    return _PRIVATE[0]
+
+
+def _not_own(folder: Path) -> str | None:
+    """Why ``folder`` is not the user's own (None when it is), as :func:`cache_folder` asks.
+
+    Group write is allowed where the group is the user's private group (the user's own
+    primary group, with no other members), as a umask of 002 leaves folders.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> shared = Path(tempfile.mkdtemp())
+    >>> shared.chmod(0o777)
+    >>> _not_own(shared).endswith("can be written by others (mode 777)")
     True
     """
-    folder = CACHE_DIR
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError:  # a read-only home: keep the loops for this machine's session only
-        folder = Path(tempfile.gettempdir()) / "controlkit-engine"
-        folder.mkdir(parents=True, exist_ok=True)
-    return folder
+    if not hasattr(os, "getuid"):  # Windows: the profile folder's ACLs decide
+        return None
+    uid = os.getuid()
+    link = os.lstat(folder)
+    if stat.S_ISLNK(link.st_mode) and link.st_uid not in (uid, 0):
+        return f"it is a link owned by another user (uid {link.st_uid})"
+    info = os.stat(folder)
+    if not stat.S_ISDIR(info.st_mode):
+        return "it is not a folder"
+    if info.st_uid != uid:
+        return f"it is owned by another user (uid {info.st_uid})"
+    if _writable_by_others(info):
+        return f"it can be written by others (mode {stat.S_IMODE(info.st_mode):o})"
+    for parent in Path(os.path.realpath(folder)).parents:
+        info = os.stat(parent)
+        if info.st_uid not in (uid, 0):
+            return f"{parent} is owned by another user (uid {info.st_uid})"
+        if _writable_by_others(info) and not info.st_mode & stat.S_ISVTX:
+            return (f"{parent} can be written by others (mode "
+                    f"{stat.S_IMODE(info.st_mode):o}), who could replace the folder")
+    return None
+
+
+def _writable_by_others(info) -> bool:
+    if info.st_mode & stat.S_IWOTH:
+        return True
+    if not info.st_mode & stat.S_IWGRP:
+        return False
+    try:  # the user's private group (umask 002) is not "others"
+        import grp
+
+        group = grp.getgrgid(info.st_gid)
+        return not (info.st_gid == os.getgid() and not group.gr_mem)
+    except (ImportError, KeyError):
+        return True
 
 
 def module_path(source: str) -> Path:
@@ -186,13 +270,18 @@ def load_python(source: str, injected: dict):
     exec(compile(source, "<controlkit diagram>", "exec"), namespace)
     namespace.update(injected)
     py = _jit.python_function
-    namespace["loops"] = SimpleNamespace(**{
-        name: py(getattr(loops, name)) for name in
-        ("discrete_run", "continuous_run", "rhs_template", "interpolate")}, INTEGRATOR_FAILED=
-        loops.INTEGRATOR_FAILED)
-    namespace["rk"] = SimpleNamespace(
+    python_rk = SimpleNamespace(
         solve_interval=getattr(rk, "_solve_interval_python", rk.solve_interval),
         make_workspace=rk.make_workspace, SUCCESS=rk.SUCCESS)
+    # the loops' own Python code, reading Python versions of what they call
+    scope = dict(vars(loops), rk=python_rk)
+    names = ("discrete_run", "continuous_run", "rhs_template", "interpolate", "_record")
+    for name in names:
+        function = py(getattr(loops, name))
+        scope[name] = FunctionType(function.__code__, scope, name, function.__defaults__)
+    namespace["loops"] = SimpleNamespace(**{name: scope[name] for name in names},
+                                         INTEGRATOR_FAILED=loops.INTEGRATOR_FAILED)
+    namespace["rk"] = python_rk
     namespace["rk4_step"] = py(common.rk4_step)
     return SimpleNamespace(**namespace)
 

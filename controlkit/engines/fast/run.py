@@ -134,8 +134,12 @@ def as_interconnect(sys):
                            name=sys.name, check_unused=False)
 
 
-def prepare(sys, params=None) -> Job:
+def prepare(sys, params=None, start=None) -> Job:
     """The :class:`Job` of ``sys`` with the parameters ``params`` in force.
+
+    ``start`` is the run's ``(t0, X0, U0)``: users' functions compiled for the run must
+    agree with their Python selves there too
+    (:func:`~controlkit.engines.fast.usercode.compiled_kernel`).
 
     Raises
     ------
@@ -150,7 +154,7 @@ def prepare(sys, params=None) -> Job:
     """
     from ...sampled_data import SampledDataSystem
 
-    blocks = blocks_of(sys, params)
+    blocks = blocks_of(sys, params, start)
     plan = make_plan(sys, blocks, evaluation_order(sys, blocks))
     source, injected = generate(plan, held_logic=isinstance(sys, SampledDataSystem))
     return Job(sys, plan, plan.parameters(), source, injected)
@@ -248,7 +252,8 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
     if not sys.isdtime(strict=True):  # continuous states: the whole run at once
         from .continuous import run_continuous
 
-        resp = run_continuous(prepare(sys, params), np.asarray(T, dtype=float), U, X0)
+        T = np.asarray(T, dtype=float)
+        resp = run_continuous(prepare(sys, params, (T[0], X0, U[:, 0])), T, U, X0)
         if on_chunk is not None:
             on_chunk(resp.t, resp.y, resp.x)
         if progress is not None:
@@ -256,7 +261,7 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
         kept = recorded_indices(resp.t.size, record_every)
         return base_response(sys, resp.t[kept], resp.y[:, kept], resp.x[:, kept],
                              resp.u[:, kept])
-    job = prepare(sys, params)
+    job = prepare(sys, params, (T[0], X0, U[:, 0]))
     run = discrete_loop(job)
     blocks, P = job.blocks, job.P
     streamed = record_every != 1 or on_chunk is not None
