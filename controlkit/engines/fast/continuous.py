@@ -22,7 +22,7 @@ from ..contract import (
     result_flags,
 )
 from ..contract import response as base_response
-from . import rk
+from . import loader, rk
 from .diagnose import explain_nan
 from .loops import INTEGRATOR_FAILED
 from .run import Job, as_interconnect, prepare, simulate
@@ -165,9 +165,7 @@ def run_continuous(job: Job, T, U, X0, *, t_eval=None, method="RK45", generic=No
     if generic is None:
         run, use_driver = job.loop("run_continuous")
     elif generic:
-        from . import driver
-
-        run, use_driver = driver.run_continuous, True
+        run, use_driver = loader.driver().run_continuous, True
     else:
         run, use_driver = job.loop("run_continuous", policy="now")
     arguments = (instants, 0, 0, instants.size, float(T[-1]), T, U, t_eval, eval_instant,
@@ -180,7 +178,7 @@ def run_continuous(job: Job, T, U, X0, *, t_eval=None, method="RK45", generic=No
     else:
         run(rk.machine_function(), *arguments)
     if status[1] == INTEGRATOR_FAILED:
-        raise _integrator_error(sys, status, t_eval, method)
+        raise _integrator_error(job, status, t_eval, method, x)
     if status[1] >= 0:
         explain_nan(sys, job.blocks, t_eval[min(status[0], m - 1)], int(status[1]))
     if ctrl[0] < m:
@@ -189,17 +187,24 @@ def run_continuous(job: Job, T, U, X0, *, t_eval=None, method="RK45", generic=No
     return base_response(sys, t_eval, Y, X, Uo)
 
 
-def _integrator_error(sys, status, t_eval, method):
+def _integrator_error(job, status, t_eval, method, x):
     """The integrator stopped: say where, why, and what to do."""
+    sys = job.sys
     code, served = int(status[2]), int(status[0])
     where = t_eval[served - 1] if served > 0 else t_eval[0]
+    blocks = [b.system.name for b in job.blocks if b.system.nstates
+              and b.system.dt == 0]
+    size = float(np.max(np.abs(x[job.plan.continuous]))) if job.plan.continuous.size else 0.0
+    state = f"the continuous blocks {blocks}"
     if code == rk.STEP_TOO_SMALL:
         return RuntimeError(
             f"{sys.name!r}: the step size of {method} fell below the spacing of numbers "
-            f"after t = {where:g} s: the system is stiff or has a discontinuity there; "
-            f"try solve_ivp_method='BDF' (or 'LSODA', 'Radau')")
+            f"after t = {where:g} s, with the largest state of {state} at {size:.3g}: the "
+            f"loop diverges there (a state without bound), or a block is stiff or "
+            f"discontinuous; for a stiff block try solve_ivp_method='BDF' (or 'LSODA', "
+            f"'Radau')")
     if code == rk.NON_FINITE:
         return FloatingPointError(
-            f"{sys.name!r}: the state became non-finite after t = {where:g} s (the loop "
-            f"diverged, or a block's equation is undefined there)")
+            f"{sys.name!r}: the state of {state} became non-finite after t = {where:g} s "
+            f"(the loop diverged, or a block's equation is undefined there)")
     return RuntimeError(f"{sys.name!r}: {rk.STATUS_MESSAGES.get(code, code)}")

@@ -9,15 +9,20 @@ it once compiled. The arithmetic is the generated module's, operation for operat
 both give the same numbers.
 
 Without numba the driver is not used (the generated module runs as Python instead).
+
+numba's disk cache knows a function by its own file only, and this driver pastes in the
+loops and the integrator from other modules: the engine therefore runs a copy of this
+module named after the sources of all of them (:func:`.loader.driver`), so that an edit
+of any of them compiles a new driver. Its imports are absolute for that reason.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ... import _jit
-from . import loops, rk
-from .plan import (
+from controlkit import _jit
+from controlkit.engines.fast import loops, rk
+from controlkit.engines.fast.plan import (
     CONTINUOUS,
     DISCRETE,
     EVERY,
@@ -36,7 +41,7 @@ from .plan import (
     X0,
     Y0,
 )
-from .views import borrow
+from controlkit.engines.fast.views import borrow
 
 jit = _jit.jit
 
@@ -45,7 +50,7 @@ if _jit.HAVE_NUMBA:
     from numba.core import cgutils
     from numba.extending import intrinsic
 
-    from .entries import ENTRY_SIGNATURE
+    from controlkit.engines.fast.entries import ENTRY_SIGNATURE
 
     _ENTRY_TYPE = types.FunctionType(ENTRY_SIGNATURE)
 

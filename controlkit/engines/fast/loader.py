@@ -146,11 +146,32 @@ def _writable_by_others(info) -> bool:
         return True
 
 
-def module_path(source: str) -> Path:
-    """Where the module of ``source`` is written: a name hashed from its text and kernels.
+#: The engine's modules whose code numba pastes into a diagram's module or the driver:
+#: their source goes into the compiled modules' names (numba's cache knows a function by
+#: its own file only, and would load code compiled from an older version of these).
+PASTED_IN = ("controlkit.engines.fast.loops", "controlkit.engines.fast.rk",
+             "controlkit.engines.fast.views", "controlkit.engines.fast.entries",
+             "controlkit.engines.fast.plan", "controlkit.kernels.common")
 
-    numba keys its cache on the module's file alone, so the kernels' source goes into
-    the name: editing a kernel makes a new module, compiled anew.
+
+def _sources(modules) -> str:
+    texts = []
+    for name in modules:
+        spec = importlib.util.find_spec(name)
+        if spec.submodule_search_locations:  # a package: every module in it
+            folder = Path(spec.origin).parent
+            texts += [p.read_text() for p in sorted(folder.glob("*.py"))]
+        else:
+            texts.append(Path(spec.origin).read_text())
+    return "".join(texts)
+
+
+def module_path(source: str, prefix: str = "diagram") -> Path:
+    """Where the module of ``source`` is written: a name hashed from its text and code.
+
+    numba keys its cache on the module's file alone, so the source of the kernels it
+    imports and of the engine's modules it pastes in (:data:`PASTED_IN`) goes into the
+    name: editing any of them makes a new module, compiled anew.
 
     Examples
     --------
@@ -158,13 +179,12 @@ def module_path(source: str) -> Path:
     True
     """
     modules = sorted({line.split()[1] for line in source.splitlines()
-                      if line.startswith("from ") and " import " in line})
-    kernel_sources = "".join(Path(importlib.util.find_spec(m).origin).read_text()
-                             for m in modules)
-    key = hashlib.sha256((source + kernel_sources + str(_jit.HAVE_NUMBA)
+                      if line.startswith("from ") and " import " in line}
+                     - {"controlkit.engines.fast"})
+    key = hashlib.sha256((source + _sources([*modules, *PASTED_IN]) + str(_jit.HAVE_NUMBA)
                           + str(_jit.CACHE_FORMAT)).encode()).hexdigest()[:20]
     folder = cache_folder()
-    path = folder / f"diagram_{key}.py"
+    path = folder / f"{prefix}_{key}.py"
     if not path.exists():  # keep the file's date: numba's cache index keys on it
         tmp = path.with_suffix(f".{os.getpid()}.tmp")
         tmp.write_text(source)
@@ -248,6 +268,28 @@ def load(source: str):
             compiled(module)
         _LOADED[source] = module
     return module
+
+
+_DRIVER: list = []
+
+
+def driver():
+    """The generic driver (:mod:`.driver`), as a copy named after its sources (see there).
+
+    Examples
+    --------
+    >>> hasattr(driver(), "run_discrete")
+    True
+    """
+    if not _DRIVER:
+        from . import driver as package_driver
+
+        if not _jit.HAVE_NUMBA:
+            _DRIVER.append(package_driver)
+        else:
+            source = Path(package_driver.__file__).read_text()
+            _DRIVER.append(import_module(module_path(source, prefix="driver")))
+    return _DRIVER[0]
 
 
 def load_python(source: str, injected: dict):

@@ -200,6 +200,8 @@ def continuous_run(evaluate, update, outputs, rhs, machine, plan, rhs_args, time
                 status[1] = failed
                 return
         ctrl[0] = served
+        for q in range(nc):  # on failure: the state where the integrator stopped
+            x[cidx[q]] = yc[q]
         if code != rk.SUCCESS:
             status[0] = served
             status[1] = INTEGRATOR_FAILED

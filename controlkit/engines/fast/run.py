@@ -26,7 +26,7 @@ from ..contract import (
     recorded_indices,
 )
 from ..contract import response as base_response
-from . import driver, loader
+from . import loader
 from .codegen import evaluation_order, generate
 from .diagnose import explain_divergence, explain_failure
 from .plan import Plan, make_plan
@@ -84,7 +84,7 @@ class Job:
             from .entries import addresses, entry
 
             folder = loader.cache_folder()
-            self._generic = driver.plan_arguments(
+            self._generic = loader.driver().plan_arguments(
                 self.plan, addresses([entry(k, folder) for k in self.plan.kernels]))
         return self._generic
 
@@ -104,7 +104,7 @@ class Job:
             return getattr(loader.load_python(self.source, self.injected), name), False
         if policy == "never":
             self.how = "driver"
-            return getattr(driver, name), True
+            return getattr(loader.driver(), name), True
         module = loader.load(self.source)
         function = getattr(module, name)
         if loader.is_compiled(function) or policy == "now":
@@ -113,7 +113,7 @@ class Job:
         if policy == "background" and loader.BACKGROUND_COMPILE:
             loader.compile_in_background(self.source, name)
         self.how = "driver"
-        return getattr(driver, name), True
+        return getattr(loader.driver(), name), True
 
 
 def as_interconnect(sys):

@@ -102,7 +102,7 @@ def run_stiff(job, T, U, X0, t_eval, method, solver):
 
 def _compiled_evaluator(job):
     """``(evaluate, outputs, update, rhs)`` and their plan argument, compiled."""
-    from . import driver, loader
+    from . import loader
 
     if job.injected:
         ns = loader.load_python(job.source, job.injected)
@@ -111,7 +111,8 @@ def _compiled_evaluator(job):
     if loader.is_compiled(module.run_discrete) or loader.is_compiled(
             getattr(module, "run_continuous", None)):
         return (module.evaluate, module.outputs, module.update, module.rhs), ()
-    return (driver.evaluate, driver.outputs, driver.update, driver.rhs), job.generic_plan()
+    generic = loader.driver()
+    return (generic.evaluate, generic.outputs, generic.update, generic.rhs), job.generic_plan()
 
 
 def _interpolate(T, U, t, out):
