@@ -317,3 +317,83 @@ def run_continuous(machine, instants, fire0, k0, k1, t_final, T, U, t_eval, eval
         (instants, fire0, k0, k1, t_final, T, U, t_eval, eval_instant), (Y, X, Uo),
         (x, P, held), (ys, ui, xn, scratch, xt, cidx, yc, y_eval, ubuf, work),
         (method, rtol, atol, max_step, first_step, exact), ctrl, status)
+
+
+if _jit.HAVE_NUMBA:
+    _parallel_entry = _numba.njit(cache=True, nogil=True, parallel=True)
+    _prange = _numba.prange
+else:
+    _parallel_entry, _prange = _entry_point, range
+
+
+@_parallel_entry
+def run_discrete_many(T, X0s, U, Ps, Ys, Xs, statuses, plan):
+    """One discrete run per row of ``X0s`` and ``Ps``, spread over the threads.
+
+    Run ``r`` is :func:`run_discrete` from ``X0s[r]`` with the parameters ``Ps[r]`` into
+    ``Ys[r]``, ``Xs[r]`` and ``statuses[r]``; each run has buffers of its own, so the
+    runs are independent and each gives the numbers of a run of its own.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from controlkit.engines.fast.run import prepare
+    >>> sys = ct.nlsys(lambda t, x, u, p: 0.5 * x, inputs=0, states=1, outputs=1, dt=1)
+    >>> job = prepare(ct.interconnect([sys], outputs="y[0]"))
+    >>> Ys, Xs = np.zeros((2, 1, 3)), np.zeros((2, 1, 3))
+    >>> run_discrete_many(np.arange(3.0), np.array([[1.0], [2.0]]), np.zeros((0, 3)),
+    ...                   np.zeros((2, 0)), Ys, Xs, np.full((2, 3), -1), job.generic_plan())
+    >>> Ys[:, 0, :].tolist()
+    [[1.0, 0.5, 0.25], [2.0, 1.0, 0.5]]
+    """
+    table = plan[0]
+    ny, nu, widest = _sizes(table)
+    for r in _prange(X0s.shape[0]):
+        x = X0s[r].copy()
+        ys, ui, held = np.zeros(ny), np.zeros(nu), np.zeros(ny)
+        xn, scratch = np.empty(x.shape[0]), np.empty(5 * widest)
+        loops.discrete_run(evaluate, update, outputs, plan, T, x, U, Ps[r], Ys[r], Xs[r],
+                           statuses[r], 0, T.shape[0], ys, ui, held, xn, scratch)
+
+
+@_parallel_entry
+def run_continuous_many(machine, instants, t_final, T, U, t_eval, eval_instant, Ys, Xs, Uos,
+                        X0s, Ps, method, rtol, atol, max_step, first_step, statuses, plan):
+    """One run of :func:`run_continuous` per row of ``X0s`` and ``Ps``, over the threads.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from controlkit.engines.fast import rk
+    >>> from controlkit.engines.fast.run import prepare
+    >>> plant = ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], name="p", inputs="u",
+    ...               outputs="y")
+    >>> job = prepare(ct.interconnect([plant], inputs="u", outputs="y"))
+    >>> T = np.linspace(0.0, 1.0, 3)
+    >>> Ys, Xs, Uos = np.zeros((2, 1, 3)), np.zeros((2, 1, 3)), np.zeros((2, 1, 3))
+    >>> run_continuous_many(rk.machine_function(), T[:1], 1.0, T, np.ones((1, 3)), T,
+    ...                     np.array([0, -1, -1]), Ys, Xs, Uos, np.array([[0.0], [1.0]]),
+    ...                     np.tile(job.P, (2, 1)), 1, 1e-3, np.full(1, 1e-6), np.inf, 0.0,
+    ...                     np.full((2, 3), -1), job.generic_plan())
+    >>> Ys[:, 0, -1].round(4).tolist()
+    [0.6321, 1.0]
+    """
+    table, cidx = plan[0], plan[10]
+    ny, nu, widest = _sizes(table)
+    nx, nc, m = X0s.shape[1], cidx.shape[0], t_eval.shape[0]
+    for r in _prange(X0s.shape[0]):
+        x = X0s[r].copy()
+        held, ys, ui = np.zeros(ny), np.zeros(ny), np.zeros(nu)
+        xn, scratch, xt, dx = np.empty(nx), np.empty(5 * widest), np.empty(nx), np.zeros(nx)
+        yc, y_eval = np.empty(nc), np.empty((m, nc))
+        ubuf = np.empty((U.shape[0], 1))
+        work = rk.make_workspace(nc, 0, m)
+        ctrl = np.zeros(1, dtype=np.int64)
+        P = Ps[r]
+        args = (plan, x, xt, cidx, T, U, ubuf, P, ys, ui, held, dx)
+        loops.continuous_run(
+            evaluate, update, outputs, rhs, machine, plan, args,
+            (instants, 0, 0, instants.shape[0], t_final, T, U, t_eval, eval_instant),
+            (Ys[r], Xs[r], Uos[r]), (x, P, held),
+            (ys, ui, xn, scratch, xt, cidx, yc, y_eval, ubuf, work),
+            (method, rtol, atol, max_step, first_step, True), ctrl, statuses[r])
