@@ -13,10 +13,6 @@ plain loops: faster for small systems, equal to rounding.
 
 Every function here is pasted into the step machine by numba (``inline="always"``);
 ``f`` is the workspace's ``floats`` and ``K``/``K_flat`` its stages.
-
-References
-----------
-.. [1] SciPy 1.17, ``scipy/integrate/_ivp/{rk,common}.py``.
 """
 
 from __future__ import annotations

@@ -1,7 +1,8 @@
 """The coefficients of Hairer's DOP853, as ``numpy`` arrays (the names are scipy's).
 
-Transcribed from Hairer's Fortran code ``dop853.f`` [1]_, the same source as scipy's
-``scipy/integrate/_ivp/dop853_coefficients.py`` [2]_; the decimal strings are the
+Transcribed from Hairer's Fortran code ``dop853.f`` (Hairer, Norsett & Wanner 1993,
+Sec. II.5-II.6), the same source as scipy 1.17's
+``scipy/integrate/_ivp/dop853_coefficients.py``; the decimal strings are the
 Fortran ones, so they round to the same doubles (``tests/test_rk.py`` compares them
 with scipy's). :data:`controlkit.engines.fast.rk.tableaux.DOP853` packs them as a
 :class:`~controlkit.engines.fast.rk.tableaux.Tableau`.
@@ -15,12 +16,6 @@ the three extra stages of the 7th-order dense output.
 3rd-order error weights over ``k_0..k_12`` (``E3`` is the weights minus the 3rd-order
 formula's, computed as the Fortran code does); ``D`` : coefficients of the interpolant's
 4th..7th terms over ``k_0..k_15`` (4 x 16).
-
-References
-----------
-.. [1] E. Hairer, S. P. Norsett, G. Wanner, "Solving Ordinary Differential Equations I:
-   Nonstiff Problems", 2nd ed., Springer, 1993, Sec. II.5-II.6.
-.. [2] SciPy 1.17, ``scipy/integrate/_ivp/dop853_coefficients.py``.
 """
 
 from __future__ import annotations

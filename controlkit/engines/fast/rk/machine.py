@@ -10,18 +10,12 @@ through a first-class function (:func:`controlkit.engines.fast.rk.machine_functi
 the machine is not even compiled into its callers.
 
 What it does between requests is scipy 1.17's ``solve_ivp`` for an explicit method,
-operation for operation [2]_: Hairer's starting step [1]_, the trial step clipped at
+operation for operation (``scipy/integrate/_ivp/{rk,common,base,ivp}.py``): Hairer's
+starting step (Hairer, Norsett & Wanner 1993, Sec. II.4), the trial step clipped at
 the end of the interval, the scaled RMS error, acceptance with ``SAFETY``,
 ``MIN_FACTOR``, ``MAX_FACTOR`` and "no growth after a rejection in this step", the
 smallest step ``10 |nextafter(t) - t|``, and the dense output serving the evaluation
 times with ``searchsorted(side="right")``.
-
-References
-----------
-.. [1] E. Hairer, S. P. Norsett, G. Wanner, "Solving Ordinary Differential Equations I:
-   Nonstiff Problems", 2nd ed., Springer, 1993, Sec. II.4 (initial step, step-size
-   control).
-.. [2] SciPy 1.17, ``scipy/integrate/_ivp/{rk,common,base,ivp}.py``.
 """
 
 from __future__ import annotations

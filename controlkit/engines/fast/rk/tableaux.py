@@ -1,22 +1,12 @@
 """The three explicit methods of ``solve_ivp`` as tableaux, and the step-size constants.
 
-scipy's ``RungeKutta`` class is defined by its coefficients alone [5]_: a method *is*
-its tableau. Here :data:`RK23`, :data:`RK45` and :data:`DOP853` are :class:`Tableau`
-records, found by name in :data:`METHODS` and by number in :data:`TABLEAUX` (the form
-compiled code selects them in: numba freezes the tuple and its arrays as constants of
-the step machine, which takes the method as a run-time index, :data:`METHOD_INDEX`).
-
-References
-----------
-.. [1] E. Hairer, S. P. Norsett, G. Wanner, "Solving Ordinary Differential Equations I:
-   Nonstiff Problems", 2nd ed., Springer, 1993, Sec. II.4-II.6.
-.. [2] J. R. Dormand, P. J. Prince, "A family of embedded Runge-Kutta formulae",
-   J. Comput. Appl. Math. 6(1), 19-26, 1980.
-.. [3] L. F. Shampine, "Some practical Runge-Kutta formulas", Math. Comp. 46(173),
-   135-150, 1986 (the RK45 dense output).
-.. [4] P. Bogacki, L. F. Shampine, "A 3(2) pair of Runge-Kutta formulas",
-   Appl. Math. Lett. 2(4), 321-325, 1989.
-.. [5] SciPy 1.17, ``scipy/integrate/_ivp/{rk,common}.py``.
+scipy's ``RungeKutta`` class (``scipy/integrate/_ivp/rk.py``, scipy 1.17) is defined by
+its coefficients alone: a method *is* its tableau. Here :data:`RK23`, :data:`RK45` and
+:data:`DOP853` are :class:`Tableau` records, found by name in :data:`METHODS` and by
+number in :data:`TABLEAUX` (the form compiled code selects them in: numba freezes the
+tuple and its arrays as constants of the step machine, which takes the method as a
+run-time index, :data:`METHOD_INDEX`).
+The sources of the coefficients are listed in :mod:`controlkit.engines.fast.rk`.
 """
 
 from __future__ import annotations
@@ -140,7 +130,7 @@ def _tableau(*, n_stages, error_kind, dense_kind, estimator_order, C, A, B, E, E
     )
 
 
-#: Bogacki-Shampine 3(2) with its cubic Hermite dense output [4].
+#: Bogacki-Shampine 3(2) with its cubic Hermite dense output (Bogacki & Shampine 1989).
 RK23 = _tableau(
     n_stages=3,
     error_kind=ERROR_EMBEDDED,
@@ -154,7 +144,8 @@ RK23 = _tableau(
     dense=[[1, -4 / 3, 5 / 9], [0, 1, -2 / 3], [0, 4 / 3, -8 / 9], [0, -1, 1]],
 )
 
-#: Dormand-Prince 5(4) [2] with Shampine's quartic dense output [3].
+#: Dormand-Prince 5(4) (Dormand & Prince 1980) with Shampine's quartic dense output
+#: (Shampine 1986).
 RK45 = _tableau(
     n_stages=6,
     error_kind=ERROR_EMBEDDED,
@@ -194,7 +185,8 @@ RK45 = _tableau(
 )
 
 
-#: Hairer's DOP853: 8th order, 5th/3rd-order error estimate, 7th-order dense output [1].
+#: Hairer's DOP853: 8th order, 5th/3rd-order error estimate, 7th-order dense output
+#: (Hairer, Norsett & Wanner 1993, Sec. II.5-II.6).
 DOP853 = _tableau(
     n_stages=12,
     error_kind=ERROR_DOP853,
