@@ -81,6 +81,40 @@ def jit(function=None, *, inline=False):
     return numba.njit(cache=True)(function)
 
 
+if numba is not None:
+    from numba.core import cgutils
+    from numba.extending import intrinsic
+
+    @intrinsic
+    def void_pointer(typingctx, address):
+        """An integer address as a ``void*``, for ``numba.carray`` (compiled code only).
+
+        A compiled function that receives arrays by address (``array.ctypes.data``)
+        views them with ``numba.carray(void_pointer(address), shape, dtype)``: views
+        that own nothing, so numba does not update any reference count when they are
+        passed around (:mod:`controlkit.engines.fast.rk` relies on it). The caller keeps
+        the arrays alive. Defined only when numba is.
+
+        Examples
+        --------
+        >>> import numba
+        >>> import numpy as np
+        >>> @numba.njit
+        ... def second(address, size):
+        ...     return numba.carray(void_pointer(address), (size,), np.float64)[1]
+        >>> values = np.array([1.0, 2.5, 4.0])
+        >>> float(second(values.ctypes.data, values.size))
+        2.5
+        """
+        if not isinstance(address, numba.types.Integer):
+            return None
+
+        def codegen(context, builder, signature, arguments):
+            return builder.inttoptr(arguments[0], cgutils.voidptr_t)
+
+        return numba.types.voidptr(address), codegen
+
+
 def python_function(function):
     """The plain Python function behind a :func:`jit`-decorated one.
 

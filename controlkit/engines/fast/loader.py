@@ -312,9 +312,10 @@ def load_python(source: str, injected: dict):
     exec(compile(source, "<controlkit diagram>", "exec"), namespace)
     namespace.update(injected)
     py = _jit.python_function
-    python_rk = SimpleNamespace(
-        solve_interval=getattr(rk, "_solve_interval_python", rk.solve_interval),
-        make_workspace=rk.make_workspace, SUCCESS=rk.SUCCESS)
+    from .rk.interval import _solve_interval_python
+
+    python_rk = SimpleNamespace(solve_interval=_solve_interval_python,
+                                make_workspace=rk.make_workspace, SUCCESS=rk.SUCCESS)
     # the loops' own Python code, reading Python versions of what they call
     scope = dict(vars(loops), rk=python_rk)
     names = ("discrete_run", "continuous_run", "rhs_template", "interpolate", "_record")

@@ -1,0 +1,400 @@
+"""Benchmarks of :mod:`controlkit.engines.fast.rk`: compile and cache-load times, cost per step.
+
+Run from the repository root after ``pip install ".[fast]"``::
+
+    python benchmarks/bench_rk.py compile     # about 5 minutes
+    python benchmarks/bench_rk.py runtime     # about 10 minutes
+
+(no argument: both). Results are printed and written to ``results/bench_rk.json``. The
+machine is shared and noisy: each number is the median of several runs.
+
+compile
+    Generated modules as controlkit would write them (the right-hand side a global of
+    a compiled ``run``), each imported in a fresh process with its own numba cache:
+    ``no integrator`` (the floor: 1000 Euler steps), ``machine linked`` (``run`` calls
+    ``rk.solve_interval`` with ``rk.machine``, whose code numba then links and
+    optimizes into ``run``), ``machine by pointer`` (``run`` receives
+    ``rk.machine_function()`` and calls the machine through it), ``machine+rhs by
+    pointer`` (the right-hand side is a first-class function too: ``run`` is then the
+    same for every diagram with the same type of ``args``). For each: the first call
+    with an empty cache ("cold"), the first call of a *new* diagram once rk's functions
+    are cached, and the first call in a second process (all loaded from the cache). Each
+    design runs with its own numba cache folder (``NUMBA_CACHE_DIR``), so "cold" includes
+    compiling the integrator.
+runtime
+    Nanoseconds per accepted step on a 2-state and a 10-state nonlinear problem over a
+    1e5 s horizon: ours (exact and loop arithmetic; machine linked or by pointer;
+    right-hand side direct or by pointer), scipy's ``solve_ivp`` with the same
+    right-hand side in Python and with the numba-compiled one (python-control's "just
+    jit the right-hand side"), both measured per step on a 1e3 s horizon, and a plain
+    fixed-step RK4 loop making as many evaluations as our run. The problems are
+    ``tests/rk_problems.py``'s.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import textwrap
+import time
+
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+TESTS = os.path.join(ROOT, "tests")
+RESULTS = os.path.join(ROOT, "results", "bench_rk.json")
+PYTHON = sys.executable
+
+RHS_SOURCE = {
+    "vdp2": '''
+@numba.njit(cache=True)
+def rhs(t, y, args, out):
+    mu = args[0][0] + {salt}
+    out[0] = y[1]
+    out[1] = mu * (1.0 - y[0] * y[0]) * y[1] - y[0]
+    return out
+''',
+}
+
+LINKED_TEMPLATE = '''
+import numpy as np
+import numba
+from controlkit.engines.fast import rk
+{rhs}
+
+@numba.njit(cache=True)
+def run(y0, t_eval, y_eval, work):
+    args = (np.array([2.0]), np.zeros(2), np.zeros((0, 2)))
+    y_end = np.empty(y0.shape[0])
+    return rk.solve_interval(rk.machine, rhs, args, {index}, 0.0, 20.0, y0, 1e-3,
+                             np.full(y0.shape[0], 1e-6), np.inf, 0.0, t_eval, 0, True,
+                             y_eval, y_end, work, True)
+
+
+def first_call():
+    y0 = np.array([2.0, 0.0])
+    t_eval = np.linspace(0.0, 20.0, 101)
+    y_eval = np.zeros((101, 2))
+    work = rk.make_workspace(2, 0, 101)
+    return run(y0, t_eval, y_eval, work), y_eval[-1]
+'''
+
+POINTER_TEMPLATE = '''
+import numpy as np
+import numba
+from controlkit.engines.fast import rk
+{rhs}
+
+@numba.njit(cache=True)
+def run(machine, y0, t_eval, y_eval, work):
+    args = (np.array([2.0]), np.zeros(2), np.zeros((0, 2)))
+    y_end = np.empty(y0.shape[0])
+    return rk.solve_interval(machine, rhs, args, {index}, 0.0, 20.0, y0, 1e-3,
+                             np.full(y0.shape[0], 1e-6), np.inf, 0.0, t_eval, 0, True,
+                             y_eval, y_end, work, True)
+
+
+def first_call():
+    y0 = np.array([2.0, 0.0])
+    t_eval = np.linspace(0.0, 20.0, 101)
+    y_eval = np.zeros((101, 2))
+    work = rk.make_workspace(2, 0, 101)
+    return run(rk.machine_function(), y0, t_eval, y_eval, work), y_eval[-1]
+'''
+
+BOTH_POINTERS_TEMPLATE = '''
+import numpy as np
+import numba
+from controlkit.engines.fast import rk
+{rhs}
+
+@numba.njit(cache=True)
+def run(machine, rhs, args, y0, t_eval, y_eval, work):
+    y_end = np.empty(y0.shape[0])
+    return rk.solve_interval(machine, rhs, args, {index}, 0.0, 20.0, y0, 1e-3,
+                             np.full(y0.shape[0], 1e-6), np.inf, 0.0, t_eval, 0, True,
+                             y_eval, y_end, work, True)
+
+
+def first_call():
+    args = (np.array([2.0]), np.zeros(2), np.zeros((0, 2)))
+    y0 = np.array([2.0, 0.0])
+    t_eval = np.linspace(0.0, 20.0, 101)
+    y_eval = np.zeros((101, 2))
+    work = rk.make_workspace(2, 0, 101)
+    return run(rk.machine_function(), rk.first_class(rhs, args), args, y0, t_eval, y_eval,
+               work), y_eval[-1]
+'''
+
+BASELINE_TEMPLATE = '''
+import numpy as np
+import numba
+from controlkit.engines.fast import rk
+{rhs}
+
+@numba.njit(cache=True)
+def run(y0, t_eval, y_eval, work):
+    """No integrator: 1000 explicit Euler steps (the floor of a diagram's compile time)."""
+    args = (np.array([2.0]), np.zeros(2), np.zeros((0, 2)))
+    y = np.empty(y0.shape[0])
+    slope = np.empty(y0.shape[0])
+    for i in range(y.shape[0]):
+        y[i] = y0[i]
+    for _ in range(1000):
+        rhs(0.0, y, args, slope)
+        for i in range(y.shape[0]):
+            y[i] += 1e-3 * slope[i]
+    for i in range(y.shape[0]):
+        y_eval[y_eval.shape[0] - 1, i] = y[i]
+    return 0, {index}
+
+
+def first_call():
+    y0 = np.array([2.0, 0.0])
+    y_eval = np.zeros((101, 2))
+    return run(y0, np.zeros(101), y_eval, None), y_eval[-1]
+'''
+
+DESIGNS = {
+    "no integrator (floor)": BASELINE_TEMPLATE,
+    "machine linked": LINKED_TEMPLATE,
+    "machine by pointer": POINTER_TEMPLATE,
+    "machine+rhs by pointer": BOTH_POINTERS_TEMPLATE,
+}
+
+DRIVER = '''
+import sys, time, json
+start = time.perf_counter()
+sys.path[:0] = [{root!r}, {gen!r}]
+import numpy as np, numba
+from controlkit.engines.fast import rk
+imported = time.perf_counter()
+module = __import__({module!r})
+loaded = time.perf_counter()
+result, last = module.first_call()
+called = time.perf_counter()
+print(json.dumps({{"import_numba_rk": imported - start, "import_module": loaded - imported,
+                  "first_call": called - loaded, "status": int(result[0]),
+                  "last": list(map(float, last)),
+                  "run_cache_hits": sum(module.run.stats.cache_hits.values()),
+                  "run_cache_misses": sum(module.run.stats.cache_misses.values())}}))
+'''
+
+
+def run_driver(gen_dir, module, cache_dir):
+    """Import ``module`` from ``gen_dir`` in a fresh process and time its first call."""
+    environment = dict(os.environ, NUMBA_CACHE_DIR=cache_dir)
+    script = DRIVER.format(root=ROOT, gen=gen_dir, module=module)
+    output = subprocess.run([PYTHON, "-c", script], capture_output=True, text=True,
+                            env=environment, check=True).stdout
+    return json.loads(output.strip().splitlines()[-1])
+
+
+def write_module(gen_dir, name, template, method, salt):
+    """A generated diagram module (``salt`` makes each right-hand side a new function)."""
+    from controlkit.engines.fast import rk
+
+    source = template.format(rhs=RHS_SOURCE["vdp2"].format(salt=salt),
+                             index=rk.METHOD_INDEX[method])
+    with open(os.path.join(gen_dir, name + ".py"), "w") as handle:
+        handle.write(textwrap.dedent(source))
+
+
+def bench_compile(repeats=3, methods=("RK45",)):
+    """Median first-call times (s) per design; see the module docstring.
+
+    The machine holds the three tableaux and picks one at run time, so the method does
+    not change what is compiled (``methods`` can check that).
+    """
+    table = {}
+    for design, template in DESIGNS.items():
+        for method in methods:
+            cold, new_diagram, cached = [], [], []
+            for _ in range(repeats):
+                with tempfile.TemporaryDirectory() as gen_dir, \
+                        tempfile.TemporaryDirectory() as cache_dir:
+                    write_module(gen_dir, "diagram_a", template, method, "0.0")
+                    write_module(gen_dir, "diagram_b", template, method, "0.0 * 2")
+                    a = run_driver(gen_dir, "diagram_a", cache_dir)
+                    b = run_driver(gen_dir, "diagram_b", cache_dir)
+                    b_again = run_driver(gen_dir, "diagram_b", cache_dir)
+                    assert a["status"] == b["status"] == b_again["status"] == 0
+                    assert a["last"] == b["last"] == b_again["last"]
+                    # the second process compiles nothing: run comes from the disk cache
+                    assert (b_again["run_cache_hits"], b_again["run_cache_misses"]) == (1, 0)
+                    assert (b["run_cache_hits"], b["run_cache_misses"]) == (0, 1)
+                    cold.append(a["first_call"])
+                    new_diagram.append(b["first_call"])
+                    cached.append(b_again["first_call"])
+            table[(design, method)] = (statistics.median(cold),
+                                       statistics.median(new_diagram),
+                                       statistics.median(cached))
+            print(f"{design:24s} {method:7s} cold {table[(design, method)][0]:6.2f} s   "
+                  f"new diagram {table[(design, method)][1]:6.2f} s   "
+                  f"from cache {table[(design, method)][2]:6.2f} s", flush=True)
+    return table
+
+
+# ------------------------------------------------------------------------------------------
+# Cost per step
+# ------------------------------------------------------------------------------------------
+
+
+def _compiled_callers():
+    """The compiled loops the runtime benchmark times (compiled here, not cached)."""
+    import numba
+
+    from controlkit.engines.fast import rk
+
+    @numba.njit
+    def rk4_fixed(rhs, args, y0, t0, h, steps, work):
+        """Classical RK4, ``steps`` steps of ``h`` (controlkit's rk4_step, as a loop)."""
+        k1, k2, k3, k4, yt = work
+        y = y0.copy()
+        n = y.shape[0]
+        t = t0
+        for _ in range(steps):
+            rhs(t, y, args, k1)
+            for j in range(n):
+                yt[j] = y[j] + (h / 2) * k1[j]
+            rhs(t + h / 2, yt, args, k2)
+            for j in range(n):
+                yt[j] = y[j] + (h / 2) * k2[j]
+            rhs(t + h / 2, yt, args, k3)
+            for j in range(n):
+                yt[j] = y[j] + h * k3[j]
+            rhs(t + h, yt, args, k4)
+            for j in range(n):
+                y[j] = y[j] + (h / 6) * (k1[j] + 2 * k2[j] + 2 * k3[j] + k4[j])
+            t += h
+        return y
+
+    @numba.njit
+    def linked(machine_function, rhs, args, method, t1, y0, atol, t_eval, y_eval, y_end,
+               work, exact):
+        """The machine called directly (its code compiled into this caller)."""
+        return rk.solve_interval(rk.machine, rhs, args, method, 0.0, t1, y0, 1e-3, atol,
+                                 np.inf, 0.0, t_eval, 0, True, y_eval, y_end, work, exact)
+
+    @numba.njit
+    def by_pointer(machine_function, rhs, args, method, t1, y0, atol, t_eval, y_eval, y_end,
+                   work, exact):
+        """The machine (and maybe the right-hand side) called through pointers."""
+        return rk.solve_interval(machine_function, rhs, args, method, 0.0, t1, y0, 1e-3, atol,
+                                 np.inf, 0.0, t_eval, 0, True, y_eval, y_end, work, exact)
+
+    return rk4_fixed, linked, by_pointer
+
+
+def _evaluate_compiled(rhs, args, n, t, y):
+    """scipy's ``fun(t, y)`` around a compiled ``rhs(t, y, args, out)``."""
+    out = np.empty(n)
+    rhs(t, y, args, out)
+    return out
+
+
+def _median_time(function, repeats):
+    samples = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        function()
+        samples.append(time.perf_counter() - start)
+    return statistics.median(samples)
+
+
+def bench_runtime(repeats=5, horizon=1e5, scipy_horizon=1e3):
+    """Nanoseconds per step of each integrator on two problems; see the module docstring."""
+    import rk_problems as P
+    import scipy.integrate
+
+    from controlkit.engines.fast import rk
+
+    rk4_fixed, linked, by_pointer = _compiled_callers()
+    problems = P.make_problems()
+    cases = {
+        "van_der_pol (2 states)": problems["van_der_pol"],
+        "chain10 (10 states)": problems["chain10"],
+    }
+    machine_pointer = rk.machine_function()
+    rows = []
+    for label, problem in cases.items():
+        for method in ("RK45", "DOP853", "RK23"):
+            n = problem.y0.shape[0]
+            args = problem.args
+            index = rk.METHOD_INDEX[method]
+            t_eval = np.linspace(0.0, horizon, 1001)
+            y_eval = np.zeros((t_eval.shape[0], n))
+            y_end = np.zeros(n)
+            atol = np.full(n, 1e-6)
+            work = rk.make_workspace(n, 0, t_eval.shape[0])
+            rhs_pointer = rk.first_class(problem.rhs, args)
+            variants = {
+                "exact, linked": (linked, machine_pointer, problem.rhs, True),
+                "exact, machine by pointer": (by_pointer, machine_pointer, problem.rhs, True),
+                "exact, both by pointer": (by_pointer, machine_pointer, rhs_pointer, True),
+                "loops, linked": (linked, machine_pointer, problem.rhs, False),
+                "loops, machine by pointer": (by_pointer, machine_pointer, problem.rhs, False),
+            }
+            per_step = {}
+            counts = {}
+            for name, (caller, machine_value, rhs_value, exact) in variants.items():
+                call = functools.partial(caller, machine_value, rhs_value, args, index,
+                                         horizon, problem.y0, atol, t_eval, y_eval, y_end,
+                                         work, exact)
+                status, _ = call()
+                assert status == rk.SUCCESS
+                seconds = _median_time(call, repeats)
+                counts[name] = (int(work.ints[rk.N_ACCEPTED]), int(work.ints[rk.NFEV]))
+                per_step[name] = seconds / counts[name][0] * 1e9
+            steps, nfev = counts["exact, linked"]
+
+            # scipy on a shorter horizon (its cost per step does not depend on the horizon)
+            short_eval = np.linspace(0.0, scipy_horizon, 11)
+            jitted_fun = functools.partial(_evaluate_compiled, problem.rhs, args, n)
+            for name, fun in (("scipy, Python rhs", problem.scipy_fun()),
+                              ("scipy, jitted rhs", jitted_fun)):
+                step_count = scipy.integrate.solve_ivp(fun, (0.0, scipy_horizon), problem.y0,
+                                                       method=method).t.size - 1
+                call = functools.partial(scipy.integrate.solve_ivp, fun, (0.0, scipy_horizon),
+                                         problem.y0, method=method, t_eval=short_eval)
+                per_step[name] = _median_time(call, max(1, repeats // 2)) / step_count * 1e9
+
+            # plain RK4 making as many evaluations as our run
+            rk4_steps = max(1, nfev // 4)
+            rk4_work = tuple(np.zeros(n) for _ in range(5))
+            h = horizon / rk4_steps
+            rk4_fixed(problem.rhs, args, problem.y0, 0.0, h, 10, rk4_work)
+            call = functools.partial(rk4_fixed, problem.rhs, args, problem.y0, 0.0, h,
+                                     rk4_steps, rk4_work)
+            seconds = _median_time(call, repeats)
+            row = {"problem": label, "method": method, "steps": steps, "nfev": nfev,
+                   "ns_per_step": per_step,
+                   "ns_per_evaluation_ours": per_step["exact, linked"] * steps / nfev,
+                   "ns_per_evaluation_rk4": seconds / (4 * rk4_steps) * 1e9}
+            rows.append(row)
+            print(f"{label} {method}: {steps} steps, {nfev} evaluations over {horizon:g} s; "
+                  f"ns per evaluation: ours {row['ns_per_evaluation_ours']:.0f}, "
+                  f"RK4 loop {row['ns_per_evaluation_rk4']:.0f}", flush=True)
+            for name, value in per_step.items():
+                print(f"    {name:28s} {value:10.0f} ns/step", flush=True)
+    return rows
+
+
+if __name__ == "__main__":
+    sys.path[:0] = [ROOT, TESTS]
+    which = sys.argv[1:] or ["compile", "runtime"]
+    results = {}
+    if "compile" in which:
+        results["compile"] = {f"{design} / {method}": times
+                              for (design, method), times in bench_compile().items()}
+    if "runtime" in which:
+        results["runtime"] = bench_runtime()
+    os.makedirs(os.path.dirname(RESULTS), exist_ok=True)
+    with open(RESULTS, "w") as handle:
+        json.dump(results, handle, indent=1)
+    print(f"written to {RESULTS}")

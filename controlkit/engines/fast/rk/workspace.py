@@ -1,0 +1,405 @@
+"""The integrator's workspace: four flat arrays, and where each quantity lives in them.
+
+Everything the step machine keeps between calls -- scalars, the state and its copies,
+the stages, the interpolant, counters and status -- lives in one :class:`Workspace`,
+allocated once per state size and reused for every interval (a sampled-data loop
+allocates nothing per interval). Quantities are found by slot: :data:`T_REQUEST`,
+:data:`TIME_REACHED`, :data:`NEXT_STEP`, :data:`TIME_FAILED` in ``floats``;
+:data:`NFEV`, :data:`N_ACCEPTED`, :data:`N_REJECTED`, :data:`N_DENSE`,
+:data:`STATUS`, :data:`NEXT_EVAL` in ``ints``. The other slots (underscored) belong to
+the machine. This module also defines the values the :data:`STATUS` slot takes (the
+status codes, :data:`STATUS_MESSAGES`) and those of the machine's phase, and
+:func:`load`, which starts an interval.
+
+Why flat arrays: numba updates the reference count of every array a compiled function
+receives, with atomic instructions, at every call. With the workspace as a tuple of
+fourteen arrays that cost about 60% of the run time; with four arrays read by index
+(and the machine viewing them through their addresses) it is gone.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import namedtuple
+
+import numpy as np
+
+from ...._jit import jit
+from .tableaux import TABLEAUX
+
+# Layout of the workspace (see :class:`Workspace`). Scalars first, at fixed slots of
+# ``work.floats`` and ``work.ints``; then, in ``work.floats``, eight vectors of the state's
+# size, the interpolant's coefficients, the log of step times and the evaluation scratch.
+#: ``floats`` slot: time at which the caller must evaluate the right-hand side.
+T_REQUEST = 0
+#: ``floats`` slot: last time reached (the end of the last accepted step).
+TIME_REACHED = 1
+#: ``floats`` slot: step size proposed for the next step.
+NEXT_STEP = 2
+#: ``floats`` slot: time of the step that failed (NaN when none failed).
+TIME_FAILED = 3
+_T = 4
+_T_OLD = 5
+_T_NEW = 6
+_H = 7
+_H_ABS = 8
+_MIN_STEP = 9
+_T0 = 10
+_T1 = 11
+_DIRECTION = 12
+_RTOL = 13
+_MAX_STEP = 14
+_FIRST_STEP = 15
+_H0 = 16
+_D1 = 17
+_RTOL_GIVEN = 18
+#: Number of scalar slots at the start of ``work.floats``.
+N_FLOAT_SLOTS = 19
+
+# The vectors after the scalars, in this order (each of the state's size).
+_Y = 0
+_Y_NEW = 1
+_Y_OLD = 2
+_Y_STAGE = 3
+_SCALE = 4
+_ERR = 5
+_ERR_LOW = 6
+_ATOL = 7
+_N_VECTORS = 8
+#: Rows of the stage array (enough for every method).
+STAGE_ROWS = 16
+#: Rows of the interpolant's coefficients (DOP853 has seven, RK45 four, RK23 three).
+DENSE_ROWS = 7
+
+#: ``ints`` slot: evaluations of the right-hand side requested in this call.
+NFEV = 0
+#: ``ints`` slot: accepted steps.
+N_ACCEPTED = 1
+#: ``ints`` slot: rejected trial steps.
+N_REJECTED = 2
+#: ``ints`` slot: steps whose interpolant served an evaluation time.
+N_DENSE = 3
+#: ``ints`` slot: status of the call (once the machine returned :data:`FINISHED`).
+STATUS = 4
+#: ``ints`` slot: index of the first evaluation time not served yet.
+NEXT_EVAL = 5
+_PHASE = 6
+_STAGE = 7
+_REJECTED = 8
+_LAST_ERROR_FINITE = 9
+_EVAL_END = 10
+_STOP = 11
+_METHOD = 12
+_EXACT = 13
+_CLOSED_RIGHT = 14
+_LOG_SIZE = 15
+_EVAL_CAPACITY = 16
+#: Number of slots of ``work.ints``.
+N_INT_SLOTS = 17
+
+# Status codes returned by solve_interval.
+#: The interval was integrated to its end.
+SUCCESS = 0
+#: The step needed fell below ten times the spacing of floats at the current time.
+STEP_TOO_SMALL = -1
+#: The state or the right-hand side became non-finite (NaN or infinite).
+NON_FINITE = -2
+#: An argument is out of range (see :data:`STATUS_MESSAGES`).
+INVALID_ARGUMENT = -3
+
+#: What each status code means.
+STATUS_MESSAGES = {
+    SUCCESS: "The solver successfully reached the end of the integration interval.",
+    STEP_TOO_SMALL: "Required step size is less than spacing between numbers.",
+    NON_FINITE: "The state or its derivative became non-finite (NaN or infinite).",
+    INVALID_ARGUMENT: (
+        "Invalid argument: max_step must be > 0, first_step in [0, |t1 - t0|], "
+        "atol >= 0 of the state's size, t0 and t1 finite, the evaluation times "
+        "strictly monotone inside [t0, t1], and the work arrays of the method's size."
+    ),
+}
+
+# Phases of the step machine: what the last request was for (or where to go on).
+_PHASE_BEGIN = 0
+_PHASE_F0 = 1
+_PHASE_F1 = 2
+_PHASE_STAGE = 3
+_PHASE_F_NEW = 4
+_PHASE_EXTRA = 5
+_PHASE_STEP = 6
+_PHASE_TRIAL = 7
+_PHASE_ACCEPTED = 8
+_PHASE_STEP_END = 9
+_PHASE_DONE = 10
+_PHASE_BAD_SIZES = 11
+
+
+Workspace = namedtuple("Workspace", ["floats", "stages", "stages_flat", "ints"])
+Workspace.__doc__ = """What the integrator works in: four arrays, allocated once per state size.
+
+The integrator keeps everything in a few flat arrays, read by index, rather than in
+many small ones: compiled code then passes four pointers around instead of dozens of
+arrays whose reference counts numba would update at every call (which cost more than
+the arithmetic of a step).
+
+Attributes
+----------
+floats : numpy.ndarray
+    :data:`N_FLOAT_SLOTS` scalars (:data:`T_REQUEST`, :data:`TIME_REACHED`,
+    :data:`NEXT_STEP`, :data:`TIME_FAILED`, ...), then eight vectors of the state's size
+    (state, trial state, previous state, the state at which the caller evaluates the
+    right-hand side, error scale, two error estimates, absolute tolerance), the
+    interpolant's coefficients (``7 n``), the log of step times and the scratch for
+    evaluating the interpolant at several times at once.
+stages : numpy.ndarray, shape (16, n)
+    The stages ``k_j``, one per row.
+stages_flat : numpy.ndarray, shape (16 n,)
+    The same memory, flat.
+ints : numpy.ndarray of int64
+    :data:`N_INT_SLOTS` integers: :data:`NFEV`, :data:`N_ACCEPTED`, :data:`N_REJECTED`,
+    :data:`N_DENSE`, :data:`STATUS`, :data:`NEXT_EVAL`, ...
+
+Examples
+--------
+>>> from controlkit.engines.fast.rk import make_workspace
+>>> work = make_workspace(2)
+>>> work.stages.shape, work.stages_flat.shape, work.ints.dtype.name
+((16, 2), (32,), 'int64')
+>>> work.stages[1, 0] = 3.0  # the same memory as stages_flat
+>>> float(work.stages_flat[2])
+3.0
+"""
+
+
+@jit
+def make_workspace(n, log_size=0, eval_capacity=0):
+    """Allocate a :class:`Workspace` for ``n`` states.
+
+    Parameters
+    ----------
+    n : int
+        Number of states.
+    log_size : int
+        How many accepted step times to keep (:func:`step_times`; for tests).
+    eval_capacity : int
+        Most evaluation times one step may serve without the integrator allocating
+        scratch for them (only the exact arithmetic of RK23/RK45 needs it).
+
+    Examples
+    --------
+    >>> work = make_workspace(3)
+    >>> work.stages.shape, work.ints.shape[0] == N_INT_SLOTS
+    ((16, 3), True)
+    """
+    size = (N_FLOAT_SLOTS + (_N_VECTORS + DENSE_ROWS) * n + log_size
+            + (4 + n) * eval_capacity)
+    floats = np.zeros(size)
+    stages_flat = np.zeros(STAGE_ROWS * n)
+    ints = np.zeros(N_INT_SLOTS, dtype=np.int64)
+    ints[_LOG_SIZE] = log_size
+    ints[_EVAL_CAPACITY] = eval_capacity
+    return Workspace(floats, stages_flat.reshape((STAGE_ROWS, n)), stages_flat, ints)
+
+
+@jit(inline=True)
+def _at(vector, n):
+    """Offset in ``work.floats`` of vector number ``vector`` (``_Y``, ``_Y_NEW``, ...)."""
+    return N_FLOAT_SLOTS + vector * n
+
+
+@jit(inline=True)
+def _dense_at(n):
+    """Offset in ``work.floats`` of the interpolant's coefficients."""
+    return N_FLOAT_SLOTS + _N_VECTORS * n
+
+
+@jit(inline=True)
+def _log_at(n):
+    """Offset in ``work.floats`` of the log of step times."""
+    return N_FLOAT_SLOTS + (_N_VECTORS + DENSE_ROWS) * n
+
+
+@jit(inline=True)
+def stage_input(work):
+    """The state at which the caller evaluates the right-hand side when asked to (a view).
+
+    When the machine returns a row ``r >= 0``, the caller evaluates
+    ``rhs(work.floats[T_REQUEST], stage_input(work), args, work.stages[r])``.
+
+    Examples
+    --------
+    The first request of an interval is ``f(t0, y0)``, into row 0:
+
+    >>> import numpy as np
+    >>> from controlkit.engines.fast.rk import METHOD_INDEX, load, machine_on_arrays
+    >>> work = make_workspace(2)
+    >>> load(METHOD_INDEX["RK45"], 0.0, 1.0, np.array([1.0, -2.0]), 1e-3, np.full(2, 1e-6),
+    ...      np.inf, 0.0, 0, True, work, True)
+    >>> row = machine_on_arrays(np.zeros(0), np.zeros((0, 2)), *work)
+    >>> int(row), float(work.floats[T_REQUEST]), stage_input(work).tolist()
+    (0, 0.0, [1.0, -2.0])
+    """
+    n = work.stages.shape[1]
+    start = _at(_Y_STAGE, n)
+    return work.floats[start : start + n]
+
+
+@jit
+def state(work):
+    """The state at the last time reached, ``work.floats[TIME_REACHED]`` (a view).
+
+    Examples
+    --------
+    Loading an interval puts its initial state there:
+
+    >>> import numpy as np
+    >>> from controlkit.engines.fast.rk import METHOD_INDEX, load
+    >>> work = make_workspace(2)
+    >>> load(METHOD_INDEX["DOP853"], 0.0, 1.0, np.array([1.0, -2.0]), 1e-3,
+    ...      np.full(2, 1e-6), np.inf, 0.0, 0, True, work, True)
+    >>> state(work).tolist(), float(work.floats[TIME_REACHED])
+    ([1.0, -2.0], 0.0)
+    """
+    n = work.stages.shape[1]
+    start = _at(_Y, n)
+    return work.floats[start : start + n]
+
+
+@jit
+def step_times(work):
+    """The accepted step times the workspace kept (a view; see :func:`make_workspace`).
+
+    The first ``log_size`` of them, in the order they were taken.
+
+    Examples
+    --------
+    ``y' = -y`` over ``[0, 1]`` with RK45 at scipy's default tolerances; the last step
+    ends at ``t1`` exactly:
+
+    >>> import numpy as np
+    >>> from controlkit.engines.fast import rk
+    >>> def decay(t, y, args, out):
+    ...     out[0] = -args[0][0] * y[0]
+    >>> if rk.HAVE_NUMBA:
+    ...     import numba
+    ...     decay = numba.njit(decay)
+    >>> args = (np.array([1.0]),)
+    >>> work = rk.make_workspace(1, log_size=100)
+    >>> status, served = rk.solve_interval(
+    ...     rk.machine_function(), rk.first_class(decay, args), args, rk.METHOD_INDEX["RK45"],
+    ...     0.0, 1.0, np.ones(1), 1e-3, np.full(1, 1e-6), np.inf, 0.0, np.zeros(0), 0, True,
+    ...     np.zeros((0, 1)), np.empty(1), work, True)
+    >>> times = rk.step_times(work)
+    >>> int(work.ints[rk.N_ACCEPTED]) == times.size, float(times[-1])
+    (True, 1.0)
+    """
+    n = work.stages.shape[1]
+    kept = min(work.ints[N_ACCEPTED], work.ints[_LOG_SIZE])
+    return work.floats[_log_at(n) : _log_at(n) + kept]
+
+
+@jit(inline=True)
+def _arguments_valid(t_eval, y_eval, f, K, st):
+    """True when the loaded arguments are in range (see :func:`solve_interval`)."""
+    n = K.shape[1]
+    t0 = f[_T0]
+    t1 = f[_T1]
+    if not (math.isfinite(t0) and math.isfinite(t1)):
+        return False
+    if not (f[_MAX_STEP] > 0):
+        return False
+    first_step = f[_FIRST_STEP]
+    if not (first_step >= 0) or first_step > abs(t1 - t0):
+        return False
+    atol = _at(_ATOL, n)
+    for i in range(n):
+        if not (f[atol + i] >= 0):
+            return False
+    if f[_RTOL_GIVEN] != f[_RTOL_GIVEN]:
+        return False
+    if st[_METHOD] < 0 or st[_METHOD] >= len(TABLEAUX):
+        return False
+    if K.shape[0] < STAGE_ROWS:
+        return False
+    i_eval = st[NEXT_EVAL]
+    if i_eval < 0 or i_eval > t_eval.shape[0]:
+        return False
+    if i_eval < t_eval.shape[0] and (
+        y_eval.shape[0] != t_eval.shape[0] or y_eval.shape[1] != n
+    ):
+        return False
+    return True
+
+
+@jit(inline=True)
+def _evaluation_end(t0, t1, direction, t_eval, i_eval, closed_right):
+    """One past the last evaluation time this interval serves, or -1 when they are bad.
+
+    The interval serves ``t_eval[i_eval:end]``: the times ``t`` with ``t0 <= t < t1``
+    (``t <= t1`` when ``closed_right``), read in the direction of integration; they
+    must start at or after ``t0`` and be strictly monotone.
+    """
+    end = i_eval
+    previous = t0
+    while end < t_eval.shape[0]:
+        t = t_eval[end]
+        ahead = direction * (t - t1)
+        if ahead > 0 or (ahead == 0 and not closed_right):
+            break
+        if end == i_eval:
+            if direction * (t - t0) < 0:
+                return -1
+        elif not (direction * (t - previous) > 0):
+            return -1
+        previous = t
+        end += 1
+    return end
+
+
+@jit
+def load(method_index, t0, t1, y0, rtol, atol, max_step, first_step, i_eval, closed_right,
+         work, exact):
+    """Put an interval's arguments into ``work``; :func:`machine` then starts on it.
+
+    Arguments as :func:`solve_interval`; ``method_index`` is ``METHOD_INDEX[name]``.
+    The counters are reset; arguments are checked when the machine starts (a state or
+    tolerance of the wrong size makes it finish at once with ``INVALID_ARGUMENT``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from controlkit.engines.fast.rk import METHOD_INDEX
+    >>> work = make_workspace(2)
+    >>> work.ints[NFEV] = 7  # left over from the previous interval
+    >>> load(METHOD_INDEX["RK45"], 0.0, 2.0, np.array([1.0, 0.0]), 1e-3, np.full(2, 1e-6),
+    ...      np.inf, 0.0, 0, True, work, True)
+    >>> int(work.ints[NFEV]), float(work.floats[TIME_REACHED]), state(work).tolist()
+    (0, 0.0, [1.0, 0.0])
+    """
+    f = work.floats
+    st = work.ints
+    for k in range(_LOG_SIZE):
+        st[k] = 0
+    f[TIME_REACHED] = t0
+    f[NEXT_STEP] = 0.0
+    f[TIME_FAILED] = math.nan
+    f[_T0] = t0
+    f[_T1] = t1
+    f[_RTOL_GIVEN] = rtol
+    f[_MAX_STEP] = max_step
+    f[_FIRST_STEP] = first_step
+    st[_METHOD] = method_index
+    st[NEXT_EVAL] = i_eval
+    st[_CLOSED_RIGHT] = 1 if closed_right else 0
+    st[_EXACT] = 1 if exact else 0
+    n = work.stages.shape[1]
+    if y0.shape[0] != n or atol.shape[0] != n:
+        st[_PHASE] = _PHASE_BAD_SIZES
+        return
+    y = _at(_Y, n)
+    at = _at(_ATOL, n)
+    for i in range(n):
+        f[y + i] = y0[i]
+        f[at + i] = atol[i]
+    st[_PHASE] = _PHASE_BEGIN
+
