@@ -184,6 +184,10 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
     Returns
     -------
     control.TimeResponseData or control.TimeResponseList
+        A list for a list of systems, as python-control; and for many runs of one system
+        (beyond python-control): ``params`` a list of dicts, or ``initial_state`` a 2-D
+        array with one row of ``sys.nstates`` values per run (one of them may be a single
+        value for every run). The runs go in one compiled call over all cores.
 
     Examples
     --------
@@ -191,6 +195,12 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
     >>> sys = ct.nlsys(lambda t, x, u, p: 0.5 * x + u, inputs=1, states=1, outputs=1, dt=1)
     >>> input_output_response(sys, np.arange(4.0), 1.0, 1.0).outputs.tolist()
     [1.0, 1.5, 1.75, 1.875]
+
+    Three runs from three initial states:
+
+    >>> runs = input_output_response(sys, np.arange(3.0), 0.0, [[1.0], [2.0], [4.0]])
+    >>> [r.outputs.tolist() for r in runs]
+    [[1.0, 0.5, 0.25], [2.0, 1.0, 0.5], [4.0, 2.0, 1.0]]
     """
     from control.config import _process_kwargs, _process_param
     from control.timeresp import _timeresp_aliases
@@ -212,6 +222,9 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
     if isinstance(sys, list | tuple):
         return TimeResponseList([input_output_response(s, T, U, X0, engine=engine, **options)
                                  for s in sys])
+    runs = _runs(sys, X0, params)
+    if runs is not None:
+        return _many(sys, T, U, X0, runs, engine, options)
     from .sampled_data import SampledDataSystem
 
     if isinstance(sys, SampledDataSystem):
@@ -223,6 +236,65 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
             warnings.warn(f"fast engine not used, running python-control instead: {reason} "
                           f"(controlkit.explain(sys) lists every block's tier)", stacklevel=2)
     return ct.input_output_response(sys, T, U, X0, **options)
+
+
+def _runs(sys, X0, params):
+    """``(X0s, params_list)`` when the call asks for several runs of ``sys``, else None."""
+    listed = isinstance(params, list | tuple) and all(
+        p is None or isinstance(p, dict) for p in params)
+    try:  # python-control flattens a ragged list of parts: that is one initial state
+        states = np.asarray(X0, dtype=float)
+    except (TypeError, ValueError):
+        states = np.zeros(0)
+    many_states = (states.ndim == 2 and states.shape[1] == (sys.nstates or 0)
+                   and states.shape[0] > 1)
+    if not (listed or many_states):
+        return None
+    if listed and not params:
+        raise ValueError("params must not be an empty list (a dict, or one dict per run)")
+    count = max(len(params) if listed else 1, states.shape[0] if many_states else 1)
+    if listed and len(params) not in (1, count) or many_states and states.shape[0] not in (
+            1, count):
+        raise ValueError(f"params ({len(params) if listed else 1} sets) and initial_state "
+                         f"({states.shape[0] if many_states else 1} rows) must give the same "
+                         f"number of runs, or one of them a single value for every run")
+    params_list = list(params) * (count // len(params)) if listed else [params] * count
+    if many_states:
+        X0s = np.broadcast_to(np.asarray(states, dtype=float), (count, sys.nstates))
+    else:
+        X0s = None  # the single initial state, read as python-control reads it
+    return X0s, params_list
+
+
+def _many(sys, T, U, X0, runs, engine, options):
+    """Many runs of ``sys``: one compiled call over all cores where it can be."""
+    X0s, params_list = runs
+    options = dict(options, params=None)
+    if engine == "fast":
+        from .engines.fast import many
+        from .engines.fast.run import as_interconnect
+
+        diagram = as_interconnect(sys)
+        T_, U_, x0, t_eval, method, solver = python_control_arguments(
+            diagram, T, U, X0s[0] if X0s is not None else X0, options)
+        X0s = X0s if X0s is not None else np.tile(x0, (len(params_list), 1))
+        try:
+            responses, errors = many.run_many(diagram, T_, U_, X0s, params_list,
+                                              t_eval=t_eval, method=method, **solver)
+        except UnsupportedSystem as reason:
+            warnings.warn(f"fast engine not used, running python-control instead: {reason}",
+                          stacklevel=3)
+        else:
+            for r, error in enumerate(errors):
+                if error is not None:
+                    raise type(error)(f"run {r}: {error}") from error
+            return TimeResponseList([
+                response(sys, resp.t, resp.y, resp.x, resp.u,
+                         **result_flags(dict(options, params=params_list[r])))
+                for r, resp in enumerate(responses)])
+    return TimeResponseList([
+        input_output_response(sys, T, U, X0s[r] if X0s is not None else X0, engine=engine,
+                              **dict(options, params=p)) for r, p in enumerate(params_list)])
 
 
 def _sampled_data_response(sys, T, U, X0, engine, options):

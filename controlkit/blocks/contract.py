@@ -38,6 +38,11 @@ class BlockKernels:
     rk4 : tuple of (float, int), optional
         ``(Ts, substeps)`` when a continuous block is sampled by
         :func:`~controlkit.blocks.sampling.sample_nlsys`.
+    repack : callable, optional
+        ``repack(local_params) -> p`` for a block whose ``p`` is packed from
+        python-control's ``params`` (a user's function): the vector for other values,
+        or None when they would change the compiled code (a value of another type or
+        shape). None for a block whose parameters were bound when it was built.
 
     Examples
     --------
@@ -54,6 +59,7 @@ class BlockKernels:
     params: np.ndarray
     feedthrough: bool
     rk4: tuple[float, int] | None = None
+    repack: Callable | None = None
 
     def sampled(self, Ts: float, substeps: int) -> BlockKernels:
         """The same kernel under ZOH with ``substeps`` RK4 steps per period ``Ts``."""

@@ -72,7 +72,7 @@ def run_many(sys, T, U, X0s, params_list, *, t_eval=None, method="RK45", **solve
     X0s = np.atleast_2d(np.asarray(X0s, dtype=float))
     runs = X0s.shape[0]
     t_eval = T if t_eval is None else np.ascontiguousarray(t_eval, dtype=float)
-    jobs = [prepare(sys, p, (T[0], X0s[r], U[:, 0])) for r, p in enumerate(params_list)]
+    jobs = _jobs(sys, T, U, X0s, params_list)
     responses, errors = [None] * runs, [None] * runs
     groups = {}
     for r, job in enumerate(jobs):
@@ -93,6 +93,35 @@ def run_many(sys, T, U, X0s, params_list, *, t_eval=None, method="RK45", **solve
         for r, (resp, error) in zip(members, done, strict=True):
             responses[r], errors[r] = resp, error
     return responses, errors
+
+
+def _jobs(sys, T, U, X0s, params_list):
+    """One job per run: the first prepared, the others sharing its kernels with their own
+    parameters packed (:attr:`~controlkit.blocks.contract.BlockKernels.repack`), or
+    prepared anew where their values would change a kernel."""
+    from dataclasses import replace
+
+    from .tiers import _local_params
+
+    first = prepare(sys, params_list[0], (T[0], X0s[0], U[:, 0]))
+    jobs = [first]
+    for r, params in enumerate(params_list[1:], start=1):
+        parts = []
+        for b in first.blocks:
+            if b.kernel.repack is None:
+                parts.append(b.kernel.params)
+                continue
+            local = _local_params(sys, b.system, params)
+            p = b.kernel.repack(local)
+            if p is None or p.shape != b.kernel.params.shape:
+                parts = None
+                break
+            parts.append(p)
+        if parts is None or first.injected:
+            jobs.append(prepare(sys, params, (T[0], X0s[r], U[:, 0])))
+        else:
+            jobs.append(replace(first, P=np.concatenate(parts + [np.zeros(0)]), how=""))
+    return jobs
 
 
 def _one(sys, job, T, U, X0, params, t_eval, method, solver):

@@ -152,7 +152,15 @@ def _user_kernels(block, local, trial=None):
     feed = source.reads_input(block.outfcn) if block.outfcn is not None else False
     if feed is None:
         feed = True
-    return (BlockKernels(output, update, params, feed), "compiled",
+    def repack(values):
+        try:
+            if usercode.ParamLayout.of(plans, values).entries != layout.entries:
+                return None
+            return layout.pack(values)
+        except source.NotCompilable:
+            return None
+
+    return (BlockKernels(output, update, params, feed, repack=repack), "compiled",
             "user nlsys compiled (parameters passed at run time)")
 
 

@@ -1,0 +1,65 @@
+"""Many runs of one diagram in one compiled call: the numbers of runs of their own."""
+
+import control as ct
+import numpy as np
+import pytest
+from continuous_diagrams import CONTINUOUS, MIXED
+from idiom_diagrams import cruise
+
+import controlkit
+from controlkit.sweep import sweep_system
+
+
+def test_runs_over_parameter_sets_equal_runs_of_their_own():
+    loop, T, X0, U = CONTINUOUS["car_pi"]()
+    sets = [{"kp": kp, "ki": ki} for kp in (0.3, 0.6) for ki in (0.05, 0.2)]
+    runs = controlkit.input_output_response(loop, T, U, X0, params=sets)
+    assert len(runs) == len(sets)
+    for params, resp in zip(sets, runs, strict=True):
+        alone = ct.input_output_response(loop, T, U, X0, params=params)
+        np.testing.assert_allclose(resp.y, alone.y, rtol=1e-9, atol=1e-12)
+        assert resp.params == params
+
+
+@pytest.mark.parametrize("which", ["discrete", "sampled-data"])
+def test_runs_over_initial_states_equal_runs_of_their_own(which):
+    if which == "discrete":
+        loop, T, x0, U, params = cruise(steps=60)
+        x0 = np.asarray(x0, dtype=float)
+    else:
+        loop, T, x0, U = MIXED["servo_pi_discrete"]()
+        params = None
+    states = np.array([x0, x0 * 0.5, x0 + 1.0])
+    runs = controlkit.input_output_response(loop, T, U, states, params=params)
+    for state, resp in zip(states, runs, strict=True):
+        alone = controlkit.input_output_response(loop, T, U, state, params=params)
+        np.testing.assert_array_equal(resp.y, alone.y)
+
+
+def test_a_count_mismatch_is_refused():
+    loop, T, X0, U = CONTINUOUS["pi_first_order"]()
+    with pytest.raises(ValueError, match=r"params \(2 sets\) and initial_state \(3 rows\) "
+                                         r"must give the same number of runs"):
+        controlkit.input_output_response(loop, T, U, np.zeros((3, loop.nstates)),
+                                         params=[{}, {}])
+
+
+def test_sweep_system_gives_one_row_per_run_with_its_metrics_and_errors():
+    def decay(t, x, u, params):
+        return -params["a"] * x + u
+
+    plant = ct.nlsys(decay, None, inputs="u", outputs="y", states=1, params={"a": 1.0},
+                     name="plant")
+    T = np.linspace(0.0, 4.0, 41)
+
+    def final(resp):
+        if resp.outputs[-1] > 10:
+            raise ValueError("ran away")
+        return {"final": float(resp.outputs[-1])}
+
+    table = sweep_system(plant, T, 1.0, 0.0, grid={"a": [1.0, 2.0, -2.0]}, metrics=final)
+    assert table["a"].tolist() == [1.0, 2.0, -2.0]
+    np.testing.assert_allclose(table["final"][:2], [1 - np.exp(-4.0), 0.5 * (1 - np.exp(-8.0))],
+                               rtol=1e-3)
+    assert table["error"].tolist()[:2] == ["", ""]
+    assert "ValueError: ran away" in table["error"][2]
