@@ -121,7 +121,7 @@ def python_control_per_step(build, X0, dt, steps):
     loop = build()
     T = np.arange(steps + 1) * dt
     start = time.perf_counter()
-    simulate(loop, T, X0(loop), engine="python-control")
+    simulate(loop, T, X0=X0(loop), engine="python-control")
     return (time.perf_counter() - start) / steps
 
 

@@ -76,7 +76,7 @@ def per_step():
         compiled = sum(r.tier == "compiled" for r in rows)
         a = best(ct.input_output_response, loop, T, U, X0, params=params, repeat=1) / T.size
         loop, T, X0, U, params = build(steps=50000)
-        simulate(loop, T[:10], X0, U[..., :10], params=params, engine="fast")  # warm
+        simulate(loop, T[:10], X0=X0, U=U[..., :10], params=params, engine="fast")  # warm
         b = best(simulate, loop, T, X0, U, params=params, engine="fast") / T.size
         print(f"{name:45s} {f'{compiled}/{len(rows)}':>8s} {a * 1e6:19.1f} {b * 1e6:9.3f} "
               f"{a / b:7.0f}")
@@ -90,7 +90,7 @@ def new_values():
     for name, build, key in (("user nlsys with params", tank_with_params, "leak"),
                              ("cruise control", cruise, "kaw")):
         loop, T, X0, U, params = build(steps=200)
-        simulate(loop, T, X0, U, params=params, engine="fast")  # compiled once
+        simulate(loop, T, X0=X0, U=U, params=params, engine="fast")  # compiled once
         fast, ref = [], []
         for value in (0.5, 0.75, 1.0, 1.25, 1.75):
             values = {**params, key: value}

@@ -82,17 +82,22 @@ def initial_state(sys, **by_block) -> np.ndarray:
 
 
 def simulate(
-    sys, T, X0, U=0.0, *, params=None, progress: Callable[[float], None] | None = None,
+    sys, T, *, X0, U=0.0, params=None, progress: Callable[[float], None] | None = None,
     chunks: int = 1, engine: str = "python-control", record_every: int = 1,
     on_chunk: Callable | None = None,
 ) -> ct.TimeResponseData:
-    """Simulate a system, optionally in chunks with progress reports.
+    """Simulate a system, optionally in chunks with progress reports, streamed if long.
+
+    For a drop-in replacement of python-control's function (its arguments in its
+    order) use :func:`input_output_response`; this one adds progress reports, chunks and
+    streaming for long runs, and takes ``X0`` and ``U`` by keyword only, so that a call
+    written for python-control's order (``U`` before ``X0``) cannot swap them silently.
 
     ``engine`` names a backend of :mod:`controlkit.engines`: ``"python-control"``
     runs :func:`control.input_output_response` (the reference); ``"fast"`` runs
     :func:`controlkit.engines.fast.simulate`, which gives the same response much
-    faster for a discrete interconnect; a system it cannot compile runs on the
-    python-control path with a warning naming the block.
+    faster; a system it cannot compile runs on the python-control path with a warning
+    naming the block.
 
     A discrete system run in chunks gives the same numbers, bit for bit, as one
     run: each chunk restarts from the state the previous one reached.
@@ -104,10 +109,10 @@ def simulate(
     T : array_like
         Time points (for a discrete system, multiples of ``sys.dt``).
     X0 : array_like
-        Initial state, exactly ``sys.nstates`` values.
+        Initial state, exactly ``sys.nstates`` values (keyword only).
     U : float or array_like
         Inputs: a constant (scalar or one value per input) or an array
-        ``(ninputs, len(T))``.
+        ``(ninputs, len(T))`` (keyword only).
     params : dict, optional
         Parameter values, as for :func:`control.input_output_response`; a key
         no block reads is refused (:func:`controlkit.engines.params.check_params`).
@@ -136,7 +141,7 @@ def simulate(
     --------
     >>> import numpy as np, control as ct
     >>> sys = ct.nlsys(lambda t, x, u, p: 0.5 * x, inputs=0, states=1, outputs=1, dt=1)
-    >>> simulate(sys, np.arange(4), [1.0], chunks=2).outputs.tolist()
+    >>> simulate(sys, np.arange(4), X0=[1.0], chunks=2).outputs.tolist()
     [[1.0, 0.5, 0.25, 0.125]]
     """
     backend = engines.backend(engine)

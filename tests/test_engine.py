@@ -29,8 +29,8 @@ def start(loop):
 
 
 def assert_same(loop, T, X0):
-    ref = simulate(loop, T, X0, engine="python-control")
-    fast = simulate(loop, T, X0, engine="fast")
+    ref = simulate(loop, T, X0=X0, engine="python-control")
+    fast = simulate(loop, T, X0=X0, engine="fast")
     assert list(fast.output_labels) == list(ref.output_labels)
     assert list(fast.state_labels) == list(ref.state_labels)
     assert fast.outputs.shape == ref.outputs.shape and fast.states.shape == ref.states.shape
@@ -87,8 +87,8 @@ def test_user_lambda_block_compiles_and_matches_python_control():
     tiers = {row.name: row.tier for row in engine.explain(loop)}
     assert tiers["my_controller"] == "compiled"
     T = np.arange(11) * 0.1
-    resp = simulate(loop, T, start(loop), engine="fast")
-    ref = simulate(loop, T, start(loop))
+    resp = simulate(loop, T, X0=start(loop), engine="fast")
+    ref = simulate(loop, T, X0=start(loop))
     np.testing.assert_allclose(resp.outputs, ref.outputs, rtol=0, atol=1e-12)
 
 
@@ -100,7 +100,7 @@ def test_momentum_given_as_python_function_runs_in_python_inside_the_fast_loop()
     assert "H0 is a Python" in row.reason
     T = np.arange(21) * 0.1
     fast = engine.simulate(loop, T, start(loop))
-    ref = simulate(loop, T, start(loop))
+    ref = simulate(loop, T, X0=start(loop))
     np.testing.assert_allclose(fast.outputs, ref.outputs, rtol=0, atol=1e-12)
 
 
@@ -151,7 +151,7 @@ def test_engine_without_numba_gives_the_same_numbers(tmp_path):
 
 def test_unknown_engine_is_refused():
     with pytest.raises(ValueError, match=r"engine must be one of \('fast', 'python-control'\)"):
-        simulate(scenario.build_loop("ideal"), [0.0, 0.1], Q0, engine="numba")
+        simulate(scenario.build_loop("ideal"), [0.0, 0.1], X0=Q0, engine="numba")
 
 
 _COMPILE_ONE = """

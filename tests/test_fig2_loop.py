@@ -43,8 +43,8 @@ def test_chunked_run_equals_single_run_bit_for_bit():
     loop = output_zeroing_loop(scenario.true_plant(True))
     T = np.arange(301) * TS
     X0 = initial_state(loop, plant=scenario.initial_attitude())
-    whole = simulate(loop, T, X0)
-    chunked = simulate(loop, T, X0, chunks=7)
+    whole = simulate(loop, T, X0=X0)
+    chunked = simulate(loop, T, X0=X0, chunks=7)
     np.testing.assert_array_equal(whole.outputs, chunked.outputs)
     np.testing.assert_array_equal(whole.states, chunked.states)
     assert list(chunked.output_labels) == list(loop.output_labels)
@@ -80,8 +80,8 @@ def test_lowpass_filter_in_the_fig2_loop_runs_the_same_on_both_engines():
         inputs=["r[0]", "r[1]"], outputs=["h[0]", "h[1]", "v[0]", "v[1]", "mu[0]", "mu[1]"])
     T = np.arange(2001) * TS
     X0 = initial_state(loop, plant=scenario.initial_attitude())
-    ref = simulate(loop, T, X0, engine="python-control")
-    fast = simulate(loop, T, X0, engine="fast")
+    ref = simulate(loop, T, X0=X0, engine="python-control")
+    fast = simulate(loop, T, X0=X0, engine="fast")
     np.testing.assert_array_equal(fast.outputs, ref.outputs)
     np.testing.assert_array_equal(fast.states, ref.states)
     # the filter's recursion, step by step (oracle written out here)

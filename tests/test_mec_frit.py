@@ -141,8 +141,8 @@ def test_mec_with_exact_model_changes_almost_nothing():
     T = np.arange(30001) * TS
     plain = output_zeroing_loop(scenario.true_plant(False))
     with_mec = mec_loop(scenario.true_plant(False), K=0.1)
-    a = simulate(plain, T, initial_state(plain, plant=q0))
-    b = simulate(with_mec, T, initial_state(with_mec, plant=q0, nominal=q0[1:3]))
+    a = simulate(plain, T, X0=initial_state(plain, plant=q0))
+    b = simulate(with_mec, T, X0=initial_state(with_mec, plant=q0, nominal=q0[1:3]))
     gap = max(np.abs(signal(a, s) - signal(b, s)).max() for s in ("h[0]", "h[1]"))
     assert gap < 1e-6
 

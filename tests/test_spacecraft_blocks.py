@@ -34,7 +34,7 @@ def test_momentum_invariant_and_unit_norm_along_closed_loop_run():
     plant = scenario.true_plant(model_error=True)
     loop = output_zeroing_loop(plant)
     T = np.arange(5001) * 0.1
-    resp = simulate(loop, T, initial_state(loop, plant=scenario.initial_attitude()))
+    resp = simulate(loop, T, X0=initial_state(loop, plant=scenario.initial_attitude()))
     labels = list(resp.output_labels)
     q = resp.outputs[[labels.index(f"q[{i}]") for i in range(4)]]
     u = resp.outputs[[labels.index("u[0]"), labels.index("u[1]")]]

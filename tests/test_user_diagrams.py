@@ -13,8 +13,8 @@ def test_user_diagram_is_compiled_and_equals_python_control(name):
     loop, T, X0, U, params = DIAGRAMS[name]()
     tiers = engine.explain(loop, params=params)
     assert [row.tier for row in tiers] == ["compiled"] * len(loop.syslist), tiers
-    ref = simulate(loop, T, X0, U, params=params)
-    fast = simulate(loop, T, X0, U, params=params, engine="fast")
+    ref = simulate(loop, T, X0=X0, U=U, params=params)
+    fast = simulate(loop, T, X0=X0, U=U, params=params, engine="fast")
     assert list(fast.state_labels) == list(ref.state_labels)
     np.testing.assert_allclose(fast.outputs, ref.outputs, rtol=0, atol=1e-9)
     np.testing.assert_allclose(fast.states, ref.states, rtol=0, atol=1e-9)
@@ -53,14 +53,14 @@ def test_unknown_params_key_is_refused_on_both_engines(which):
     loop = output_zeroing_loop(controller=sc.outer_controller(0.5))
     X0 = initial_state(loop, plant=initial_attitude())
     with pytest.raises(ValueError, match=r"params \['F'\] are read by no block of 'fig2_loop'"):
-        simulate(loop, [0.0, 0.1], X0, params={"F": 10}, engine=which)
+        simulate(loop, [0.0, 0.1], X0=X0, params={"F": 10}, engine=which)
 
 
 @pytest.mark.parametrize("which", ENGINES)
 def test_params_are_honoured_on_both_engines(which):
     loop, T, X0, U, params = tank_with_params(steps=50)
-    default = simulate(loop, T, X0, U, engine=which)
-    changed = simulate(loop, T, X0, U, params={"leak": 0.9}, engine=which)
+    default = simulate(loop, T, X0=X0, U=U, engine=which)
+    changed = simulate(loop, T, X0=X0, U=U, params={"leak": 0.9}, engine=which)
     ref = ct.input_output_response(loop, T, U, X0, params={"leak": 0.9})
     np.testing.assert_allclose(changed.outputs, ref.outputs, rtol=0, atol=1e-12)
     assert np.abs(changed.outputs - default.outputs).max() > 1e-2
@@ -79,7 +79,7 @@ def test_sampled_block_that_blows_up_is_named_with_the_remedy(which):
     T = np.arange(400) * TS
     with pytest.raises(SamplingError, match=r"block 'stiff' blows up inside a sample at t = .*"
                                             r"more substeps .* method='solve_ivp'"):
-        simulate(loop, T, [1.0], 1.0, engine=which)
+        simulate(loop, T, X0=[1.0], U=1.0, engine=which)
 
 
 def test_more_substeps_cure_the_blow_up():
@@ -123,7 +123,8 @@ def test_sampled_lti_connects_by_name_and_compiles():
 def test_bad_arguments_get_the_same_error_on_both_engines(which, args, message):
     loop, *_ = lti_loop(steps=2)
     with pytest.raises(ValueError, match=message):
-        simulate(loop, *args, engine=which)
+        T, X0, U = args
+        simulate(loop, T, X0=X0, U=U, engine=which)
 
 
 def test_one_value_per_input_and_stateless_diagrams_work_on_both_engines():
@@ -132,7 +133,7 @@ def test_one_value_per_input_and_stateless_diagrams_work_on_both_engines():
     total = ct.summing_junction(["c", "a"], "s", name="total")
     loop = ct.interconnect([gain, total], inputs=["a", "b"], outputs=["s"])
     T = np.arange(4) * TS
-    results = [simulate(loop, T, [], [1.0, 0.5], engine=w).outputs for w in ENGINES]
+    results = [simulate(loop, T, X0=[], U=[1.0, 0.5], engine=w).outputs for w in ENGINES]
     for outputs in results:
         np.testing.assert_array_equal(outputs, [[2.5, 2.5, 2.5, 2.5]])
 
@@ -149,8 +150,8 @@ def test_function_numba_cannot_compile_runs_in_python_inside_the_fast_loop():
     row = engine.explain(loop)[0]
     assert row.tier == "python" and "dict" in row.reason
     T = np.arange(50) * TS
-    fast = simulate(loop, T, [0.0], 1.0, engine="fast")
-    np.testing.assert_allclose(fast.outputs, simulate(loop, T, [0.0], 1.0).outputs,
+    fast = simulate(loop, T, X0=[0.0], U=1.0, engine="fast")
+    np.testing.assert_allclose(fast.outputs, simulate(loop, T, X0=[0.0], U=1.0).outputs,
                                rtol=0, atol=1e-12)
 
 
@@ -161,7 +162,7 @@ def test_continuous_diagram_runs_compiled_and_equals_python_control():
                            inputs="r", outputs="y")
     assert {r.tier for r in engine.explain(loop)} == {"compiled"}
     T = np.linspace(0.0, 1.0, 11)
-    fast = simulate(loop, T, [0.0], 1.0, engine="fast")
+    fast = simulate(loop, T, X0=[0.0], U=1.0, engine="fast")
     ref = ct.input_output_response(loop, T, 1.0, 0.0)
     np.testing.assert_array_equal(fast.outputs, ref.outputs)
 
@@ -177,7 +178,7 @@ def test_lti_blocks_with_feedthrough_in_a_chain_are_ordered_and_exact():
     loop = ct.interconnect([error, gain, lead, plant], inputs="r", outputs=["y", "u"])
     assert {r.tier for r in engine.explain(loop)} == {"compiled"}
     T = np.arange(200) * TS
-    fast = simulate(loop, T, np.zeros(loop.nstates), 1.0, engine="fast")
+    fast = simulate(loop, T, X0=np.zeros(loop.nstates), U=1.0, engine="fast")
     ref = ct.input_output_response(loop, T, 1.0, np.zeros(loop.nstates))
     np.testing.assert_allclose(fast.outputs, ref.outputs, rtol=0, atol=1e-9)
 
@@ -192,9 +193,9 @@ def test_values_read_by_a_user_function_are_taken_afresh_at_each_run():
     loop = ct.interconnect([plant, ct.summing_junction(["r", "-y"], "u", name="error")],
                            inputs="r", outputs="y")
     T = np.arange(30) * TS
-    first = simulate(loop, T, [0.0], 1.0, engine="fast").outputs
+    first = simulate(loop, T, X0=[0.0], U=1.0, engine="fast").outputs
     gain[0] = 2.0  # the user edits the array between runs
-    second = simulate(loop, T, [0.0], 1.0, params={"leak": 0.3}, engine="fast").outputs
-    ref = simulate(loop, T, [0.0], 1.0, params={"leak": 0.3}).outputs
+    second = simulate(loop, T, X0=[0.0], U=1.0, params={"leak": 0.3}, engine="fast").outputs
+    ref = simulate(loop, T, X0=[0.0], U=1.0, params={"leak": 0.3}).outputs
     np.testing.assert_allclose(second, ref, rtol=0, atol=1e-12)
     assert np.abs(second - first).max() > 0.1

@@ -24,7 +24,7 @@ def test_idiom_diagram_is_compiled_and_equals_python_control(name):
     tiers = engine.explain(loop, params=params)
     assert [row.tier for row in tiers] == ["compiled"] * len(loop.syslist), tiers
     ref = ct.input_output_response(loop, T, U, X0, params=params)
-    fast = simulate(loop, T, X0, U, params=params, engine="fast")
+    fast = simulate(loop, T, X0=X0, U=U, params=params, engine="fast")
     np.testing.assert_allclose(fast.outputs, ref.outputs, rtol=0, atol=1e-9)
     np.testing.assert_allclose(fast.states, ref.states, rtol=0, atol=1e-9)
     assert np.ptp(ref.outputs, axis=1).max() > 0.1  # the loop does something
@@ -38,12 +38,12 @@ def test_a_new_parameter_value_compiles_nothing_new():
         return ({p.name for p in folder.glob("controlkit_user_*.py")},
                 {m for m in sys.modules if m.startswith("controlkit_user_")})
 
-    simulate(loop, T, X0, U, params=params, engine="fast")
+    simulate(loop, T, X0=X0, U=U, params=params, engine="fast")
     before = compiled_modules()
     # new values, an int where a float was, and a key given that had its default
     for new in ({"kaw": 0.5, "mass": 1750.5}, {"kaw": 3, "mass": 1200, "kp": 0.8},
                 {"kaw": 2.0, "mass": 2000.0, "kp": 1}):
-        fast = simulate(loop, T, X0, U, params=new, engine="fast")
+        fast = simulate(loop, T, X0=X0, U=U, params=new, engine="fast")
         ref = ct.input_output_response(loop, T, U, X0, params=new)
         np.testing.assert_allclose(fast.outputs, ref.outputs, rtol=0, atol=1e-9)
         assert compiled_modules() == before
@@ -60,7 +60,7 @@ def integrating(block, **kwargs):
 def both_engines_agree(loop, T, X0, U, params=None):
     ref = ct.input_output_response(loop, T, U, X0, params=params, squeeze=False)
     for which in ENGINES:
-        resp = simulate(loop, T, X0, U, params=params, engine=which)
+        resp = simulate(loop, T, X0=X0, U=U, params=params, engine=which)
         np.testing.assert_allclose(np.reshape(resp.outputs, ref.outputs.shape), ref.outputs,
                                    rtol=0, atol=1e-12)
     return ref
@@ -210,7 +210,7 @@ def test_a_division_python_refuses_is_not_turned_into_inf_by_compiled_code():
     assert row.tier == "python" and "raises at every trial point" in row.reason
     for which in ENGINES:
         with pytest.raises(ZeroDivisionError):
-            simulate(loop, np.arange(3) * TS, [0.0], np.zeros((0, 3)), engine=which)
+            simulate(loop, np.arange(3) * TS, X0=[0.0], U=np.zeros((0, 3)), engine=which)
 
 
 def optional_offset(t, x, u, params):

@@ -13,8 +13,9 @@ import numpy as np
 def simulate(sys, T, X0, U=0.0):
     """Simulate ``sys``: the one place where the editor calls a simulator.
 
-    Today :func:`controlkit.simulation.simulate` with the fast engine (a diagram
-    it cannot compile runs on python-control, with a warning that the editor shows).
+    :func:`controlkit.input_output_response`: compiled where it can be (a diagram it
+    cannot compile runs on python-control, with a warning that the editor shows), and a
+    continuous plant under a discrete controller runs too.
 
     Parameters
     ----------
@@ -30,9 +31,12 @@ def simulate(sys, T, X0, U=0.0):
     -------
     control.TimeResponseData
     """
-    from controlkit.simulation import simulate as run
+    from controlkit.simulation import input_output_response
 
-    return run(sys, T, X0, U, engine="fast")
+    U = np.asarray(U, dtype=float)
+    if U.ndim == 1 and U.size == sys.ninputs:  # one value per input, held over the run
+        U = np.repeat(U.reshape(-1, 1), len(T), axis=1)
+    return input_output_response(sys, T, U, X0)
 
 
 def time_points(horizon, dt):
@@ -137,7 +141,7 @@ def run_diagram(model, *, horizon, initial, inputs, measures, scopes, points=150
     started = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        resp = simulate(sys, T, X0, U if U.size else 0.0)
+        resp = simulate(sys, T, X0=X0, U=U if U.size else 0.0)
     seconds = time.perf_counter() - started
     index = {label: i for i, label in enumerate(recorded)}
     outputs = np.asarray(resp.outputs).reshape(len(recorded), -1)

@@ -162,5 +162,5 @@ def run(case="thesis", *, horizon=HORIZON, Ts=cmg.TS_CMG, x0=None, boundary_laye
     loop = build_loop(case, Ts=Ts, boundary_layer=boundary_layer, plant_options=plant_options,
                       **gains)
     T = time_grid(horizon, Ts)
-    return simulate(loop, T, initial_state(loop, cmg=x0), progress=progress,
+    return simulate(loop, T, X0=initial_state(loop, cmg=x0), progress=progress,
                     chunks=10 if len(T) > 5000 else 1, engine=engine)

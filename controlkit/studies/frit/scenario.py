@@ -259,7 +259,7 @@ def run_inertia_step(tuner="safeguarded", reading=None, *, horizon=HORIZON, step
     if initial_state(loop).size != first.states.shape[0]:  # the same blocks, the same state
         raise RuntimeError("the stepped loop's state does not match the first part's")
     T = step_at + time_grid(horizon - step_at, TS_PAPER)
-    second = simulate(loop, T, first.states[:, -1], 0.0, engine=engine)
+    second = simulate(loop, T, X0=first.states[:, -1], U=0.0, engine=engine)
 
     # the second part starts where the first ended: its first sample is the first's last
     resp = response(

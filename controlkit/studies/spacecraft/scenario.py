@@ -269,5 +269,5 @@ def run(case="ideal", *, horizon=HORIZON, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXE
     # a streamed run on the fast engine makes its time samples chunk by chunk
     T = time_grid(horizon, Ts, lazy=engine == "fast" and (record_every != 1 or
                                                           on_chunk is not None))
-    return simulate(loop, T, X0, 0.0, progress=progress, chunks=20 if len(T) > 20_000 else 1,
+    return simulate(loop, T, X0=X0, U=0.0, progress=progress, chunks=20 if len(T) > 20_000 else 1,
                     engine=engine, record_every=record_every, on_chunk=on_chunk)
