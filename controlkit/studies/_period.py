@@ -1,6 +1,8 @@
-"""The one sampling period of a diagram: checks shared by the builders."""
+"""The one sampling period of a diagram: checks and converters shared by the builders."""
 
 from __future__ import annotations
+
+import control as ct
 
 from ..blocks.sampling import sample_nlsys
 
@@ -40,3 +42,43 @@ def sampled(plant, Ts):
     if plant.isctime(strict=True):
         return sample_nlsys(plant, Ts)
     return require_period(plant, Ts)
+
+
+def zero_order_hold(signals, Ts, *, name="zoh"):
+    """A D/A converter: the discrete identity at ``Ts`` from ``<s>_cmd`` to each ``<s>``.
+
+    Its output is the command at each instant, held until the next: between a digital
+    controller and a continuous plant in a sampled-data diagram
+    (:func:`controlkit.interconnect`).
+
+    Examples
+    --------
+    >>> hold = zero_order_hold(["u[0]", "u[1]"], 0.1)
+    >>> hold.input_labels, hold.output_labels, hold.dt
+    (['u_cmd[0]', 'u_cmd[1]'], ['u[0]', 'u[1]'], 0.1)
+    """
+    import numpy as np
+
+    commands = [_command(s) for s in signals]
+    return ct.ss([], [], [], np.eye(len(signals)), dt=Ts, inputs=commands, outputs=signals,
+                 name=name)
+
+
+def _command(signal):
+    base, bracket, index = signal.partition("[")
+    return f"{base}_cmd{bracket}{index}"
+
+
+def commanding(block, signals):
+    """A copy of ``block`` whose outputs ``signals`` are renamed ``<s>_cmd``: it drives a
+    :func:`zero_order_hold` instead of the plant (the caller's block is left as it was).
+
+    Examples
+    --------
+    >>> from controlkit.blocks.spacecraft import io_linearizer
+    >>> commanding(io_linearizer(), ["u[0]", "u[1]"]).output_labels
+    ['u_cmd[0]', 'u_cmd[1]']
+    """
+    copy = block.copy(name=block.name)
+    copy.set_outputs([_command(s) if s in signals else s for s in block.output_labels])
+    return copy

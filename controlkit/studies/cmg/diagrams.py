@@ -5,11 +5,12 @@ from __future__ import annotations
 import control as ct
 
 from ...blocks import cmg
+from ...sampled_data import interconnect as sampled_data_interconnect
 from .._period import require_period, sampled
 
 
 def cmg_loop(plant=None, controller=None, *, reference=None, saturation=None, Ts=cmg.TS_CMG,
-             name="cmg_loop"):
+             continuous_plant=False, name="cmg_loop"):
     """References -> adaptive SMC -> torque saturation -> CMG -> controller, sampled at ``Ts``.
 
     The controller computes from the sampled state; the continuous plant is
@@ -27,21 +28,33 @@ def cmg_loop(plant=None, controller=None, *, reference=None, saturation=None, Ts
         :func:`~controlkit.blocks.cmg.torque_saturation`.
     Ts : float
         Sampling period (s), default 1 ms.
+    continuous_plant : bool
+        False (default): the continuous plant is sampled under zero-order hold (RK4 over
+        each sample) and the diagram is discrete. True: the plant stays continuous; the
+        controller is discrete, so the torques it computes are held between samples
+        through the static saturation, and the diagram is a sampled-data one
+        (:func:`controlkit.interconnect`; run it with
+        :func:`controlkit.input_output_response`). The two agree to the integrator's
+        tolerance.
     name : str
         System name.
 
     Returns
     -------
     control.InterconnectedSystem
-        Discrete at ``Ts``, no inputs. Outputs ``q1, q2, q4, w1, w2, w4, q2d, q4d,
-        T1, T2, T1_cmd, T2_cmd, a1, a2, a3, a4``.
+        Discrete at ``Ts`` (sampled-data with ``continuous_plant``), no inputs. Outputs
+        ``q1, q2, q4, w1, w2, w4, q2d, q4d, T1, T2, T1_cmd, T2_cmd, a1, a2, a3, a4``.
 
     Examples
     --------
     >>> [s.name for s in cmg_loop().syslist]
     ['reference', 'cmg', 'smc', 'saturation']
     """
-    plant = sampled(plant if plant is not None else cmg.cmg_plant(), Ts)
+    plant = plant if plant is not None else cmg.cmg_plant()
+    if continuous_plant and not plant.isctime(strict=True):
+        raise ValueError(f"continuous_plant=True needs a continuous plant (dt = 0); "
+                         f"{plant.name!r} has dt = {plant.dt}")
+    plant = plant if continuous_plant else sampled(plant, Ts)
     controller = require_period(
         controller if controller is not None else cmg.adaptive_smc(Ts=Ts), Ts)
     reference = reference if reference is not None else cmg.reference_generator()
@@ -53,7 +66,7 @@ def cmg_loop(plant=None, controller=None, *, reference=None, saturation=None, Ts
     #  +-----------+           +-----------------+       | |T2|<=2.4  |        +-----------+  |
     #                                   ^                +------------+                       |
     #                                   +------------ q1, q2, q4, w1, w2, w4 -----------------+
-    loop = ct.interconnect(
+    loop = (sampled_data_interconnect if continuous_plant else ct.interconnect)(
         [reference, plant, controller, saturation],
         inputs=[],
         outputs=cmg.STATES + ["q2d", "q4d", "T1", "T2", "T1_cmd", "T2_cmd",

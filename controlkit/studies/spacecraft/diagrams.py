@@ -11,13 +11,35 @@ import control as ct
 
 from ...blocks import frit, mec
 from ...blocks import spacecraft as sc
-from .._period import require_period, sampled
+from ...sampled_data import interconnect as sampled_data_interconnect
+from .._period import commanding, require_period, sampled, zero_order_hold
 
 Q = [f"q[{i}]" for i in range(4)]
 U = ["u[0]", "u[1]"]
 H = ["h[0]", "h[1]"]
 MU = ["mu[0]", "mu[1]"]
 R = ["r[0]", "r[1]"]
+
+
+def _plant_side(plant, linearizer, Ts, continuous_plant):
+    """``(plant, linearizer, hold blocks, interconnect)`` for the plant's side of a loop.
+
+    Sampled (the default, as the paper): the continuous plant under zero-order hold by
+    :func:`~controlkit.blocks.sampling.sample_nlsys` (RK4), the diagram discrete. With
+    ``continuous_plant``: the plant stays continuous behind a zero-order hold at ``Ts``
+    on ``u`` (the linearizer drives ``u_cmd``), a sampled-data diagram
+    (:func:`controlkit.interconnect`) whose continuous part is integrated between
+    samples; both agree to the integrator's tolerance.
+    """
+    plant = plant if plant is not None else sc.spacecraft_plant()
+    linearizer = linearizer if linearizer is not None else sc.io_linearizer()
+    if not continuous_plant:
+        return sampled(plant, Ts), linearizer, [], ct.interconnect
+    if not plant.isctime(strict=True):
+        raise ValueError(f"continuous_plant=True needs a continuous plant (dt = 0); "
+                         f"{plant.name!r} has dt = {plant.dt}")
+    return (plant, commanding(linearizer, U), [zero_order_hold(U, Ts)],
+            sampled_data_interconnect)
 
 
 def _drawing_hints(plant, linearizer, output, controller=None, nominal=None, gain=None,
@@ -49,7 +71,8 @@ def _drawing_hints(plant, linearizer, output, controller=None, nominal=None, gai
     return hints
 
 
-def linearized_plant(plant=None, linearizer=None, *, Ts=sc.TS_PAPER, name="linearized_plant"):
+def linearized_plant(plant=None, linearizer=None, *, Ts=sc.TS_PAPER, continuous_plant=False,
+                     name="linearized_plant"):
     """Fig. 2 (red frame): the plant made linear by the linearizer, ``mu -> h``.
 
     With an exact model the result is ``h' = mu`` between samples (eq. 10-11).
@@ -63,14 +86,17 @@ def linearized_plant(plant=None, linearizer=None, *, Ts=sc.TS_PAPER, name="linea
         Default: :func:`~controlkit.blocks.spacecraft.io_linearizer` (nominal model).
     Ts : float
         Sampling period, default 0.1 s.
+    continuous_plant : bool
+        Keep the plant continuous behind a zero-order hold (a sampled-data diagram)
+        instead of sampling it (see :func:`output_zeroing_loop`).
     name : str
         System name.
 
     Returns
     -------
     control.InterconnectedSystem
-        Discrete at ``Ts``. Inputs ``mu[0], mu[1]``; outputs ``h[0], h[1], u[0], u[1],
-        q[0]..q[3]``.
+        Discrete at ``Ts`` (sampled-data with ``continuous_plant``). Inputs ``mu[0],
+        mu[1]``; outputs ``h[0], h[1], u[0], u[1], q[0]..q[3]``.
 
     Examples
     --------
@@ -78,8 +104,7 @@ def linearized_plant(plant=None, linearizer=None, *, Ts=sc.TS_PAPER, name="linea
     >>> sys.input_labels, sys.output_labels[:2]
     (['mu[0]', 'mu[1]'], ['h[0]', 'h[1]'])
     """
-    plant = sampled(plant if plant is not None else sc.spacecraft_plant(), Ts)
-    linearizer = linearizer if linearizer is not None else sc.io_linearizer()
+    plant, linearizer, hold, make = _plant_side(plant, linearizer, Ts, continuous_plant)
     output = sc.attitude_output()
 
     #        +------------+  u   +-------------+  q   +--------+  h
@@ -88,8 +113,8 @@ def linearized_plant(plant=None, linearizer=None, *, Ts=sc.TS_PAPER, name="linea
     #        +------------+      +-------------+  |   +--------+
     #              ^                              |
     #              +--------------- q ------------+
-    sys = ct.interconnect(
-        [plant, output, linearizer],  # listed in signal order: fewest feedthrough sweeps
+    sys = make(
+        [plant, output, linearizer, *hold],  # in signal order: fewest feedthrough sweeps
         inputs=MU,
         outputs=H + U + Q,
         name=name,
@@ -100,7 +125,8 @@ def linearized_plant(plant=None, linearizer=None, *, Ts=sc.TS_PAPER, name="linea
 
 
 def output_zeroing_loop(
-    plant=None, linearizer=None, controller=None, *, Ts=sc.TS_PAPER, name="fig2_loop"
+    plant=None, linearizer=None, controller=None, *, Ts=sc.TS_PAPER, continuous_plant=False,
+    name="fig2_loop",
 ):
     """Fig. 2 closed by the outer controller ``mu = F (r - h)`` (eq. 12), sampled at ``Ts``.
 
@@ -115,13 +141,22 @@ def output_zeroing_loop(
         Default :func:`~controlkit.blocks.spacecraft.outer_controller` with ``F = 0.0009``.
     Ts : float
         Sampling period, default 0.1 s.
+    continuous_plant : bool
+        False (default): the continuous plant is sampled under zero-order hold
+        (:func:`~controlkit.blocks.sampling.sample_nlsys`, RK4 over each sample: the
+        paper's loop, erratum E5) and the diagram is discrete. True: the plant stays
+        continuous behind a zero-order hold ``zoh`` on ``u``, and the diagram is a
+        sampled-data one (:func:`controlkit.interconnect`; run it with
+        :func:`controlkit.input_output_response`), its plant integrated between samples
+        by an adaptive method; the two agree to the integrator's tolerance.
     name : str
         System name.
 
     Returns
     -------
     control.InterconnectedSystem
-        Discrete at ``Ts``. Inputs ``r[0], r[1]`` (leave at 0 for output zeroing);
+        Discrete at ``Ts`` (sampled-data with ``continuous_plant``). Inputs ``r[0],
+        r[1]`` (leave at 0 for output zeroing);
         outputs ``h[0], h[1], u[0], u[1], q[0]..q[3], mu[0], mu[1]``; states
         ``plant_q[0]..plant_q[3]`` (python-control prefixes the block name).
 
@@ -131,8 +166,7 @@ def output_zeroing_loop(
     >>> loop.nstates, loop.dt
     (4, 0.1)
     """
-    plant = sampled(plant if plant is not None else sc.spacecraft_plant(), Ts)
-    linearizer = linearizer if linearizer is not None else sc.io_linearizer()
+    plant, linearizer, hold, make = _plant_side(plant, linearizer, Ts, continuous_plant)
     controller = controller if controller is not None else sc.outer_controller()
     output = sc.attitude_output()
 
@@ -143,8 +177,8 @@ def output_zeroing_loop(
     #         |                          ^                               |              |
     #         |                          +-------------- q --------------+              |
     #         +---------------------------------- h -----------------------------------+
-    sys = ct.interconnect(
-        [plant, output, controller, linearizer],
+    sys = make(
+        [plant, output, controller, linearizer, *hold],
         inputs=R,
         outputs=H + U + Q + MU,
         name=name,
@@ -155,7 +189,7 @@ def output_zeroing_loop(
 
 def mec_loop(
     plant=None, linearizer=None, controller=None, *, K="frit", nominal=None, h0=(0.0, 0.0),
-    Ts=sc.TS_PAPER, name="mec_loop",
+    Ts=sc.TS_PAPER, continuous_plant=False, name="mec_loop",
 ):
     """Fig. 3 / Fig. 4: the linearized loop with a model error compensator.
 
@@ -185,13 +219,17 @@ def mec_loop(
         Initial output, used by the default tuner (``K="frit"``).
     Ts : float
         Sampling period (s).
+    continuous_plant : bool
+        Keep the plant continuous behind a zero-order hold (a sampled-data diagram)
+        instead of sampling it (see :func:`output_zeroing_loop`).
     name : str
         System name.
 
     Returns
     -------
     control.InterconnectedSystem
-        Discrete at ``Ts``. Inputs ``r[0], r[1]``; outputs ``h[0], h[1], u[0], u[1],
+        Discrete at ``Ts`` (sampled-data with ``continuous_plant``). Inputs ``r[0],
+        r[1]``; outputs ``h[0], h[1], u[0], u[1],
         q[0]..q[3], mu[0], mu[1], mu_n[0], mu_n[1], hn[0], hn[1], K[0]..K[3]``.
 
     Examples
@@ -200,8 +238,7 @@ def mec_loop(
     >>> [s.name for s in loop.syslist]
     ['plant', 'output', 'nominal', 'gain', 'controller', 'mec', 'linearizer']
     """
-    plant = sampled(plant if plant is not None else sc.spacecraft_plant(), Ts)
-    linearizer = linearizer if linearizer is not None else sc.io_linearizer()
+    plant, linearizer, hold, make = _plant_side(plant, linearizer, Ts, continuous_plant)
     controller = controller if controller is not None else sc.outer_controller(output="mu_n")
     nominal = nominal if nominal is not None else mec.nominal_model(Ts)
     if isinstance(K, str):
@@ -233,9 +270,9 @@ def mec_loop(
     #   |                   +-------------+                    +-----------+ +-------------+
     #   +------------------------------ h --------------------------+
     output = sc.attitude_output()
-    sys = ct.interconnect(
+    sys = make(
         [plant, output, nominal, gain, controller, compensator,
-         linearizer],
+         linearizer, *hold],
         inputs=R,
         outputs=H + U + Q + MU + MU_N + HN + mec.K_SIGNALS,
         name=name,
