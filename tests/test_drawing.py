@@ -370,3 +370,22 @@ def test_the_feedback_sensor_and_the_feedforward_get_rows_below_the_main_path():
     assert L.layer["ff"] == L.layer["prefilter"] and L.row["ff"] == 1
     ym = next(net for net in L.nets if net.src == "H")
     assert ym.kinds == {"err": "back"}
+
+
+def test_a_sampled_data_diagram_tells_discrete_blocks_apart_and_shows_their_rates():
+    from matplotlib.colors import to_hex
+
+    import controlkit
+
+    plant = ct.tf([1.0], [1.0, 1.0], name="plant", inputs="u", outputs="y")
+    pi = ct.sample_system(ct.tf([1.0, 0.5], [1.0, 0.0]), 0.1, name="pi", inputs="e",
+                          outputs="v")
+    gain = ct.ss([], [], [], [[2.0]], dt=0.2, name="k", inputs="v", outputs="u")
+    error = ct.summing_junction(["r", "-y"], "e", name="error")
+    loop = controlkit.interconnect([plant, pi, gain, error], inputs="r", outputs="y")
+    fig = draw_block_diagram(loop)
+    texts = [t.get_text() for t in fig.axes[0].texts]
+    assert "dt = 0.1" in texts and "dt = 0.2" in texts and "continuous" in texts
+    assert any(t.startswith("discrete: updates at its instants") for t in texts)
+    fills = {to_hex(p.get_facecolor()) for p in fig.axes[0].patches}
+    assert {"#fbeedd", "#eef3fb"} <= fills

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._graph import _BLUE, _FILL, _GREY, _RED, compress_signals
+from ._graph import _BLUE, _FILL, _FILL_DISCRETE, _GREY, _RED, _kind, compress_signals
 from ._layout import _text_size, layout
 
 
@@ -74,6 +74,12 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
     f_sig, f_name, f_sub = L.fonts
     title, title_math, y_title, x_mid = L.title, L.title_math, L.y_title, L.x_mid
     width, height, y_top, y_bottom = L.width, L.height, L.y_top, L.y_bottom
+    kinds = {n.get("discrete") for n in nodes.values() if not n.get("virtual")
+             and n["shape"] != "sum"}
+    legend = len(kinds) == 2 and bool(getattr(sys, "rates", None))  # a sampled-data diagram
+    if legend:  # a line under the drawing tells the shaded discrete blocks apart
+        y_bottom -= 0.4
+        height += 0.4
     if ax is None:
         fig = plt.figure(figsize=(width, height))
         ax = fig.add_axes((0, 0, 1, 1))
@@ -220,17 +226,21 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
                 text(px + dx, py + dy, mark, size=f_sig + 1, ha="center", va="center",
                      color=_BLUE, weight="bold")
             continue
+        fill = _FILL_DISCRETE if node.get("discrete") else _FILL
         if node["shape"] == "gain":
             f = -1 if node.get("flip") else 1
             ax.add_patch(Polygon([(x - f * w / 2, y - h / 2), (x - f * w / 2, y + h / 2),
-                                  (x + f * w / 2, y)], closed=True, facecolor=_FILL,
+                                  (x + f * w / 2, y)], closed=True, facecolor=fill,
                                  edgecolor=_BLUE, linewidth=1.4, zorder=4))
             text(x - f * w / 6, y, node["text"], size=f_name, math=node["math"], ha="center",
                  va="center", zorder=5)
+            if node.get("discrete"):  # its rate, under it
+                text(x, y - h / 2 - 0.14, _kind(sys.syslist[sys.syslist_index[n]]),
+                     size=f_sub, ha="center", va="center", color="#555", zorder=5)
             continue
         ax.add_patch(FancyBboxPatch((x - w / 2, y - h / 2), w, h,
                                     boxstyle="round,pad=0.02,rounding_size=0.06", zorder=4,
-                                    facecolor=_FILL, edgecolor=_BLUE, linewidth=1.4))
+                                    facecolor=fill, edgecolor=_BLUE, linewidth=1.4))
         if node["shape"] == "group":
             ax.add_patch(Rectangle((x - w / 2 + 0.05, y - h / 2 + 0.05), w - 0.1, h - 0.1,
                                    fill=False, edgecolor=_BLUE, linewidth=0.8, zorder=4))
@@ -238,6 +248,17 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
              va="center", weight="bold", zorder=5)
         text(x, y - 0.17, node["sub"], size=f_sub, ha="center", va="center", color="#555",
              zorder=5)
+
+    if legend:
+        x0, y0 = x_mid - width / 2 + 0.35, y_bottom + 0.2
+        for i, (fill, words) in enumerate(((_FILL_DISCRETE, "discrete: updates at its instants, "
+                                            "holds its output between them"),
+                                           (_FILL, "continuous or static"))):
+            xi = x0 + i * 5.2
+            ax.add_patch(Rectangle((xi, y0 - 0.09), 0.28, 0.18, facecolor=fill,
+                                   edgecolor=_BLUE, linewidth=1.0, zorder=4))
+            text(xi + 0.4, y0, words, size=f_sub, ha="left", va="center", color="#333",
+                 zorder=5)
 
     # --- loose ends
     for n, ports in graph["unconnected_inputs"].items():

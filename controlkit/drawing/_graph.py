@@ -10,6 +10,9 @@ import numpy as np
 
 _IN, _OUT = "inputs", "outputs"
 _BLUE, _RED, _GREY, _FILL = "#1f3b6e", "#b03a2e", "#333333", "#eef3fb"
+#: Fill of a discrete block (it updates at its instants and holds its output between them),
+#: told apart from a continuous or static one (:data:`_FILL`) in a sampled-data diagram.
+_FILL_DISCRETE = "#fbeedd"
 
 
 def compress_signals(names) -> list[str]:
@@ -181,9 +184,17 @@ def _kind(s):
     if isinstance(s, ct.InterconnectedSystem):
         names = ", ".join(sub.name for sub in s.syslist)
         return names if len(names) <= 20 else f"{len(s.syslist)} blocks"
+    if _discrete(s):  # with or without states: sampled, held between its instants
+        return "discrete" if s.dt is True else f"dt = {s.dt:g}"
     if not s.nstates:
         return "static"
-    return "continuous" if s.isctime(strict=True) else f"dt = {s.dt:g}"
+    return "continuous"
+
+
+def _discrete(s) -> bool:
+    """Whether ``s`` runs at sample instants (``dt = Ts`` or ``dt = True``)."""
+    return not isinstance(s, ct.InterconnectedSystem) and (
+        s.dt is True or s.dt is not None and s.dt > 0)
 
 
 # ----------------------------------------------------------------------------- wiring

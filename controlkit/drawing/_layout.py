@@ -26,6 +26,7 @@ from ._draft import _LANE_PITCH, _PORT_PITCH, _TRACK_PITCH, _Draft, _text_size
 from ._graph import (
     _IN,
     _OUT,
+    _discrete,
     _kind,
     _nets,
     _require_interconnect,
@@ -173,6 +174,7 @@ def _blocks(sys, hints):
         label = hints.labels.get(s.name)
         nodes[s.name] = {"shape": shape, "signs": extra if shape == "sum" else {},
                          "gain": extra if shape == "gain" else None,
+                         "discrete": _discrete(s),
                          "label": label if label is not None else s.name,
                          "math": label is not None, "virtual": False,
                          "sub": hints.notes.get(s.name) or (

@@ -30,6 +30,21 @@ def state_output(t, x, u, p, out):
 
 
 @jit
+def identity_output(t, x, u, p, out):
+    """Output equal to the input (a zero-order hold when the block is discrete).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> identity_output(0.0, np.zeros(0), np.array([1.0, 2.0]), np.zeros(0),
+    ...                 np.empty(2)).tolist()
+    [1.0, 2.0]
+    """
+    out[:] = u
+    return out
+
+
+@jit
 def constant_output(t, x, u, p, out):
     """Output the parameters (a constant source).
 

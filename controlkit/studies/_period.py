@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import control as ct
-
 from ..blocks.sampling import sample_nlsys
 
 
@@ -57,11 +55,13 @@ def zero_order_hold(signals, Ts, *, name="zoh"):
     >>> hold.input_labels, hold.output_labels, hold.dt
     (['u_cmd[0]', 'u_cmd[1]'], ['u[0]', 'u[1]'], 0.1)
     """
-    import numpy as np
+    from ..blocks.contract import KernelBlock
+    from ..kernels.common import identity_output
 
-    commands = [_command(s) for s in signals]
-    return ct.ss([], [], [], np.eye(len(signals)), dt=Ts, inputs=commands, outputs=signals,
-                 name=name)
+    hold = KernelBlock(identity_output, feedthrough=True, dt=Ts, name=name,
+                       inputs=[_command(s) for s in signals], outputs=list(signals))
+    hold.display_name = "ZOH"
+    return hold
 
 
 def _command(signal):
