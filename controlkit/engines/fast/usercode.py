@@ -473,6 +473,48 @@ def kernel_source(fn, values: dict, direct: bool = False, *, layout=None, exact=
     ])
 
 
+def _read_only_lists(body):
+    """``name = [1, 2, 3]`` -> ``name = (1, 2, 3)`` where ``name`` is only ever indexed.
+
+    Compiled, a list literal is a new list at every call (python-control's cruise-control
+    example reads its gear ratios so: ``alpha = params.get("alpha", [40, 25, 16, 12,
+    10])``, which cost the vehicle's kernel three quarters of its time); a tuple of numbers
+    is a constant. Only a name assigned once, from numbers, and read only as ``name[i]``
+    or ``len(name)`` is changed: Python reads the two alike.
+    """
+    tree = ast.Module(body, [])
+    stores, uses = {}, {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Name):
+            if isinstance(node.ctx, ast.Store):
+                stores[node.id] = stores.get(node.id, 0) + 1
+            else:
+                uses.setdefault(node.id, []).append(node)
+    parents = {child: parent for parent in ast.walk(tree)
+               for child in ast.iter_child_nodes(parent)}
+
+    def read_only(name):
+        for node in uses.get(name, []):
+            parent = parents.get(node)
+            indexed = (isinstance(parent, ast.Subscript) and parent.value is node
+                       and isinstance(parent.ctx, ast.Load))
+            measured = (isinstance(parent, ast.Call) and isinstance(parent.func, ast.Name)
+                        and parent.func.id == "len" and parent.args == [node])
+            if not (indexed or measured):
+                return False
+        return True
+
+    for node in ast.walk(tree):
+        if (isinstance(node, ast.Assign) and len(node.targets) == 1
+                and isinstance(node.targets[0], ast.Name) and isinstance(node.value, ast.List)
+                and node.value.elts and all(isinstance(e, ast.Constant) and isinstance(
+                    e.value, int | float) and not isinstance(e.value, bool)
+                    for e in node.value.elts)
+                and stores.get(node.targets[0].id) == 1 and read_only(node.targets[0].id)):
+            node.value = ast.copy_location(ast.Tuple(node.value.elts, ast.Load()), node.value)
+    return body
+
+
 def _functions(plan, layout, direct, exact):
     """The text of the plan's functions, params read from ``p``, and the kernel's call."""
     if direct:
@@ -484,7 +526,7 @@ def _functions(plan, layout, direct, exact):
     functions = []
     for each in plan.tree():
         reads = _Reads(layout, exact)
-        body = [reads.visit(stmt) for stmt in copy.deepcopy(each.body)]
+        body = _read_only_lists([reads.visit(stmt) for stmt in copy.deepcopy(each.body)])
         functions.append(_function(each.name, each.arguments, body))
         if each is plan:
             top = body
