@@ -637,7 +637,7 @@ def test_cli_refuses_bad_out_and_workers_before_creating_the_store(tmp_path, cap
     from controlkit.cli import main
 
     assert main(["sweep", "spacecraft", "--samples", "2", "--out", ""]) == 2
-    assert "controlkit: error: --out must name a folder, got ''" in capsys.readouterr().err
+    assert "controlkit: error: out must name a folder, got ''" in capsys.readouterr().err
     assert main(["sweep", "spacecraft", "--samples", "2", "--workers", "0",
                  "--out", str(tmp_path / "o")]) == 2
     assert "workers must be an integer >= 1, got 0" in capsys.readouterr().err
