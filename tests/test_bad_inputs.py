@@ -62,7 +62,7 @@ API_CASES = {
     "engine": (lambda: reproduce(engine="gpu"), r"engine must be one of \('fast'"),
     "out is a file": (lambda: reproduce(out=a_file()), r"out '.*' is a file, not a folder"),
     "out under a file": (lambda: reproduce(out=a_file() + "/results"),
-                         r"cannot write to out '.*': Not a directory"),
+                         r"cannot write to out '.*/results': .* is a file"),
     "unknown option": (lambda: reproduce(study="spacecraft", cases=["ideal"], horizon=1.0,
                                          options={"G": 1.0}),
                        r"unknown option \['G'\] for controlkit.studies.spacecraft.scenario.run"),

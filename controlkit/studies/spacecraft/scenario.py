@@ -142,8 +142,14 @@ TUNER_OPTIONS = tuple(name for name in __import__("inspect").signature(
 PLANT_OPTIONS = ("inertia_error_scale", "momentum_scale")
 
 
+def _options(name, options) -> dict:
+    if options is not None and not isinstance(options, dict):
+        raise ValueError(f"{name} must be a dict of keyword -> value, got {options!r}")
+    return dict(options or {})
+
+
 def _plant_options(options) -> dict:
-    options = dict(options or {})
+    options = _options("plant_options", options)
     unknown = sorted(set(options) - set(PLANT_OPTIONS))
     if unknown:
         raise ValueError(f"plant_options has unknown keys {unknown}; allowed: "
@@ -204,7 +210,7 @@ def build_loop(case="ideal", *, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXED, h0=None
     if case.compensator == "fixed":
         gain = mec.constant_gain(K)
     else:
-        options = {**(case.tuner_options or {}), **(tuner_options or {})}
+        options = {**(case.tuner_options or {}), **_options("tuner_options", tuner_options)}
         unknown = sorted(set(options) - set(TUNER_OPTIONS))
         if unknown:
             raise ValueError(f"tuner_options has unknown keys {unknown}; allowed: "
@@ -213,6 +219,29 @@ def build_loop(case="ideal", *, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXED, h0=None
     return diagrams.mec_loop(plant, sc.io_linearizer(), sc.outer_controller(F, output="mu_n"),
                              K=gain, nominal=mec.nominal_model(Ts, h0=h0), Ts=Ts,
                              name=case.name)
+
+
+def options_read(case) -> set[str]:
+    """The keywords of :func:`run` that ``case`` reads; it runs the same without the others
+    (``K`` is the fixed compensator's gain, ``tuner_options`` the FRIT tuner's, and a plant
+    without model error has no ``plant_options`` to apply).
+
+    Examples
+    --------
+    >>> sorted(options_read("ideal"))
+    ['F', 'Ts', 'q_initial']
+    >>> "K" in options_read("mec_fixed"), "tuner_options" in options_read("proposed")
+    (True, True)
+    """
+    c = _case(case)
+    read = {"F", "Ts", "q_initial"}
+    if c.model_error:
+        read.add("plant_options")
+    if c.compensator == "fixed":
+        read.add("K")
+    if c.compensator == "frit":
+        read.add("tuner_options")
+    return read
 
 
 def run(case="ideal", *, horizon=HORIZON, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXED,
