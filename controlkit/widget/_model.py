@@ -130,6 +130,9 @@ class DiagramModel:
                              f"control.interconnect), got {type(sys).__name__}")
         hints = copy.deepcopy(dict(getattr(sys, "drawing_hints", None) or {}))
         labels = dict(hints.pop("labels", {}))
+        for s in sys.syslist:  # a block's own junction (r - h in front of F), as drawn
+            if getattr(s, "junction", None):
+                hints.setdefault("sums", {}).setdefault(s.name, dict(s.junction))
         model = cls(name=sys.name, hints=hints, source_name=source_name)
         out_owner, in_owner = [], []
         for s in sys.syslist:
