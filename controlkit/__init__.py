@@ -3,7 +3,7 @@
 The names most notebooks need are available from the package itself (imported when
 first used, so ``import controlkit`` stays light): :func:`simulate`,
 :func:`initial_state`, :func:`time_grid`, :func:`sample_nlsys`, :func:`explain`,
-:func:`draw_block_diagram`.
+:func:`draw_block_diagram`, :func:`plot`.
 
 Subpackages: ``blocks`` (one ``NonlinearIOSystem`` per element of the papers, and the
 block contract), ``kernels`` (their equations), ``engines`` (simulation backends:
@@ -22,11 +22,14 @@ __version__ = "0.1.0"
 #: Top-level name to the module that defines it.
 _LAZY = {
     "simulate": "controlkit.simulation",
+    "input_output_response": "controlkit.simulation",
+    "interconnect": "controlkit.sampled_data",
     "initial_state": "controlkit.simulation",
     "time_grid": "controlkit.blocks.sampling",
     "sample_nlsys": "controlkit.blocks.sampling",
     "explain": "controlkit.engines.fast",
     "draw_block_diagram": "controlkit.drawing",
+    "plot": "controlkit.plotting",
 }
 
 __all__ = sorted(_LAZY)
