@@ -169,7 +169,7 @@ def _by_label(table, labels, argument):
 
 
 def plot(resp, signals=None, *, time_unit="s", log=(), units=None, derived=None, lines=None,
-         title=None, size=None, max_points=MAX_POINTS) -> ResponsePlot:
+         styles=None, title=None, size=None, max_points=MAX_POINTS) -> ResponsePlot:
     """Draw chosen signals of one or several responses, one axes per entry, time shared.
 
     Parameters
@@ -200,6 +200,10 @@ def plot(resp, signals=None, *, time_unit="s", log=(), units=None, derived=None,
     lines : dict, optional
         Horizontal reference lines by signal pattern: ``{pattern: value}`` or
         ``{pattern: (value, label)}``, e.g. a requirement.
+    styles : dict, optional
+        Line styles by response name (several responses) or by signal pattern (one
+        response), e.g. ``{"ideal": "--"}``: a curve that lies on another stays visible.
+        Curves given a style are drawn last, on top.
     title : str, optional
         Title above the top axes.
     size : tuple of float, optional
@@ -273,6 +277,17 @@ def plot(resp, signals=None, *, time_unit="s", log=(), units=None, derived=None,
         rows.append(list(dict.fromkeys(label for p in patterns
                                        for label in match_signals(p, known))))
     log_labels = {label for p in log for label in match_signals(p, known)}
+    if styles is not None and not isinstance(styles, Mapping):
+        raise ValueError(f"styles must be a dict of name to line style, got {styles!r}")
+    styles = dict(styles or {})
+    if len(runs) > 1:
+        unknown = [name for name in styles if name not in runs]
+        if unknown:
+            raise ValueError(f"styles names unknown responses {unknown}; responses: "
+                             f"{list(runs)}")
+        style_of = styles
+    else:
+        style_of = _by_label(styles, known, "styles")
     unit_of, line_of = _by_label(units, known, "units"), _by_label(lines, known, "lines")
     several = len(runs) > 1
     width, height = size or (8.0, max(4.5, 1.6 * len(rows) + 1.3))
@@ -281,7 +296,7 @@ def plot(resp, signals=None, *, time_unit="s", log=(), units=None, derived=None,
                                  squeeze=False, layout="constrained")
         axes = list(axes[:, 0])
         colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-        styles = ["-", "--", "-.", ":"]
+        dashes = ["-", "--", "-.", ":"]
         below = {}  # the figure's legend, with several runs: a colour per run, the lines
         for ax, row in zip(axes, rows, strict=True):
             is_log = any(label in log_labels for label in row)
@@ -295,10 +310,13 @@ def plot(resp, signals=None, *, time_unit="s", log=(), units=None, derived=None,
                         values, shown = np.abs(values), f"|{label}|"
                     t, v = _envelope(time, values, max_points)
                     colour = colours[(r if several else s) % len(colours)]
-                    style = styles[s % len(styles)] if several else "-"
-                    (curve,) = ax.plot(t, v, color=colour, linestyle=style)
+                    style = dashes[s % len(dashes)] if several else "-"
+                    given = style_of.get(run if several else label)
+                    (curve,) = ax.plot(t, v, color=colour, linestyle=given or style,
+                                       zorder=3 if given else 2)
                     if several:
-                        below.setdefault(str(run), Line2D([], [], color=colour))
+                        below.setdefault(str(run), Line2D([], [], color=colour,
+                                                          linestyle=given or "-"))
                         if r == 0 and len(row) > 1:
                             beside.append((Line2D([], [], color="0.3", linestyle=style), shown))
                     else:

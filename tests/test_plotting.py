@@ -128,6 +128,20 @@ def test_a_long_response_is_drawn_as_its_envelope():
     assert np.all(np.diff(line.get_xdata()) >= 0)  # still in time order
 
 
+def test_a_curve_given_a_style_stays_visible_on_top_of_its_twin():
+    runs = {"a": lag_response(60.0), "b": lag_response(60.0)}  # the same curve twice
+    shown = plot(runs, ["y"], styles={"b": "--"})
+    first, second = shown.axes[0].get_lines()[:2]
+    assert second.get_linestyle() == "--" and second.get_zorder() > first.get_zorder()
+    handles = shown.figure.legends[0].legend_handles
+    assert [h.get_linestyle() for h in handles] == ["-", "--"]
+    with pytest.raises(ValueError, match=r"styles names unknown responses \['c'\]; "
+                       r"responses: \['a', 'b'\]"):
+        plot(runs, ["y"], styles={"c": "--"})
+    single = plot(lag_response(), [["y", "u"]], styles={"u": ":"})
+    assert [line.get_linestyle() for line in single.axes[0].get_lines()] == ["-", ":"]
+
+
 @pytest.mark.parametrize("kwargs, message", [
     ({"signals": ["z"]}, r"no signal matches 'z'; signals: \['y', 'x', 'u'\]"),
     ({"time_unit": "hours"}, r"time_unit must be one of \['ms', 's', 'min', 'h', 'd'\], "
@@ -138,6 +152,8 @@ def test_a_long_response_is_drawn_as_its_envelope():
                                          r"point \(601\), got shape \(\)"),
     ({"derived": {"e": "y"}}, r"derived\['e'\] must be \(function, signals\)"),
     ({"max_points": 1}, r"max_points must be an integer >= 2, got 1"),
+    ({"styles": "--"}, r"styles must be a dict of name to line style, got '--'"),
+    ({"styles": {"w": "--"}}, r"no signal matches 'w'"),
 ])
 def test_bad_arguments_say_what_is_allowed(kwargs, message):
     with pytest.raises(ValueError, match=message):
