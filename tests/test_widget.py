@@ -516,6 +516,18 @@ def test_the_run_button_reports_the_requirement(editor):
     assert "['linearizer.mu[0:2]', 'controller.mu_n[0:2]']," in editor.code()
 
 
+def test_a_rewired_diagram_loses_the_builders_title_but_keeps_its_blocks_symbols():
+    model = DiagramModel.from_interconnect(mec_loop(K=0.1))
+    assert model.system().drawing_hints["title"] == "Fig. 3: MEC with a constant gain K"
+    model.set_parameter("gain", "K", 0.01)  # another K: still Fig. 3
+    assert model.system().drawing_hints["title"] == "Fig. 3: MEC with a constant gain K"
+    model.delete_block("mec")
+    model.connect("controller", "mu_n", "linearizer", "mu")
+    rewired = model.system()
+    assert "title" not in rewired.drawing_hints  # drawn under its name, mec_loop
+    assert rewired.drawing_hints["labels"]["controller"] == "$F$"
+
+
 def test_without_a_kernel_the_page_shows_the_drawing(editor, tmp_path):
     data, _ = editor._repr_mimebundle_()
     assert "application/vnd.jupyter.widget-view+json" in data
