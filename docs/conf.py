@@ -21,6 +21,9 @@ exclude_patterns = ["_build", "**.ipynb_checkpoints"]
 html_theme = "alabaster"
 # wide enough that the notebooks' figures and code show at a readable size
 html_theme_options = {"page_width": "1240px", "sidebar_width": "240px"}
+# notebook cells: code and output in a font small enough for 99-character lines
+html_static_path = ["_static"]
+html_css_files = ["notebooks.css"]
 suppress_warnings = ["mystnb.unknown_mime_type"]
 # sliders are for a live kernel: their cells' output is removed from the pages, and no
 # page loads the widget manager's scripts from the network
