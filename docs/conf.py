@@ -45,6 +45,8 @@ nb_execution_timeout = 300
 # build lists every broken cell
 nb_execution_raise_on_error = False
 nb_execution_show_tb = True
+# a cell's printed lines in one box, as in Jupyter (not one box per flush of the stream)
+nb_merge_streams = True
 (HERE / "notebooks").mkdir(exist_ok=True)
 for notebook in sorted((HERE.parent / "notebooks").glob("*.ipynb")):
     shutil.copy(notebook, HERE / "notebooks" / notebook.name)
