@@ -1,7 +1,9 @@
 """controlkit: block diagrams for robust nonlinear attitude control, on python-control.
 
 The names most notebooks need are available from the package itself (imported when
-first used, so ``import controlkit`` stays light): :func:`simulate`,
+first used, so ``import controlkit`` stays light): python-control's
+:func:`input_output_response` and :func:`interconnect` as drop-ins (compiled where they
+can be; continuous, discrete and mixed diagrams), :func:`simulate`,
 :func:`initial_state`, :func:`time_grid`, :func:`sample_nlsys`, :func:`explain`,
 :func:`draw_block_diagram`, :func:`plot`.
 
@@ -21,9 +23,9 @@ __version__ = "0.1.0"
 
 #: Top-level name to the module that defines it.
 _LAZY = {
-    "simulate": "controlkit.simulation",
     "input_output_response": "controlkit.simulation",
     "interconnect": "controlkit.sampled_data",
+    "simulate": "controlkit.simulation",
     "initial_state": "controlkit.simulation",
     "time_grid": "controlkit.blocks.sampling",
     "sample_nlsys": "controlkit.blocks.sampling",

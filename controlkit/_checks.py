@@ -90,6 +90,29 @@ likely a gain too high for the sample time (or an unstable loop)
     return error
 
 
+def float_array(name: str, value) -> np.ndarray:
+    """Return ``value`` as a float array, refusing text and objects by ``name``.
+
+    numpy's own words ("could not convert string to float: 'abc'") do not say which
+    argument was wrong; this message does.
+
+    Examples
+    --------
+    >>> float_array("X0", [1, 0])
+    array([1., 0.])
+    >>> float_array("X0", ["abc", 0])
+    Traceback (most recent call last):
+    ...
+    ValueError: X0 must be numbers, got ['abc', 0]
+    """
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        shown = repr(value)
+        shown = shown if len(shown) <= 60 else shown[:57] + "..."
+        raise ValueError(f"{name} must be numbers, got {shown}") from None
+
+
 def vector(name: str, value, size: int) -> np.ndarray:
     """Return ``value`` as a finite float vector of length ``size``.
 
@@ -98,7 +121,7 @@ def vector(name: str, value, size: int) -> np.ndarray:
     >>> vector("v1", [1, 0, 0], 3)
     array([1., 0., 0.])
     """
-    x = np.asarray(value, dtype=float)
+    x = float_array(name, value)
     if x.shape != (size,):
         raise ValueError(f"{name} must be a vector of length {size}, got shape {x.shape}")
     if not np.all(np.isfinite(x)):
@@ -116,7 +139,7 @@ def inertia(name: str, value) -> np.ndarray:
     >>> inertia("J_b", [4000, 5000, 6000]).diagonal()
     array([4000., 5000., 6000.])
     """
-    J = np.asarray(value, dtype=float)
+    J = float_array(name, value)
     if J.shape == (3,):
         J = np.diag(J)
     if J.shape != (3, 3):
@@ -170,7 +193,7 @@ def momentum(name: str, value) -> Callable[[float], np.ndarray]:
     array([0.  , 0.  , 0.05])
     """
     if callable(value):
-        probe = np.asarray(value(0.0), dtype=float)
+        probe = float_array(f"{name}(0)", value(0.0))
         if probe.shape != (3,) or not np.all(np.isfinite(probe)):
             raise ValueError(
                 f"{name} must return a finite 3-vector of N m s; {name}(0) gave {probe!r}"
@@ -190,7 +213,7 @@ def gain_pair(name: str, value) -> np.ndarray:
     >>> gain_pair("F", 0.0009)
     array([0.0009, 0.0009])
     """
-    F = np.asarray(value, dtype=float)
+    F = float_array(name, value)
     if F.ndim == 0:
         F = np.array([float(F), float(F)])
     elif F.shape == (2, 2):
@@ -215,7 +238,7 @@ def gain_matrix(name: str, value) -> np.ndarray:
     """
     try:
         K = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError):  # the message says what shapes are allowed, too
         raise ValueError(f"{name} must be a number or a 2x2 matrix of numbers, "
                          f"got {value!r}") from None
     if K.ndim == 0:

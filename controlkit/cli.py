@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import gc
 import sys
-from pathlib import Path
 
 # Importing python-control (with scipy, matplotlib and numba) creates ~200 000 objects that
 # live as long as the process; the garbage collector's passes over them while they are
@@ -141,6 +140,7 @@ def _sweep(args) -> dict:
     if args.scheduler and args.executor != "dask":
         raise ValueError("--scheduler goes with --executor dask")
     from .studies import robustness
+    from .sweep import check_folder
 
     spec = STUDIES[args.study].robustness
     unknown = [c for c in args.cases or [] if c not in spec.cases()]
@@ -153,9 +153,7 @@ def _sweep(args) -> dict:
             ranges[name] = span
         else:
             grid[name] = np.linspace(span[0], span[1], n).tolist()
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {out} is a file, not a folder")
+    out = check_folder(args.out, "--out")
     _, summary = robustness.study(args.study, samples=args.samples, seed=args.seed,
                                   cases=args.cases,
                                   horizon=args.horizon, ranges=ranges, grid=grid,

@@ -13,7 +13,8 @@ import control as ct
 import numpy as np
 from control.timeresp import TimeResponseList
 
-from . import engines
+from . import _checks, engines
+from .blocks.contract import check_initial_state
 from .engines.contract import (
     UnsupportedSystem,
     check_arguments,
@@ -29,7 +30,9 @@ def initial_state(sys, **by_block) -> np.ndarray:
 
     Blocks not named start from their ``x0`` attribute when they have one
     (a :class:`~controlkit.blocks.contract.KernelBlock`'s natural initial state,
-    such as the FRIT tuner's ``P(0) = gamma I``), otherwise from zero.
+    such as the FRIT tuner's ``P(0) = gamma I``), otherwise from zero. A state given
+    is checked by the block where it declares a check (the spacecraft plant's
+    quaternion must be finite and of unit norm).
 
     Parameters
     ----------
@@ -48,6 +51,10 @@ def initial_state(sys, **by_block) -> np.ndarray:
     >>> from controlkit.studies.spacecraft.diagrams import output_zeroing_loop
     >>> initial_state(output_zeroing_loop(), plant=[1, 0, 0, 0]).tolist()
     [1.0, 0.0, 0.0, 0.0]
+    >>> initial_state(output_zeroing_loop(), plant=[2, 0, 0, 0])  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ValueError: initial state of block 'plant' must be a unit quaternion ... got norm 2; ...
     """
     subsystems = getattr(sys, "syslist", [sys])
     names = {s.name for s in subsystems}
@@ -61,12 +68,14 @@ def initial_state(sys, **by_block) -> np.ndarray:
         if s.nstates == 0:
             continue
         value = by_block.get(s.name, getattr(s, "x0", np.zeros(s.nstates)))
-        value = np.asarray(value, dtype=float).reshape(-1)
+        value = _checks.float_array(f"initial state of block {s.name!r}", value).reshape(-1)
         if value.size != s.nstates:
             raise ValueError(
                 f"initial state of block {s.name!r} must have {s.nstates} values "
                 f"({s.state_labels}), got {value.size}"
             )
+        if s.name in by_block:
+            check_initial_state(s, value)
         parts.append(value)
     return np.concatenate(parts) if parts else np.zeros(0)
 
@@ -231,5 +240,4 @@ def _sampled_data_response(sys, T, U, X0, engine, options):
     resp = reference.simulate_sampled_data(sys, T, X0, U, params=options["params"],
                                            t_eval=t_eval, method=method,
                                            solve_ivp_kwargs=solve_ivp_kwargs)
-    return response(sys, resp.time, resp.outputs, resp.states, resp.inputs,
-                    **result_flags(options))
+    return response(sys, resp.t, resp.y, resp.x, resp.u, **result_flags(options))

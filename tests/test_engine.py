@@ -111,11 +111,13 @@ def test_singular_attitude_gives_the_same_message_on_the_fast_path():
         engine.simulate(loop, np.arange(5) * 0.1, X0)
 
 
-def test_continuous_diagram_is_refused():
+def test_continuous_diagram_of_controlkit_blocks_runs_compiled_as_python_control():
     loop = ct.interconnect([sc.spacecraft_plant(), sc.attitude_output(), sc.outer_controller(),
                             sc.io_linearizer()], inputs=["r[0]", "r[1]"], outputs=["h[0]"])
-    with pytest.raises(UnsupportedSystem, match=r"is continuous time"):
-        engine.simulate(loop, [0.0, 0.1], Q0)
+    T = np.linspace(0.0, 50.0, 11)
+    fast = engine.simulate(loop, T, Q0)
+    ref = ct.input_output_response(loop, T, 0.0, Q0)
+    np.testing.assert_allclose(fast.outputs, ref.outputs, rtol=1e-9, atol=1e-12)
 
 
 def test_algebraic_loop_is_named():
@@ -174,24 +176,21 @@ _LOOP_COMPILED = """
 import sys
 import numpy as np
 sys.path.insert(0, sys.argv[2])
-from controlkit.engines import fast as engine
-from controlkit.engines.fast import loader
-from controlkit.simulation import simulate
+from controlkit.engines.fast import loader, run
 from user_diagrams import lti_loop
 loop, T, X0, U, _ = lti_loop(steps=10)
-if sys.argv[1] == "compile":
-    loader.COMPILE_AFTER_STEPS = 0  # compile and cache it whatever the length
-    simulate(loop, T, X0, U, engine="fast")
-else:  # a short run in a new process: the compiled loop, found in the cache
-    run, _ = engine.compile_system(loop, steps=len(T))
-    print(hasattr(run, "py_func"))
+job = run.prepare(loop)
+if sys.argv[1] == "compile":  # compile the diagram's module into the cache
+    run.prime(job.loop("run_discrete", policy="now")[0], "run_discrete")
+else:  # a new process: the compiled module, found in the cache
+    print(loader.is_compiled(loader.load(job.source).run_discrete))
 """
 
 
 @pytest.mark.skipif(not _jit.HAVE_NUMBA, reason="numba not installed")
 def test_a_compiled_loop_is_found_under_numba_cache_dir(tmp_path):
-    # the loop's cache was looked for next to its file only, so with NUMBA_CACHE_DIR every
-    # short run (the CMG study's) ran as Python and was compiled again in the background
+    # the module's cache was looked for next to its file only, so with NUMBA_CACHE_DIR
+    # every run went to the driver and compiled the module again in the background
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba"),
            "CONTROLKIT_CACHE_DIR": str(tmp_path / "loops")}
     tests = os.path.dirname(__file__)
@@ -200,5 +199,5 @@ def test_a_compiled_loop_is_found_under_numba_cache_dir(tmp_path):
                              capture_output=True, text=True, check=True).stdout
     assert out.strip() == "True"
     assert not list((tmp_path / "loops").glob("__pycache__/*.nbi"))  # it went there instead
-    assert list((tmp_path / "numba").rglob("loop_*.nbi"))
+    assert list((tmp_path / "numba").rglob("diagram_*.nbi"))
 

@@ -169,7 +169,7 @@ def test_wilson_interval():
     ({"grid": {"F": [1]}, "executor": "threads", "workers": 0}, r"workers must be an integer"),
     ({"grid": {"F": [1]}, "resume": True}, r"resume=True needs store="),
     ({"grid": {"F": [1]}, "draws": {"F": (0, 1)}, "samples": 1},
-     r"\['F'\] are both in grid= and in draws="),
+     r"'F' is both in grid= and in draws="),
 ])
 def test_bad_sweep_arguments_are_refused(kwargs, message):
     with pytest.raises(ValueError, match=message):

@@ -138,10 +138,10 @@ def test_one_value_per_input_and_stateless_diagrams_work_on_both_engines():
 
 
 def test_function_numba_cannot_compile_runs_in_python_inside_the_fast_loop():
-    table = {"gain": 0.5}  # a dict read by the function: numba cannot freeze it
+    table = {0: 0.5, 1: 2.0}  # a dict looked up by a signal: numba cannot compile it
 
     def update(t, x, u, params):
-        return x + TS * (table["gain"] * u[0] - x[0])
+        return x + TS * (table[int(u[0] > 0.5)] * u[0] - x[0])
 
     plant = ct.nlsys(update, None, inputs="u", outputs="y", states=1, dt=TS, name="plant")
     loop = ct.interconnect([plant, ct.summing_junction(["r", "-y"], "u", name="error")],
@@ -154,17 +154,16 @@ def test_function_numba_cannot_compile_runs_in_python_inside_the_fast_loop():
                                rtol=0, atol=1e-12)
 
 
-def test_continuous_diagram_falls_back_with_a_warning_pointing_to_explain():
+def test_continuous_diagram_runs_compiled_and_equals_python_control():
     plant = ct.nlsys(lambda t, x, u, params: -x + u, None, inputs="u", outputs="y", states=1,
                      name="plant")
     loop = ct.interconnect([plant, ct.summing_junction(["r", "-y"], "u", name="error")],
                            inputs="r", outputs="y")
-    rows = engine.explain(loop)
-    assert {r.tier for r in rows} == {"python-control"}
-    assert "continuous time" in rows[0].reason
-    with pytest.warns(UserWarning,
-                      match=r"continuous time.*controlkit.engines.fast.explain\(sys\)"):
-        simulate(loop, np.linspace(0.0, 1.0, 11), [0.0], 1.0, engine="fast")
+    assert {r.tier for r in engine.explain(loop)} == {"compiled"}
+    T = np.linspace(0.0, 1.0, 11)
+    fast = simulate(loop, T, [0.0], 1.0, engine="fast")
+    ref = ct.input_output_response(loop, T, 1.0, 0.0)
+    np.testing.assert_array_equal(fast.outputs, ref.outputs)
 
 
 def test_lti_blocks_with_feedthrough_in_a_chain_are_ordered_and_exact():

@@ -53,7 +53,7 @@ def lowpass_filter(tau, Ts, *, input="v", output="mu", size=2, y0=0.0,
     if int(size) != size or size < 1:
         raise ValueError(f"size must be a positive integer (the number of channels), got {size!r}")
     size = int(size)
-    y0 = np.broadcast_to(np.asarray(y0, dtype=float), (size,)) if np.ndim(y0) == 0 else y0
+    y0 = np.broadcast_to(_checks.float_array("y0", y0), (size,)) if np.ndim(y0) == 0 else y0
     y0 = _checks.vector("y0", y0, size)
     signals = [f"{output}[{i}]" for i in range(size)]
     sys = KernelBlock(common.state_output, common.lowpass_update,

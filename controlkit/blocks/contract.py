@@ -16,6 +16,7 @@ from dataclasses import dataclass, replace
 import control as ct
 import numpy as np
 
+from .. import _checks
 from ..kernels.layout import layout  # noqa: F401  (re-exported: blocks and kernels share it)
 
 
@@ -128,7 +129,12 @@ class KernelBlock(ct.NonlinearIOSystem):
         too high for the sample time) from a genuine singularity of the equation.
         The fast engine stops at the first NaN and calls the same check, so both
         paths report a failure in the same words.
-    12. A block whose equations call Python objects (a user's function) passes
+    12. A block whose states must satisfy a condition (a unit quaternion) passes
+        ``check_state=``: a function ``check_state(label, x0)`` raising a
+        ``ValueError`` that names ``label`` ("initial state of block 'plant'") when an
+        initial state breaks it. :func:`controlkit.simulation.initial_state` and both
+        engines' argument checks call it (:func:`check_initial_state`).
+    13. A block whose equations call Python objects (a user's function) passes
         ``uncompiled=`` with the reason; the fast engine then calls its Python
         functions inside its own loop (the ``python`` tier of
         :func:`controlkit.engines.fast.explain`, which also gives that reason).
@@ -148,6 +154,9 @@ class KernelBlock(ct.NonlinearIOSystem):
         Why the fast engine cannot compile this block (its kernels call Python
         objects); the block then has ``kernels = None`` and the reason in
         ``uncompiled_reason``.
+    check_state : callable, optional
+        ``check_state(label, x0)``, raising a ``ValueError`` naming ``label`` when
+        ``x0`` is not a valid initial state (rule 12).
     x0 : array_like, optional
         The block's natural initial state (e.g. the FRIT tuner's ``P(0) = gamma I``),
         used by :func:`controlkit.simulation.initial_state` when none is given.
@@ -163,6 +172,8 @@ class KernelBlock(ct.NonlinearIOSystem):
         As given.
     uncompiled_reason : str or None
         As given in ``uncompiled``.
+    check_state : callable or None
+        As given.
     x0 : numpy.ndarray
         The natural initial state (zeros unless given).
 
@@ -182,7 +193,7 @@ class KernelBlock(ct.NonlinearIOSystem):
     """
 
     def __init__(self, output, update=None, *, params=(), feedthrough=True, check=None,
-                 uncompiled=None, x0=None, **nlsys_kwargs):
+                 uncompiled=None, x0=None, check_state=None, **nlsys_kwargs):
         p = np.array(params, dtype=float).reshape(-1)
         outfcn = self._wrap(output, p, check, output=True)
         updfcn = None if update is None else self._wrap(update, p, None, output=False)
@@ -190,6 +201,7 @@ class KernelBlock(ct.NonlinearIOSystem):
         self.kernels = None if uncompiled else BlockKernels(output, update, p,
                                                             bool(feedthrough))
         self.check = check
+        self.check_state = check_state
         self.uncompiled_reason = uncompiled
         self.x0 = np.zeros(self.nstates) if x0 is None else np.array(x0, dtype=float)
 
@@ -207,11 +219,44 @@ class KernelBlock(ct.NonlinearIOSystem):
         return function
 
     def _checked(self, arg, value, n, labels):
-        value = np.asarray(value, dtype=float)
+        value = _checks.float_array(f"block {self.name!r}: the {arg}", value)
         if value.shape != (n,):
             raise ValueError(f"block {self.name!r}: the {arg} must have {n} values "
                              f"({_describe(labels)}), got shape {value.shape}")
         return value
+
+
+def check_initial_state(sys, x0) -> None:
+    """Refuse an initial state that a block of ``sys`` declares invalid (rule 12).
+
+    Each block with a ``check_state`` (a nested interconnect's blocks, a sampled
+    block's continuous one too) is handed its part of ``x0``.
+
+    Raises
+    ------
+    ValueError
+        Naming the block, from its ``check_state``.
+
+    Examples
+    --------
+    >>> from controlkit.blocks.spacecraft import spacecraft_plant
+    >>> check_initial_state(spacecraft_plant(), [1.0, 0.0, 0.0, 0.0])
+    >>> check_initial_state(spacecraft_plant(), [0.0, 0.0, 0.0, 0.0])  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ValueError: initial state of block 'plant' must be a unit quaternion ... got norm 0; ...
+    """
+    x0 = np.asarray(x0, dtype=float).reshape(-1)
+    blocks = getattr(sys, "syslist", None)
+    if blocks is None:
+        check = getattr(sys, "check_state", None)
+        if check is not None:
+            check(f"initial state of block {sys.name!r}", x0)
+        return
+    offset = 0
+    for block in blocks:
+        check_initial_state(block, x0[offset:offset + block.nstates])
+        offset += block.nstates
 
 
 def _describe(labels) -> str:

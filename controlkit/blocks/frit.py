@@ -283,8 +283,8 @@ def frit_tuner(
         raise ValueError("psi is the paper's threshold; the safeguarded tuner replaces it by "
                          "its dead zone: give safeguard={'deadzone': ...} instead of psi")
     psi = PSI_PAPER if psi is None else psi
-    psi_values = np.broadcast_to(np.asarray(psi, dtype=float), (2,)) if np.ndim(psi) == 0 \
-        else np.asarray(psi, dtype=float)
+    psi_values = _checks.float_array("psi", psi)
+    psi_values = np.broadcast_to(psi_values, (2,)) if psi_values.ndim == 0 else psi_values
     if psi_values.shape != (2,) or not np.all(np.isfinite(psi_values)) or np.any(psi_values < 0):
         raise ValueError(f"psi must be >= 0 (one value or two), got {psi!r}")
     K0 = _checks.gain_matrix("K0", K0)

@@ -184,6 +184,7 @@ class SampledSystem(ct.NonlinearIOSystem):
             self.uncompiled_reason = getattr(sys, "uncompiled_reason", None) or (
                 "sampled with solve_ivp" if method == "solve_ivp" else "not a controlkit block")
         self.check = getattr(sys, "check", None)
+        self.check_state = getattr(sys, "check_state", None)
         if self.name == sys.name:  # the same element, held: drawn as the block was
             for attribute in ("display_name", "junction"):
                 if hasattr(sys, attribute):

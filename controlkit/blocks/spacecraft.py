@@ -265,7 +265,8 @@ def spacecraft_plant(
     -------
     control.NonlinearIOSystem
         Inputs ``u[0], u[1]`` (wheel speeds, rad/s); states and outputs
-        ``q[0]..q[3]``. Extra attributes: ``J_t``, ``H0`` (a callable),
+        ``q[0]..q[3]``; an initial state must be a finite unit quaternion (its
+        ``check_state``). Extra attributes: ``J_t``, ``H0`` (a callable),
         ``body_rate(t, q, u)`` (eq. 2) and ``momentum(t, q, u)`` (left side of eq. 1).
 
     Examples
@@ -292,6 +293,7 @@ def spacecraft_plant(
     sys = KernelBlock(
         common.state_output, rhs, params=params, feedthrough=False, uncompiled=uncompiled,
         inputs=_U_SIGNALS, outputs=_Q_SIGNALS, states=_Q_SIGNALS, name=name,
+        check_state=_checks.unit_quaternion,
     )
     sys.J_t, sys.H0 = J_t, H0_of_t
     sys.body_rate = rate

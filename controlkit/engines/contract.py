@@ -12,6 +12,8 @@ from __future__ import annotations
 import control as ct
 import numpy as np
 
+from .. import _checks
+from ..blocks.contract import check_initial_state
 from ..blocks.sampling import TimeGrid
 
 
@@ -52,7 +54,8 @@ def check_arguments(sys, T, X0, U=0.0):
     Raises
     ------
     ValueError
-        Naming the argument, what it must be and what it is.
+        Naming the argument, what it must be and what it is (an initial state that a
+        block refuses, such as a quaternion that is not of unit norm, names the block).
 
     Examples
     --------
@@ -76,7 +79,7 @@ def check_arguments(sys, T, X0, U=0.0):
             raise ValueError(f"time steps of T must equal the sampling time {sys.dt} of "
                              f"{sys.name!r}, got steps from {T.Ts:g} to {T.Ts:g}")
     else:
-        T = np.asarray(T, dtype=float)
+        T = _checks.float_array("T", T)
         if T.ndim != 1 or T.size == 0:
             raise ValueError(f"T must be a non-empty 1-D array of time points, "
                              f"got shape {T.shape}")
@@ -89,7 +92,7 @@ def check_arguments(sys, T, X0, U=0.0):
             raise ValueError(f"time steps of T must equal the sampling time {sys.dt} of "
                              f"{sys.name!r}, got steps from {steps.min():g} to "
                              f"{steps.max():g}")
-    X0 = np.asarray(X0 if X0 is not None else 0.0, dtype=float)
+    X0 = _checks.float_array("X0", X0 if X0 is not None else 0.0)
     if X0.ndim == 0 and sys.nstates != 1 and X0 == 0:
         X0 = np.zeros(sys.nstates)
     X0 = X0.reshape(-1)
@@ -99,8 +102,9 @@ def check_arguments(sys, T, X0, U=0.0):
                          f"got {X0.size}")
     if not np.isfinite(X0).all():
         raise ValueError("X0 must be finite")
+    check_initial_state(sys, X0)
     n, N = sys.ninputs, T.size
-    U = np.asarray(U, dtype=float)
+    U = _checks.float_array("U", U)
     if U.ndim == 0 or U.ndim == 1 and U.size == n:
         # a view: a constant input costs no memory per step
         U = np.broadcast_to(U.reshape(-1, 1), (n, N))

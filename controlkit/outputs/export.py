@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import secrets
 from pathlib import Path
 
 import numpy as np
@@ -75,9 +76,13 @@ def write_rows(handle, data, fmt: str = "%.10g") -> None:
 def atomic(path):
     """Write a file under a temporary name and rename it when complete.
 
-    Yields the temporary path (a hidden name in the same folder); on success it replaces
-    ``path`` in one step, on any error or interruption it is removed. So a reader, or a
-    run that was stopped, never sees a half-written file under the final name.
+    Yields the temporary path (a hidden name in the same folder, unique to this process
+    and this call: ``.NAME.PID.TOKEN.partial``); on success it replaces ``path`` in one
+    step, on any error or interruption it is removed. So a reader, or a run that was
+    stopped, never sees a half-written file under the final name, and two processes (or
+    threads) writing the same file never write into, or remove, each other's temporary
+    file: the last to finish wins, whole. A killed writer's leftover keeps its pid in its
+    name, for whoever cleans the folder to tell it from a live writer's file.
 
     Examples
     --------
@@ -90,7 +95,7 @@ def atomic(path):
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    partial = path.with_name(f".{path.name}.{os.getpid()}.partial")
+    partial = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.partial")
     try:
         yield partial
         os.replace(partial, path)

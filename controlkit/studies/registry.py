@@ -135,12 +135,6 @@ class Study:
         streamed: the run then holds no more than the figures' samples, the CSV rows are
         written as they are computed, and ``accumulator.metrics()`` gives the metrics
         from every sample.
-    loop : callable, optional
-        ``loop(case) -> interconnect``: a case's published loop. For a study shorter
-        than :data:`controlkit.engines.fast.loader.COMPILE_AFTER_STEPS`, which the fast
-        engine runs as Python until its loop is compiled, a worker compiles the loop
-        into the disk cache during the first ``reproduce``, so that later ones load it
-        compiled.
     stems_for : callable, optional
         ``stems_for(cases) -> tuple of str``: the figures drawn for these cases
         (default: all of :attr:`figure_stems`).
@@ -177,7 +171,6 @@ class Study:
     horizon: float = 20_000.0
     signals: int = 60
     streaming: Callable | None = None
-    loop: Callable | None = None
     stems_for: Callable | None = None
     robustness: Robustness | None = None
     horizon_note: Callable[[float], str | None] | None = None

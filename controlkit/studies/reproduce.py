@@ -220,8 +220,6 @@ def reproduce(study="all", *, out="results", cases=None, horizon=None, stride=No
     out = _writable(out)
     summary = {}
     with FigureWorkers(workers) as pool:
-        if engine == "fast" and not options:
-            _compile_ahead(studies, selection, horizons, pool)
         for s in sorted(studies, key=lambda study: study.simulation_cost):
             if not selection[s.name]:
                 continue
@@ -230,45 +228,6 @@ def reproduce(study="all", *, out="results", cases=None, horizon=None, stride=No
         for path in pool.results():
             log.write(f"  wrote {path}\n")
     return {s.name: summary[s.name] for s in studies if s.name in summary}
-
-
-def _compile_ahead(studies, selection, horizons, pool) -> None:
-    """Have a worker compile the published loops that the fast engine would run as Python.
-
-    The engine runs a loop that is not in its disk cache as Python for its first
-    :data:`~controlkit.engines.fast.loader.COMPILE_AFTER_STEPS` steps in a process, so
-    that a diagram being tried starts at once; the CMG study's 12 001 steps therefore
-    ran as Python in every ``reproduce`` (0.9 s with loading each kernel's cache; 0.05 s
-    compiled). Its
-    loop is compiled (3-5 s) by a worker while this run goes on as before, so later
-    runs load it compiled and this one takes no longer. Looking the loop up costs this
-    process a few milliseconds: the kernels it loads are the ones its run needs.
-    """
-    from .._jit import HAVE_NUMBA
-    from ..engines.fast import compile_system, loader
-
-    if not HAVE_NUMBA or pool.workers == 0:
-        return
-    for s in studies:
-        if s.loop is None or _steps(s, horizons[s.name]) >= loader.COMPILE_AFTER_STEPS:
-            continue
-        for case in selection[s.name]:
-            run, _ = compile_system(s.loop(case), steps=0)
-            if not hasattr(run, "py_func"):  # not a numba function: not compiled yet
-                pool.run_in_background(_compile_case, s.name, case)
-
-
-def _compile_case(study: str, case: str) -> None:
-    """In a worker: compile a case's loop into the disk cache (see :func:`_compile_ahead`).
-
-    A run of two steps with the fast engine told to compile whatever the length gives
-    the loop the argument types of a full run.
-    """
-    from ..engines.fast import loader
-
-    s = STUDIES[study]
-    loader.COMPILE_AFTER_STEPS = 0  # this worker process only
-    s.run(case, 2 * s.Ts, None, "fast")
 
 
 def _run_study(s, cases, folder, horizon, stride, engine, log, pool, options) -> dict:

@@ -12,9 +12,10 @@ same system.
 
 from __future__ import annotations
 
+from .continuous import response, run_continuous
 from .loader import CACHE_DIR
-from .run import STREAM_CHUNK_STEPS, compile_system, response, simulate
+from .run import STREAM_CHUNK_STEPS, compile_system, prepare, simulate
 from .tiers import TIERS, BlockTier, explain
 
 __all__ = ["CACHE_DIR", "STREAM_CHUNK_STEPS", "TIERS", "BlockTier", "compile_system",
-           "explain", "response", "simulate"]
+           "explain", "prepare", "response", "run_continuous", "simulate"]

@@ -1,12 +1,14 @@
-"""The simulation loop of a diagram, written out as Python source.
+"""A diagram's own module: its evaluator written out line by line, kernels pasted in.
 
-python-control steps an interconnect by sweeping every block's output function
-until the signals stop changing, twice per step (for the outputs and for the
-update). For a diagram whose blocks declare their feedthrough the order in which
-outputs can be computed is known in advance: blocks whose output reads only their
-state first, then the feedthrough blocks in dependency order. This module writes
-that order out as one plain loop over time, with the zero-order-hold Runge-Kutta
-steps of sampled blocks inlined (:func:`controlkit.kernels.common.rk4_step`).
+python-control steps an interconnect by sweeping every block's output function until
+the signals stop changing. For a diagram whose blocks declare their feedthrough the
+order in which outputs can be computed is known in advance (:func:`evaluation_order`):
+blocks whose output reads only their state first, then the feedthrough blocks in
+dependency order. :func:`generate` writes that order out as the four functions of an
+evaluator (:mod:`.loops`) with every index a literal and every kernel pasted in by numba
+(``inline="always"``), and two entry points that hand them to the loops of
+:mod:`.loops`. The module is compiled per wiring (a second or two) and cached on disk;
+the parameters stay values at run time (``P``), so a new value never recompiles.
 """
 
 from __future__ import annotations
@@ -14,8 +16,26 @@ from __future__ import annotations
 import numpy as np
 
 from ... import _jit
-from ...kernels import common
 from ..contract import UnsupportedSystem
+from .plan import (
+    CONTINUOUS,
+    DISCRETE,
+    EVERY,
+    FT,
+    KIND,
+    NP,
+    NU,
+    NX,
+    NY,
+    OUT,
+    P0,
+    SAMPLED,
+    SUB,
+    U0,
+    UPD,
+    X0,
+    Y0,
+)
 
 
 def evaluation_order(sys, blocks):
@@ -56,133 +76,169 @@ def evaluation_order(sys, blocks):
     return order
 
 
-def _gather(target, row_map, input_row):
-    """Source lines computing ``target[i]`` from subsystem outputs and external inputs."""
-    lines = []
-    for i, (row, ext) in enumerate(zip(row_map, input_row, strict=True)):
-        terms = [f"ys[{j}]" if g == 1.0 else f"{g!r} * ys[{j}]" for j, g in
-                 ((j, row[j]) for j in np.nonzero(row)[0])]
-        terms += [f"u[{j}]" if g == 1.0 else f"{g!r} * u[{j}]" for j, g in
-                  ((j, ext[j]) for j in np.nonzero(ext)[0])]
-        lines.append(f"{target}[{i}] = " + (" + ".join(terms) if terms else "0.0"))
-    return lines
+
+def _terms(ptr, cols, gain, r, name):
+    terms = []
+    for q in range(ptr[r], ptr[r + 1]):
+        g, ref = gain[q], name(cols[q])
+        terms.append(ref if g == 1.0 else f"{g!r} * {ref}")
+    return " + ".join(terms) if terms else "0.0"
 
 
-def _gather_inputs(sys, b):
-    """Source lines filling block ``b``'s input buffer from the interconnect's maps."""
-    rows = slice(b.u0, b.u0 + b.system.ninputs)
-    return _gather(f"ui_{b.index}", sys.connect_map[rows], sys.input_map[rows])
+def _kernel_names(plan):
+    """``(alias per kernel index, import lines, kernels to inject)`` of a plan's kernels."""
+    aliases, imports, injected = [], [], {}
+    for i, fn in enumerate(plan.kernels):
+        py = _jit.python_function(fn)
+        module, name = getattr(py, "__module__", None), getattr(py, "__name__", "<?>")
+        alias = f"kernel_{i}"
+        aliases.append(alias)
+        importable = (module not in (None, "__main__") and "<" not in name
+                      and "<" not in getattr(py, "__qualname__", "<")
+                      and hasattr(fn, "py_func"))
+        if importable:
+            imports.append((module, name, alias))
+        else:  # a Python function (python tier): handed to the module when it is run
+            injected[alias] = fn
+    return aliases, imports, injected
 
 
-def _function_ref(function):
-    py = _jit.python_function(function)
-    return py.__module__, py.__name__
+def generate(plan, held_logic):
+    """The source of ``plan``'s module, and the kernels it must be handed (not importable).
 
+    The functions are plain Python: :mod:`.loader` compiles them (and pastes the
+    kernels in) or runs them as Python (a diagram with a block on the python tier).
 
-def generate(sys, blocks, order):
-    """The loop's source and the kernels it must be handed (those not importable).
+    ``held_logic``: whether discrete blocks hold their outputs between their instants (a
+    diagram of several rates or with continuous states); without it every block fires
+    at every step, as in python-control's discrete simulation.
 
     Examples
     --------
     >>> from controlkit.engines.fast.tiers import blocks_of
+    >>> from controlkit.engines.fast.plan import make_plan
     >>> from controlkit.studies.cmg.diagrams import cmg_loop
     >>> loop = cmg_loop()
     >>> blocks = blocks_of(loop)
-    >>> source, injected = generate(loop, blocks, evaluation_order(loop, blocks))
-    >>> [line for line in source.splitlines() if line.startswith("def ")], injected
-    (['def run(T, X0, U, P, Y, X, status, k0, k1):'], {})
+    >>> source, injected = generate(make_plan(loop, blocks, evaluation_order(loop, blocks)),
+    ...                             held_logic=False)
+    >>> [line for line in source.splitlines() if line.startswith("def run")], injected
+    (['def run_discrete(T, X0, U, P, Y, X, status, k0, k1):'], {})
     """
-    imports, names, injected = {}, {}, {}
-    for b in blocks:
-        for role, fn in (("out", b.kernel.output), ("upd", b.kernel.update)):
-            if fn is None:
-                continue
-            alias = f"{role}_{b.index}"
-            names[(role, b.index)] = alias
-            module, name = _function_ref(fn)
-            if "<" in name or module is None or module == "__main__" or "<" in getattr(
-                    _jit.python_function(fn), "__qualname__", "<"):
-                if b.tier != "python":
-                    raise UnsupportedSystem(
-                        f"block {b.system.name!r}: its kernel {name} is not importable")
-                injected[alias] = fn
-                continue
-            imports[alias] = (module, name)
-    nsub_out = sys.connect_map.shape[1]
-    # buffers live outside the time loop: allocation is what a compiled step costs
-    setup = ["x = X0.copy()", f"xn = np.empty({sys.nstates})", f"ys = np.zeros({nsub_out})"]
-    setup += [f"ui_{b.index} = np.zeros({b.system.ninputs})" for b in blocks]
-    for b in blocks:
-        if b.kernel.rk4 is not None and b.system.nstates:
-            n = b.system.nstates
-            setup += [f"xs_{b.index} = np.empty({n})",
-                      f"work_{b.index} = ({', '.join([f'np.empty({n})'] * 5)})"]
-    if any(b.kernel.rk4 is not None for b in blocks):
-        imports["rk4_step"] = (common.__name__, "rk4_step")
-    L = [
-        "# generated by controlkit.engines.fast: do not edit",
+    table, ny = plan.table, plan.ny
+    names, imports, injected = _kernel_names(plan)
+    ptr, cols, gain = plan.inputs
+
+    def gather(b):
+        return [f"ui[{r}] = " + _terms(ptr, cols, gain, r, lambda c: f"ys[{c}]" if c < ny
+                                       else f"U[{c - ny}, col]")
+                for r in range(table[b, U0], table[b, U0] + table[b, NU])]
+
+    def view(array, start, size):
+        # a slice, not a borrowed view (.views): numba's dead-store elimination once
+        # dropped a pasted-in kernel's writes into a borrowed view (seen with the CMG's
+        # reference generator, whose kernel indexes through a layout held in a local)
+        return f"{array}[{start}:{start + size}]"
+
+    def args(b, out, size):
+        row = table[b]
+        return (f"{view('x', row[X0], row[NX])}, {view('ui', row[U0], row[NU])}, "
+                f"{view('P', row[P0], row[NP])}, {view(out[0], out[1], size)}")
+
+    evaluate = []
+    for b in plan.order:
+        row = table[b]
+        evaluate.append(f"# {plan.sys.syslist[b].name}")
+        if row[FT]:
+            evaluate += gather(b)
+        call = [f"{names[row[OUT]]}(t, {args(b, ('ys', row[Y0]), row[NY])})"]
+        if row[NY]:
+            call += [f"if np.isnan(ys[{row[Y0]}]):", f"    return {b}"]
+        held = row[KIND] in (DISCRETE, SAMPLED) and held_logic
+        if held:
+            fires = "k >= 0" if row[EVERY] == 1 else f"k >= 0 and k % {row[EVERY]} == 0"
+            evaluate += [f"if {fires}:", *["    " + c for c in call],
+                         f"    for q in range({row[NY]}):",
+                         f"        held[{row[Y0]} + q] = ys[{row[Y0]} + q]",
+                         "else:", f"    for q in range({row[NY]}):",
+                         f"        ys[{row[Y0]} + q] = held[{row[Y0]} + q]"]
+        else:
+            evaluate += call
+    for b, row in enumerate(table):
+        if not row[FT]:
+            evaluate += gather(b)
+    evaluate.append("return -1")
+
+    optr, ocols, ogain = plan.outputs
+    outputs = [f"Y[{r}, j] = " + _terms(optr, ocols, ogain, r,
+                                        lambda c: f"ys[{c}]" if c < ny else f"ui[{c - ny}]")
+               for r in range(plan.sys.noutputs)] or ["pass"]
+
+    nx = plan.sys.nstates
+    update = [f"for i in range({nx}):", "    xn[i] = x[i]"]
+    for b, row in enumerate(table):
+        if row[UPD] < 0 or not row[NX] or row[KIND] not in (DISCRETE, SAMPLED):
+            continue
+        lines = []
+        if row[KIND] == DISCRETE:
+            lines.append(f"{names[row[UPD]]}(t, {args(b, ('xn', row[X0]), row[NX])})")
+        else:
+            n, h = row[NX], float(plan.h[b])
+            work = ", ".join(view("scratch", j * n, n) for j in range(5))
+            lines += [f"xs = {view('xn', row[X0], n)}", f"for i in range({row[SUB]}):",
+                      f"    rk4_step({names[row[UPD]]}, t + i * {h!r}, xs, "
+                      f"{view('ui', row[U0], row[NU])}, {view('P', row[P0], row[NP])}, "
+                      f"{h!r}, ({work}), xs)"]
+        if held_logic and row[EVERY] > 1:
+            update += [f"if k % {row[EVERY]} == 0:", *["    " + line for line in lines]]
+        else:
+            update += lines
+
+    derivatives = [f"{names[row[UPD]]}(t, {args(b, ('dx', row[X0]), row[NX])})"
+                   for b, row in enumerate(table) if row[KIND] == CONTINUOUS] or ["pass"]
+
+    widest = max([1, *table[:, NX].tolist()])
+    buffers = [f"ys = np.zeros({ny})", f"ui = np.zeros({plan.nu})",
+               f"xn = np.empty({nx})", f"scratch = np.empty({5 * widest})"]
+    cidx = plan.continuous.tolist()
+
+    def function(signature, lines):
+        return [f"def {signature}:", *["    " + line for line in lines], "", ""]
+
+    text = [
+        "# generated by controlkit.engines.fast.codegen: a diagram's own module; do not edit",
         "import numpy as np",
-        *[f"from {m} import {n} as {a}" for a, (m, n) in sorted(imports.items())],
+        "",
+        "from controlkit.engines.fast import loops, rk",
+        "from controlkit.kernels.common import rk4_step",
+        *[f"from {m} import {n} as {a}" for m, n, a in imports],
         "",
         "",
-        "def run(T, X0, U, P, Y, X, status, k0, k1):",
-        "    # steps k0..k1-1; returns the state at k1",
-        *["    " + line for line in setup],
-        "    for k in range(k0, k1):",
-        "        t = T[k]",
-        "        u = U[:, k]",
-        "        X[:, k] = x",
+        *function("evaluate(t, x, U, col, P, ys, ui, held, k, plan)", evaluate),
+        *function("outputs(ys, ui, Y, j, plan)", outputs),
+        *function("update(t, x, ui, P, xn, k, plan, scratch)", update),
+        *function("derivatives(t, x, ui, P, dx, plan)", derivatives),
+        *function("rhs(t, y, args, out)",
+                  ["loops.rhs_template(evaluate, derivatives, t, y, args, out)"]),
+        *function("run_discrete(T, X0, U, P, Y, X, status, k0, k1)", [
+            "x = X0.copy()", *buffers, f"held = np.zeros({ny})",
+            "loops.discrete_run(evaluate, update, outputs, (), T, x, U, P, Y, X, status, "
+            "k0, k1, ys, ui, held, xn, scratch)", "return x"]),
     ]
-    body = []
-    for i in order:
-        b = blocks[i]
-        s = b.system
-        body.append(f"# {s.name}: output")
-        if b.kernel.feedthrough:  # otherwise the output reads the state only
-            body += _gather_inputs(sys, b)
-        body.append(f"{names[('out', i)]}(t, x[{b.x0}:{b.x0 + s.nstates}], ui_{i}, "
-                    f"P[{b.p0}:{b.p0 + b.kernel.params.size}], ys[{b.y0}:{b.y0 + s.noutputs}])")
-        if s.noutputs:
-            body.append(f"if np.isnan(ys[{b.y0}]):")
-            body.append(f"    status[0] = k\n    status[1] = {i}\n    return x")
-    # inputs of state-only blocks, now that every output is known
-    for b in blocks:
-        if not b.kernel.feedthrough:
-            body += _gather_inputs(sys, b)
-    # system outputs: output_map over [subsystem outputs, subsystem inputs]
-    for r, row in enumerate(sys.output_map):
-        terms = []
-        for j in np.nonzero(row)[0]:
-            g = row[j]
-            if j < nsub_out:
-                ref = f"ys[{j}]"
-            else:
-                owner = next(b for b in blocks
-                             if b.u0 <= j - nsub_out < b.u0 + b.system.ninputs)
-                ref = f"ui_{owner.index}[{j - nsub_out - owner.u0}]"
-            terms.append(ref if g == 1.0 else f"{g!r} * {ref}")
-        body.append(f"Y[{r}, k] = " + (" + ".join(terms) if terms else "0.0"))
-    for b in blocks:
-        s = b.system
-        if b.kernel.update is None or s.nstates == 0:
-            continue
-        sl = f"{b.x0}:{b.x0 + s.nstates}"
-        p = f"P[{b.p0}:{b.p0 + b.kernel.params.size}]"
-        f = names[("upd", b.index)]
-        if b.kernel.rk4 is None:
-            body.append(f"{f}(t, x[{sl}], ui_{b.index}, {p}, xn[{sl}])")
-            continue
-        Ts, n = b.kernel.rk4
-        # kernels.common.rk4_step, as sample_nlsys calls it; numba inlines it (no allocation)
-        body += [
-            f"xs_{b.index}[:] = x[{sl}]",
-            f"h = {Ts!r} / {n}",
-            f"for i in range({n}):",
-            f"    rk4_step({f}, t + i * h, xs_{b.index}, ui_{b.index}, {p}, h, "
-            f"work_{b.index}, xs_{b.index})",
-            f"xn[{sl}] = xs_{b.index}",
-        ]
-    body.append("x[:] = xn")
-    L += ["        " + line for chunk in body for line in chunk.split("\n")]
-    L.append("    return x")
-    return "\n".join(L) + "\n", injected
+    if cidx or held_logic:
+        text += function(
+            "run_continuous(machine, instants, fire0, k0, k1, t_final, T, U, t_eval, "
+            "eval_instant, ctrl, Y, X, Uo, x, held, P, method, rtol, atol, max_step, "
+            "first_step, exact, status)", [
+                *buffers, f"xt = np.empty({nx})", f"dx = np.zeros({nx})",
+                f"cidx = np.array({cidx!r}, dtype=np.int64)",
+                f"yc = np.empty({len(cidx)})", f"y_eval = np.empty((t_eval.shape[0], "
+                f"{len(cidx)}))", "ubuf = np.empty((U.shape[0], 1))",
+                f"work = rk.make_workspace({len(cidx)}, 0, t_eval.shape[0])",
+                "args = ((), x, xt, cidx, T, U, ubuf, P, ys, ui, held, dx)",
+                "loops.continuous_run(evaluate, update, outputs, rhs, machine, (), args, "
+                "(instants, fire0, k0, k1, t_final, T, U, t_eval, eval_instant), "
+                "(Y, X, Uo), (x, P, held), (ys, ui, xn, scratch, xt, cidx, yc, y_eval, "
+                "ubuf, work), (method, rtol, atol, max_step, first_step, exact), ctrl, "
+                "status)"])
+    return "\n".join(text) + "\n", injected

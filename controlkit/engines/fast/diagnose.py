@@ -94,3 +94,25 @@ def explain_failure(sys, blocks, T, X, U, status, params=None):
     if not np.isfinite(X[:, k]).all():  # the loop diverged before the block's output did
         explain_divergence(sys, blocks, T, X, X[:, k], k, U, params)
     raise FloatingPointError(f"block {block.name!r} returned NaN at t = {T[k]:g} s")
+
+
+def explain_nan(sys, blocks, t, index):
+    """A block's output was NaN during a continuous run: name it and the time.
+
+    Raises
+    ------
+    FloatingPointError
+        Always.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> block = SimpleNamespace(system=SimpleNamespace(name="sqrt"))
+    >>> try:
+    ...     explain_nan(None, [block], 1.5, 0)
+    ... except FloatingPointError as error:
+    ...     print(error)
+    block 'sqrt' returned NaN at t = 1.5 s
+    """
+    raise FloatingPointError(f"block {blocks[index].system.name!r} returned NaN at "
+                             f"t = {t:g} s")

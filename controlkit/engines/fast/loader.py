@@ -1,121 +1,383 @@
-"""Loading a generated loop: the disk cache, numba, and the Python loop meanwhile.
+"""Loading a diagram's module: compiled from the disk cache, compiled anew, or as Python.
 
-The loop's source is written into :data:`CACHE_DIR` under a name made from its
-text and the kernels' source, imported from there and compiled with numba
-(``cache=True``: a later process loads the machine code). A loop not compiled yet
-runs as plain Python for its first :data:`COMPILE_AFTER_STEPS` steps.
+A diagram's module (:mod:`.codegen`) is written into :data:`CACHE_DIR` under a name
+made from its text and its kernels' source, and imported from there; numba caches its
+compiled code next to it, keyed by that file, so a later process loads it in
+milliseconds. Compiling it takes a second or two, so a diagram whose module is not in
+the cache yet runs on the generic driver (:mod:`.driver`) meanwhile, and a separate
+process compiles the module into the cache (:func:`compile_in_background`): the
+caller's runs go on at once, and later runs of the wiring (in this process or another)
+load it compiled.
+
+A module with a block on the python tier (a function that cannot be compiled) runs as
+plain Python, calling the compiled kernels of the other blocks.
 """
 
 from __future__ import annotations
 
+import atexit
 import hashlib
 import importlib.util
 import os
+import shutil
+import stat
+import subprocess
 import sys as pysys
 import tempfile
+import warnings
 from pathlib import Path
+from types import FunctionType, SimpleNamespace
 
 from ... import _jit
-from ...kernels import common
 
-#: Where generated simulation loops are written (and numba caches them).
+#: Where diagrams' modules and compiled user functions are written (and numba caches
+#: them). Code is imported from there, so it is used only when it is the user's own: see
+#: :func:`cache_folder`.
 CACHE_DIR = Path(os.environ.get("CONTROLKIT_CACHE_DIR",
                                 Path.home() / ".cache" / "controlkit" / "engine"))
 
-#: Loops loaded in this process, by generated source (the kernels imported here are fixed).
+#: Whether a diagram's module is compiled by a background process while the driver runs
+#: (environment variable ``CONTROLKIT_BACKGROUND_COMPILE=0`` switches it off: the module
+#: is then compiled in the caller, the first time the wiring runs long enough).
+BACKGROUND_COMPILE = os.environ.get("CONTROLKIT_BACKGROUND_COMPILE", "1") not in ("0", "")
+
+#: The evaluator's functions and the entry points of a diagram's module.
+EVALUATOR = ("evaluate", "outputs", "update", "derivatives", "rhs")
+ENTRY_POINTS = ("run_discrete", "run_continuous")
+
+#: Modules loaded in this process, by source text.
 _LOADED: dict[str, object] = {}
+#: Background compilations started in this process, by module path.
+_BACKGROUND: dict[str, subprocess.Popen] = {}
+
+
+#: Why each folder asked for was refused (None: it is the user's own), checked once.
+_REFUSED: dict[Path, str | None] = {}
+
+#: This process's private folder, made when the configured one is refused.
+_PRIVATE: list[Path] = []
 
 
 def cache_folder() -> Path:
-    """:data:`CACHE_DIR`, or a temporary folder when it cannot be written.
+    """:data:`CACHE_DIR` when it is the user's own, else a private folder for this process.
+
+    The generated modules in this folder are imported and run, so whoever can write
+    into it decides what code runs. It is used only if it is a folder owned by the
+    user, that nobody else can write into, inside folders that nobody else can
+    rename it out of (each owned by the user or root, and not writable by others
+    unless sticky, as ``/tmp`` is). When it fails that check or cannot be created,
+    compiled code is kept for this process only, in a folder made by
+    :func:`tempfile.mkdtemp` (owner only, removed at exit), and a warning says why.
 
     Examples
     --------
-    >>> cache_folder().is_dir()
+    >>> folder = cache_folder()
+    >>> folder.is_dir(), _not_own(folder) is None
+    (True, True)
+    """
+    folder = Path(CACHE_DIR)
+    if folder not in _REFUSED:
+        try:
+            folder.mkdir(mode=0o700, parents=True, exist_ok=True)
+            _REFUSED[folder] = _not_own(folder)
+        except OSError as error:
+            _REFUSED[folder] = f"it cannot be created ({error.strerror or error})"
+        if _REFUSED[folder] is not None:
+            warnings.warn(f"controlkit does not use the compiled-code cache {folder}: "
+                          f"{_REFUSED[folder]}; compiled code is kept for this process only "
+                          f"(set CONTROLKIT_CACHE_DIR to a folder of your own)", stacklevel=2)
+    if _REFUSED[folder] is None:
+        return folder
+    if not _PRIVATE:
+        private = Path(tempfile.mkdtemp(prefix="controlkit-engine-"))
+        atexit.register(shutil.rmtree, private, ignore_errors=True)
+        _PRIVATE.append(private)
+    return _PRIVATE[0]
+
+
+def _not_own(folder: Path) -> str | None:
+    """Why ``folder`` is not the user's own (None when it is), as :func:`cache_folder` asks.
+
+    Group write is allowed where the group is the user's private group (the user's own
+    primary group, with no other members), as a umask of 002 leaves folders.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> shared = Path(tempfile.mkdtemp())
+    >>> shared.chmod(0o777)
+    >>> _not_own(shared).endswith("can be written by others (mode 777)")
     True
     """
-    folder = CACHE_DIR
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError:  # a read-only home: keep the loops for this machine's session only
-        folder = Path(tempfile.gettempdir()) / "controlkit-engine"
-        folder.mkdir(parents=True, exist_ok=True)
-    return folder
+    if not hasattr(os, "getuid"):  # Windows: the profile folder's ACLs decide
+        return None
+    uid = os.getuid()
+    link = os.lstat(folder)
+    if stat.S_ISLNK(link.st_mode) and link.st_uid not in (uid, 0):
+        return f"it is a link owned by another user (uid {link.st_uid})"
+    info = os.stat(folder)
+    if not stat.S_ISDIR(info.st_mode):
+        return "it is not a folder"
+    if info.st_uid != uid:
+        return f"it is owned by another user (uid {info.st_uid})"
+    if _writable_by_others(info):
+        return f"it can be written by others (mode {stat.S_IMODE(info.st_mode):o})"
+    for parent in Path(os.path.realpath(folder)).parents:
+        info = os.stat(parent)
+        if info.st_uid not in (uid, 0):
+            return f"{parent} is owned by another user (uid {info.st_uid})"
+        if _writable_by_others(info) and not info.st_mode & stat.S_ISVTX:
+            return (f"{parent} can be written by others (mode "
+                    f"{stat.S_IMODE(info.st_mode):o}), who could replace the folder")
+    return None
 
 
-#: A diagram's loop that is not compiled yet (neither in this process nor in the disk cache)
-#: runs as plain Python, calling the compiled kernels, for its first this-many steps in a
-#: process: compiling a loop costs 1-3 s, the Python loop 5-40 us a step (measured in
-#: benchmarks/bench_user_diagrams.py), so short exploratory runs of a newly wired diagram
-#: start at once and the loop is compiled once the runs grow long.
-COMPILE_AFTER_STEPS = 50_000
+def _writable_by_others(info) -> bool:
+    if info.st_mode & stat.S_IWOTH:
+        return True
+    if not info.st_mode & stat.S_IWGRP:
+        return False
+    try:  # the user's private group (umask 002) is not "others"
+        import grp
+
+        group = grp.getgrgid(info.st_gid)
+        return not (info.st_gid == os.getgid() and not group.gr_mem)
+    except (ImportError, KeyError):
+        return True
 
 
-#: Steps run as Python so far, per loop source (see :data:`COMPILE_AFTER_STEPS`).
-_PYTHON_STEPS: dict[str, int] = {}
+#: The engine's modules whose code numba pastes into a diagram's module or the driver:
+#: their source goes into the compiled modules' names (numba's cache knows a function by
+#: its own file only, and would load code compiled from an older version of these).
+PASTED_IN = ("controlkit.engines.fast.loops", "controlkit.engines.fast.rk",
+             "controlkit.engines.fast.views", "controlkit.engines.fast.entries",
+             "controlkit.engines.fast.plan", "controlkit.kernels.common")
 
 
-def _python_loop(source: str, injected=None):
-    """The generated loop run as plain Python, calling the (compiled) kernels it imports.
-
-    The RK4 helper is swapped for its Python version: handed a kernel from Python, numba
-    would compile a new, uncacheable specialisation of it for every kernel.
-    """
-    namespace = {}
-    exec(compile(source, "<controlkit loop>", "exec"), namespace)
-    namespace.update(injected or {})
-    if "rk4_step" in namespace:
-        namespace["rk4_step"] = _jit.python_function(common.rk4_step)
-    return namespace["run"]
+def _sources(modules) -> str:
+    texts = []
+    for name in modules:
+        spec = importlib.util.find_spec(name)
+        if spec.submodule_search_locations:  # a package: every module in it
+            folder = Path(spec.origin).parent
+            texts += [p.read_text() for p in sorted(folder.glob("*.py"))]
+        else:
+            texts.append(Path(spec.origin).read_text())
+    return "".join(texts)
 
 
-def load(source: str, injected=None, steps=None):
-    """The ``run`` function of a generated loop: compiled, loaded from the cache, or Python.
+def module_path(source: str, prefix: str = "diagram") -> Path:
+    """Where the module of ``source`` is written: a name hashed from its text and code.
 
-    With ``injected`` (kernels that cannot be imported: Python functions) the loop runs as
-    Python, handed them. With ``steps`` (the run's length), a loop not compiled yet runs
-    as Python while the runs are short (:data:`COMPILE_AFTER_STEPS`).
+    numba keys its cache on the module's file alone, so the source of the kernels it
+    imports and of the engine's modules it pastes in (:data:`PASTED_IN`) goes into the
+    name: editing any of them makes a new module, compiled anew.
 
     Examples
     --------
-    >>> run = load("def run(T, X0, U, P, Y, X, status, k0, k1):\\n    return X0\\n",
-    ...            injected={"unused": print})
-    >>> run(None, 1.5, None, None, None, None, None, 0, 0)
-    1.5
+    >>> module_path("import numpy as np\\n").name.startswith("diagram_")
+    True
     """
-    if injected:  # Python kernels in the loop: run it as plain Python, handed those kernels
-        return _python_loop(source, injected)
-    if source in _LOADED:  # no need to read and hash the kernels' files again
-        return _LOADED[source]
-    # numba caches the loop with the kernels inlined but keys on the loop's file alone:
-    # the kernels' source goes into the file name so that editing them recompiles
-    folder = cache_folder()
-    if str(folder) not in pysys.path:  # compiled user kernels are modules there
-        pysys.path.append(str(folder))
     modules = sorted({line.split()[1] for line in source.splitlines()
-                      if line.startswith("from ")})
-    kernel_sources = "".join(Path(importlib.util.find_spec(m).origin).read_text()
-                             for m in modules)
-    key = hashlib.sha256((source + kernel_sources + str(_jit.HAVE_NUMBA)
+                      if line.startswith("from ") and " import " in line}
+                     - {"controlkit.engines.fast"})
+    key = hashlib.sha256((source + _sources([*modules, *PASTED_IN]) + str(_jit.HAVE_NUMBA)
                           + str(_jit.CACHE_FORMAT)).encode()).hexdigest()[:20]
-    path = folder / f"loop_{key}.py"
-    if not path.exists():  # keep the file's date: numba's cache keys on it
+    folder = cache_folder()
+    path = folder / f"{prefix}_{key}.py"
+    if not path.exists():  # keep the file's date: numba's cache index keys on it
         tmp = path.with_suffix(f".{os.getpid()}.tmp")
         tmp.write_text(source)
         os.replace(tmp, path)
-    spec = importlib.util.spec_from_file_location(f"controlkit_loop_{key}", path)
+    return path
+
+
+def import_module(path: Path):
+    """Import the module at ``path`` by its file name (numba's cache re-imports it so).
+
+    A module that fails to run is not left half-loaded in ``sys.modules``.
+
+    Examples
+    --------
+    >>> path = module_path("VALUE = 3\\n")
+    >>> import_module(path).VALUE
+    3
+    """
+    folder = str(path.parent)
+    if folder not in pysys.path:  # compiled user kernels are modules there too
+        pysys.path.append(folder)
+    name = f"controlkit_{path.stem}"
+    if name in pysys.modules:
+        return pysys.modules[name]
+    spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
-    pysys.modules[spec.name] = module  # numba's disk cache re-imports it by name
-    spec.loader.exec_module(module)
-    run = module.run
-    if _jit.HAVE_NUMBA:
-        run = _jit.numba.njit(cache=True)(run)  # compiled or loaded at its first call
-        if steps is not None and not _in_disk_cache(run) \
-                and _PYTHON_STEPS.get(source, 0) + steps < COMPILE_AFTER_STEPS:
-            _PYTHON_STEPS[source] = _PYTHON_STEPS.get(source, 0) + steps
-            return _python_loop(source)
-    _LOADED[source] = run
-    return run
+    pysys.modules[name] = module
+    try:
+        spec.loader.exec_module(module)
+    except BaseException:  # never leave a half-loaded module behind
+        del pysys.modules[name]
+        raise
+    return module
+
+
+def compiled(module):
+    """``module``'s functions wrapped by numba: kernels pasted in, the rest cached on disk.
+
+    Each function is compiled (or loaded from the cache) at its first call.
+
+    Examples
+    --------
+    >>> from controlkit.engines.fast.run import prepare
+    >>> from controlkit.studies.cmg.diagrams import cmg_loop
+    >>> module = compiled(import_module(module_path(prepare(cmg_loop()).source)))
+    >>> hasattr(module.run_discrete, "py_func")
+    True
+    """
+    if getattr(module, "_controlkit_compiled", False):
+        return module
+    numba = _jit.numba
+    for name, value in list(vars(module).items()):
+        if name.startswith("kernel_") and hasattr(value, "py_func"):
+            setattr(module, name, numba.njit(inline="always")(value.py_func))
+    for name in EVALUATOR:
+        setattr(module, name, numba.njit(cache=True)(getattr(module, name)))
+    for name in ENTRY_POINTS:
+        if hasattr(module, name):
+            setattr(module, name, numba.njit(cache=True, nogil=True)(getattr(module, name)))
+    module._controlkit_compiled = True
+    return module
+
+
+def load(source: str):
+    """The compiled module of ``source`` (its functions compile or load at first call).
+
+    Examples
+    --------
+    >>> m = load("import numpy as np\\n\\n\\ndef run_discrete(T, X0, U, P, Y, X, "
+    ...          "status, k0, k1):\\n    return X0\\n")
+    >>> hasattr(m, "run_discrete")
+    True
+    """
+    module = _LOADED.get(source)
+    if module is None:
+        module = import_module(module_path(source))
+        if _jit.HAVE_NUMBA:
+            for name in EVALUATOR:  # a module with only entry points (tests) compiles too
+                if not hasattr(module, name):
+                    setattr(module, name, lambda *args: None)
+            compiled(module)
+        _LOADED[source] = module
+    return module
+
+
+_DRIVER: list = []
+
+
+def driver():
+    """The generic driver (:mod:`.driver`), as a copy named after its sources (see there).
+
+    Examples
+    --------
+    >>> hasattr(driver(), "run_discrete")
+    True
+    """
+    if not _DRIVER:
+        from . import driver as package_driver
+
+        if not _jit.HAVE_NUMBA:
+            _DRIVER.append(package_driver)
+        else:
+            source = Path(package_driver.__file__).read_text()
+            _DRIVER.append(import_module(module_path(source, prefix="driver")))
+    return _DRIVER[0]
+
+
+def load_python(source: str, injected: dict):
+    """``source``'s functions run as plain Python, handed the kernels in ``injected``.
+
+    The loops, the RK4 step and the integrator are swapped for their Python versions:
+    handed a Python kernel, numba would compile a new specialisation for every one.
+
+    Examples
+    --------
+    >>> ns = load_python("def run_discrete(*a):\\n    return kernel_0()\\n",
+    ...                  {"kernel_0": lambda: 3})
+    >>> ns.run_discrete()
+    3
+    """
+    from ...kernels import common
+    from . import loops, rk
+
+    namespace = {}
+    exec(compile(source, "<controlkit diagram>", "exec"), namespace)
+    namespace.update(injected)
+    py = _jit.python_function
+    python_rk = SimpleNamespace(
+        solve_interval=getattr(rk, "_solve_interval_python", rk.solve_interval),
+        make_workspace=rk.make_workspace, SUCCESS=rk.SUCCESS)
+    # the loops' own Python code, reading Python versions of what they call
+    scope = dict(vars(loops), rk=python_rk)
+    names = ("discrete_run", "continuous_run", "rhs_template", "interpolate", "_record")
+    for name in names:
+        function = py(getattr(loops, name))
+        scope[name] = FunctionType(function.__code__, scope, name, function.__defaults__)
+    namespace["loops"] = SimpleNamespace(**{name: scope[name] for name in names},
+                                         INTEGRATOR_FAILED=loops.INTEGRATOR_FAILED)
+    namespace["rk"] = python_rk
+    namespace["rk4_step"] = py(common.rk4_step)
+    return SimpleNamespace(**namespace)
+
+
+def is_compiled(function) -> bool:
+    """Whether ``function`` (an entry point) runs compiled now without compiling first:
+    compiled in this process, or found in numba's disk cache.
+
+    Examples
+    --------
+    >>> is_compiled(print)
+    False
+    """
+    if getattr(function, "overloads", None):
+        return True
+    return hasattr(function, "py_func") and _in_disk_cache(function)
+
+
+def compile_in_background(source: str, entry: str) -> None:
+    """Start a process that compiles ``source``'s module entry ``entry`` into the disk cache.
+
+    A process, not a thread: numba's compiler lock is global, and loading anything from
+    the cache takes it too, so a compiling thread would stall the caller. One process per
+    module and process; it primes the entry with empty arguments of the caller's types
+    (:mod:`.background`) and exits.
+
+    Examples
+    --------
+    >>> from controlkit.engines.fast.run import prepare
+    >>> from controlkit.studies.cmg.diagrams import cmg_loop
+    >>> compile_in_background(prepare(cmg_loop()).source, "run_discrete")  # doctest: +SKIP
+    """
+    path = str(module_path(source))
+    if path in _BACKGROUND:  # running, or ran: the cache holds the module, or it failed
+        return
+    if any(process.poll() is None for process in _BACKGROUND.values()):
+        return  # one at a time, on a machine of few cores: the next run asks again
+    env = dict(os.environ, CONTROLKIT_BACKGROUND_COMPILE="0")
+    _BACKGROUND[path] = subprocess.Popen(
+        [pysys.executable, "-m", "controlkit.engines.fast.background", path, entry],
+        stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        env=env, start_new_session=True)
+
+
+def background_done(source: str) -> bool | None:
+    """Whether the background compilation of ``source`` finished (None: none started).
+
+    Examples
+    --------
+    >>> background_done("nothing") is None
+    True
+    """
+    process = _BACKGROUND.get(str(module_path(source))) if source != "nothing" else None
+    return None if process is None else process.poll() is not None
 
 
 def _in_disk_cache(dispatcher) -> bool:

@@ -1,42 +1,190 @@
-"""Running a diagram on the fast engine: compile, then run in chunks or streamed."""
+"""Running a diagram on the fast engine: prepare it, pick its loop, run in chunks or streamed.
+
+:func:`prepare` turns a diagram into a :class:`Job`: its blocks with their kernels
+(:mod:`.tiers`), its plan (:mod:`.plan`) and its module's source (:mod:`.codegen`).
+:meth:`Job.loop` picks how an entry point runs: the diagram's module compiled (from the
+disk cache), the generic driver while a background process compiles the module
+(:mod:`.loader`), or the module as Python when a block is on the python tier.
+:func:`simulate` runs a discrete diagram step by step (python-control's discrete
+simulation, with chunks, progress and streaming for long runs);
+:mod:`.continuous` runs diagrams with continuous states.
+"""
 
 from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
 
 import control as ct
 import numpy as np
 
+from ... import _jit
 from ..contract import (
     UnsupportedSystem,
     check_arguments,
     chunk_bounds,
-    python_control_arguments,
     recorded_indices,
-    result_flags,
 )
 from ..contract import response as base_response
+from . import loader
 from .codegen import evaluation_order, generate
 from .diagnose import explain_divergence, explain_failure
-from .loader import load
+from .plan import Plan, make_plan
 from .tiers import blocks_of
 
+#: How a diagram's own module is compiled when not in the disk cache yet (environment
+#: variable ``CONTROLKIT_MODULES``): ``"background"`` (the driver runs while another
+#: process compiles it; the default), ``"now"`` (compiled before the run) or
+#: ``"never"`` (the driver only; the test suite uses it to stay quick).
+MODULES = os.environ.get("CONTROLKIT_MODULES", "background")
+_MODULE_POLICIES = ("background", "now", "never")
 
-def compile_system(sys, params=None, *, steps=None):
-    """Generate (and compile, with numba) the simulation loop of an interconnect.
 
-    With ``steps`` (the length of the run it is for), a loop not compiled yet runs as
-    Python while the runs are short (:data:`COMPILE_AFTER_STEPS`).
+@dataclass
+class Job:
+    """A diagram ready to run (see :func:`prepare`).
+
+    Attributes
+    ----------
+    sys : control.InterconnectedSystem
+    plan : Plan
+    P : numpy.ndarray
+        The parameters in force (packed by the blocks, at run time).
+    source : str
+        The diagram's module.
+    injected : dict
+        Kernels the module must be handed (Python functions: the python tier).
+    how : str
+        How the last loop picked runs: ``"module"``, ``"driver"`` or ``"python"``.
+
+    Examples
+    --------
+    >>> from controlkit.studies.cmg.diagrams import cmg_loop
+    >>> job = prepare(cmg_loop())
+    >>> job.plan.mode, job.P.size > 0
+    ('discrete', True)
+    """
+
+    sys: object
+    plan: Plan
+    P: np.ndarray
+    source: str
+    injected: dict
+    how: str = ""
+    _generic: tuple | None = field(default=None, repr=False)
+
+    @property
+    def blocks(self):
+        """The diagram's blocks with their kernels and offsets."""
+        return self.plan.blocks
+
+    def generic_plan(self) -> tuple:
+        """The driver's ``plan`` argument: the plan's arrays and the kernels' addresses."""
+        if self._generic is None:
+            from .entries import addresses, entry
+
+            folder = loader.cache_folder()
+            self._generic = loader.driver().plan_arguments(
+                self.plan, addresses([entry(k, folder) for k in self.plan.kernels]))
+        return self._generic
+
+    def loop(self, name: str, *, policy: str | None = None):
+        """The entry point ``name`` (``run_discrete`` or ``run_continuous``) to call.
+
+        Returns ``(function, generic)``: with ``generic`` the function is the driver's and
+        takes :meth:`generic_plan` as its last argument (``run_continuous`` of a module
+        takes the integrator's machine as its first).
+        """
+        policy = policy or MODULES
+        if policy not in _MODULE_POLICIES:
+            raise ValueError(f"CONTROLKIT_MODULES must be one of {_MODULE_POLICIES}, "
+                             f"got {policy!r}")
+        if self.injected or not _jit.HAVE_NUMBA:
+            self.how = "python"
+            return getattr(loader.load_python(self.source, self.injected), name), False
+        if policy == "never":
+            self.how = "driver"
+            return getattr(loader.driver(), name), True
+        module = loader.load(self.source)
+        function = getattr(module, name)
+        if loader.is_compiled(function) or policy == "now":
+            self.how = "module"
+            return function, False
+        if policy == "background" and loader.BACKGROUND_COMPILE:
+            loader.compile_in_background(self.source, name)
+        self.how = "driver"
+        return getattr(loader.driver(), name), True
+
+
+def as_interconnect(sys):
+    """``sys`` itself if it is a diagram, else a one-block diagram around it.
+
+    Examples
+    --------
+    >>> sys = ct.nlsys(lambda t, x, u, p: -x, None, inputs=1, states=1, outputs=1,
+    ...                name="decay")
+    >>> as_interconnect(sys).syslist[0] is sys
+    True
+    """
+    if isinstance(sys, ct.InterconnectedSystem):
+        return sys
+    if not isinstance(sys, ct.InputOutputSystem):
+        raise UnsupportedSystem(f"a {type(sys).__name__} is not an I/O system")
+    return ct.interconnect([sys], inputs=sys.input_labels, outputs=sys.output_labels,
+                           name=sys.name, check_unused=False)
+
+
+def prepare(sys, params=None, start=None) -> Job:
+    """The :class:`Job` of ``sys`` with the parameters ``params`` in force.
+
+    ``start`` is the run's ``(t0, X0, U0)``: users' functions compiled for the run must
+    agree with their Python selves there too
+    (:func:`~controlkit.engines.fast.usercode.compiled_kernel`).
 
     Raises
     ------
     UnsupportedSystem
         Naming the block that has no kernel, or the algebraic loop.
 
-    Returns
-    -------
-    run : callable
-        ``run(T, X0, U, P, Y, X, status, k0, k1) -> state at k1``.
-    blocks : list
-        The blocks with their offsets in the stacked state, signals and parameters.
+    Examples
+    --------
+    >>> from controlkit.studies.cmg.diagrams import cmg_loop
+    >>> [b.system.name for b in prepare(cmg_loop()).blocks]
+    ['reference', 'cmg', 'smc', 'saturation']
+    """
+    from ...sampled_data import SampledDataSystem
+
+    blocks = blocks_of(sys, params, start)
+    plan = make_plan(sys, blocks, evaluation_order(sys, blocks))
+    source, injected = generate(plan, held_logic=isinstance(sys, SampledDataSystem))
+    return Job(sys, plan, plan.parameters(), source, injected)
+
+
+def prime(function, name: str):
+    """Compile the entry point ``function`` (named ``name``) for the engine's argument
+    types, running nothing (empty arrays, no step).
+
+    Examples
+    --------
+    >>> prime(lambda *args: None, "run_discrete")
+    """
+    f, i = np.zeros(0), np.zeros(0, dtype=np.int64)
+    m = np.zeros((0, 0))
+    status = np.full(3, -1, dtype=np.int64)
+    if name == "run_discrete":
+        function(f, f, m, f, m, m, status, 0, 0)
+    else:
+        from . import rk
+
+        machine = rk.machine_function() if _jit.HAVE_NUMBA else rk.machine
+        function(machine, f, 0, 0, 0, 0.0, f, m, f, i, np.zeros(1, dtype=np.int64), m, m, m,
+                 f, f, f, 0, 1e-3, f, np.inf, 0.0, True, status)
+
+
+def compile_system(sys, params=None):
+    """The compiled discrete loop of ``sys`` and its blocks (compiled now if need be).
+
+    Returns ``(run, blocks)`` with ``run(T, X0, U, P, Y, X, status, k0, k1) -> state``.
 
     Examples
     --------
@@ -45,30 +193,46 @@ def compile_system(sys, params=None, *, steps=None):
     >>> [b.system.name for b in blocks]
     ['reference', 'cmg', 'smc', 'saturation']
     """
-    blocks = blocks_of(sys, params)
-    order = evaluation_order(sys, blocks)
-    return load(*generate(sys, blocks, order), steps=steps), blocks
+    job = prepare(sys, params)
+    run, generic = job.loop("run_discrete", policy="now")
+    return run, job.blocks
 
 
 #: Steps simulated per chunk when a run is streamed (bounds the memory of long runs).
 STREAM_CHUNK_STEPS = 20_000
 
 
-def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
-                  record_every=1, on_chunk=None) -> ct.TimeResponseData:
-    """Simulate a discrete interconnect of controlkit blocks without python-control's sweeps.
+def discrete_loop(job, steps=None):
+    """``run(T, X0, U, P, Y, X, status, k0, k1) -> state`` of a discrete job, however it runs.
 
-    Same arguments and result as :func:`control.input_output_response` for
-    a discrete system (plus ``progress``, ``chunks``, ``record_every`` and
-    ``on_chunk`` as in :func:`controlkit.simulation.simulate`). With
-    ``record_every > 1`` or ``on_chunk`` the run is streamed: it proceeds in
-    chunks of :data:`STREAM_CHUNK_STEPS` steps through fixed buffers, so memory
-    does not grow with the horizon.
+    Examples
+    --------
+    >>> from controlkit.studies.cmg.diagrams import cmg_loop
+    >>> callable(discrete_loop(prepare(cmg_loop())))
+    True
+    """
+    run, generic = job.loop("run_discrete")
+    if not generic:
+        return run
+    plan = job.generic_plan()
+    return lambda T, X0, U, P, Y, X, status, k0, k1: run(T, X0, U, P, Y, X, status, k0, k1,
+                                                           plan)
+
+
+def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
+             record_every=1, on_chunk=None) -> ct.TimeResponseData:
+    """Simulate a discrete interconnect without python-control's sweeps.
+
+    Same arguments and result as :func:`control.input_output_response` for a discrete
+    system (plus ``progress``, ``chunks``, ``record_every`` and ``on_chunk`` as in
+    :func:`controlkit.simulation.simulate`). With ``record_every > 1`` or ``on_chunk``
+    the run is streamed: it proceeds in chunks of :data:`STREAM_CHUNK_STEPS` steps
+    through fixed buffers, so memory does not grow with the horizon.
 
     Raises
     ------
     UnsupportedSystem
-        When a block cannot be compiled (use the python-control path instead).
+        When a block cannot be compiled, or the diagram is not discrete.
 
     Examples
     --------
@@ -80,22 +244,39 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
     >>> resp.outputs.shape
     (10, 3)
     """
+    if not isinstance(sys, ct.InterconnectedSystem):
+        name = getattr(sys, "name", type(sys).__name__)
+        raise UnsupportedSystem(f"{name!r} is a single block; the fast engine runs "
+                                f"interconnects")
     T, X0, U = check_arguments(sys, T, X0, U)  # a lazy TimeGrid stays lazy, U a view
-    run, blocks = compile_system(sys, params, steps=T.size)
+    if not sys.isdtime(strict=True):  # continuous states: the whole run at once
+        from .continuous import run_continuous
+
+        T = np.asarray(T, dtype=float)
+        resp = run_continuous(prepare(sys, params, (T[0], X0, U[:, 0])), T, U, X0)
+        if on_chunk is not None:
+            on_chunk(resp.t, resp.y, resp.x)
+        if progress is not None:
+            progress(1.0)
+        kept = recorded_indices(resp.t.size, record_every)
+        return base_response(sys, resp.t[kept], resp.y[:, kept], resp.x[:, kept],
+                             resp.u[:, kept])
+    job = prepare(sys, params, (T[0], X0, U[:, 0]))
+    run = discrete_loop(job)
+    blocks, P = job.blocks, job.P
     streamed = record_every != 1 or on_chunk is not None
     if not streamed:
         T = np.ascontiguousarray(T, dtype=float)
     N = T.size
-    P = np.concatenate([b.kernel.params for b in blocks] + [np.zeros(0)])
     kept = recorded_indices(N, record_every)
     if streamed:
         return _stream(sys, run, blocks, T, X0, U, P, kept, on_chunk, progress, params)
-    U = np.ascontiguousarray(U)
+    U = np.require(U, dtype=float, requirements=["C", "W"])
     Y = np.zeros((sys.noutputs, N))
     X = np.zeros((sys.nstates, N))
-    status = np.array([-1, -1])
+    status = np.full(3, -1, dtype=np.int64)
     bounds = chunk_bounds(N, chunks)
-    x = X0
+    x = np.array(X0, dtype=float)
     for k0, k1 in zip(bounds[:-1], bounds[1:], strict=True):
         x = run(T, x, U, P, Y, X, status, k0, k1)
         if status[0] >= 0:
@@ -108,19 +289,21 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
 
 
 def _stream(sys, run, blocks, T, x, U, P, kept, on_chunk, progress, params=None):
-    """Run the compiled loop chunk by chunk on slices of ``T`` and ``U``; keep ``kept`` only.
+    """Run the loop chunk by chunk on slices of ``T`` and ``U``; keep ``kept`` only.
 
-    The generated loop indexes its arrays from ``k0``, so each chunk runs on views of
-    ``T`` and ``U`` with ``k0 = 0`` into buffers reused from chunk to chunk.
+    The loop indexes its arrays from ``k0``, so each chunk runs on views of ``T`` and
+    ``U`` with ``k0 = 0`` into buffers reused from chunk to chunk.
     """
     N = T.size
     step = min(STREAM_CHUNK_STEPS, max(N, 1))
     Yb, Xb = np.zeros((sys.noutputs, step)), np.zeros((sys.nstates, step))
     Y, X = np.zeros((sys.noutputs, kept.size)), np.zeros((sys.nstates, kept.size))
-    status = np.array([-1, -1])
+    status = np.full(3, -1, dtype=np.int64)
+    x = np.array(x, dtype=float)
     for k0 in range(0, N, step):
         k1 = min(N, k0 + step)
-        Tc, Uc = T[k0:k1], np.ascontiguousarray(U[:, k0:k1])
+        Tc = np.ascontiguousarray(T[k0:k1], dtype=float)
+        Uc = np.require(U[:, k0:k1], dtype=float, requirements=["C", "W"])
         x = run(Tc, x, Uc, P, Yb, Xb, status, 0, k1 - k0)
         if status[0] >= 0:
             explain_failure(sys, blocks, Tc, Xb, Uc, status, params)
@@ -134,33 +317,3 @@ def _stream(sys, run, blocks, T, x, U, P, kept, on_chunk, progress, params=None)
         if progress is not None:
             progress(k1 / N)
     return base_response(sys, T[kept], Y, X, U[:, kept])
-
-
-def response(sys, T, U, X0, **options) -> ct.TimeResponseData:
-    """The fast engine behind :func:`controlkit.input_output_response` (same arguments).
-
-    Raises
-    ------
-    UnsupportedSystem
-        For what the engine does not run (the caller then runs python-control).
-
-    Examples
-    --------
-    >>> sys = ct.nlsys(lambda t, x, u, p: 0.5 * x + u, inputs=1, states=1, outputs=1, dt=1)
-    >>> loop = ct.interconnect([sys], inputs="u[0]", outputs="y[0]")
-    >>> response(loop, np.arange(3.0), 1.0, 1.0).outputs.tolist()
-    [1.0, 1.5, 1.75]
-    """
-    if not isinstance(sys, ct.InterconnectedSystem) or not sys.isdtime(strict=True):
-        raise UnsupportedSystem(f"{sys.name!r} is not a discrete interconnect")
-    T, U, X0, t_eval, _, _ = python_control_arguments(sys, T, U, X0, options)
-    if t_eval is not T and not np.array_equal(t_eval, T):
-        raise UnsupportedSystem("evaluation times other than T")
-    resp = simulate(sys, T, X0, U, params=options.get("params"))
-    return response_of(sys, resp, options)
-
-
-def response_of(sys, resp, options) -> ct.TimeResponseData:
-    """``resp`` with python-control's result flags (params, transpose, return_x, squeeze)."""
-    return base_response(sys, resp.time, resp.outputs, resp.states, resp.inputs,
-                         **result_flags(options))

@@ -119,25 +119,41 @@ def _python_kernels(block, local, reason):
     return BlockKernels(output, update, np.zeros(0), feed), "python", reason
 
 
-def _user_kernels(block, local):
-    """A user's ``nlsys``: compiled with its parameters frozen, else called from Python."""
+def _user_kernels(block, local, trial=None):
+    """A user's ``nlsys``: compiled once for the types of its parameters, their values
+    packed into ``p`` for this run; else called from Python.
+
+    ``trial`` is ``(t, x, u)`` of the block at the start of the run, a point at which the
+    compiled functions must agree with the Python ones (as at zero and random points).
+    """
     folder = cache_folder()
+    functions = [f for f in (block.outfcn, block.updfcn if block.nstates else None)
+                 if f is not None]
+    trials = [trial] if trial is not None else []
     try:
+        plans = [source.plan_function(f) for f in functions]
+        layout = usercode.ParamLayout.of(plans, local)
         output = common.state_output
         if block.outfcn is not None:
-            output, _ = usercode.compiled_kernel(block.outfcn, local, folder, block.noutputs,
-                                                 block.nstates, block.ninputs)
+            output = usercode.compiled_kernel(block.outfcn, local, folder, block.noutputs,
+                                              block.nstates, block.ninputs, layout=layout,
+                                              trials=trials, plan=plans[0]).kernel
         update = None
         if block.nstates:
-            update, _ = usercode.compiled_kernel(block.updfcn, local, folder, block.nstates,
-                                                 block.nstates, block.ninputs)
+            update = usercode.compiled_kernel(block.updfcn, local, folder, block.nstates,
+                                              block.nstates, block.ninputs, layout=layout,
+                                              trials=trials, plan=plans[-1]).kernel
+        params = layout.pack(local)
     except source.NotCompilable as why:
         return _python_kernels(block, local, f"user function not compiled: {why}")
+    except Exception as error:  # noqa: BLE001 - never worse than running it as Python
+        return _python_kernels(block, local, f"user function not compiled: "
+                                             f"{type(error).__name__}: {error}")
     feed = source.reads_input(block.outfcn) if block.outfcn is not None else False
     if feed is None:
         feed = True
-    return (BlockKernels(output, update, np.zeros(0), feed), "compiled",
-            "user nlsys compiled with its parameters frozen")
+    return (BlockKernels(output, update, params, feed), "compiled",
+            "user nlsys compiled (parameters passed at run time)")
 
 
 def _lti_kernels(block):
@@ -148,7 +164,7 @@ def _lti_kernels(block):
             "compiled", "LTI block (state space)")
 
 
-def _sampled_kernels(sys, block, local):
+def _sampled_kernels(sys, block, local, trial=None):
     """A continuous block under ZOH: its own kernels (or its user functions) under RK4."""
     if block.method != "rk4":
         return _python_kernels(block, local, "sampled with solve_ivp")
@@ -156,21 +172,22 @@ def _sampled_kernels(sys, block, local):
     if isinstance(continuous, KernelBlock) and continuous.kernels is not None:
         kernel, tier, reason = _resolve(sys, continuous, None)
     else:
-        kernel, tier, reason = _resolve_with(continuous, {**continuous.params, **local})
+        kernel, tier, reason = _resolve_with(continuous, {**continuous.params, **local}, trial)
     return (kernel.sampled(block.dt, block.substeps), tier, f"{reason}, sampled by RK4")
 
 
-def _resolve_with(block, local):
+def _resolve_with(block, local, trial=None):
     """A block that is not a controlkit block, given the parameters it is handed."""
     if isinstance(block, ct.InterconnectedSystem):
         return _python_kernels(block, local, "a nested interconnect")
     if isinstance(block, KernelBlock):  # one whose kernels call Python objects
         return _python_kernels(block, local, block.uncompiled_reason)
-    return _user_kernels(block, local)
+    return _user_kernels(block, local, trial)
 
 
-def _resolve(sys, block, params):
-    """``(BlockKernels, tier, reason)`` for one block of ``sys``."""
+def _resolve(sys, block, params, trial=None):
+    """``(BlockKernels, tier, reason)`` for one block of ``sys`` (``trial``: the block's
+    ``(t, x, u)`` at the start of the run, when known)."""
     if isinstance(block, KernelBlock) and block.kernels is not None:
         _check_feedthrough(block, block.kernels)
         return block.kernels, "compiled", "controlkit block"
@@ -178,9 +195,9 @@ def _resolve(sys, block, params):
     if isinstance(block, ct.StateSpace):
         return _lti_kernels(block)
     if isinstance(block, SampledSystem):
-        return _sampled_kernels(sys, block, local)
+        return _sampled_kernels(sys, block, local, trial)
     if isinstance(block, ct.NonlinearIOSystem):
-        return _resolve_with(block, local)
+        return _resolve_with(block, local, trial)
     raise UnsupportedSystem(f"block {block.name!r} cannot be compiled: "
                             f"a {type(block).__name__}, not an I/O system the engine knows")
 
@@ -197,8 +214,32 @@ def _check_feedthrough(block, kernel):
             f"its output changes with its input; declare feedthrough=True")
 
 
-def blocks_of(sys, params=None):
+def _start_points(sys, params, start):
+    """Each block's ``(t, x, u)`` at the run's start ``(t0, X0, U0)``, by python-control's
+    own evaluation of the diagram (None for every block where it cannot be evaluated)."""
+    if start is None:
+        return None
+    t0, X0, U0 = start
+    try:
+        sys._update_params(params)
+        ulist, _ = sys._compute_static_io(t0, np.asarray(X0, dtype=float),
+                                          np.asarray(U0, dtype=float))
+    except Exception:  # noqa: BLE001 - not evaluable there: the other trial points remain
+        return None
+    points, xs, us = [], 0, 0
+    for block in sys.syslist:
+        points.append((t0, X0[xs:xs + block.nstates], ulist[us:us + block.ninputs]))
+        xs += block.nstates
+        us += block.ninputs
+    return points
+
+
+def blocks_of(sys, params=None, start=None):
     """The blocks of ``sys`` with their kernels, tiers and offsets (or UnsupportedSystem).
+
+    ``start`` is the run's ``(t0, X0, U0)``: user functions compiled for the run must
+    agree with their Python selves there too (see
+    :func:`~controlkit.engines.fast.usercode.compiled_kernel`).
 
     Examples
     --------
@@ -210,15 +251,11 @@ def blocks_of(sys, params=None):
         name = getattr(sys, "name", type(sys).__name__)
         raise UnsupportedSystem(
             f"{name!r} is a single block; the fast engine runs interconnects")
-    if not sys.isdtime(strict=True):
-        raise UnsupportedSystem(
-            f"{sys.name!r} is continuous time (dt = {sys.dt}); sample its continuous blocks "
-            f"with controlkit.blocks.sampling.sample_nlsys so that the diagram is discrete")
+    points = _start_points(sys, params, start)
     blocks, xs, us, ys, ps = [], 0, 0, 0, 0
     for i, block in enumerate(sys.syslist):
-        kernel, tier, reason = _resolve(sys, block, params)
-        if kernel.update is not None and kernel.rk4 is None and not block.isdtime(strict=True):
-            raise UnsupportedSystem(f"block {block.name!r} is continuous and not sampled")
+        kernel, tier, reason = _resolve(sys, block, params,
+                                        points[i] if points is not None else None)
         blocks.append(PlacedBlock(i, block, kernel, xs, us, ys, ps, tier, reason))
         xs += block.nstates
         us += block.ninputs
@@ -241,8 +278,9 @@ def explain(sys, params=None) -> list[BlockTier]:
     sys : control.InterconnectedSystem
         The diagram.
     params : dict, optional
-        Parameters as for :func:`controlkit.simulation.simulate` (they decide
-        the values frozen into compiled user functions).
+        Parameters as for :func:`controlkit.simulation.simulate` (their types and
+        shapes decide the code compiled for user functions; a value that compiled
+        code cannot take, such as a string, sends its block to the ``python`` tier).
 
     Returns
     -------
@@ -261,7 +299,7 @@ def explain(sys, params=None) -> list[BlockTier]:
     >>> loop = ct.interconnect([plant, pi, error], inputs="r", outputs="y")
     >>> for row in explain(loop):
     ...     print(row.name, "|", row.tier, "|", row.reason)
-    plant | compiled | user nlsys compiled with its parameters frozen
+    plant | compiled | user nlsys compiled (parameters passed at run time)
     pi | compiled | LTI block (state space)
     error | compiled | LTI block (state space)
     """

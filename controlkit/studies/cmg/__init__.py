@@ -21,5 +21,5 @@ STUDY = Study(
     figure_columns=outputs.figure_columns,
     simulation_cost=0.05,  # 12 000 steps of a 10-state loop vs 3 x 200 000 steps
     Ts=scenario.cmg.TS_CMG, horizon=scenario.HORIZON, signals=32,
-    loop=scenario.build_loop, robustness=robustness.ROBUSTNESS,
+    robustness=robustness.ROBUSTNESS,
 )

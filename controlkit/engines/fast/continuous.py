@@ -1,0 +1,210 @@
+"""Diagrams with continuous states on the fast engine, and the drop-in's entry point.
+
+:func:`response` is what :func:`controlkit.input_output_response` calls: a discrete
+diagram runs step by step (:func:`.run.simulate`), any other through
+:func:`run_continuous`, which integrates the continuous states with the compiled
+Runge-Kutta methods of :mod:`.rk` (``RK45``, python-control's default, ``RK23`` and
+``DOP853``: scipy's steps, so python-control's numbers) between the instants of the
+discrete blocks, or with scipy's stiff solvers (``LSODA``, ``BDF``, ``Radau``) called
+with the diagram's compiled right-hand side.
+"""
+
+from __future__ import annotations
+
+import math
+
+import control as ct
+import numpy as np
+
+from ..contract import (
+    UnsupportedSystem,
+    python_control_arguments,
+    result_flags,
+)
+from ..contract import response as base_response
+from . import loader, rk
+from .diagnose import explain_nan
+from .loops import INTEGRATOR_FAILED
+from .run import Job, as_interconnect, prepare, simulate
+
+#: The methods integrated by compiled code; the stiff ones go to scipy.
+EXPLICIT_METHODS = ("RK23", "RK45", "DOP853")
+STIFF_METHODS = ("LSODA", "BDF", "Radau")
+#: The ``solve_ivp`` options the engine takes; any other sends the run to python-control.
+SOLVER_OPTIONS = ("rtol", "atol", "max_step", "first_step")
+#: An evaluation time within this fraction of the base period of an instant is on it.
+INSTANT_TOLERANCE = 1e-9
+
+
+def response(sys, T, U, X0, **options) -> ct.TimeResponseData:
+    """The fast engine behind :func:`controlkit.input_output_response` (same arguments).
+
+    Raises
+    ------
+    UnsupportedSystem
+        For what the engine does not run (the caller then runs python-control).
+
+    Examples
+    --------
+    >>> sys = ct.nlsys(lambda t, x, u, p: 0.5 * x + u, inputs=1, states=1, outputs=1, dt=1)
+    >>> loop = ct.interconnect([sys], inputs="u[0]", outputs="y[0]")
+    >>> response(loop, np.arange(3.0), 1.0, 1.0).outputs.tolist()
+    [1.0, 1.5, 1.75]
+    """
+    sys = as_interconnect(sys)
+    T, U, X0, t_eval, method, solver = python_control_arguments(sys, T, U, X0, options)
+    params = options.get("params")
+    if sys.isdtime(strict=True):
+        if not np.array_equal(t_eval, T):  # python-control interpolates U at t_eval
+            U = _interpolated(T, U, t_eval)
+        resp = simulate(sys, t_eval, X0, U, params=params)
+    else:
+        resp = run_continuous(prepare(sys, params, (T[0], X0, U[:, 0])), T, U, X0,
+                              t_eval=t_eval, method=method, **solver)
+    return base_response(sys, resp.t, resp.y, resp.x, resp.u, **result_flags(options))
+
+
+def _interpolated(T, U, t):
+    """``U`` at the times ``t``, interpolated as python-control does."""
+    idx = np.clip(np.searchsorted(T, t, side="left"), 1, len(T) - 1)
+    dt = (t - T[idx - 1]) / (T[idx] - T[idx - 1])
+    return U[:, idx - 1] * (1.0 - dt) + U[:, idx] * dt
+
+
+def _instants(sys, T0, Tf):
+    """The discrete instants ``T0 + k h`` up to ``Tf`` (``[T0]`` without discrete blocks)."""
+    h = float(getattr(sys, "base_period", 0.0) or 0.0)
+    if not h:
+        return np.array([T0]), 0.0
+    count = math.floor((Tf - T0) / h * (1 + 1e-12)) + 1
+    return T0 + np.arange(count) * h, h
+
+
+def _eval_instants(t_eval, instants, h):
+    """For each evaluation time, the index of the instant it is on, else -1."""
+    if not h:
+        return np.where(t_eval == instants[0], 0, -1).astype(np.int64)
+    k = np.rint((t_eval - instants[0]) / h).astype(np.int64)
+    on = (k >= 0) & (k < instants.size) & (
+        np.abs(t_eval - instants[0] - k * h) <= INSTANT_TOLERANCE * h)
+    return np.where(on, k, -1).astype(np.int64)
+
+
+def _solver_options(n, rtol=1e-3, atol=1e-6, max_step=np.inf, first_step=None, **other):
+    if other:
+        raise UnsupportedSystem(f"solve_ivp options {sorted(other)} (the fast engine takes "
+                                f"{list(SOLVER_OPTIONS)})")
+    atol = np.asarray(atol, dtype=float)
+    atol = np.full(n, float(atol)) if atol.ndim == 0 else atol.reshape(-1)
+    if atol.size != n:
+        raise ValueError(f"atol must be a number or have {n} values (one per continuous "
+                         f"state), got {atol.size}")
+    return (float(rtol), np.ascontiguousarray(atol), float(max_step),
+            0.0 if first_step is None else float(first_step))
+
+
+def run_continuous(job: Job, T, U, X0, *, t_eval=None, method="RK45", generic=None,
+                   **solver) -> ct.TimeResponseData:
+    """Run a diagram with continuous states (or of several rates): the whole horizon.
+
+    Parameters
+    ----------
+    job : Job
+        From :func:`.run.prepare`.
+    T : numpy.ndarray
+        Time points of ``U`` (python-control's ``timepts``).
+    U : numpy.ndarray
+        Inputs, ``(ninputs, len(T))``, interpolated linearly in between.
+    X0 : numpy.ndarray
+        Initial state.
+    t_eval : numpy.ndarray, optional
+        Where the response is reported (default ``T``).
+    method : str
+        ``RK45``, ``RK23``, ``DOP853`` (compiled), or ``LSODA``, ``BDF``, ``Radau``.
+    generic : bool, optional
+        Force the generic driver (True) or the diagram's module (False); default: as
+        :meth:`.run.Job.loop` decides.
+    **solver
+        ``rtol``, ``atol``, ``max_step``, ``first_step``, as for ``solve_ivp``.
+
+    Returns
+    -------
+    control.TimeResponseData
+
+    Examples
+    --------
+    >>> plant = ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], name="p", inputs="u",
+    ...               outputs="y")
+    >>> loop = ct.interconnect([plant], inputs="u", outputs="y")
+    >>> T = np.linspace(0.0, 1.0, 3)
+    >>> run_continuous(prepare(loop), T, np.ones((1, 3)), np.zeros(1)).outputs.round(5)
+    array([0.     , 0.39349, 0.63211])
+    """
+    sys, plan = job.sys, job.plan
+    T = np.ascontiguousarray(T, dtype=float)
+    U = np.require(U, dtype=float, requirements=["C", "W"])
+    t_eval = T if t_eval is None else np.ascontiguousarray(t_eval, dtype=float)
+    if t_eval.size and (t_eval[0] < T[0] or t_eval[-1] > T[-1]):
+        raise ValueError("Values in `t_eval` are not within `t_span`.")
+    if np.any(np.diff(t_eval) <= 0):
+        raise ValueError("Values in `t_eval` are not properly sorted.")
+    if method in STIFF_METHODS:
+        from .stiff import run_stiff
+
+        return run_stiff(job, T, U, X0, t_eval, method, solver)
+    if method not in EXPLICIT_METHODS:
+        raise UnsupportedSystem(f"solve_ivp method {method!r}")
+    rtol, atol, max_step, first_step = _solver_options(plan.continuous.size, **solver)
+    instants, h = _instants(sys, T[0], T[-1])
+    eval_instant = _eval_instants(t_eval, instants, h)
+    m = t_eval.size
+    Y, X, Uo = (np.zeros((sys.noutputs, m)), np.zeros((sys.nstates, m)),
+                np.zeros((sys.ninputs, m)))
+    x, held = np.array(X0, dtype=float), np.zeros(plan.ny)
+    ctrl, status = np.zeros(1, dtype=np.int64), np.full(3, -1, dtype=np.int64)
+    if generic is None:
+        run, use_driver = job.loop("run_continuous")
+    elif generic:
+        run, use_driver = loader.driver().run_continuous, True
+    else:
+        run, use_driver = job.loop("run_continuous", policy="now")
+    arguments = (instants, 0, 0, instants.size, float(T[-1]), T, U, t_eval, eval_instant,
+                 ctrl, Y, X, Uo, x, held, job.P, rk.METHOD_INDEX[method], rtol, atol,
+                 max_step, first_step, True, status)
+    if job.how == "python":
+        run(rk.machine_on_arrays, *arguments)
+    elif use_driver:
+        run(rk.machine_function(), *arguments, job.generic_plan())
+    else:
+        run(rk.machine_function(), *arguments)
+    if status[1] == INTEGRATOR_FAILED:
+        raise _integrator_error(job, status, t_eval, method, x)
+    if status[1] >= 0:
+        explain_nan(sys, job.blocks, t_eval[min(status[0], m - 1)], int(status[1]))
+    if ctrl[0] < m:
+        raise RuntimeError(f"the integration of {sys.name!r} stopped at t = "
+                           f"{t_eval[ctrl[0]]:g} s without a reason; please report it")
+    return base_response(sys, t_eval, Y, X, Uo)
+
+
+def _integrator_error(job, status, t_eval, method, x):
+    """The integrator stopped: say where, why, and what to do."""
+    sys = job.sys
+    code, served = int(status[2]), int(status[0])
+    where = t_eval[served - 1] if served > 0 else t_eval[0]
+    blocks = [b.system.name for b in job.blocks if b.system.nstates
+              and b.system.dt == 0]
+    size = float(np.max(np.abs(x[job.plan.continuous]))) if job.plan.continuous.size else 0.0
+    state = f"the continuous blocks {blocks}"
+    if code == rk.STEP_TOO_SMALL:
+        return RuntimeError(
+            f"{sys.name!r}: the step size of {method} fell below the spacing of numbers "
+            f"after t = {where:g} s, with the largest state of {state} at {size:.3g}: the "
+            f"loop diverges there (a state without bound), or a block is stiff or "
+            f"discontinuous; for a stiff block try solve_ivp_method='BDF' (or 'LSODA', "
+            f"'Radau')")
+    if code == rk.NON_FINITE:
+        return FloatingPointError(
+            f"{sys.name!r}: the state of {state} became non-finite after t = {where:g} s "
+            f"(the loop diverged, or a block's equation is undefined there)")
+    return RuntimeError(f"{sys.name!r}: {rk.STATUS_MESSAGES.get(code, code)}")

@@ -1,0 +1,197 @@
+"""A diagram reduced to arrays: what the driver reads and the code generator writes out.
+
+:func:`make_plan` takes the blocks of a diagram (their kernels and offsets, from
+:func:`.tiers.blocks_of`) and its evaluation order, and describes everything else as
+numbers: per block, a row of :attr:`Plan.table` (offsets into the stacked state ``x``,
+the stacked block inputs ``ui`` and outputs ``ys`` and the parameters ``P``, its
+kernels, its kind and rate), and the interconnect's connection, input and output maps
+as sparse rows. Nothing in a plan is compiled; the generic driver (:mod:`.driver`)
+takes its arrays as arguments and :mod:`.codegen` writes them into source.
+
+A block is one of four kinds (:data:`KINDS`), by its timebase:
+
+- ``static``: no state of its own in time (``dt = None``, or a continuous block with no
+  state): evaluated wherever its inputs are;
+- ``discrete``: ``dt = Ts``; it computes its output and updates its state at its
+  instants, every :attr:`every` base periods, and holds its output in between;
+- ``sampled``: a continuous block under zero-order hold
+  (:func:`controlkit.blocks.sampling.sample_nlsys` with RK4): a discrete block whose
+  update is ``substeps`` RK4 steps of its right-hand side;
+- ``continuous``: ``dt = 0`` with states: integrated between instants.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import control as ct
+import numpy as np
+
+#: Block kinds, by number in the plan's table.
+KINDS = ("static", "discrete", "sampled", "continuous")
+STATIC, DISCRETE, SAMPLED, CONTINUOUS = range(4)
+
+#: Columns of :attr:`Plan.table`: offsets and sizes in x, ui, ys and P; feedthrough;
+#: output and update kernel (index into :attr:`Plan.kernels`, -1 for none); kind;
+#: instants between firings (discrete and sampled blocks); RK4 substeps (sampled).
+X0, NX, U0, NU, Y0, NY, P0, NP, FT, OUT, UPD, KIND, EVERY, SUB = range(14)
+COLUMNS = ("X0", "NX", "U0", "NU", "Y0", "NY", "P0", "NP", "FT", "OUT", "UPD", "KIND",
+           "EVERY", "SUB")
+
+
+@dataclass
+class Plan:
+    """A diagram as arrays (see the module's description).
+
+    Attributes
+    ----------
+    sys : control.InterconnectedSystem
+        The diagram.
+    blocks : list
+        Its blocks with their kernels (:class:`.tiers.PlacedBlock`).
+    order : numpy.ndarray
+        Block indices in evaluation order (outputs that read only their state first).
+    table : numpy.ndarray
+        ``int64``, one row per block, columns :data:`COLUMNS`.
+    h : numpy.ndarray
+        RK4 substep length of each sampled block (0 for the others).
+    inputs : tuple of numpy.ndarray
+        ``(ptr, col, gain)``: block input ``r`` is the sum over ``q`` in
+        ``ptr[r]:ptr[r+1]`` of ``gain[q]`` times ``ys[col[q]]``, or the diagram's input
+        ``col[q] - ny`` when ``col[q] >= ny``.
+    outputs : tuple of numpy.ndarray
+        The same for the diagram's outputs, from ``ys`` and (beyond ``ny``) ``ui``.
+    kernels : list
+        The distinct kernel functions, indexed by the table's ``OUT`` and ``UPD``.
+    continuous : numpy.ndarray
+        Indices in ``x`` of the states that are integrated in continuous time.
+    base_period : float
+        The instants' spacing (the shortest period; 0 when nothing is discrete).
+    ny, nu : int
+        Sizes of ``ys`` and ``ui``.
+
+    Examples
+    --------
+    >>> from controlkit.engines.fast.tiers import blocks_of
+    >>> from controlkit.engines.fast.codegen import evaluation_order
+    >>> from controlkit.studies.cmg.diagrams import cmg_loop
+    >>> loop = cmg_loop()
+    >>> blocks = blocks_of(loop)
+    >>> plan = make_plan(loop, blocks, evaluation_order(loop, blocks))
+    >>> [KINDS[k] for k in plan.table[:, KIND]], plan.mode
+    (['static', 'sampled', 'discrete', 'static'], 'discrete')
+    """
+
+    sys: object
+    blocks: list
+    order: np.ndarray
+    table: np.ndarray
+    h: np.ndarray
+    inputs: tuple
+    outputs: tuple
+    kernels: list
+    continuous: np.ndarray
+    base_period: float
+    ny: int
+    nu: int
+
+    @property
+    def mode(self) -> str:
+        """``"discrete"`` (nothing integrated in continuous time) or ``"continuous"``
+        (some states are, with or without discrete blocks)."""
+        return "continuous" if self.continuous.size else "discrete"
+
+    def parameters(self) -> np.ndarray:
+        """The stacked parameter vector ``P`` (each block's packed ``p``, in order)."""
+        return np.concatenate([b.kernel.params for b in self.blocks] + [np.zeros(0)])
+
+
+def _sparse_rows(matrix):
+    """``(ptr, col, gain)`` of a dense matrix, row by row (compressed sparse rows)."""
+    matrix = np.asarray(matrix, dtype=float)
+    ptr, col, gain = [0], [], []
+    for row in matrix:
+        nonzero = np.nonzero(row)[0]
+        col += nonzero.tolist()
+        gain += row[nonzero].tolist()
+        ptr.append(len(col))
+    return (np.array(ptr, dtype=np.int64), np.array(col, dtype=np.int64),
+            np.array(gain, dtype=float))
+
+
+def _kind(block, kernel) -> int:
+    system = block.system
+    if kernel.rk4 is not None:
+        return SAMPLED
+    if system.dt is True or (system.dt is not None and system.dt > 0):
+        return DISCRETE
+    if system.dt == 0 and system.nstates and kernel.update is not None:
+        return CONTINUOUS
+    return STATIC
+
+
+def make_plan(sys, blocks, order) -> Plan:
+    """The :class:`Plan` of ``sys`` with ``blocks`` (from :func:`.tiers.blocks_of`).
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from controlkit.engines.fast.tiers import blocks_of
+    >>> from controlkit.engines.fast.codegen import evaluation_order
+    >>> gain = ct.ss([], [], [], [[2.0]], name="k", inputs="e", outputs="u")
+    >>> plant = ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], name="p", inputs="u",
+    ...               outputs="y")
+    >>> error = ct.summing_junction(["r", "-y"], "e", name="error")
+    >>> loop = ct.interconnect([plant, gain, error], inputs="r", outputs="y")
+    >>> blocks = blocks_of(loop)
+    >>> plan = make_plan(loop, blocks, evaluation_order(loop, blocks))
+    >>> plan.mode, plan.continuous.tolist(), plan.inputs[1].tolist()
+    ('continuous', [0], [1, 2, 3, 0])
+    """
+    base = float(getattr(sys, "base_period", 0.0) or 0.0)
+    if not base and sys.isdtime(strict=True) and sys.dt is not True:
+        base = float(sys.dt)
+    kernels, index = [], {}
+
+    def kernel_index(fn):
+        if fn is None:
+            return -1
+        if id(fn) not in index:
+            index[id(fn)] = len(kernels)
+            kernels.append(fn)
+        return index[id(fn)]
+
+    rows, h, continuous = [], [], []
+    for b in blocks:
+        k, s = b.kernel, b.system
+        kind = _kind(b, k)
+        every = 0
+        if kind in (DISCRETE, SAMPLED):
+            every = 1 if not base or s.dt is True else max(1, round(float(s.dt) / base))
+        substeps = k.rk4[1] if kind == SAMPLED else 0
+        h.append(k.rk4[0] / k.rk4[1] if kind == SAMPLED else 0.0)
+        rows.append([b.x0, s.nstates, b.u0, s.ninputs, b.y0, s.noutputs, b.p0,
+                     k.params.size, int(k.feedthrough), kernel_index(k.output),
+                     kernel_index(k.update if s.nstates else None), kind, every, substeps])
+        if kind == CONTINUOUS:
+            continuous += range(b.x0, b.x0 + s.nstates)
+    ny = sys.connect_map.shape[1]
+    return Plan(
+        sys=sys, blocks=blocks, order=np.asarray(order, dtype=np.int64),
+        table=np.array(rows, dtype=np.int64).reshape(-1, len(COLUMNS)),
+        h=np.array(h, dtype=float),
+        inputs=_sparse_rows(np.hstack([sys.connect_map, sys.input_map])),
+        outputs=_sparse_rows(sys.output_map), kernels=kernels,
+        continuous=np.array(continuous, dtype=np.int64), base_period=base, ny=ny,
+        nu=sys.connect_map.shape[0])
+
+
+def is_interconnect(sys) -> bool:
+    """Whether ``sys`` is a diagram of blocks (python-control's interconnect).
+
+    Examples
+    --------
+    >>> is_interconnect(ct.tf([1], [1, 1]))
+    False
+    """
+    return isinstance(sys, ct.InterconnectedSystem)

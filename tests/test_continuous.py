@@ -1,0 +1,227 @@
+"""Continuous and sampled-data diagrams on the fast engine against their references.
+
+Continuous diagrams are compared with ``control.input_output_response`` (RK45, RK23,
+DOP853 and the stiff methods), sampled-data diagrams with a plain reference written
+here from the semantics alone (solve_ivp between sample instants, discrete outputs
+held), at tight tolerances.
+"""
+
+import warnings
+
+import control as ct
+import numpy as np
+import pytest
+import scipy.integrate
+from continuous_diagrams import CONTINUOUS, MIXED, dc_motor, observer, servo_pi_discrete
+
+import controlkit
+from controlkit.engines.fast import explain
+from controlkit.engines.fast.continuous import run_continuous
+from controlkit.engines.fast.run import prepare
+
+TIGHT = {"rtol": 1e-10, "atol": 1e-12}
+
+
+def scaled_error(ours, ref):
+    """The largest difference relative to each output's size (at least 1)."""
+    scale = np.maximum(1.0, np.abs(ref).max(axis=-1, keepdims=True))
+    return float(np.abs((ours - ref) / scale).max())
+
+
+def fast(loop, T, U, X0, **kwargs):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no fallback to python-control allowed
+        return controlkit.input_output_response(loop, T, U, X0, **kwargs)
+
+
+@pytest.mark.parametrize("method", ["RK45", "RK23", "DOP853"])
+@pytest.mark.parametrize("name", sorted(CONTINUOUS))
+def test_continuous_diagram_equals_python_control(name, method):
+    loop, T, X0, U = CONTINUOUS[name]()
+    assert {row.tier for row in explain(loop)} == {"compiled"}
+    ref = ct.input_output_response(loop, T, U, X0, solve_ivp_method=method)
+    ours = fast(loop, T, U, X0, solve_ivp_method=method)
+    assert ours.outputs.shape == ref.outputs.shape and ours.states.shape == ref.states.shape
+    assert scaled_error(ours.y, ref.y) <= 1e-9
+    assert scaled_error(ours.x, ref.x) <= 1e-9
+    np.testing.assert_array_equal(ours.time, ref.time)
+
+
+@pytest.mark.parametrize("method", ["LSODA", "BDF", "Radau"])
+def test_stiff_methods_run_scipy_on_the_compiled_right_hand_side(method):
+    loop, T, X0, U = dc_motor()  # a 1 ms electrical pole under a 100 ms mechanical one
+    ref = ct.input_output_response(loop, T, U, X0, solve_ivp_method=method)
+    ours = fast(loop, T, U, X0, solve_ivp_method=method)
+    assert scaled_error(ours.y, ref.y) <= 1e-9
+
+
+def test_python_control_options_and_result_flags_are_kept():
+    loop, T, X0, U = CONTINUOUS["pendulum"]()
+    t_eval = np.linspace(0.2, 4.0, 7)
+    options = dict(evaluation_times=t_eval, solve_ivp_kwargs={"rtol": 1e-6, "max_step": 0.1},
+                   return_states=True, transpose=True, params={"kp": 15.0})
+    ref = ct.input_output_response(loop, T, U, X0, **options)
+    ours = fast(loop, T, U, X0, **options)
+    t, y, x = ours
+    assert scaled_error(y.T, ref.y) <= 1e-9 and x.shape == ref.x.T.shape
+    np.testing.assert_array_equal(t, t_eval)
+
+
+def test_a_list_of_systems_gives_a_list_of_responses():
+    systems = [CONTINUOUS["pi_first_order"]()[0], CONTINUOUS["two_tanks"]()[0]]
+    T = np.linspace(0.0, 5.0, 11)
+    responses = fast(systems, T, 1.0, 0.0)
+    assert len(responses) == 2
+    for sys, resp in zip(systems, responses, strict=True):
+        ref = ct.input_output_response(sys, T, 1.0, 0.0)
+        assert scaled_error(resp.y, ref.y) <= 1e-9
+
+
+# ---------------------------------------------------------------- sampled-data diagrams
+
+def reference(sys, T, X0, U, rtol=1e-10, atol=1e-12):
+    """The sampled-data semantics in plain Python, from python-control's own functions.
+
+    At each instant k h: every block's output (a discrete block that fires computes it,
+    the others give the output they hold), then the firing blocks' state updates, then
+    solve_ivp over the continuous states to the next instant with the outputs held.
+    States at an instant are reported before the update.
+    """
+    h = min(s.dt for s in sys.syslist if s.dt not in (None, 0, True))
+    n = int(np.floor((T[-1] - T[0]) / h * (1 + 1e-12))) + 1
+    instants = T[0] + np.arange(n) * h
+    offsets = np.cumsum([0] + [s.nstates for s in sys.syslist])
+    inputs = np.cumsum([0] + [s.ninputs for s in sys.syslist])
+    outs = np.cumsum([0] + [s.noutputs for s in sys.syslist])
+    discrete = [s.dt not in (None, 0) for s in sys.syslist]
+    every = [round(s.dt / h) if d else 0 for s, d in zip(sys.syslist, discrete, strict=True)]
+    held = [None] * len(sys.syslist)
+
+    def u_at(t):
+        return np.array([np.interp(t, T, row) for row in U]) if len(U) else np.zeros(0)
+
+    def sweep(t, x, firing):
+        u = u_at(t)
+        ulist = sys.input_map @ u
+        ylist = np.zeros(sys.connect_map.shape[1])
+        for _ in range(len(sys.syslist) + 1):
+            for i, s in enumerate(sys.syslist):
+                if discrete[i] and i not in firing:
+                    y = held[i]
+                else:
+                    y = s._out(t, x[offsets[i]:offsets[i + 1]], ulist[inputs[i]:inputs[i + 1]])
+                ylist[outs[i]:outs[i + 1]] = y
+            ulist = sys.connect_map @ ylist + sys.input_map @ u
+        return u, ulist, ylist
+
+    def outputs_at(t, x, firing):
+        u, ulist, ylist = sweep(t, x, firing)
+        return sys.output_map @ np.concatenate([ylist, ulist])
+
+    cont = [i for i, s in enumerate(sys.syslist) if s.dt == 0 and s.nstates]
+    index = np.concatenate([np.arange(offsets[i], offsets[i + 1]) for i in cont])
+    x = np.array(X0, dtype=float)
+    Y, X = np.zeros((sys.noutputs, T.size)), np.zeros((sys.nstates, T.size))
+    for k, t in enumerate(instants):
+        firing = {i for i in range(len(sys.syslist)) if discrete[i] and k % every[i] == 0}
+        _, ulist, ylist = sweep(t, x, firing)
+        for i in firing:
+            held[i] = ylist[outs[i]:outs[i + 1]].copy()
+        for j in np.nonzero(np.isclose(T, t, rtol=0, atol=1e-9 * h))[0]:
+            Y[:, j], X[:, j] = outputs_at(t, x, firing), x
+        for i in firing:
+            if sys.syslist[i].nstates:
+                x[offsets[i]:offsets[i + 1]] = sys.syslist[i]._rhs(
+                    t, x[offsets[i]:offsets[i + 1]], ulist[inputs[i]:inputs[i + 1]])
+        t1 = instants[k + 1] if k + 1 < n else T[-1]
+        if t1 <= t:
+            continue
+
+        def rhs(tau, xc):
+            xt = x.copy()
+            xt[index] = xc
+            _, ulist, _ = sweep(tau, xt, set())
+            dx = np.zeros(sys.nstates)
+            for i in cont:
+                dx[offsets[i]:offsets[i + 1]] = sys.syslist[i]._rhs(
+                    tau, xt[offsets[i]:offsets[i + 1]], ulist[inputs[i]:inputs[i + 1]])
+            return dx[index]
+
+        sol = scipy.integrate.solve_ivp(rhs, (t, t1), x[index], rtol=rtol, atol=atol,
+                                        dense_output=True)
+        inside = (T > t + 1e-9 * h) & (T < t1 - 1e-9 * h) | ((k + 1 == n) & (T > t) & (
+            T <= t1))
+        for j in np.nonzero(inside)[0]:
+            xt = x.copy()
+            xt[index] = sol.sol(T[j])
+            Y[:, j], X[:, j] = outputs_at(T[j], xt, set()), xt
+        x[index] = sol.y[:, -1]
+    return Y, X
+
+
+@pytest.mark.parametrize("name", sorted(MIXED))
+def test_sampled_data_diagram_equals_the_reference(name):
+    loop, T, X0, U = MIXED[name]()
+    T, U = T[: T.size // 4 + 1], U[..., : T.size // 4 + 1]  # a quarter: the reference is slow
+    assert type(loop).__name__ == "SampledDataSystem"
+    assert {row.tier for row in explain(loop)} == {"compiled"}
+    ours = fast(loop, T, U, X0, solve_ivp_kwargs=TIGHT)
+    Y, X = reference(loop, T, X0, np.atleast_2d(U) if np.ndim(U) else np.zeros((0, T.size)))
+    assert scaled_error(ours.y, Y) <= 1e-8
+    assert scaled_error(ours.x, X) <= 1e-8
+
+
+def test_python_control_refuses_a_sampled_data_diagram_with_the_remedy():
+    loop, T, X0, U = servo_pi_discrete()
+    with pytest.raises(ValueError, match=r"sampled-data diagram .* use "
+                                         r"controlkit.input_output_response"):
+        ct.input_output_response(loop, T, U, X0)
+
+
+def test_the_diagrams_own_module_gives_the_drivers_numbers():
+    # the generic driver and the diagram's module: the same arithmetic, the same bits
+    for build in (dc_motor, observer, CONTINUOUS["car_pi"]):
+        loop, T, X0, U = build()
+        U = np.atleast_2d(U) if np.ndim(U) else np.zeros((0, T.size))
+        job = prepare(loop)
+        driver = run_continuous(job, T, U, X0, generic=True)
+        module = run_continuous(job, T, U, X0, generic=False)
+        np.testing.assert_array_equal(driver.y, module.y)
+        np.testing.assert_array_equal(driver.x, module.x)
+
+
+def test_rates_that_are_not_multiples_are_refused_naming_the_blocks():
+    plant = ct.tf([1.0], [1.0, 1.0], name="plant", inputs="u", outputs="y")
+    fast_pi = ct.sample_system(ct.tf([1.0, 0.5], [1.0, 0.0]), 0.1, name="pi", inputs="e",
+                               outputs="u")
+    filt = ct.sample_system(ct.tf([1.0], [1.0, 1.0]), 0.25, name="filter", inputs="y",
+                            outputs="yf")
+    error = ct.summing_junction(["r", "-yf"], "e", name="error")
+    with pytest.raises(ValueError, match=r"integer multiples of the shortest \(0.1 s of 'pi'\)"
+                                         r"; got 'filter' at 0.25 s"):
+        controlkit.interconnect([plant, fast_pi, filt, error], inputs="r", outputs="y")
+
+
+def test_a_discrete_block_without_a_period_beside_a_continuous_one_is_refused():
+    plant = ct.tf([1.0], [1.0, 1.0], name="plant", inputs="u", outputs="y")
+    gain = ct.ss([], [], [], [[2.0]], dt=True, name="k", inputs="y", outputs="u")
+    with pytest.raises(ValueError, match=r"blocks \['k'\] are discrete with no sampling "
+                                         r"period \(dt=True\)"):
+        controlkit.interconnect([plant, gain])
+
+
+def test_one_timebase_gives_python_controls_own_interconnect():
+    loop, *_ = CONTINUOUS["pi_first_order"]()
+    again = controlkit.interconnect(loop.syslist, inputs="r", outputs=["y", "u"])
+    assert type(again) is type(loop) and again.dt == 0
+
+
+def test_a_diverging_continuous_loop_names_the_time_and_the_blocks():
+    # x' = x^2 from 1 escapes to infinity at t = 1: scipy's steps shrink to nothing there
+    grow = ct.nlsys(lambda t, x, u, params: x * x, None, states=1, inputs=0, outputs=1,
+                    name="blowup")
+    loop = ct.interconnect([grow], outputs="y[0]")
+    with pytest.raises(RuntimeError, match=r"fell below the spacing of numbers after "
+                                           r"t = 0.5 s.*\['blowup'\] at .*e\+.*diverges"
+                                           r".*solve_ivp_method='BDF'"):
+        fast(loop, np.linspace(0.0, 2.0, 5), 0.0, 1.0)
