@@ -15,6 +15,9 @@ What it promises (the ones a database makes, for one table of rows):
 - **One writer.** The store is locked (:class:`controlkit._lock.FolderLock`) from opening
   to closing; a second sweep, or a resume started while the sweep still runs, is refused
   with the holder named.
+- **Rows go where a resume reads them.** A runs file removed while the sweep runs (the
+  store deleted by hand) is made again at the next row, with a warning, instead of rows
+  being appended to a removed file.
 """
 
 from __future__ import annotations
@@ -344,17 +347,48 @@ class RunStore:
         self._lock.release()
         self._lock = replacement
 
+    def _keep_runs_file(self) -> None:
+        """If the runs file was removed or replaced while the sweep ran (the store deleted
+        by hand, say), append to the file under its name rather than to one no one can
+        read any more; the spec is written again if it went too. The rows of the removed
+        file are gone with it (a resume makes those runs again): a warning says so."""
+        try:
+            mine, named = os.fstat(self._fd), os.stat(self.runs_file)
+            if (mine.st_ino, mine.st_dev) == (named.st_ino, named.st_dev):
+                return
+        except FileNotFoundError:
+            pass
+        os.close(self._fd)
+        self._fd = None
+        self.folder.mkdir(parents=True, exist_ok=True)
+        self._fd = os.open(self.runs_file, os.O_RDWR | os.O_APPEND | os.O_CREAT, 0o644)
+        size = os.fstat(self._fd).st_size
+        self._fresh_line = size == 0 or os.pread(self._fd, 1, size - 1) == b"\n"
+        if not self.spec.exists():
+            with atomic(self.spec) as partial:
+                partial.write_text(json.dumps({"key": self.key}) + "\n")
+        warnings.warn(f"{self.runs_file} was removed or replaced while this sweep ran; its "
+                      "rows go to the file now under that name (the rows of the removed "
+                      "file are gone with it: a resume makes those runs again; the table "
+                      "this sweep returns has them all)", StoreWarning, stacklevel=4)
+
     def append(self, row: dict, line: str | None = None) -> None:
         """Append ``row`` (or its ready ``line``): one write of one complete line, synced."""
         self._keep_lock()
+        self._keep_runs_file()
         text = (self.line(row) if line is None else line) + "\n"
         data = (b"" if self._fresh_line else b"\n") + text.encode()
         self._fresh_line = False
-        while data:
-            written = os.write(self._fd, data)
-            data = data[written:]
-        self._fresh_line = True
-        os.fsync(self._fd)
+        try:
+            while data:
+                written = os.write(self._fd, data)
+                data = data[written:]
+            self._fresh_line = True
+            os.fsync(self._fd)
+        except OSError as exc:  # a full disk, say: name the file and what is kept
+            raise OSError(exc.errno, f"cannot append a row to {self.runs_file} "
+                                     f"({exc.strerror}); the rows before it are kept: make "
+                                     "room and resume") from None
 
     def close(self) -> None:
         """Close the runs file and let go of the lock (safe to call twice)."""

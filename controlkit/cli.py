@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import gc
+import signal
 import sys
 
 # Importing python-control (with scipy, matplotlib and numba) creates ~200 000 objects that
@@ -22,7 +23,7 @@ try:
 
     from .studies import STUDIES
     from .studies.registry import UsageError
-    from .studies.reproduce import reproduce
+    from .studies.reproduce import _horizons, reproduce
 except BaseException:
     if _COLLECTING:
         gc.enable()
@@ -85,6 +86,11 @@ def _vary(text, known):
     if not (np.isfinite(low) and np.isfinite(high) and low <= high) or (n is not None
                                                                          and n < 1):
         raise ValueError(f"--vary {text!r}: needs finite LOW <= HIGH and N >= 1")
+    from .sweep import MAX_RUNS
+
+    if n is not None and n > MAX_RUNS:  # refused before its points are made
+        raise ValueError(f"--vary {text!r}: {n:,} grid points is more than one sweep holds "
+                         f"(MAX_RUNS = {MAX_RUNS:,})")
     return name, (low, high), n
 
 
@@ -103,11 +109,13 @@ def _add_sweep(subparsers) -> None:
     p.add_argument("--case", action="append", dest="cases", metavar="NAME",
                    help="case to run (repeatable; spacecraft default: without_mec, "
                         "mec_fixed, proposed, safeguarded; cmg default: thesis)")
-    p.add_argument("--samples", type=int, default=200, metavar="N",
-                   help="number of draws (default 200)")
-    p.add_argument("--seed", type=int, default=0, metavar="S", help="seed (default 0)")
+    p.add_argument("--samples", type=int, metavar="N",
+                   help="number of draws (default 200; none when every parameter is on a "
+                        "grid: each grid point then runs once)")
+    p.add_argument("--seed", type=int, metavar="S", help="seed of the draws (default 0)")
     p.add_argument("--horizon", type=float, metavar="SECONDS",
-                   help="simulated time per run (default 20000)")
+                   help="simulated time per run, a multiple of the study's sampling period "
+                        "(default: the published horizon)")
     p.add_argument("--vary", action="append", default=[], metavar="NAME=LOW:HIGH[:N]",
                    help="range of a drawn parameter ("
                         + "; ".join(f"{name}: {', '.join(r.ranges)}" for name, r in swept.items())
@@ -117,13 +125,20 @@ def _add_sweep(subparsers) -> None:
                    default="processes", help="where runs go (default: local processes)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="a running Dask scheduler, e.g. tcp://host:8786 (with --executor dask)")
+    p.add_argument("--timeout", type=float, metavar="SECONDS",
+                   help="longest run: a run still going after it is a failed row "
+                        "(TimeoutError) and the sweep goes on")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
     p.add_argument("--resume", action="store_true",
                    help="complete the interrupted sweep in DIR without repeating its runs")
 
 
-def _sweep(args) -> dict:
-    """Run ``controlkit sweep`` from parsed arguments and print the summary.
+def _sweep(args) -> int:
+    """Run ``controlkit sweep`` from parsed arguments, print the summary; the exit status.
+
+    Every argument is checked, and ``--out`` proven writable, before the store or any
+    worker is created. A run that fails is a row; when every run failed the command says
+    so with the runs' most common errors and exits with 1.
 
     Examples
     --------
@@ -133,46 +148,82 @@ def _sweep(args) -> dict:
     sweep/ideal: runs=2, requirement_met=...
     0
     """
-    if args.samples < 1:
+    if args.samples is not None and args.samples < 1:
         raise ValueError(f"--samples must be >= 1, got {args.samples}")
-    if args.horizon is not None and not (np.isfinite(args.horizon) and args.horizon > 0):
-        raise ValueError(f"--horizon must be finite and > 0, got {args.horizon}")
-    if args.scheduler and args.executor != "dask":
+    if args.scheduler is not None and args.executor != "dask":
         raise ValueError("--scheduler goes with --executor dask")
+    import warnings
+    from pathlib import Path
+
     from .studies import robustness
-    from .sweep import check_folder
+    from .studies.reproduce import _writable
+    from .sweep import StoreWarning
 
     spec = STUDIES[args.study].robustness
     unknown = [c for c in args.cases or [] if c not in spec.cases()]
     if unknown:
         raise ValueError(f"unknown --case {unknown}; known: {list(spec.cases())}")
-    ranges, grid = {}, {}
+    ranges, grid, given = {}, {}, {}
     for text in args.vary:
         name, span, n = _vary(text, spec.ranges)
+        if name in given:
+            raise ValueError(f"--vary {name} is given twice ({given[name]!r} and {text!r}); "
+                             "give each parameter once")
+        given[name] = text
         if n is None:
             ranges[name] = span
         else:
             grid[name] = np.linspace(span[0], span[1], n).tolist()
-    out = check_folder(args.out, "--out")
-    _, summary = robustness.study(args.study, samples=args.samples, seed=args.seed,
-                                  cases=args.cases,
-                                  horizon=args.horizon, ranges=ranges, grid=grid,
-                                  executor=args.executor, workers=args.workers,
-                                  scheduler=args.scheduler, out=out, resume=args.resume)
+    existed = Path(args.out).expanduser().exists() if args.out.strip() else True
+    out = _writable(args.out)  # "cannot write to out ...", as reproduce says
+    shown = warnings.showwarning
+
+    def show(message, category, *rest, **kwargs):  # a store's warning: one line, no source
+        if issubclass(category, StoreWarning):
+            print(f"controlkit: warning: {message}", file=sys.stderr)
+        else:
+            shown(message, category, *rest, **kwargs)
+
+    warnings.showwarning = show
+    try:
+        _, summary = robustness.study(
+            args.study, samples=args.samples, seed=args.seed, cases=args.cases,
+            horizon=args.horizon, ranges=ranges, grid=grid, executor=args.executor,
+            workers=args.workers, scheduler=args.scheduler, out=out, resume=args.resume,
+            timeout=args.timeout)
+    except ValueError:
+        if not existed:  # refused: leave no empty folder behind
+            try:
+                out.rmdir()
+            except OSError:
+                pass
+        raise
+    finally:
+        warnings.showwarning = shown
     for case, s in summary.items():
         low_ci, high_ci = s["success_rate_95ci"]
         print(f"sweep/{case}: runs={s['runs']}, requirement_met={s['requirement_met']}, "
               f"success_rate={s['success_rate']:.3f} (95% CI {low_ci:.3f}-{high_ci:.3f}), "
               f"failed_runs={s['failed_runs']}, median_error={s['median_error']:.4g}")
-    return summary
+        for text, n in s["errors"].items():
+            print(f"  {n} run(s) failed: {text}")
+    runs = sum(s["runs"] for s in summary.values())
+    if runs and all(s["failed_runs"] == s["runs"] for s in summary.values()):
+        first = next(iter(next(iter(summary.values()))["errors"]), "")
+        print(f"controlkit: every run failed ({runs} runs; e.g. {first}); sweep.csv lists "
+              "each run's error", file=sys.stderr)
+        return 1
+    return 0
 
 
 def main(argv=None) -> int:
     """Entry point of the ``controlkit`` command.
 
     Exit status: 0 on success, 1 when a run failed (one line naming the cause; a case
-    that failed while the others completed also gives 1), 2 for a usage error, 130
-    when interrupted. ``--debug`` shows the traceback instead of the one line.
+    that failed while the others completed also gives 1; a sweep whose every run failed
+    too), 2 for a usage error (nothing was run), 130 when interrupted (Ctrl-C), 143 when
+    terminated (``kill PID``, handled as Ctrl-C). ``--debug`` shows the traceback instead
+    of the one line, and stops ``reproduce`` at the first case that fails.
 
     Examples
     --------
@@ -181,11 +232,23 @@ def main(argv=None) -> int:
     """
     if argv is None:  # the command line: this process ends when main returns
         _freeze_objects()  # those of the imports
+        # `kill PID` stops the run as Ctrl-C does: run.json says what is missing, temporary
+        # files are removed, figure workers end
+        signal.signal(signal.SIGTERM, _terminate)
     try:
         return _main(argv)
     finally:
         if argv is None:
             _freeze_objects()  # and those of the run, before the interpreter exits
+
+
+class _Terminated(KeyboardInterrupt):
+    """Raised in the command's process by SIGTERM (``kill PID``): handled as Ctrl-C is,
+    with exit status 143 (128 + SIGTERM)."""
+
+
+def _terminate(signum, frame):
+    raise _Terminated("terminated (SIGTERM)")
 
 
 def _freeze_objects() -> None:
@@ -229,8 +292,8 @@ def _main(argv) -> int:
     rep.add_argument("--horizon", action="append", type=_horizon_arg,
                      metavar="[STUDY=]SECONDS",
                      help="simulated time for every study, or for one study "
-                          "(repeatable, e.g. --horizon spacecraft=2000); default: the "
-                          "published horizons")
+                          "(repeatable, e.g. --horizon spacecraft=14000, the shortest "
+                          "that shows the paper's claim); default: the published horizons")
     rep.add_argument("--stride", type=int, metavar="N",
                      help="keep every N-th sample in the CSV (default: 10 = 1 s for the "
                           "spacecraft, 1 for the CMG)")
@@ -246,11 +309,15 @@ def _main(argv) -> int:
     try:
         if args.command == "sweep":
             try:
-                _sweep(args)
+                return _sweep(args)
             except ValueError as error:  # failed runs are rows: what escapes is an argument
                 raise UsageError(str(error)) from error
-            return 0
         horizon = None
+        named = [study or "every study" for study, _ in args.horizon or []]
+        repeated = sorted({n for n in named if named.count(n) > 1})
+        if repeated:
+            raise UsageError(f"--horizon for {', '.join(repeated)} is given more than once; "
+                             "give it once (STUDY=SECONDS sets one study)")
         for study, seconds in args.horizon or []:
             if study is None:
                 horizon = seconds if not isinstance(horizon, dict) else {
@@ -258,13 +325,22 @@ def _main(argv) -> int:
             else:
                 horizon = {**({s: horizon for s in STUDIES} if isinstance(horizon, float)
                               else horizon or {}), study: seconds}
+        repeated = sorted({name for name, _ in args.options
+                           if [n for n, _ in args.options].count(name) > 1})
+        if repeated:
+            raise UsageError(f"--set {', '.join(repeated)} is given more than once; give each "
+                             "option once")
         summary = reproduce(args.study, out=args.out, cases=args.cases, horizon=horizon,
                             stride=args.stride, engine=args.engine,
-                            options=dict(args.options))
-    except KeyboardInterrupt:
-        print("controlkit: interrupted; finished files are kept and run.json lists what is "
-              "missing", file=sys.stderr)
-        return 130
+                            options=dict(args.options), raise_errors=args.debug)
+    except KeyboardInterrupt as stop:
+        if args.command == "sweep":
+            print("controlkit: interrupted; the finished runs are kept in the store: the same "
+                  "command with --resume makes only the others", file=sys.stderr)
+        else:
+            print("controlkit: interrupted; finished files are kept and run.json lists what "
+                  "is missing", file=sys.stderr)
+        return 143 if isinstance(stop, _Terminated) else 130
     except Exception as error:  # one line, unless --debug
         if args.debug:
             raise
@@ -281,6 +357,11 @@ def _main(argv) -> int:
             shown = {k: v for k, v in m.items() if isinstance(v, int | float)}
             print(f"{study}/{case}: " + ", ".join(f"{k}={v:.6g}" if isinstance(v, float)
                                                   else f"{k}={v}" for k, v in shown.items()))
+    for study in summary:  # what a short horizon cannot show
+        seconds = _horizons([STUDIES[study]], horizon)[study]
+        note = STUDIES[study].horizon_note
+        if seconds is not None and note is not None and note(seconds):
+            print(f"{study}: note: {note(seconds)}")
     if failed:
         print(f"controlkit: {len(failed)} case(s) failed; " + "; ".join(failed),
               file=sys.stderr)

@@ -119,7 +119,8 @@ def simulate(
     progress : callable, optional
         Called with the fraction done (0 < f <= 1) after each chunk.
     chunks : int
-        Number of pieces the run is cut into (for progress reports).
+        Number of pieces the run is cut into (for progress reports), >= 1 (more than the
+        run's steps: one step each).
     engine : {"python-control", "fast"}
         Which backend to use (see above).
     record_every : int
@@ -144,6 +145,8 @@ def simulate(
     >>> simulate(sys, np.arange(4), X0=[1.0], chunks=2).outputs.tolist()
     [[1.0, 0.5, 0.25, 0.125]]
     """
+    if isinstance(chunks, bool) or not isinstance(chunks, int | np.integer) or chunks < 1:
+        raise ValueError(f"chunks must be an integer >= 1, got {chunks!r}")
     backend = engines.backend(engine)
     T, X0, U = check_arguments(sys, T, X0, U)
     check_params(sys, params)

@@ -226,6 +226,32 @@ def test_a_lock_file_removed_by_hand_is_locked_again_at_the_next_row(tmp_path):
     assert not (store / ".lock").exists()
 
 
+def store_remover(x, store):
+    """Run 2 removes the whole store, as `rm -rf` by hand would."""
+    if x == 2:
+        import shutil
+
+        shutil.rmtree(store)
+    return {"y": x * x}
+
+
+def test_a_store_removed_while_the_sweep_runs_gets_the_rows_from_then_on(tmp_path):
+    store = tmp_path / "store"
+    with pytest.warns(StoreWarning, match=r"runs.jsonl was removed or replaced while this "
+                                          r"sweep ran; its rows go to the file now"):
+        table = sweep(store_remover, grid={"x": list(range(5))}, fixed={"store": str(store)},
+                      executor="serial", store=store, progress=False)
+    assert table["y"].tolist() == [0, 1, 4, 9, 16]  # the table has every run
+    assert [json.loads(line)["x"] for line in lines(store)] == [2, 3, 4]  # not a lost file
+    assert (store / "sweep.json").exists() and not (store / ".lock").exists()
+    made = []
+    resumed = sweep(store_remover, grid={"x": list(range(5))}, fixed={"store": str(store)},
+                    executor="serial", store=store, resume=True, progress=False,
+                    warmup=lambda: made.append(len(lines(store))))
+    assert resumed.drop(columns="wall_time_s").equals(table.drop(columns="wall_time_s"))
+    assert made == [3] and len(lines(store)) == 5  # only the two removed runs made again
+
+
 def test_temporary_names_are_unique_per_writer(tmp_path):
     target = tmp_path / "table.csv"
     errors = []
@@ -611,7 +637,7 @@ def test_cli_refuses_bad_out_and_workers_before_creating_the_store(tmp_path, cap
     from controlkit.cli import main
 
     assert main(["sweep", "spacecraft", "--samples", "2", "--out", ""]) == 2
-    assert "controlkit: error: --out must name a folder, got ''" in capsys.readouterr().err
+    assert "controlkit: error: out must name a folder, got ''" in capsys.readouterr().err
     assert main(["sweep", "spacecraft", "--samples", "2", "--workers", "0",
                  "--out", str(tmp_path / "o")]) == 2
     assert "workers must be an integer >= 1, got 0" in capsys.readouterr().err

@@ -116,7 +116,7 @@ class _Hints:
     ``labels`` (display names, TeX: the hints', then blocks' ``display_name``, then the
     ``labels`` argument), ``groups`` (frames), ``beside`` (``{block: other}``: share a
     column), ``rows`` (``{block: row}``), ``notes`` (second lines), ``sums``
-    (``{block: {input: sign}}``) and ``title``.
+    (``{block: {input: sign}}``: the hints', then blocks' ``junction``) and ``title``.
     """
 
     labels: dict
@@ -138,9 +138,13 @@ class _Hints:
         merged_labels.update(labels or {})
         merged_groups = dict(hints.get("groups", {}))
         merged_groups.update(groups or {})
+        sums = dict(hints.get("sums", {}))
+        for s in sys.syslist:
+            if getattr(s, "junction", None):
+                sums.setdefault(s.name, dict(s.junction))
         return cls(merged_labels, merged_groups, dict(hints.get("beside", {})),
                    dict(hints.get("rows", {})), dict(hints.get("notes", {})),
-                   hints.get("sums", {}), hints.get("title"))
+                   sums, hints.get("title"))
 
 
 def layout(sys, *, labels=None, groups=None, fontsize=10.0, title=None) -> DiagramLayout:

@@ -106,8 +106,10 @@ def check_arguments(sys, T, X0, U=0.0):
     n, N = sys.ninputs, T.size
     U = _checks.float_array("U", U)
     if U.ndim == 0 or U.ndim == 1 and U.size == n:
+        if not np.isfinite(U).all():  # checked before it is spread over every time point
+            raise ValueError("U must be finite")
         # a view: a constant input costs no memory per step
-        U = np.broadcast_to(U.reshape(-1, 1), (n, N))
+        return T, X0, np.broadcast_to(U.reshape(-1, 1), (n, N))
     elif U.ndim == 1 and n == 1 and U.size == N:
         U = U.reshape(1, N)
     elif U.shape != (n, N):

@@ -9,14 +9,26 @@ While the caller is still simulating, the workers leave it a core: they draw on 
 other cores only (at least one figure at a time), and on every core once the caller
 waits for them in :meth:`FigureWorkers.results`. The caller's simulations are what the
 last figures wait for, so slowing them down to draw sooner makes the whole run longer.
+
+The workers end with the caller, however it ends: they ignore Ctrl-C (the terminal sends
+it to every process of the command; the caller decides, and its :meth:`FigureWorkers.close`
+ends them), and each checks every :data:`PARENT_POLL_S` that the caller still runs, so a
+caller killed with SIGKILL leaves no idle worker behind (``concurrent.futures``' workers
+would wait for work forever). A figure that fails does not stop the others:
+:meth:`FigureWorkers.results` waits for every figure and then raises :class:`FigureError`
+naming each one that failed.
 """
 
 from __future__ import annotations
 
+import concurrent.futures as cf
 import gc
 import multiprocessing
 import os
+import signal
 import sys
+import threading
+import time
 from concurrent.futures import Future, ProcessPoolExecutor
 from pathlib import Path
 
@@ -24,11 +36,49 @@ import numpy as np
 
 #: In a worker: the semaphore that bounds how many workers draw at once.
 _SLOTS = None
+#: How often a worker checks that the process that started it still runs, s.
+PARENT_POLL_S = 0.5
 
 
-def _start_worker(slots) -> None:
+class FigureError(RuntimeError):
+    """Figures that could not be drawn or written; :attr:`failures` lists
+    ``(folder, stem, "Type: message")`` for each.
+
+    Examples
+    --------
+    >>> error = FigureError([("out", "fig1", "OSError: disk full")])
+    >>> print(error)
+    figure fig1 in out: OSError: disk full
+    """
+
+    def __init__(self, failures):
+        self.failures = list(failures)
+        shown = "; ".join(f"figure {stem} in {folder}: {why}"
+                          for folder, stem, why in self.failures[:3])
+        more = len(self.failures) - 3
+        super().__init__(shown + (f"; and {more} more" if more > 0 else ""))
+
+
+def _describe(error: BaseException) -> str:
+    return f"{type(error).__name__}: {error}"
+
+
+def _watch_parent(pid: int, start_ticks) -> None:
+    from .._lock import process_alive
+
+    while True:
+        time.sleep(PARENT_POLL_S)
+        if not process_alive(pid, start_ticks):
+            os._exit(70)  # the caller is gone: nobody will read this worker's figures
+
+
+def _start_worker(slots, parent_pid=None, parent_ticks=None) -> None:
     global _SLOTS
     _SLOTS = slots
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the caller handles Ctrl-C
+    if parent_pid is not None:
+        threading.Thread(target=_watch_parent, args=(parent_pid, parent_ticks), daemon=True,
+                         name="controlkit-parent-watch").start()
 
 
 def _started() -> None:
@@ -86,10 +136,13 @@ class FigureWorkers:
             self._reserved = workers - max(1, min(workers, (os.cpu_count() or 1) - 1))
             for _ in range(self._reserved):
                 self._slots.acquire()
-            self._pool = ProcessPoolExecutor(workers, mp_context=context,
-                                             initializer=_start_worker,
-                                             initargs=(self._slots,))
+            from .._lock import process_start_ticks
+
+            self._pool = ProcessPoolExecutor(
+                workers, mp_context=context, initializer=_start_worker,
+                initargs=(self._slots, os.getpid(), process_start_ticks(os.getpid())))
         self._futures: list[Future] = []
+        self._labels: list[tuple[str, str]] = []  # (folder, stem) of each future
         self._background: list[Future] = []
         # A forked worker shares the caller's memory until it writes to it, and the cyclic
         # garbage collector writes to every object it visits: the first full collection
@@ -132,10 +185,14 @@ class FigureWorkers:
         # plain arrays: python-control's NamedSignal does not survive a trip through pickle
         tables = {case: {name: np.asarray(values) for name, values in columns.items()}
                   for case, columns in tables.items()}
+        self._labels += [(str(outdir), stem) for stem in stems]
         if self._pool is None:
             for stem in stems:
                 done = Future()
-                done.set_result(figures(tables, outdir, stems=[stem]))
+                try:
+                    done.set_result(figures(tables, outdir, stems=[stem]))
+                except Exception as error:  # raised by results(), as from a worker
+                    done.set_exception(error)
                 self._futures.append(done)
             return
         stems = list(stems)
@@ -164,14 +221,22 @@ class FigureWorkers:
     def results(self) -> list[Path]:
         """Wait for every submitted figure; the files in submission order.
 
-        A figure that failed raises its error here. From now on the workers draw on
-        every core: the caller only waits.
+        From now on the workers draw on every core: the caller only waits. Figures that
+        failed raise :class:`FigureError` here, once every other figure is drawn.
         """
         self._release()
-        written = []
-        for future in self._futures:
-            written += future.result()
-        self._futures = []
+        cf.wait(self._futures)
+        written, failures = [], []
+        for future, (folder, stem) in zip(self._futures, self._labels, strict=True):
+            error = (cf.CancelledError("cancelled before it was drawn") if future.cancelled()
+                     else future.exception())
+            if error is None:
+                written += future.result()
+            else:
+                failures.append((folder, stem, _describe(error)))
+        self._futures, self._labels = [], []
+        if failures:
+            raise FigureError(failures)
         return written
 
     def _release(self) -> None:

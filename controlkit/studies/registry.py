@@ -140,6 +140,9 @@ class Study:
         (default: all of :attr:`figure_stems`).
     robustness : Robustness, optional
         The study's robustness sweep (``controlkit sweep <study>``), if it has one.
+    horizon_note : callable, optional
+        ``horizon_note(seconds) -> str or None``: what a run that short cannot show of
+        the study's claim (the command line prints it after the results).
 
     Examples
     --------
@@ -170,6 +173,7 @@ class Study:
     streaming: Callable | None = None
     stems_for: Callable | None = None
     robustness: Robustness | None = None
+    horizon_note: Callable[[float], str | None] | None = None
 
     def stems(self, cases) -> tuple[str, ...]:
         """The figures drawn for ``cases`` (see :attr:`stems_for`)."""
@@ -181,7 +185,11 @@ def scenario_runner(scenario):
     """``run(case, horizon, progress, engine, **options)`` of a study's scenario module.
 
     ``horizon=None`` means the published one (``scenario.HORIZON``); an option the
-    scenario's ``run`` does not take is refused with the ones it does.
+    scenario's ``run`` does not take is refused with the ones it does. Keywords that
+    ``run`` passes on through ``**kwargs`` are those the scenario lists in
+    ``RUN_KEYWORDS``. When the scenario defines ``options_read(case) -> set``, the
+    options a case actually reads, ``run.reads`` is that function (so that an option no
+    case of a run reads is refused rather than silently ignored).
 
     Examples
     --------
@@ -191,11 +199,15 @@ def scenario_runner(scenario):
     ...     run.check({"gain": 1.0})
     ... except UsageError as error:
     ...     print(error)  # doctest: +NORMALIZE_WHITESPACE
-    unknown option ['gain'] for controlkit.studies.cmg.scenario.run; options: ['Ts',
-    'boundary_layer', 'gains', 'plant_options', 'x0']
+    unknown option ['gain'] for controlkit.studies.cmg.scenario.run; options: ['C1', 'C2',
+    'C3', 'C4', 'Ts', 'boundary_layer', 'eta1', 'eta2', 'gamma1', 'gamma2', 'gamma3',
+    'gamma4', 'plant_options', 'x0']
     """
-    accepted = set(inspect.signature(scenario.run).parameters) - {"case", "horizon",
-                                                                 "progress", "engine"}
+    parameters = inspect.signature(scenario.run).parameters.values()
+    accepted = {p.name for p in parameters
+                if p.kind not in (p.VAR_KEYWORD, p.VAR_POSITIONAL)} - {
+        "case", "horizon", "progress", "engine"}
+    accepted |= set(getattr(scenario, "RUN_KEYWORDS", ()))
 
     def check(options):
         unknown = sorted(set(options) - accepted - {"record_every", "on_chunk"})
@@ -209,4 +221,6 @@ def scenario_runner(scenario):
                             engine=engine, **options)
 
     run.check = check
+    if hasattr(scenario, "options_read"):
+        run.reads = scenario.options_read
     return run

@@ -295,6 +295,11 @@ def explain(sys, params=None) -> list[BlockTier]:
     list of BlockTier
         ``(name, tier, reason)`` per block, in ``sys.syslist`` order.
 
+    Raises
+    ------
+    ValueError
+        ``sys`` is not a python-control system.
+
     Examples
     --------
     >>> import control as ct
@@ -311,6 +316,11 @@ def explain(sys, params=None) -> list[BlockTier]:
     pi | compiled | LTI block (state space)
     error | compiled | LTI block (state space)
     """
+    if not isinstance(sys, ct.InputOutputSystem):
+        raise ValueError(f"sys must be a python-control system (a block or an interconnect), "
+                         f"got {type(sys).__name__} {sys!r:.60}"
+                         + ("; call explain on each system of the list" if isinstance(
+                             sys, list | tuple) else ""))
     try:
         blocks = blocks_of(sys, params)
         evaluation_order(sys, blocks)

@@ -60,6 +60,8 @@ CASES: dict[str, CmgCase] = {
                                FRICTION_STRONG),
 }
 DEFAULT_CASES = ("thesis",)
+#: Keywords :func:`run` passes on to the controller (``**gains``, eq. 47's gains).
+RUN_KEYWORDS = tuple(cmg.GAINS_THESIS)
 
 
 def true_plant(case="thesis", *, friction_scale=1.0, inertia_scale=1.0, name="cmg"):
@@ -110,6 +112,9 @@ def build_loop(case="thesis", *, Ts=cmg.TS_CMG, boundary_layer=0.0, plant_option
     if case not in CASES:
         raise ValueError(f"case must be one of {sorted(CASES)}, got {case!r}")
     c = CASES[case]
+    if plant_options is not None and not isinstance(plant_options, dict):
+        raise ValueError(f"plant_options must be a dict of keyword -> value, got "
+                         f"{plant_options!r}")
     unknown = sorted(set(plant_options or {}) - {"friction_scale", "inertia_scale"})
     if unknown:
         raise ValueError(f"plant_options has unknown keys {unknown}; allowed: "

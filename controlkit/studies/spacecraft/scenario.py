@@ -90,6 +90,62 @@ def initial_attitude() -> np.ndarray:
     return sc.quaternion_from_axis_angle([1.0, 2.0, 3.0], 30.0)
 
 
+def requirement_time(F=sc.F_PAPER, Ts=sc.TS_PAPER) -> float:
+    r"""When the ideal loop's pointing error first falls under the requirement, in s.
+
+    With the exact model the loop is linear, ``h[k] = (1 - F Ts)^k h[0]`` (eq. 10-12),
+    and for small angles the pointing error ``e`` is proportional to ``|h|``, so it
+    falls from ``e0`` (Table 2's attitude) under ``e_req = 0.05`` deg after
+
+    .. math:: t^* = T_s \, \frac{\ln(e_0 / e_{req})}{-\ln(1 - F T_s)}
+              \approx \frac{\ln(e_0 / e_{req})}{F}.
+
+    No loop with the paper's ``F`` gets there sooner: the compensators recover the
+    ideal response, they do not speed it up.
+
+    Examples
+    --------
+    >>> round(requirement_time())
+    6527
+    """
+    e0 = float(sc.pointing_error_deg(initial_attitude()[:, np.newaxis])[0])
+    return Ts * np.log(e0 / sc.POINTING_REQUIREMENT_DEG) / -np.log1p(-F * Ts)
+
+
+def claim_horizon(F=sc.F_PAPER, Ts=sc.TS_PAPER) -> float:
+    """The shortest horizon that can show the paper's claim: ``2 t*``, to the next 1000 s.
+
+    The requirement is judged over the last half of a run (``metrics``), so the run must
+    last twice :func:`requirement_time`.
+
+    Examples
+    --------
+    >>> claim_horizon()
+    14000.0
+    """
+    return float(1000.0 * np.ceil(2 * requirement_time(F, Ts) / 1000.0))
+
+
+def horizon_note(horizon) -> str | None:
+    """What a run of ``horizon`` seconds cannot show of the paper's claim, or None.
+
+    Examples
+    --------
+    >>> horizon_note(20000.0) is None
+    True
+    >>> horizon_note(2000.0).startswith("at 2000 s the paper's claim cannot show")
+    True
+    """
+    shortest = claim_horizon()
+    if horizon >= shortest:
+        return None
+    return (f"at {horizon:g} s the paper's claim cannot show: the requirement "
+            f"({sc.POINTING_REQUIREMENT_DEG:g} deg) is judged over the last half of a run, "
+            f"and even the ideal loop needs {requirement_time():.0f} s to get under it "
+            f"(h decays as (1 - F Ts)^k, F = {sc.F_PAPER:g} 1/s); --horizon {shortest:g} is "
+            f"the shortest run that shows it (the published {HORIZON:g} s take seconds)")
+
+
 def true_plant(model_error: bool, *, inertia_error_scale=1.0, momentum_scale=1.0,
                name="plant"):
     """The plant the controller faces.
@@ -142,8 +198,14 @@ TUNER_OPTIONS = tuple(name for name in __import__("inspect").signature(
 PLANT_OPTIONS = ("inertia_error_scale", "momentum_scale")
 
 
+def _options(name, options) -> dict:
+    if options is not None and not isinstance(options, dict):
+        raise ValueError(f"{name} must be a dict of keyword -> value, got {options!r}")
+    return dict(options or {})
+
+
 def _plant_options(options) -> dict:
-    options = dict(options or {})
+    options = _options("plant_options", options)
     unknown = sorted(set(options) - set(PLANT_OPTIONS))
     if unknown:
         raise ValueError(f"plant_options has unknown keys {unknown}; allowed: "
@@ -204,7 +266,7 @@ def build_loop(case="ideal", *, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXED, h0=None
     if case.compensator == "fixed":
         gain = mec.constant_gain(K)
     else:
-        options = {**(case.tuner_options or {}), **(tuner_options or {})}
+        options = {**(case.tuner_options or {}), **_options("tuner_options", tuner_options)}
         unknown = sorted(set(options) - set(TUNER_OPTIONS))
         if unknown:
             raise ValueError(f"tuner_options has unknown keys {unknown}; allowed: "
@@ -213,6 +275,29 @@ def build_loop(case="ideal", *, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXED, h0=None
     return diagrams.mec_loop(plant, sc.io_linearizer(), sc.outer_controller(F, output="mu_n"),
                              K=gain, nominal=mec.nominal_model(Ts, h0=h0), Ts=Ts,
                              name=case.name)
+
+
+def options_read(case) -> set[str]:
+    """The keywords of :func:`run` that ``case`` reads; it runs the same without the others
+    (``K`` is the fixed compensator's gain, ``tuner_options`` the FRIT tuner's, and a plant
+    without model error has no ``plant_options`` to apply).
+
+    Examples
+    --------
+    >>> sorted(options_read("ideal"))
+    ['F', 'Ts', 'q_initial']
+    >>> "K" in options_read("mec_fixed"), "tuner_options" in options_read("proposed")
+    (True, True)
+    """
+    c = _case(case)
+    read = {"F", "Ts", "q_initial"}
+    if c.model_error:
+        read.add("plant_options")
+    if c.compensator == "fixed":
+        read.add("K")
+    if c.compensator == "frit":
+        read.add("tuner_options")
+    return read
 
 
 def run(case="ideal", *, horizon=HORIZON, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXED,
