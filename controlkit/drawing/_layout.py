@@ -79,7 +79,7 @@ class DiagramLayout:
     y_title, x_mid : float
         The title's centre.
     width, height : float
-        The page, at most 2.5 times wider than high.
+        The page: the drawing and nothing around it (no bands added for proportions).
     y_top, y_bottom : float
         The page's top and bottom edges.
     """
@@ -386,10 +386,10 @@ def _frame(draft, sys, title, hint_title):
     """Decide the title and the page: the finished :class:`DiagramLayout`.
 
     The page spans the lanes, the blocks and the names of the signals entering on the
-    left and leaving on the right, with the title above. A page wider than 2.5 times its
-    height gets equal bands above and below (a slide's proportions, so a wide loop's
-    text is not shrunk to nothing when the picture is fitted to a page). A title given as
-    an argument or a hint is TeX; the system's own name is drawn literally.
+    left and leaving on the right, with the title above, and nothing more: a wide loop
+    is a wide picture (padding it to a slide's proportions would only add blank bands).
+    A title given as an argument or a hint is TeX; the system's own name is drawn
+    literally.
     """
     f_sig, f_name, _ = draft.fonts
     top_rows, bottom_rows = draft.blocks_top(), draft.blocks_bottom()
@@ -407,12 +407,9 @@ def _frame(draft, sys, title, hint_title):
     y_top = y_title + th * 0.6
     width = max(x_right_text - x_left, tw + 0.4) + 0.3
     height = y_top - y_bottom + 0.2
+    # no blank bands to reach a slide's proportions: a wide diagram stays wide, and a slide
+    # or a notebook scales it to its width
     x_mid = (x_left + x_right_text) / 2
-    if width / height > 2.5:  # room under the title: keep a slide's proportions
-        extra = width / 2.5 - height
-        y_top += extra / 2
-        y_bottom -= extra / 2
-        height = width / 2.5
     return DiagramLayout(
         nodes=draft.nodes, nets=draft.nets, layer=draft.layer, row=draft.row,
         port_xy=draft.port_xy, in_xy=draft.in_xy, track_x=draft.track_x,
