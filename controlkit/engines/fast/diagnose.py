@@ -45,7 +45,8 @@ def explain_divergence(sys, blocks, T, X, x, k1, U, params=None):
         # the Python step of that sample, with its blow-up test (raises SamplingError)
         sys._update_params(params)
         try:
-            ulist, _ = sys._compute_static_io(T[k - 1], X[:, k - 1], U[:, k - 1])
+            with np.errstate(all="ignore"):  # the error raised below says what went wrong
+                ulist, _ = sys._compute_static_io(T[k - 1], X[:, k - 1], U[:, k - 1])
         except RuntimeError:
             ulist = None
         if ulist is not None and np.isfinite(ulist).all():
@@ -74,9 +75,8 @@ def explain_failure(sys, blocks, T, X, U, status, params=None):
     ...                dt=1, name="bad")
     >>> loop = ct.interconnect([bad], inputs="u[0]", outputs="y[0]")
     >>> try:
-    ...     with np.errstate(invalid="ignore"):
-    ...         explain_failure(loop, blocks_of(loop), np.arange(2.0), np.zeros((0, 2)),
-    ...                         np.ones((1, 2)), np.array([0, 0]))
+    ...     explain_failure(loop, blocks_of(loop), np.arange(2.0), np.zeros((0, 2)),
+    ...                     np.ones((1, 2)), np.array([0, 0]))
     ... except FloatingPointError as error:
     ...     print(error)
     block 'bad' returned NaN at t = 0 s
@@ -85,12 +85,16 @@ def explain_failure(sys, blocks, T, X, U, status, params=None):
     b = blocks[int(status[1])]
     block = b.system
     sys._update_params(params)
-    try:
-        ulist, _ = sys._compute_static_io(T[k], X[:, k], U[:, k])
-    except RuntimeError:  # python-control's sweep cannot settle on non-finite signals
-        ulist = None
-    if ulist is not None:
-        block.output(T[k], X[b.x0:b.x0 + block.nstates, k], ulist[b.u0:b.u0 + block.ninputs])
+    # the loop is evaluated where it failed, on non-finite signals: numpy's warnings there
+    # say nothing the error raised here does not
+    with np.errstate(all="ignore"):
+        try:
+            ulist, _ = sys._compute_static_io(T[k], X[:, k], U[:, k])
+        except RuntimeError:  # python-control's sweep cannot settle on non-finite signals
+            ulist = None
+        if ulist is not None:
+            block.output(T[k], X[b.x0:b.x0 + block.nstates, k],
+                         ulist[b.u0:b.u0 + block.ninputs])
     if not np.isfinite(X[:, k]).all():  # the loop diverged before the block's output did
         explain_divergence(sys, blocks, T, X, X[:, k], k, U, params)
     raise FloatingPointError(f"block {block.name!r} returned NaN at t = {T[k]:g} s")
