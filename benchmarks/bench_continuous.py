@@ -53,6 +53,11 @@ def _case(name, horizon):
     return loop, T_new, np.asarray(X0, dtype=float), U_new
 
 
+def _times(ratio):
+    """A speed ratio as the tables print it: one decimal below 10 (0.4x, 6.5x, 115x)."""
+    return f"{ratio:.1f}x" if ratio < 10 else f"{ratio:.0f}x"
+
+
 def _timed(function, *args, **kwargs):
     start = time.perf_counter()
     result = function(*args, **kwargs)
@@ -178,19 +183,19 @@ def main(argv=None) -> int:
             r = json.loads(out.stdout.strip().splitlines()[-1])
             reference = "reference (Python)" if name in MIXED else "python-control"
             jit = f"{r['jit_rhs']:.3f} s" if r["jit_rhs"] is not None else "-"
-            vs_jit = f"{r['jit_rhs'] / r['warm']:.0f}x" if r["jit_rhs"] else "-"
+            vs_jit = _times(r['jit_rhs'] / r['warm']) if r["jit_rhs"] else "-"
             print(f"| {name} | {label} | {r['first']:.3f} s | {r['warm']:.4f} s | "
                   f"{r['mark']}{r['reference']:.2f} s ({reference}) | "
-                  f"{r['mark']}{r['reference'] / r['first']:.0f}x | "
-                  f"{r['mark']}{r['reference'] / r['warm']:.0f}x | {jit} | {vs_jit} |",
+                  f"{r['mark']}{_times(r['reference'] / r['first'])} | "
+                  f"{r['mark']}{_times(r['reference'] / r['warm'])} | {jit} | {vs_jit} |",
                   flush=True)
     out = subprocess.run([sys.executable, __file__, "--many"], env=env, capture_output=True,
                          text=True, check=True)
     m = json.loads(out.stdout.strip().splitlines()[-1])
     print(f"\n1000 runs of car_pi over parameter draws: ours {m['ours_1']:.2f} s on 1 "
           f"thread, {m['ours_2']:.2f} s on 2; python-control ~{m['python_control']:.1f} s "
-          f"(20 runs, scaled): {m['python_control'] / m['ours_1']:.0f}x and "
-          f"{m['python_control'] / m['ours_2']:.0f}x")
+          f"(20 runs, scaled): {_times(m['python_control'] / m['ours_1'])} and "
+          f"{_times(m['python_control'] / m['ours_2'])}")
     return 0
 
 
