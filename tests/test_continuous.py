@@ -67,6 +67,34 @@ def test_python_control_options_and_result_flags_are_kept():
     np.testing.assert_array_equal(t, t_eval)
 
 
+@pytest.mark.parametrize("Ts", [0.0, 0.05])
+def test_a_block_that_cannot_compile_runs_as_python_inside_the_loop(Ts):
+    # a damper written where its source cannot be read (exec, as some tools generate code):
+    # it runs as Python inside the compiled loop, with python-control's numbers
+    scope = {"np": np}
+    exec("def damper(t, x, u, params):\n    return -params['c'] * np.tanh(u[0])\n", scope)
+    damper = ct.nlsys(None, scope["damper"], inputs="w", outputs="f_d", params={"c": 0.5},
+                      name="damper")
+    mass = ct.ss([[0.0, 1.0], [-4.0, 0.0]], [[0.0], [1.0]], np.eye(2), 0.0,
+                 inputs="f", outputs=["q", "w"], name="mass")
+    push = ct.summing_junction(["u", "f_d"], "f", name="push")
+    blocks = [mass, damper, push]
+    if Ts:  # the damper's force as a sampled controller would apply it
+        blocks[1] = ct.nlsys(None, scope["damper"], inputs="w", outputs="f_d",
+                             params={"c": 0.5}, name="damper", dt=Ts)
+    loop = controlkit.interconnect(blocks, inputs="u", outputs=["q", "w"])
+    assert {row.name: row.tier for row in explain(loop)}["damper"] == "python"
+    T = np.linspace(0.0, 5.0, 101)
+    if Ts == 0:
+        ours = fast(loop, T, 1.0, [1.0, 0.0])
+        ref = ct.input_output_response(loop, T, 1.0, [1.0, 0.0])
+        assert scaled_error(ours.y, ref.y) <= 1e-9
+    else:
+        ours = fast(loop, T, 1.0, [1.0, 0.0], solve_ivp_kwargs=TIGHT)
+        Y, X = reference(loop, T, [1.0, 0.0], np.ones((1, T.size)))
+        assert scaled_error(ours.y, Y) <= 1e-8 and scaled_error(ours.x, X) <= 1e-8
+
+
 def test_a_list_of_systems_gives_a_list_of_responses():
     systems = [CONTINUOUS["pi_first_order"]()[0], CONTINUOUS["two_tanks"]()[0]]
     T = np.linspace(0.0, 5.0, 11)

@@ -317,7 +317,9 @@ def load_python(source: str, injected: dict):
     from .rk.interval import _solve_interval_python
 
     python_rk = SimpleNamespace(solve_interval=_solve_interval_python,
-                                make_workspace=rk.make_workspace, SUCCESS=rk.SUCCESS)
+                                make_workspace=rk.make_workspace, SUCCESS=rk.SUCCESS,
+                                set_horizon=py(rk.set_horizon),
+                                PROJECTED_STEPS=rk.PROJECTED_STEPS)
     # the loops' own Python code, reading Python versions of what they call
     scope = dict(vars(loops), rk=python_rk)
     names = ("discrete_run", "continuous_run", "rhs_template", "interpolate", "_record")
