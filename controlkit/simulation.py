@@ -280,7 +280,7 @@ def _many(sys, T, U, X0, runs, engine, options):
     options = dict(options, params=None)
     if engine == "fast":
         from .engines.fast import many
-        from .engines.fast.run import as_interconnect
+        from .engines.fast.tiers import as_interconnect
 
         diagram = as_interconnect(sys)
         T_, U_, x0, t_eval, method, solver = python_control_arguments(

@@ -318,3 +318,18 @@ def test_the_papers_loops_with_the_continuous_plant_agree_with_the_sampled_plant
     rows = [held.output_labels.index(label) for label in sampled.output_labels]
     # RK4 over one sample (the paper's hold) against an adaptive method at tight tolerance
     assert scaled_error(ours.y[rows], ref.y) <= 1e-9
+
+
+def test_a_single_block_is_explained_and_run_as_a_one_block_diagram():
+    # a plant on its own, as a notebook simulates it before closing the loop
+    def pendulum(t, x, u, params):
+        return [x[1], -params["g"] * np.sin(x[0]) - params["c"] * x[1] + u[0]]
+
+    plant = ct.nlsys(pendulum, None, states=["theta", "omega"], inputs="torque",
+                     outputs=["theta", "omega"], params={"g": 9.81, "c": 0.2}, name="pendulum")
+    assert [(row.name, row.tier) for row in explain(plant)] == [("pendulum", "compiled")]
+    T = np.linspace(0.0, 5.0, 51)
+    ours = fast(plant, T, 0.0, [1.0, 0.0])
+    ref = ct.input_output_response(plant, T, 0.0, [1.0, 0.0])
+    assert scaled_error(ours.y, ref.y) <= 1e-9
+    assert ours.output_labels == ref.output_labels and ours.state_labels == ref.state_labels

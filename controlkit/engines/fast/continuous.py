@@ -25,7 +25,8 @@ from ..contract import response as base_response
 from . import loader, rk
 from .diagnose import explain_nan
 from .loops import INTEGRATOR_FAILED
-from .run import Job, as_interconnect, prepare, simulate
+from .run import Job, prepare, simulate
+from .tiers import as_interconnect
 
 #: The methods integrated by compiled code; the stiff ones go to scipy.
 EXPLICIT_METHODS = ("RK23", "RK45", "DOP853")
@@ -51,7 +52,7 @@ def response(sys, T, U, X0, **options) -> ct.TimeResponseData:
     >>> response(loop, np.arange(3.0), 1.0, 1.0).outputs.tolist()
     [1.0, 1.5, 1.75]
     """
-    sys = as_interconnect(sys)
+    given, sys = sys, as_interconnect(sys)  # the response keeps a single block's labels
     T, U, X0, t_eval, method, solver = python_control_arguments(sys, T, U, X0, options)
     params = options.get("params")
     if sys.isdtime(strict=True):
@@ -61,7 +62,7 @@ def response(sys, T, U, X0, **options) -> ct.TimeResponseData:
     else:
         resp = run_continuous(prepare(sys, params, (T[0], X0, U[:, 0])), T, U, X0,
                               t_eval=t_eval, method=method, **solver)
-    return base_response(sys, resp.t, resp.y, resp.x, resp.u, **result_flags(options))
+    return base_response(given, resp.t, resp.y, resp.x, resp.u, **result_flags(options))
 
 
 def _interpolated(T, U, t):

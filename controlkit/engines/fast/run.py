@@ -116,24 +116,6 @@ class Job:
         return getattr(loader.driver(), name), True
 
 
-def as_interconnect(sys):
-    """``sys`` itself if it is a diagram, else a one-block diagram around it.
-
-    Examples
-    --------
-    >>> sys = ct.nlsys(lambda t, x, u, p: -x, None, inputs=1, states=1, outputs=1,
-    ...                name="decay")
-    >>> as_interconnect(sys).syslist[0] is sys
-    True
-    """
-    if isinstance(sys, ct.InterconnectedSystem):
-        return sys
-    if not isinstance(sys, ct.InputOutputSystem):
-        raise UnsupportedSystem(f"a {type(sys).__name__} is not an I/O system")
-    return ct.interconnect([sys], inputs=sys.input_labels, outputs=sys.output_labels,
-                           name=sys.name, check_unused=False)
-
-
 def prepare(sys, params=None, start=None) -> Job:
     """The :class:`Job` of ``sys`` with the parameters ``params`` in force.
 

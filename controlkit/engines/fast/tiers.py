@@ -245,6 +245,24 @@ def _start_points(sys, params, start):
     return points
 
 
+def as_interconnect(sys):
+    """``sys`` itself if it is a diagram, else a one-block diagram around it.
+
+    Examples
+    --------
+    >>> sys = ct.nlsys(lambda t, x, u, p: -x, None, inputs=1, states=1, outputs=1,
+    ...                name="decay")
+    >>> as_interconnect(sys).syslist[0] is sys
+    True
+    """
+    if isinstance(sys, ct.InterconnectedSystem):
+        return sys
+    if not isinstance(sys, ct.InputOutputSystem):
+        raise UnsupportedSystem(f"a {type(sys).__name__} is not an I/O system")
+    return ct.interconnect([sys], inputs=sys.input_labels, outputs=sys.output_labels,
+                           name=sys.name, check_unused=False)
+
+
 def blocks_of(sys, params=None, start=None):
     """The blocks of ``sys`` with their kernels, tiers and offsets (or UnsupportedSystem).
 
@@ -325,6 +343,7 @@ def explain(sys, params=None) -> list[BlockTier]:
                          + ("; call explain on each system of the list" if isinstance(
                              sys, list | tuple) else ""))
     try:
+        sys = as_interconnect(sys)  # a single block runs as a one-block diagram
         blocks = blocks_of(sys, params)
         evaluation_order(sys, blocks)
     except UnsupportedSystem as why:
