@@ -1,9 +1,9 @@
 """Where a sweep's runs are made: in this process, in threads, in worker processes, or in
 any executor; each run ends as one row, whatever the function does.
 
-The runners call ``call(function, run) -> row`` (:func:`controlkit.sweep._call`, which
+The runners call ``call(function, run) -> row`` (:func:`controlkit.sweep.rows._call`, which
 turns an exception of the function into a row with its error) and hand every row to
-``record`` as it arrives. What :func:`~controlkit.sweep._call` cannot catch is caught here:
+``record`` as it arrives. What :func:`~controlkit.sweep.rows._call` cannot catch is caught here:
 
 - :class:`ProcessRunner` keeps one run per worker process, so it knows which run a worker
   was making when it died (``os._exit``, a segfault, the OOM killer): that run is a failed

@@ -52,7 +52,8 @@ def call_in_child(call, fail, function, run, timeout: float) -> dict:
 
     Examples
     --------
-    >>> from controlkit.sweep import _call, _failed_row, plan
+    >>> from controlkit.sweep import plan
+    >>> from controlkit.sweep.rows import _call, _failed_row
     >>> call_in_child(_call, _failed_row, divmod, plan(grid={"x": [1]})[0], 10)["error"]
     'TypeError: divmod() takes no keyword arguments'
     """

@@ -109,7 +109,8 @@ class ProcessRunner:
     Examples
     --------
     >>> import multiprocessing
-    >>> from controlkit.sweep import _call, _failed_row, plan
+    >>> from controlkit.sweep import plan
+    >>> from controlkit.sweep.rows import _call, _failed_row
     >>> rows = []
     >>> ProcessRunner(_call, _failed_row, round, 2, multiprocessing.get_context("spawn"),
     ...               None).map(plan(grid={"number": [1.25]}), rows.append)

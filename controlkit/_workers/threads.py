@@ -10,7 +10,8 @@ class ThreadRunner:
 
     Examples
     --------
-    >>> from controlkit.sweep import _call, plan
+    >>> from controlkit.sweep import plan
+    >>> from controlkit.sweep.rows import _call
     >>> rows = []
     >>> ThreadRunner(_call, round, 2).map(plan(grid={"number": [1.25, 2.5]}), rows.append)
     >>> sorted(row["run"] for row in rows), rows[0]["error"][:48]
