@@ -5,7 +5,7 @@ first used, so ``import controlkit`` stays light): python-control's
 :func:`input_output_response` and :func:`interconnect` as drop-ins (compiled where they
 can be; continuous, discrete and mixed diagrams), :func:`simulate`,
 :func:`initial_state`, :func:`time_grid`, :func:`sample_nlsys`, :func:`explain`,
-:func:`draw_block_diagram`.
+:func:`draw_block_diagram`, :func:`plot`.
 
 Subpackages: ``blocks`` (one ``NonlinearIOSystem`` per element of the papers, and the
 block contract), ``kernels`` (their equations), ``engines`` (simulation backends:
@@ -31,6 +31,7 @@ _LAZY = {
     "sample_nlsys": "controlkit.blocks.sampling",
     "explain": "controlkit.engines.fast",
     "draw_block_diagram": "controlkit.drawing",
+    "plot": "controlkit.plotting",
 }
 
 __all__ = sorted(_LAZY)

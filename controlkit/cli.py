@@ -23,7 +23,7 @@ try:
 
     from .studies import STUDIES
     from .studies.registry import UsageError
-    from .studies.reproduce import reproduce
+    from .studies.reproduce import _horizons, reproduce
 except BaseException:
     if _COLLECTING:
         gc.enable()
@@ -292,8 +292,8 @@ def _main(argv) -> int:
     rep.add_argument("--horizon", action="append", type=_horizon_arg,
                      metavar="[STUDY=]SECONDS",
                      help="simulated time for every study, or for one study "
-                          "(repeatable, e.g. --horizon spacecraft=2000); default: the "
-                          "published horizons")
+                          "(repeatable, e.g. --horizon spacecraft=14000, the shortest "
+                          "that shows the paper's claim); default: the published horizons")
     rep.add_argument("--stride", type=int, metavar="N",
                      help="keep every N-th sample in the CSV (default: 10 = 1 s for the "
                           "spacecraft, 1 for the CMG)")
@@ -357,6 +357,11 @@ def _main(argv) -> int:
             shown = {k: v for k, v in m.items() if isinstance(v, int | float)}
             print(f"{study}/{case}: " + ", ".join(f"{k}={v:.6g}" if isinstance(v, float)
                                                   else f"{k}={v}" for k, v in shown.items()))
+    for study in summary:  # what a short horizon cannot show
+        seconds = _horizons([STUDIES[study]], horizon)[study]
+        note = STUDIES[study].horizon_note
+        if seconds is not None and note is not None and note(seconds):
+            print(f"{study}: note: {note(seconds)}")
     if failed:
         print(f"controlkit: {len(failed)} case(s) failed; " + "; ".join(failed),
               file=sys.stderr)

@@ -21,6 +21,9 @@ exclude_patterns = ["_build", "**.ipynb_checkpoints"]
 html_theme = "alabaster"
 # wide enough that the notebooks' figures and code show at a readable size
 html_theme_options = {"page_width": "1240px", "sidebar_width": "240px"}
+# notebook cells: code and output in a font small enough for 99-character lines
+html_static_path = ["_static"]
+html_css_files = ["notebooks.css"]
 suppress_warnings = ["mystnb.unknown_mime_type"]
 # sliders are for a live kernel: their cells' output is removed from the pages, and no
 # page loads the widget manager's scripts from the network
@@ -36,7 +39,14 @@ os.environ.pop("CONTROLKIT_QUICK", None)
 os.environ.pop("MPLBACKEND", None)
 nb_execution_mode = os.environ.get("CONTROLKIT_DOCS_EXECUTE", "force")
 nb_execution_timeout = 300
-nb_execution_raise_on_error = True
+# a notebook cell that fails is a warning that carries the cell and its traceback, and -W
+# makes the build fail on it (raising instead would report only the notebook's path, the
+# traceback being left in a temporary log file); the other notebooks still run, so one
+# build lists every broken cell
+nb_execution_raise_on_error = False
+nb_execution_show_tb = True
+# a cell's printed lines in one box, as in Jupyter (not one box per flush of the stream)
+nb_merge_streams = True
 (HERE / "notebooks").mkdir(exist_ok=True)
 for notebook in sorted((HERE.parent / "notebooks").glob("*.ipynb")):
     shutil.copy(notebook, HERE / "notebooks" / notebook.name)

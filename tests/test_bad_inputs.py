@@ -286,3 +286,53 @@ def test_a_failing_case_is_in_the_manifest_and_the_others_complete(tmp_path, mon
     assert {"ideal.csv", "proposed.csv", "metrics.json", "fig07_pointing_error.png"} <= files
     assert "without_mec.csv" not in files
     assert files == {p.name for p in (tmp_path / "spacecraft").iterdir()} - {"run.json"}
+
+
+# ------------------------------------------------- builders: timebases and the FRIT filter
+
+
+def test_a_continuous_controller_in_a_sampled_builder_names_itself_and_the_remedy():
+    import control as ct
+
+    from controlkit.studies.spacecraft.diagrams import mec_loop
+
+    def error(t, x, u, params):
+        return u[0:2] - u[2:4]  # the integrator's input: r - h
+
+    def pi_output(t, x, u, params):
+        return params["kp"] * (u[0:2] - u[2:4]) + params["ki"] * x
+
+    pid = ct.nlsys(error, pi_output, inputs=["r[0]", "r[1]", "h[0]", "h[1]"],
+                   outputs=["mu_n[0]", "mu_n[1]"], states=2, params={"kp": 0.002, "ki": 1e-6},
+                   name="my_pi")  # continuous: dt = 0
+    with pytest.raises(ValueError, match=r"block 'my_pi' is continuous \(dt = 0\) but "
+                       r"my_loop is sampled at Ts = 0.1 s: sample it first "
+                       r"\(controlkit.sample_nlsys\(my_pi, 0.1\).*controlkit.interconnect"):
+        mec_loop(controller=pid, K=0.1, name="my_loop")
+    static = ct.nlsys(None, lambda t, x, u, p: 0.001 * (u[0:2] - u[2:4]),
+                      inputs=["r[0]", "r[1]", "h[0]", "h[1]"], outputs=["mu_n[0]", "mu_n[1]"],
+                      name="my_p")  # dt = 0: python-control's default
+    with pytest.raises(ValueError, match=r"block 'my_p' has no states but is declared "
+                       r"continuous \(dt = 0\), and mec_loop is sampled at Ts = 0.1 s: "
+                       r"build it with dt=None"):
+        mec_loop(controller=static, K=0.1)
+
+
+def test_frit_with_a_users_controller_warns_which_filter_constant_it_used():
+    import warnings
+
+    import control as ct
+
+    from controlkit.studies.spacecraft.diagrams import mec_loop
+
+    mine = ct.nlsys(None, lambda t, x, u, p: 0.002 * (u[0:2] - u[2:4]),
+                    inputs=["r[0]", "r[1]", "h[0]", "h[1]"], outputs=["mu_n[0]", "mu_n[1]"],
+                    dt=None, name="mine")
+    with pytest.warns(UserWarning, match=r"controller 'mine' has no attribute F, so the FRIT "
+                      r"tuner's reference model M = F/\(s\+F\) uses the paper's F = 0.0009"):
+        loop = mec_loop(controller=mine)
+    assert np.all(loop.syslist[3].F == 0.0009)
+    mine.F = 0.002  # a controller that says its F: used, without a warning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert np.all(mec_loop(controller=mine).syslist[3].F == 0.002)

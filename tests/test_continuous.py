@@ -15,7 +15,7 @@ import scipy.integrate
 from continuous_diagrams import CONTINUOUS, MIXED, dc_motor, observer, servo_pi_discrete
 
 import controlkit
-from controlkit.engines.fast import explain
+from controlkit.engines.fast import StiffProblem, explain
 from controlkit.engines.fast.continuous import run_continuous
 from controlkit.engines.fast.run import prepare
 
@@ -28,7 +28,7 @@ def scaled_error(ours, ref):
     return float(np.abs((ours - ref) / scale).max())
 
 
-def fast(loop, T, U, X0, **kwargs):
+def fast(loop, T, U, X0=0, **kwargs):
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no fallback to python-control allowed
         return controlkit.input_output_response(loop, T, U, X0, **kwargs)
@@ -225,6 +225,44 @@ def test_a_diverging_continuous_loop_names_the_time_and_the_blocks():
                                            r"t = 0.5 s.*\['blowup'\] at .*e\+.*diverges"
                                            r".*solve_ivp_method='BDF'"):
         fast(loop, np.linspace(0.0, 2.0, 5), 0.0, 1.0)
+
+
+def stiff_loop(Ts=0.0):
+    """A 1 us actuator before a 10 s plant under a PI (continuous, or sampled at Ts)."""
+    actuator = ct.tf([1.0], [1e-6, 1.0], name="actuator", inputs="u", outputs="f")
+    plant = ct.tf([1.0], [10.0, 1.0], name="plant", inputs="f", outputs="y")
+    pi = ct.tf([2.0, 0.5], [1.0, 0.0], inputs="e", outputs="u", name="pi")
+    if Ts:
+        pi = ct.sample_system(pi, Ts, method="tustin", name="pi")
+    error = ct.summing_junction(["r", "-y"], "e", name="error")
+    return controlkit.interconnect([actuator, plant, pi, error], inputs="r", outputs="y",
+                                   name="stiff_loop")
+
+
+@pytest.mark.parametrize("Ts", [0.0, 0.1])
+def test_a_stiff_loop_stops_at_once_naming_an_implicit_method(Ts):
+    # RK45 would need some 3e8 steps of 3 us for 1000 s: hours in scipy, a minute here
+    loop = stiff_loop(Ts)
+    T = np.linspace(0.0, 1000.0, 10001)
+    blocks = "'actuator', 'plant', 'pi'" if Ts == 0 else "'actuator', 'plant'"
+    with pytest.raises(StiffProblem, match=rf"'stiff_loop' is stiff for RK45: .*\[{blocks}\]"
+                                           r".* to t = 1000 s would take about 3e\+08 steps"
+                                           r".*solve_ivp_method='BDF'"):
+        fast(loop, T, 1.0)
+    # the remedy the message names works and gives python-control's numbers
+    ours = fast(loop, T[:1001], 1.0, solve_ivp_method="BDF")
+    assert abs(ours.outputs[-1] - 1.0) < 1e-4  # the PI has removed the error by 100 s
+    if Ts == 0:
+        ref = ct.input_output_response(loop, T[:1001], 1.0, solve_ivp_method="BDF")
+        assert scaled_error(ours.y, ref.y) <= 1e-9
+
+
+def test_a_short_stiff_run_goes_on_as_python_control():
+    # 1 ms of the stiff loop: about 300 steps, under the budget; RK45's own numbers
+    loop = stiff_loop()
+    T = np.linspace(0.0, 1e-3, 11)
+    ref = ct.input_output_response(loop, T, 1.0)
+    assert scaled_error(fast(loop, T, 1.0).y, ref.y) <= 1e-9
 
 
 @pytest.mark.parametrize("which", ["fig2", "fig3", "fig4", "cmg"])

@@ -1,13 +1,20 @@
-"""The documentation builds with warnings as errors, offline, with the notebooks' figures.
+"""The documentation builds as the README says, on a fresh clone, offline, with figures.
 
-The notebooks are executed at the papers' horizons (the fast engine takes seconds), so the
-numbers on the pages are the ones their text discusses.
+The pages are built once per test run, by the README's own command, in a copy of the source
+tree (what a clone holds: the files git tracks or would track) and a virtual environment that
+has only what ``pip install ".[docs]"`` brings, so a notebook import that only the test
+environment provides fails here as it would for a reader. The notebooks are executed at the
+papers' horizons (the fast engine takes seconds), so the numbers on the pages are the ones
+their text discusses.
 """
 
 import importlib.util
+import os
 import re
+import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -17,20 +24,69 @@ _spec = importlib.util.spec_from_file_location("check_screenshots",
                                                ROOT / "docs" / "check_screenshots.py")
 check = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(check)
+#: The README's documentation command, e.g. ``pip install ".[docs]" && python -m sphinx ...``.
+README_DOCS_COMMAND = re.search(r"`(pip install \"\.\[docs\]\" && python -m sphinx [^`]+)`",
+                                (ROOT / "README.md").read_text()).group(1)
+
+
+def _fresh_clone(target: Path) -> Path:
+    """Copy the files a clone of this tree would hold (tracked, or new and not ignored)."""
+    listed = subprocess.run(["git", "ls-files", "-z", "--cached", "--others",
+                             "--exclude-standard"], cwd=ROOT, capture_output=True, check=True)
+    for name in listed.stdout.decode().split("\0"):
+        source = ROOT / name
+        if name and source.is_file():  # a file deleted but not yet committed is skipped
+            (target / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(source, target / name)
+    return target
 
 
 @pytest.fixture(scope="module")
 def html(tmp_path_factory):
-    out = tmp_path_factory.mktemp("docs") / "html"
-    result = subprocess.run(
-        [sys.executable, "-m", "sphinx", "-W", "--keep-going", "-q", "-b", "html",
-         str(ROOT / "docs"), str(out)],
-        capture_output=True, text=True,
-    )
-    warnings = [line for line in result.stderr.splitlines()
-                if "WARNING" in line and "IPKernelApp" not in line or "ERROR" in line]
-    assert result.returncode == 0, "\n".join(warnings) or result.stderr[-3000:]
-    return out
+    """The pages, built by the README's command in a fresh clone and a fresh environment."""
+    work = tmp_path_factory.mktemp("fresh")
+    clone = _fresh_clone(work / "controlkit")
+    venv = work / "venv"
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("VIRTUAL_ENV", "PYTHONPATH", "CONTROLKIT_QUICK", "MPLBACKEND")}
+    env["PATH"] = f"{venv / 'bin'}{os.pathsep}{env.get('PATH', '')}"
+    env["VIRTUAL_ENV"] = str(venv)
+    start = time.perf_counter()
+    result = subprocess.run(["bash", "-c", README_DOCS_COMMAND], cwd=clone, env=env,
+                            capture_output=True, text=True)
+    seconds = time.perf_counter() - start
+    # the command's failure shows the failing cell and its traceback (docs/conf.py): report
+    # the warnings and the tail of the log, where sphinx summarises
+    log = result.stdout + result.stderr
+    warnings = [line for line in log.splitlines()
+                if ("WARNING" in line and "IPKernelApp" not in line) or "ERROR" in line]
+    assert result.returncode == 0, "\n".join(warnings + ["...", log[-6000:]])
+    print(f"README docs command on a fresh clone: {seconds:.0f} s")
+    return clone / "docs" / "_build" / "html"
+
+
+def test_a_failing_notebook_cell_shows_its_error_in_the_build_output(tmp_path):
+    # docs/conf.py as it is, over one notebook whose second cell fails: the build must fail
+    # and print that cell and its exception, not only the notebook's path
+    import nbformat
+
+    (tmp_path / "docs").mkdir()
+    (tmp_path / "notebooks").mkdir()
+    shutil.copy(ROOT / "docs" / "conf.py", tmp_path / "docs" / "conf.py")
+    (tmp_path / "docs" / "index.md").write_text("# t\n\n```{toctree}\nnotebooks/broken\n```\n")
+    notebook = nbformat.v4.new_notebook()
+    notebook.cells = [nbformat.v4.new_markdown_cell("# broken"),
+                      nbformat.v4.new_code_cell("x = 1"),
+                      nbformat.v4.new_code_cell("import a_module_nobody_installed")]
+    nbformat.write(notebook, tmp_path / "notebooks" / "broken.ipynb")
+    result = subprocess.run([sys.executable, "-m", "sphinx", "-W", "-b", "html",
+                             str(tmp_path / "docs"), str(tmp_path / "html")],
+                            capture_output=True, text=True)
+    log = re.sub(r"\x1b\[[0-9;]*m", "", result.stdout + result.stderr)  # no colour codes
+    assert result.returncode != 0
+    assert "import a_module_nobody_installed" in log
+    assert "ModuleNotFoundError: No module named 'a_module_nobody_installed'" in log
 
 
 def test_docs_build_with_warnings_as_errors(html):

@@ -68,8 +68,10 @@ def test_spacecraft_figures_are_slide_ready(stem, sc_tables):
 def test_cmg_figures_are_slide_ready(stem, cmg_tables):
     fig = cmg_out.figure(cmg_tables, stem)
     _check_slide_ready(fig)
-    labels = " ".join(t.get_text() for t in _texts(fig))
+    # the curves are our simulation of the thesis's experiment, not its measurements
+    labels = " ".join(t.get_text() for legend in fig.legends for t in legend.get_texts())
     assert "simulation" in labels and "thesis" not in labels
+    assert fig.axes[0].get_title().startswith(f"Fig. {stem[3]} of the CMG thesis: ")
 
 
 def test_fig7_is_logarithmic_with_the_requirement_and_ideal_on_top(sc_tables):
@@ -133,6 +135,39 @@ def test_saved_result_figures_need_no_mathtext(tmp_path, monkeypatch, sc_tables,
 def test_fig8_legend_is_one_row_of_k_entries(sc_tables):
     fig = sc_out.figure(sc_tables, "fig08_K")
     assert [t.get_text() for t in fig.legends[0].get_texts()] == ["K11", "K12", "K21", "K22"]
+    # told apart by colour, not by dashes alone
+    colours = {tuple(line.get_color()) if not isinstance(line.get_color(), str)
+               else line.get_color() for line in fig.axes[0].get_lines()}
+    assert len(colours) == 4
+
+
+def test_fig8_with_two_compensated_cases_keeps_a_colour_per_entry_and_a_style_per_case():
+    tables = {name: sc_out.table(sc_scenario.run(name, horizon=20.0))
+              for name in ("mec_fixed", "proposed")}
+    fig = sc_out.figure(tables, "fig08_K")
+    lines = fig.axes[0].get_lines()
+    by_case = {}
+    for line in lines[:8]:
+        by_case.setdefault(line.get_linestyle(), set()).add(line.get_color())
+    assert len(by_case) == 2 and all(len(colours) == 4 for colours in by_case.values())
+    assert [t.get_text() for t in fig.legends[0].get_texts()][-2:] == [
+        sc_scenario.CASES["mec_fixed"].label, sc_scenario.CASES["proposed"].label]
+
+
+def test_titles_say_which_publication_the_figure_number_is_from(sc_tables, cmg_tables):
+    titles = [sc_out.figure(sc_tables, spec[0]).axes[0].get_title() for spec in sc_out.FIGURES]
+    titles += [cmg_out.figure(cmg_tables, spec[0]).axes[0].get_title()
+               for spec in cmg_out.FIGURES]
+    assert sum("Fig. 5 " in t for t in titles) == 2
+    assert len({t.split(":")[0] for t in titles}) == len(titles)  # no two alike
+
+
+def test_fig7_shows_the_ideal_curve_down_to_its_smallest_error():
+    # after 15 000 s the ideal loop's error is below 1e-4 deg, where the axis used to end
+    tables = {"ideal": sc_out.table(sc_scenario.run("ideal", horizon=15000.0))}
+    ax = sc_out.figure(tables, "fig07_pointing_error").axes[0]
+    smallest = tables["ideal"]["pointing_error_deg"].min()
+    assert smallest < 1e-4 and smallest / 10 <= ax.get_ylim()[0] <= smallest
 
 
 def test_cmg_tracking_has_a_log_error_panel_and_t2_states_its_limits(cmg_tables):

@@ -188,7 +188,7 @@ def test_constant_gain_rejects_wrong_shape(K):
 
 
 def test_tuner_period_must_match_the_loop():
-    with pytest.raises(ValueError, match=r"block 'tuner' runs at dt = 0.2 s but the loop runs "
+    with pytest.raises(ValueError, match=r"block 'tuner' runs at dt = 0.2 s but mec_loop runs "
                                          r"at Ts = 0.1 s"):
         mec_loop(K=frit.frit_tuner(Ts=0.2), Ts=0.1)
 

@@ -1,6 +1,8 @@
-"""Every notebook runs top to bottom (short horizons: CONTROLKIT_QUICK=1)."""
+"""Every notebook runs top to bottom, worked solutions included (short horizons:
+CONTROLKIT_QUICK=1), and ends with exercises whose solutions are folded away."""
 
 import json
+import re
 from pathlib import Path
 
 import matplotlib.pyplot as plt
@@ -9,8 +11,29 @@ import pytest
 NOTEBOOKS = sorted((Path(__file__).parent.parent / "notebooks").glob("*.ipynb"))
 
 
-def test_there_are_seven_notebooks():
-    assert len(NOTEBOOKS) == 7
+def test_the_course_starts_with_a_first_loop_and_has_nine_notebooks():
+    assert [p.name[:3] for p in NOTEBOOKS] == [f"{i:02d}_" for i in range(9)]
+    assert NOTEBOOKS[0].name == "00_first_loop.ipynb"
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
+def test_notebook_ends_with_exercises_and_folded_worked_solutions(path):
+    cells = json.loads(path.read_text())["cells"]
+    start = next(i for i, c in enumerate(cells)
+                 if c["cell_type"] == "markdown" and "".join(c["source"]).startswith(
+                     "## Exercises"))
+    listing = "".join(cells[start]["source"])
+    exercises = re.findall(r"^(\d+)\. ", listing, re.M)
+    assert 2 <= len(exercises) <= 4 and exercises == [str(i + 1) for i in range(len(exercises))]
+    solutions = cells[start + 1:]
+    assert len(solutions) == len(exercises)  # one per exercise, and nothing after them
+    for number, cell in enumerate(solutions, 1):
+        source = "".join(cell["source"])
+        assert cell["cell_type"] == "code" and source.startswith(f"# Solution {number}\n")
+        # folded in Jupyter (source and output) and on the documentation pages
+        assert cell["metadata"]["jupyter"] == {"source_hidden": True, "outputs_hidden": True}
+        assert "hide-cell" in cell["metadata"]["tags"]
+        assert "assert " in source  # a worked solution checks its answer
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)

@@ -605,3 +605,64 @@ def test_tableaux_are_scipy_s():
         with warnings.catch_warnings():
             warnings.simplefilter("error")
             assert ours.error_exponent == -1 / (theirs.error_estimator_order + 1)
+
+
+# ------------------------------------------------------------------------------------------
+# Stiffness: Hairer's test stops an explicit run that stability holds down
+# ------------------------------------------------------------------------------------------
+
+STIFF_METHODS = [m for m in METHODS if rk.TABLEAUX[rk.METHOD_INDEX[m]].stiffness_bound > 0]
+
+
+def test_stiffness_test_where_the_last_stage_is_at_t_plus_h():
+    assert STIFF_METHODS == ["RK45", "DOP853"]
+    for method in METHODS:
+        tableau = rk.TABLEAUX[rk.METHOD_INDEX[method]]
+        if tableau.stiffness_bound:
+            assert tableau.C[tableau.n_stages - 1] == 1.0
+
+
+@pytest.mark.parametrize("method", STIFF_METHODS)
+def test_stiffness_estimate_is_h_lambda(method):
+    # y' = -p y: k_S - k_{S-1} = -p (y_new - y_{S-1}) exactly, so the estimate is h p
+    p = 2000.0
+    problem = P.Problem("decay", P.decay, np.array([1.0]), (0.0, 0.02), np.array([p]))
+    ours = our_solve(problem, method, None)
+    assert ours["success"]
+    h_last = np.diff(ours["step_times"])[-1]
+    assert ours["stiffness"] == pytest.approx(h_last * p, rel=1e-6)
+
+
+@pytest.mark.parametrize("method", STIFF_METHODS)
+def test_stiff_run_stops_early_with_the_projected_steps(method):
+    # eigenvalue -1e6 over 100 s: about 3e7 explicit steps (hours in scipy)
+    problem = P.Problem("stiff", P.stiffish, np.array([1.0, 1.0]), (0.0, 100.0),
+                        np.array([1e6]))
+    ours = our_solve(problem, method, None)
+    assert ours["status"] == rk.STIFF and not ours["success"]
+    assert ours["message"] == rk.STATUS_MESSAGES[rk.STIFF]
+    assert "BDF" in ours["message"]
+    assert rk.STIFF_STEPS_BEFORE_PROJECTING <= ours["n_accepted"] < 3 * \
+        rk.STIFF_STEPS_BEFORE_PROJECTING
+    assert ours["projected_steps"] > rk.STIFF_STEP_BUDGET
+    # the projection is the pace so far carried to the end of the span
+    expected = ours["n_accepted"] * 100.0 / ours["t_reached"]
+    assert ours["projected_steps"] == pytest.approx(expected, rel=1e-12)
+
+
+@pytest.mark.parametrize("method", STIFF_METHODS)
+def test_stiff_run_within_the_budget_goes_on_as_scipy(method):
+    # a lag of 0.1 ms tracking sin t: stiff all along, some 10^4 steps over 1 s
+    T = np.linspace(0.0, 10000.0, 10001)
+    problem = P.Problem("fast_lag", P.lag_with_input, np.array([0.0]), (0.0, 1.0),
+                        np.array([1e-4, 0.0]), T, np.ascontiguousarray(np.sin(T)[None, :]))
+    t_eval = np.linspace(0.0, 1.0, 11)
+    ours = our_solve(problem, method, t_eval)
+    theirs = scipy_solve(problem, method, t_eval)
+    assert ours["success"] and ours["n_accepted"] > rk.STIFF_STEPS_BEFORE_PROJECTING
+    assert ours["nfev"] == theirs.nfev
+    assert_equal_to_scipy(ours["y"], theirs.y)
+    # the test was watching: over 10^4 s (over 10^7 steps) the same problem stops
+    longer = our_solve(problem, method, None, t_span=(0.0, 10000.0))
+    assert longer["status"] == rk.STIFF
+    assert longer["projected_steps"] > rk.STIFF_STEP_BUDGET > 1000 * ours["n_accepted"]

@@ -97,6 +97,14 @@ def response(sys, steps, initial, U):
     return np.asarray(resp.outputs).reshape(sys.noutputs, -1)
 
 
+def shown_labels(sys):
+    """The display names a drawing of ``sys`` shows: the blocks' own, then its hints'."""
+    labels = {s.name: s.display_name for s in sys.syslist
+              if getattr(s, "display_name", None)}
+    labels.update(getattr(sys, "drawing_hints", {}).get("labels", {}))
+    return labels
+
+
 def assert_same_diagram(a, b):
     assert [s.name for s in a.syslist] == [s.name for s in b.syslist]
     for field in ("connect_map", "input_map", "output_map"):
@@ -126,9 +134,9 @@ def test_code_to_model_to_interconnect_is_the_same_diagram(key, tmp_path):
     loaded = DiagramModel.from_dict(json.loads((tmp_path / "diagram.json").read_text()),
                                     systems=original).system()
     assert_same_diagram(original, loaded)
-    # the display names, frames and junction hints travel along
-    assert rebuilt.drawing_hints.get("labels", {}) == {
-        **getattr(original, "drawing_hints", {}).get("labels", {})}
+    # the display names (the builder's, and the blocks' own), frames and junction hints
+    # travel along
+    assert shown_labels(rebuilt) == shown_labels(original)
     assert getattr(from_code, "drawing_hints", {}) == rebuilt.drawing_hints
     expected = response(original, steps, initial, U)
     assert np.isfinite(expected).all()
@@ -508,11 +516,24 @@ def test_the_run_button_reports_the_requirement(editor):
     assert "['linearizer.mu[0:2]', 'controller.mu_n[0:2]']," in editor.code()
 
 
+def test_a_rewired_diagram_loses_the_builders_title_but_keeps_its_blocks_symbols():
+    model = DiagramModel.from_interconnect(mec_loop(K=0.1))
+    assert model.system().drawing_hints["title"] == "Fig. 3: MEC with a constant gain K"
+    model.set_parameter("gain", "K", 0.01)  # another K: still Fig. 3
+    assert model.system().drawing_hints["title"] == "Fig. 3: MEC with a constant gain K"
+    model.delete_block("mec")
+    model.connect("controller", "mu_n", "linearizer", "mu")
+    rewired = model.system()
+    assert "title" not in rewired.drawing_hints  # drawn under its name, mec_loop
+    assert rewired.drawing_hints["labels"]["controller"] == "$F$"
+
+
 def test_without_a_kernel_the_page_shows_the_drawing(editor, tmp_path):
     data, _ = editor._repr_mimebundle_()
     assert "application/vnd.jupyter.widget-view+json" in data
     svg = data["image/svg+xml"]
-    assert svg.startswith("<?xml") and "Fig. 3: MEC with a constant gain K" in svg
+    # titled by the diagram's name (fig3() names it), the blocks by the paper's symbols
+    assert svg.startswith("<?xml") and ">fig3</text>" in svg and "<!-- $F$ -->" in svg
     editor.save(tmp_path / "fig3.json")
     from controlkit.widget import DiagramEditor
 

@@ -30,7 +30,7 @@ from ..kernels.cmg import (
     STATE,
     TORQUES,
 )
-from .contract import KernelBlock
+from .contract import KernelBlock, drawn_as
 
 STATES = STATE.labels()
 REFERENCE_SIGNALS = REFERENCE.labels()
@@ -214,7 +214,7 @@ def cmg_plant(inertias=None, *, delta_IG4x=0.0, friction=None, name="cmg") -> ct
                        feedthrough=False, inputs=TORQUES.labels(), outputs=STATES, states=STATES,
                        name=name)
     sys.inertias, sys.delta_IG4x, sys.friction = inertias, delta_IG4x, friction
-    return sys
+    return drawn_as(sys, "CMG", default_name="cmg")
 
 
 def reference(t):
@@ -253,8 +253,9 @@ def reference_generator(*, name="reference") -> ct.NonlinearIOSystem:
     >>> reference_generator().output(0.0, [], []).round(4).tolist()
     [0.1745, 0.0, 0.0, 0.0, 0.0, 0.0]
     """
-    return KernelBlock(kernels.reference_output, feedthrough=False, inputs=0,
-                        outputs=REFERENCE_SIGNALS, dt=None, name=name)
+    sys = KernelBlock(kernels.reference_output, feedthrough=False, inputs=0,
+                      outputs=REFERENCE_SIGNALS, dt=None, name=name)
+    return drawn_as(sys, "references", default_name="reference")
 
 
 #: Gains of eq. (47).
@@ -420,7 +421,7 @@ def adaptive_smc(
         states=SMC_STATE.labels(), dt=Ts, name=name,
     )
     sys.x0, sys.gains, sys.inertias = a_hat0, g, inertias
-    return sys
+    return drawn_as(sys, "adaptive SMC", default_name="smc")
 
 
 def torque_saturation(T1_max=T1_MAX, T2_max=T2_MAX, *, name="saturation") -> ct.NonlinearIOSystem:
@@ -448,4 +449,4 @@ def torque_saturation(T1_max=T1_MAX, T2_max=T2_MAX, *, name="saturation") -> ct.
     sys = KernelBlock(common.saturation_output, params=limits,
                        inputs=["T1_cmd", "T2_cmd"], outputs=["T1", "T2"], dt=None, name=name)
     sys.limits = limits
-    return sys
+    return drawn_as(sys, "torque limits", default_name="saturation")

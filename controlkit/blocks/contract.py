@@ -271,3 +271,47 @@ def _describe(labels) -> str:
     if len(labels) <= 6:
         return ", ".join(labels)
     return f"{labels[0]}, {labels[1]}, ..., {labels[-1]}"
+
+
+def drawn_as(sys, symbol, *, default_name, junction=None):
+    """Give a factory's block the symbol the papers draw it with, if it keeps its default name.
+
+    :func:`~controlkit.drawing.draw_block_diagram` writes a block's ``display_name``
+    (TeX) in its box, with the block's name under it, and draws a block's ``junction``
+    (``{input base name: sign}``: the block first forms ``r - h``, say) as a summing
+    junction in front of it. A block that its user named (``name="wheel_limit"``) is
+    someone else's element, so it is drawn with that name alone: the factory's symbol
+    would claim it is the paper's.
+
+    Parameters
+    ----------
+    sys : control.InputOutputSystem
+        The block, as the factory built it.
+    symbol : str
+        Its symbol in the papers, e.g. ``"$F$"``.
+    default_name : str
+        The factory's default ``name``.
+    junction : dict, optional
+        The signs of the inputs the block sums first, e.g. ``{"r": 1, "h": -1}``.
+
+    Returns
+    -------
+    control.InputOutputSystem
+        ``sys``, with ``display_name`` (and ``junction``) set when ``sys.name`` is
+        ``default_name``.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> gain = ct.nlsys(None, lambda t, x, u, p: u, inputs=1, outputs=1, name="gain")
+    >>> drawn_as(gain, "$K$", default_name="gain").display_name
+    '$K$'
+    >>> other = ct.nlsys(None, lambda t, x, u, p: u, inputs=1, outputs=1, name="mine")
+    >>> getattr(drawn_as(other, "$K$", default_name="gain"), "display_name", None) is None
+    True
+    """
+    if sys.name == default_name:
+        sys.display_name = symbol
+        if junction is not None:
+            sys.junction = dict(junction)
+    return sys

@@ -15,7 +15,7 @@ import numpy as np
 from .. import _checks
 from ..kernels import mec as kernels
 from ..kernels.mec import TUNER, TUNER_INPUTS, TUNER_STATE
-from .contract import KernelBlock
+from .contract import KernelBlock, drawn_as
 from .mec import K_SIGNALS
 from .spacecraft import F_PAPER, TS_PAPER
 
@@ -318,4 +318,4 @@ def frit_tuner(
     sys.psi = None if guard["safeguard"] else psi_values
     sys.readings, sys.output_scale = readings, scale
     sys.safeguard = {k: guard[k] for k in SAFEGUARD_DEFAULTS} if guard["safeguard"] else None
-    return sys
+    return drawn_as(sys, "FRIT", default_name="tuner")

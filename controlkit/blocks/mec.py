@@ -16,7 +16,7 @@ from .. import _checks
 from ..kernels import common
 from ..kernels import mec as kernels
 from ..kernels.mec import MEC_INPUTS
-from .contract import KernelBlock
+from .contract import KernelBlock, drawn_as
 from .spacecraft import TS_PAPER
 
 K_SIGNALS = [f"K[{i}]" for i in range(4)]  # the gain signal, row-major
@@ -59,7 +59,7 @@ def nominal_model(Ts=TS_PAPER, *, h0=(0.0, 0.0), name="nominal") -> ct.Nonlinear
                        feedthrough=False, inputs=["mu_n[0]", "mu_n[1]"],
                        outputs=["hn[0]", "hn[1]"], states=["hn[0]", "hn[1]"], dt=Ts, name=name)
     sys.x0 = h0
-    return sys
+    return drawn_as(sys, "$L_n$", default_name="nominal")
 
 
 def mec_compensator(*, name="mec") -> ct.NonlinearIOSystem:
@@ -80,11 +80,9 @@ def mec_compensator(*, name="mec") -> ct.NonlinearIOSystem:
     >>> mec.output(0.0, [], [1, 1, 0.5, 0, 0, 0, 2, 0, 0, 2]).tolist()
     [2.0, 1.0]
     """
-    return KernelBlock(
-        kernels.mec_output,
-        inputs=MEC_INPUTS.labels(),
-        outputs=["mu[0]", "mu[1]"], dt=None, name=name,
-    )
+    sys = KernelBlock(kernels.mec_output, inputs=MEC_INPUTS.labels(),
+                      outputs=["mu[0]", "mu[1]"], dt=None, name=name)
+    return drawn_as(sys, r"$\mu_n + K\,(h_n - h)$", default_name="mec")
 
 
 def constant_gain(K=0.1, *, name="gain") -> ct.NonlinearIOSystem:
@@ -111,4 +109,4 @@ def constant_gain(K=0.1, *, name="gain") -> ct.NonlinearIOSystem:
     sys = KernelBlock(common.constant_output, params=K.ravel(), feedthrough=False, inputs=0,
                        outputs=K_SIGNALS, dt=None, name=name)
     sys.K = K
-    return sys
+    return drawn_as(sys, "$K$", default_name="gain")

@@ -185,6 +185,10 @@ class SampledSystem(ct.NonlinearIOSystem):
                 "sampled with solve_ivp" if method == "solve_ivp" else "not a controlkit block")
         self.check = getattr(sys, "check", None)
         self.check_state = getattr(sys, "check_state", None)
+        if self.name == sys.name:  # the same element, held: drawn as the block was
+            for attribute in ("display_name", "junction"):
+                if hasattr(sys, attribute):
+                    setattr(self, attribute, getattr(sys, attribute))
 
     def _next_state(self, t, x, u, params):
         sys, Ts = self.continuous, self.dt

@@ -28,7 +28,7 @@ from ..kernels.spacecraft import (
     MOMENTUM,
     PLANT,
 )
-from .contract import KernelBlock
+from .contract import KernelBlock, drawn_as
 
 # --- Paper values (Tables 2 and 3) -------------------------------------------------
 
@@ -400,10 +400,11 @@ def io_linearizer(
             f"paper's wheels: a 180 deg rotation about an axis in the body x-y plane)"
         )
 
-    return KernelBlock(
+    sys = KernelBlock(
         output, params=params, feedthrough=True, check=refuse, uncompiled=uncompiled,
         inputs=LINEARIZER_INPUTS.labels(), outputs=_U_SIGNALS, dt=None, name=name,
     )
+    return drawn_as(sys, r"$\beta(q)\,\mu - \alpha(q)$", default_name="linearizer")
 
 
 def attitude_output(*, name="output") -> ct.NonlinearIOSystem:
@@ -422,8 +423,9 @@ def attitude_output(*, name="output") -> ct.NonlinearIOSystem:
     [0.1, 0.2]
     """
 
-    return KernelBlock(kernels.attitude_output, inputs=_Q_SIGNALS,
-                        outputs=["h[0]", "h[1]"], dt=None, name=name)
+    sys = KernelBlock(kernels.attitude_output, inputs=_Q_SIGNALS,
+                      outputs=["h[0]", "h[1]"], dt=None, name=name)
+    return drawn_as(sys, "$h(q)$", default_name="output")
 
 
 def outer_controller(F=F_PAPER, *, output="mu", name="controller") -> ct.NonlinearIOSystem:
@@ -458,4 +460,5 @@ def outer_controller(F=F_PAPER, *, output="mu", name="controller") -> ct.Nonline
         outputs=[f"{output}[0]", f"{output}[1]"], dt=None, name=name,
     )
     sys.F = F
-    return sys
+    # drawn as Fig. 2-4 draw it: the junction r - h, then the gain F
+    return drawn_as(sys, "$F$", default_name="controller", junction={"r": 1, "h": -1})

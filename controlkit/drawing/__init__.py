@@ -19,7 +19,9 @@ way control papers draw loops:
 - display names (``$L_a$``), frames around groups of blocks and a parallel
   placement (``beside``) taken from the ``labels``/``groups`` arguments, from a
   ``drawing_hints`` dict that the diagram builders attach to the interconnect,
-  or from a ``display_name`` attribute of a block.
+  or from a block's own ``display_name`` and ``junction`` attributes (the papers'
+  blocks carry their symbols: :func:`controlkit.blocks.contract.drawn_as`), so a
+  block is drawn as itself in any diagram, and a block of your own by its name.
 
 Block and signal names are drawn literally (python-control's ``plant$sampled``
 stays as it is); only labels given explicitly as display names are TeX.

@@ -45,7 +45,8 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
     -----
     ``sys.drawing_hints`` may also hold ``title``, ``sums`` (``{block: {input: sign}}``:
     the block first adds these inputs, e.g. ``F (r - h)``; drawn as a junction in front
-    of it), ``beside`` (``{block: other}``: put
+    of it; a block's own ``junction`` attribute, ``{input: sign}``, does the same for
+    that block, wherever it is wired), ``beside`` (``{block: other}``: put
     ``block`` in the column of ``other``, on a row of its own - a branch in
     parallel), ``rows`` (``{block: row}``, 0 the main row) and ``notes``
     (``{block: text}``, a second line inside the block). External outputs that

@@ -79,7 +79,7 @@ class DiagramLayout:
     y_title, x_mid : float
         The title's centre.
     width, height : float
-        The page, at most 2.5 times wider than high.
+        The page: the drawing and nothing around it (no bands added for proportions).
     y_top, y_bottom : float
         The page's top and bottom edges.
     """
@@ -116,7 +116,7 @@ class _Hints:
     ``labels`` (display names, TeX: the hints', then blocks' ``display_name``, then the
     ``labels`` argument), ``groups`` (frames), ``beside`` (``{block: other}``: share a
     column), ``rows`` (``{block: row}``), ``notes`` (second lines), ``sums``
-    (``{block: {input: sign}}``) and ``title``.
+    (``{block: {input: sign}}``: the hints', then blocks' ``junction``) and ``title``.
     """
 
     labels: dict
@@ -138,9 +138,13 @@ class _Hints:
         merged_labels.update(labels or {})
         merged_groups = dict(hints.get("groups", {}))
         merged_groups.update(groups or {})
+        sums = dict(hints.get("sums", {}))
+        for s in sys.syslist:
+            if getattr(s, "junction", None):
+                sums.setdefault(s.name, dict(s.junction))
         return cls(merged_labels, merged_groups, dict(hints.get("beside", {})),
                    dict(hints.get("rows", {})), dict(hints.get("notes", {})),
-                   hints.get("sums", {}), hints.get("title"))
+                   sums, hints.get("title"))
 
 
 def layout(sys, *, labels=None, groups=None, fontsize=10.0, title=None) -> DiagramLayout:
@@ -382,10 +386,10 @@ def _frame(draft, sys, title, hint_title):
     """Decide the title and the page: the finished :class:`DiagramLayout`.
 
     The page spans the lanes, the blocks and the names of the signals entering on the
-    left and leaving on the right, with the title above. A page wider than 2.5 times its
-    height gets equal bands above and below (a slide's proportions, so a wide loop's
-    text is not shrunk to nothing when the picture is fitted to a page). A title given as
-    an argument or a hint is TeX; the system's own name is drawn literally.
+    left and leaving on the right, with the title above, and nothing more: a wide loop
+    is a wide picture (padding it to a slide's proportions would only add blank bands).
+    A title given as an argument or a hint is TeX; the system's own name is drawn
+    literally.
     """
     f_sig, f_name, _ = draft.fonts
     top_rows, bottom_rows = draft.blocks_top(), draft.blocks_bottom()
@@ -403,12 +407,9 @@ def _frame(draft, sys, title, hint_title):
     y_top = y_title + th * 0.6
     width = max(x_right_text - x_left, tw + 0.4) + 0.3
     height = y_top - y_bottom + 0.2
+    # no blank bands to reach a slide's proportions: a wide diagram stays wide, and a slide
+    # or a notebook scales it to its width
     x_mid = (x_left + x_right_text) / 2
-    if width / height > 2.5:  # room under the title: keep a slide's proportions
-        extra = width / 2.5 - height
-        y_top += extra / 2
-        y_bottom -= extra / 2
-        height = width / 2.5
     return DiagramLayout(
         nodes=draft.nodes, nets=draft.nets, layer=draft.layer, row=draft.row,
         port_xy=draft.port_xy, in_xy=draft.in_xy, track_x=draft.track_x,

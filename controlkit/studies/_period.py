@@ -5,11 +5,14 @@ from __future__ import annotations
 from ..blocks.sampling import sample_nlsys
 
 
-def require_period(block, Ts, *, static_ok=False):
+def require_period(block, Ts, *, static_ok=False, loop="the loop"):
     """Refuse ``block`` unless it runs at the loop's period ``Ts``.
 
     With ``static_ok``, a block without a period of its own (``dt`` None or
-    True) joins the loop too.
+    True) joins the loop too. The message names the block, the loop (``loop``, e.g. the
+    builder's name) and what to do: a continuous block is sampled first, or the diagram
+    is wired with :func:`controlkit.interconnect`, which joins continuous and discrete
+    blocks.
 
     Examples
     --------
@@ -22,13 +25,24 @@ def require_period(block, Ts, *, static_ok=False):
     """
     if static_ok and (block.dt is None or block.dt is True):  # dt = 1 is a period, not True
         return block
+    if block.dt == 0:
+        if block.nstates == 0 and static_ok:
+            raise ValueError(
+                f"block {block.name!r} has no states but is declared continuous (dt = 0), "
+                f"and {loop} is sampled at Ts = {Ts} s: build it with dt=None, which "
+                f"joins a continuous or a discrete diagram")
+        raise ValueError(
+            f"block {block.name!r} is continuous (dt = 0) but {loop} is sampled at "
+            f"Ts = {Ts} s: sample it first (controlkit.sample_nlsys({block.name}, {Ts}), "
+            f"or control.sample_system for an LTI block), or wire the diagram yourself "
+            f"with controlkit.interconnect, which joins continuous and discrete blocks")
     if block.dt != Ts:
-        raise ValueError(f"block {block.name!r} runs at dt = {block.dt} s but the loop runs at "
+        raise ValueError(f"block {block.name!r} runs at dt = {block.dt} s but {loop} runs at "
                          f"Ts = {Ts} s; build it with Ts={Ts}")
     return block
 
 
-def sampled(plant, Ts):
+def sampled(plant, Ts, *, loop="the loop"):
     """The plant as a block at ``Ts``: a continuous plant is put under ZOH, a discrete one checked.
 
     Examples
@@ -39,7 +53,7 @@ def sampled(plant, Ts):
     """
     if plant.isctime(strict=True):
         return sample_nlsys(plant, Ts)
-    return require_period(plant, Ts)
+    return require_period(plant, Ts, loop=loop)
 
 
 def zero_order_hold(signals, Ts, *, name="zoh"):

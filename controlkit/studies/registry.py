@@ -140,6 +140,9 @@ class Study:
         (default: all of :attr:`figure_stems`).
     robustness : Robustness, optional
         The study's robustness sweep (``controlkit sweep <study>``), if it has one.
+    horizon_note : callable, optional
+        ``horizon_note(seconds) -> str or None``: what a run that short cannot show of
+        the study's claim (the command line prints it after the results).
 
     Examples
     --------
@@ -170,6 +173,7 @@ class Study:
     streaming: Callable | None = None
     stems_for: Callable | None = None
     robustness: Robustness | None = None
+    horizon_note: Callable[[float], str | None] | None = None
 
     def stems(self, cases) -> tuple[str, ...]:
         """The figures drawn for ``cases`` (see :attr:`stems_for`)."""

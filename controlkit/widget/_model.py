@@ -130,6 +130,9 @@ class DiagramModel:
                              f"control.interconnect), got {type(sys).__name__}")
         hints = copy.deepcopy(dict(getattr(sys, "drawing_hints", None) or {}))
         labels = dict(hints.pop("labels", {}))
+        for s in sys.syslist:  # a block's own junction (r - h in front of F), as drawn
+            if getattr(s, "junction", None):
+                hints.setdefault("sums", {}).setdefault(s.name, dict(s.junction))
         model = cls(name=sys.name, hints=hints, source_name=source_name)
         out_owner, in_owner = [], []
         for s in sys.syslist:
@@ -216,6 +219,8 @@ class DiagramModel:
                 continue
             new.append(Wire((src_block, a), (dst_block, b), float(gain)))
         self.wires += new
+        if new:
+            self._rewired()
         return new
 
     def disconnect(self, src_block, src_port, dst_block, dst_port):
@@ -228,6 +233,7 @@ class DiagramModel:
             raise ValueError(f"no wire runs from {src_block}.{src_port} to "
                              f"{dst_block}.{dst_port}")
         self.wires = keep
+        self._rewired()
 
     def delete_block(self, name):
         """Remove a block with its wires, the external signals it had and its hints."""
@@ -246,6 +252,13 @@ class DiagramModel:
         for members in self.hints.get("groups", {}).values():
             if name in members:
                 members.remove(name)
+        self._rewired()
+
+    def _rewired(self):
+        """A wire or a block changed: the diagram is no longer the one a builder's title
+        named ("Fig. 3: ..."), so it is drawn under its name. A block's own symbol and
+        junction stay: they describe the block, wherever it is wired."""
+        self.hints.pop("title", None)
 
     def unique_name(self, base):
         """``base``, or ``base2``, ``base3``... whichever no block has yet."""
@@ -265,6 +278,7 @@ class DiagramModel:
             raise ValueError(f"a block named {system.name!r} is already in the diagram; "
                              f"give the new one another name")
         self.blocks[system.name] = Block(system, recipe, label, position)
+        self._rewired()
         return system.name
 
     def add_from_palette(self, key, *, position=None, **kwargs):

@@ -12,10 +12,10 @@ same system.
 
 from __future__ import annotations
 
-from .continuous import response, run_continuous
+from .continuous import StiffProblem, response, run_continuous
 from .loader import CACHE_DIR
 from .run import STREAM_CHUNK_STEPS, compile_system, prepare, simulate
 from .tiers import TIERS, BlockTier, explain
 
-__all__ = ["CACHE_DIR", "STREAM_CHUNK_STEPS", "TIERS", "BlockTier", "compile_system",
-           "explain", "prepare", "response", "run_continuous", "simulate"]
+__all__ = ["CACHE_DIR", "STREAM_CHUNK_STEPS", "TIERS", "BlockTier", "StiffProblem",
+           "compile_system", "explain", "prepare", "response", "run_continuous", "simulate"]

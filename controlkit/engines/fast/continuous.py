@@ -90,6 +90,17 @@ def _eval_instants(t_eval, instants, h):
     return np.where(on, k, -1).astype(np.int64)
 
 
+
+class StiffProblem(RuntimeError):
+    """An explicit method (``RK45``, ``DOP853``) makes too little progress on a stiff diagram.
+
+    Raised when Hairer's stiffness test (:data:`.rk.STIFF`) finds the steps held down
+    by stability and the run, at that pace, would need more than
+    :data:`.rk.STIFF_STEP_BUDGET` steps; the message names the diagram, the time, its
+    continuous blocks and the remedy (``solve_ivp_method="BDF"``).
+    """
+
+
 def _solver_options(n, rtol=1e-3, atol=1e-6, max_step=np.inf, first_step=None, **other):
     if other:
         raise UnsupportedSystem(f"solve_ivp options {sorted(other)} (the fast engine takes "
@@ -161,7 +172,7 @@ def run_continuous(job: Job, T, U, X0, *, t_eval=None, method="RK45", generic=No
     Y, X, Uo = (np.zeros((sys.noutputs, m)), np.zeros((sys.nstates, m)),
                 np.zeros((sys.ninputs, m)))
     x, held = np.array(X0, dtype=float), np.zeros(plan.ny)
-    ctrl, status = np.zeros(1, dtype=np.int64), np.full(3, -1, dtype=np.int64)
+    ctrl, status = np.zeros(1, dtype=np.int64), np.full(4, -1, dtype=np.int64)
     if generic is None:
         run, use_driver = job.loop("run_continuous")
     elif generic:
@@ -203,6 +214,14 @@ def _integrator_error(job, status, t_eval, method, x):
             f"loop diverges there (a state without bound), or a block is stiff or "
             f"discontinuous; for a stiff block try solve_ivp_method='BDF' (or 'LSODA', "
             f"'Radau')")
+    if code == rk.STIFF:
+        return StiffProblem(
+            f"{sys.name!r} is stiff for {method}: after t = {where:g} s its steps are held "
+            f"down by stability, not accuracy (step size times the fastest rate |h lambda| "
+            f"above the method's stability bound for many steps in a row), in {state}; at "
+            f"its pace the run to t = {t_eval[-1]:g} s would take about "
+            f"{float(status[3]):.2g} steps. Use an implicit method: "
+            f"solve_ivp_method='BDF' (or 'LSODA', 'Radau')")
     if code == rk.NON_FINITE:
         return FloatingPointError(
             f"{sys.name!r}: the state of {state} became non-finite after t = {where:g} s "

@@ -144,7 +144,8 @@ def continuous_run(evaluate, update, outputs, rhs, machine, plan, rhs_args, time
     ``instants[k]`` is the ``k``-th instant (``fire0 + k`` its number for the firing
     rule); after the last one the integration runs to ``t_final``. ``ctrl[0]`` is the
     next evaluation time to serve (in/out). On failure ``status`` is ``[time index,
-    block, 0]`` for a NaN output, or ``[time index, INTEGRATOR_FAILED, code]``.
+    block, 0, 0]`` for a NaN output, or ``[time index, INTEGRATOR_FAILED, code, steps]``
+    (``steps``: the projected steps of a run stopped as :data:`.rk.STIFF`).
     """
     instants, fire0, k0, k1, t_final, T, U, t_eval, eval_instant = times
     Y, X, Uo = results
@@ -155,6 +156,8 @@ def continuous_run(evaluate, update, outputs, rhs, machine, plan, rhs_args, time
     nx = x.shape[0]
     nc = cidx.shape[0]
     K = instants.shape[0]
+    if k0 < k1:  # the integrator projects its progress over the run (its stiffness test)
+        rk.set_horizon(work, instants[k0], t_final)
     for k in range(k0, k1):
         t = instants[k]
         interpolate(T, U, t, ubuf)
@@ -206,6 +209,7 @@ def continuous_run(evaluate, update, outputs, rhs, machine, plan, rhs_args, time
             status[0] = served
             status[1] = INTEGRATOR_FAILED
             status[2] = code
+            status[3] = int(work.floats[rk.PROJECTED_STEPS])
             return
         for q in range(nc):
             x[cidx[q]] = yc[q]

@@ -163,7 +163,7 @@ def _continuous(sys, jobs, params, T, U, X0s, t_eval, method, solver):
     Ys = np.zeros((runs, sys.noutputs, m))
     Xs = np.zeros((runs, sys.nstates, m))
     Uos = np.zeros((runs, sys.ninputs, m))
-    statuses = np.full((runs, 3), -1, dtype=np.int64)
+    statuses = np.full((runs, 4), -1, dtype=np.int64)
     Ps = np.ascontiguousarray(np.stack([j.P for j in jobs]))
     loader.driver().run_continuous_many(
         rk.machine_function(), instants, float(T[-1]), np.ascontiguousarray(T, dtype=float),

@@ -37,7 +37,8 @@ def cmg_loop(plant=None, controller=None, *, reference=None, saturation=None, Ts
         :func:`controlkit.input_output_response`). The two agree to the integrator's
         tolerance.
     name : str
-        System name.
+        System name; the drawing's title unless it is the default (then the thesis's
+        loop, when the blocks are the thesis's).
 
     Returns
     -------
@@ -54,11 +55,13 @@ def cmg_loop(plant=None, controller=None, *, reference=None, saturation=None, Ts
     if continuous_plant and not plant.isctime(strict=True):
         raise ValueError(f"continuous_plant=True needs a continuous plant (dt = 0); "
                          f"{plant.name!r} has dt = {plant.dt}")
-    plant = plant if continuous_plant else sampled(plant, Ts)
+    plant = plant if continuous_plant else sampled(plant, Ts, loop=name)
     controller = require_period(
-        controller if controller is not None else cmg.adaptive_smc(Ts=Ts), Ts)
+        controller if controller is not None else cmg.adaptive_smc(Ts=Ts), Ts, loop=name)
     reference = reference if reference is not None else cmg.reference_generator()
     saturation = saturation if saturation is not None else cmg.torque_saturation()
+    for block in (reference, saturation):
+        require_period(block, Ts, static_ok=True, loop=name)
 
     #  +-----------+ q2d, q4d  +-----------------+ T_cmd +------------+ T1, T2 +-----------+
     #  | reference |---------->|  adaptive SMC   |------>| saturation |------->| CMG (ZOH) |--+
@@ -73,9 +76,14 @@ def cmg_loop(plant=None, controller=None, *, reference=None, saturation=None, Ts
                               "a1", "a2", "a3", "a4"],
         name=name,
     )
-    loop.drawing_hints = {  # how controlkit.drawing shows it: the thesis's names
-        "title": "CMG: adaptive backstepping SMC, sampled at Ts",
-        "labels": {reference.name: "references", controller.name: "adaptive SMC",
-                   saturation.name: "torque limits", plant.name: "CMG"},
-    }
+    # the blocks carry the thesis's names (controlkit.blocks.contract.drawn_as); the title
+    # is the thesis's loop only when the loop is: the default name and the thesis's blocks
+    papers = all(getattr(b, "display_name", None) == symbol for b, symbol in (
+        (reference, "references"), (controller, "adaptive SMC"),
+        (saturation, "torque limits"), (plant, "CMG")))
+    loop.drawing_hints = {"title": TITLE if papers and name == "cmg_loop" else name}
     return loop
+
+
+#: Title of the drawing of the thesis's loop (:func:`cmg_loop` with its own blocks).
+TITLE = "CMG: adaptive backstepping SMC, sampled at Ts"

@@ -79,11 +79,14 @@ def metrics_from_table(c) -> dict:
     }
 
 
+#: Where the figures come from, in every title: the spacecraft paper numbers its figures
+#: too, and results/ holds both studies' "Fig. 5".
+SOURCE = "CMG thesis"
 FIGURES = (
-    ("fig3_q2", "Fig. 3  Gimbal 2 angle q2", "q2 [rad]", "q2", "q2d", None),
-    ("fig4_q4", "Fig. 4  Gimbal 4 angle q4", "q4 [rad]", "q4", "q4d", None),
-    ("fig5_T1", "Fig. 5  Motor 1 torque T1", "T1 [N m]", "T1", None, T1_MAX),
-    ("fig6_T2", "Fig. 6  Motor 2 torque T2", "T2 [N m]", "T2", None, T2_MAX),
+    ("fig3_q2", f"Fig. 3 of the {SOURCE}: gimbal 2 angle q2", "q2 [rad]", "q2", "q2d", None),
+    ("fig4_q4", f"Fig. 4 of the {SOURCE}: gimbal 4 angle q4", "q4 [rad]", "q4", "q4d", None),
+    ("fig5_T1", f"Fig. 5 of the {SOURCE}: motor 1 torque T1", "T1 [N m]", "T1", None, T1_MAX),
+    ("fig6_T2", f"Fig. 6 of the {SOURCE}: motor 2 torque T2", "T2 [N m]", "T2", None, T2_MAX),
 )
 _COLORS = {"thesis": "tab:blue", "strong_friction": "tab:orange"}
 #: Legend text of each case: these curves are our simulation, not the thesis's measurements.
@@ -149,8 +152,10 @@ def figure(tables, stem):
     """One of the thesis-style Fig. 3-6 as a slide-sized :class:`matplotlib.figure.Figure`.
 
     - Fig. 3-4 (gimbal angles): the simulated angle with the reference dashed on top, and
-      below it ``|q - q_d|`` on a log axis, where the tracking error is visible (each
-      sample faint, the maximum over 50 ms windows solid).
+      below it ``|q - q_d|`` on a log axis, where the tracking error is visible: each
+      sample faint (the transients), the maximum over 50 ms windows solid and darker,
+      each named in the legend; where the error is exactly zero (before the reference
+      moves) the axis says so.
     - Fig. 5 (T1, switching every sample): the moving mean over :data:`T1_WINDOW_S` with
       its min-max band and the motor range, and a zoomed window of the raw samples.
     - Fig. 6 (T2): the same mean and band, scaled to the data; the motor range, far
@@ -174,6 +179,8 @@ def figure(tables, stem):
     >>> fig.axes[1].get_yscale()
     'log'
     """
+    from matplotlib.lines import Line2D
+
     from ...outputs.style import IDEAL_STYLE, legend_outside, log_scale, new_figure, slide_style
 
     _, title, ylabel, col, ref, limit = figure_spec(FIGURES, stem)
@@ -183,19 +190,33 @@ def figure(tables, stem):
     with slide_style():
         if ref is not None:
             fig, (ax, err_ax) = new_figure(2, height_ratios=(3, 2))
+            from matplotlib.colors import to_rgb
+
+            several = len(tables) > 1
             for name, c in tables.items():
                 color = _COLORS.get(name, "tab:green")
+                darker = tuple(0.55 * v for v in to_rgb(color))
+                case = f", {_label(name)}" if several else ""
                 ax.plot(c["time"], c[col], color=color, label=f"{col} ({_label(name)})")
                 err = np.abs(c[col] - c[ref])
+                step_ms = 1000 * float(np.median(np.diff(c["time"])))
                 err_ax.plot(c["time"], np.where(err > 0, err, np.nan), color=color,
-                            linewidth=0.6, alpha=0.35)
+                            linewidth=0.6, alpha=0.45,
+                            label=f"|{col} \N{MINUS SIGN} {ref}| every {step_ms:g} ms{case}")
                 centre, _, _, high = window_stats(c["time"], err, T1_WINDOW_S)
-                err_ax.plot(centre, np.where(high > 0, high, np.nan), color=color,
-                            label=f"|{col} - {ref}|, max over {1000 * T1_WINDOW_S:g} ms")
+                err_ax.plot(centre, np.where(high > 0, high, np.nan), color=darker,
+                            linewidth=2.0, label=f"its maximum over "
+                                                 f"{1000 * T1_WINDOW_S:g} ms{case}")
+                moving = c["time"][err > 0]
+                if not several and moving.size and moving[0] > c["time"][0] + 0.05 * (
+                        c["time"][-1] - c["time"][0]):
+                    err_ax.text(0.01, 0.5, f"0 until t = {moving[0]:.3g} s",
+                                transform=err_ax.transAxes, ha="left", va="center",
+                                color="0.35", fontsize=12)
             ax.plot(first["time"], first[ref], color="k", label=f"{ref} (reference)",
                     **IDEAL_STYLE)
             log_scale(err_ax)
-            err_ax.set_ylabel(f"|{col} - {ref}| [rad]")
+            err_ax.set_ylabel(f"|{col} \N{MINUS SIGN} {ref}| [rad]")
             err_ax.set_xlabel("time [s]")
         else:  # torques switch every sample: a moving mean with its min-max band
             if stem == "fig5_T1":
@@ -229,10 +250,13 @@ def figure(tables, stem):
                     ax.axhline(sign * limit, color="r", linestyle=":", linewidth=1.6,
                                label="motor range" if sign == 1 else None)
             else:  # far outside the data: say it instead of squashing the curve
-                title = f"{title}  (motor range +/-{limit:g} N m, off this scale)"
+                title = f"{title}\n(motor range \N{PLUS-MINUS SIGN}{limit:g} N m, off this scale)"
         ax.set_ylabel(ylabel)
         ax.set_title(title)
-        legend_outside(fig, ncols=2 if ref is None else 3)
+        legend = legend_outside(fig, ncols=2)
+        for handle in legend.legend_handles:  # the faint per-sample line, legible as a swatch
+            if isinstance(handle, Line2D) and handle.get_linewidth() < 1.0:
+                handle.set_linewidth(3.0)
     return fig
 
 

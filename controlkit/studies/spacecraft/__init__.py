@@ -25,4 +25,5 @@ STUDY = Study(
     figure_columns=outputs.figure_columns, stems_for=outputs.figure_stems,
     Ts=scenario.sc.TS_PAPER, horizon=scenario.HORIZON, signals=60,
     streaming=_streaming_metrics, robustness=robustness.ROBUSTNESS,
+    horizon_note=scenario.horizon_note,
 )

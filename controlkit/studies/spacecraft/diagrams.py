@@ -7,6 +7,8 @@ swap one (another plant, another controller) without touching the wiring.
 
 from __future__ import annotations
 
+import warnings
+
 import control as ct
 
 from ...blocks import frit, mec
@@ -21,7 +23,48 @@ MU = ["mu[0]", "mu[1]"]
 R = ["r[0]", "r[1]"]
 
 
-def _plant_side(plant, linearizer, Ts, continuous_plant):
+#: Titles of the papers' figures, drawn when a builder's diagram is the paper's: its
+#: default name and the paper's blocks (a plant of your own is still the paper's figure).
+TITLES = {
+    "linearized_plant": "Fig. 2 (red frame): the linearized plant",
+    "fig2_loop": "Fig. 2: the linearized plant closed by the outer loop",
+    "fig3": "Fig. 3: MEC with a constant gain K",
+    "fig4": "Fig. 4: MEC with the on-line FRIT tuner",
+}
+# the symbol each of the papers' blocks is drawn with (controlkit.blocks.contract.drawn_as)
+_PAPERS_SYMBOLS = {"linearizer": r"$\beta(q)\,\mu - \alpha(q)$", "controller": "$F$",
+                   "nominal": "$L_n$", "constant_gain": "$K$", "frit": "FRIT"}
+
+
+def _is_papers(block, role):
+    """Whether ``block`` is the papers' block for ``role`` (made by its factory, not renamed)."""
+    return getattr(block, "display_name", None) == _PAPERS_SYMBOLS[role]
+
+
+def _drawing_hints(name, default_name, figure, plant, linearizer, output, nominal=None,
+                   gain=None):
+    """How :func:`~controlkit.drawing.draw_block_diagram` shows a builder's diagram.
+
+    The blocks' symbols (``$F$``, ``$L_n$``, the junction ``r - h``) are the blocks' own
+    (:func:`~controlkit.blocks.contract.drawn_as`): a block passed in is drawn with its own
+    name. The builder adds only what is about the wiring: the frame of the linearized
+    plant ``L_a`` (Fig. 2), the nominal model in parallel to the plant and a tuner under
+    the output (Fig. 3-4), and the title: the paper's figure (``figure``, a key of
+    :data:`TITLES`) when ``name`` is the builder's default and the blocks are the
+    paper's, else ``name``.
+    """
+    frame = (r"$L_a$: linearized plant (Fig. 2)" if _is_papers(linearizer, "linearizer")
+             else "linearized plant")
+    hints = {"groups": {frame: [linearizer.name, plant.name, output.name]},
+             "title": TITLES[figure] if name == default_name and figure is not None else name}
+    if nominal is not None:
+        hints["beside"] = {nominal.name: plant.name}
+    if gain is not None and gain.ninputs:  # a tuner reads mu, hn and h: under the output
+        hints.setdefault("beside", {})[gain.name] = output.name
+    return hints
+
+
+def _plant_side(plant, linearizer, Ts, continuous_plant, name):
     """``(plant, linearizer, hold blocks, interconnect)`` for the plant's side of a loop.
 
     Sampled (the default, as the paper): the continuous plant under zero-order hold by
@@ -32,43 +75,15 @@ def _plant_side(plant, linearizer, Ts, continuous_plant):
     samples; both agree to the integrator's tolerance.
     """
     plant = plant if plant is not None else sc.spacecraft_plant()
-    linearizer = linearizer if linearizer is not None else sc.io_linearizer()
+    linearizer = require_period(linearizer if linearizer is not None else sc.io_linearizer(),
+                                Ts, static_ok=True, loop=name)
     if not continuous_plant:
-        return sampled(plant, Ts), linearizer, [], ct.interconnect
+        return sampled(plant, Ts, loop=name), linearizer, [], ct.interconnect
     if not plant.isctime(strict=True):
         raise ValueError(f"continuous_plant=True needs a continuous plant (dt = 0); "
                          f"{plant.name!r} has dt = {plant.dt}")
     return (plant, commanding(linearizer, U), [zero_order_hold(U, Ts)],
             sampled_data_interconnect)
-
-
-def _drawing_hints(plant, linearizer, output, controller=None, nominal=None, gain=None,
-                   compensator=None):
-    """How :func:`~controlkit.drawing.draw_block_diagram` shows these blocks: the papers'
-    symbols, the red frame of Fig. 2 (the linearized plant ``L_a``) and, in Fig. 3-4,
-    the nominal model ``L_n`` in parallel to the plant."""
-    labels = {linearizer.name: r"$\beta(q)\,\mu - \alpha(q)$", output.name: "$h(q)$"}
-    hints = {"labels": labels, "title": "Fig. 2: the linearized plant closed by the outer loop",
-             "groups": {r"$L_a$: linearized plant (Fig. 2)": [linearizer.name, plant.name,
-                                                                output.name]}}
-    if controller is not None:  # eq. 12, mu = F (r - h): the junction, then the gain F
-        labels[controller.name] = "$F$"
-        hints["sums"] = {controller.name: {"r": 1, "h": -1}}
-    frit = gain is not None and hasattr(gain, "lambda_") and hasattr(gain, "kappa")
-    if nominal is not None:
-        hints["title"] = ("Fig. 4: MEC with the on-line FRIT tuner" if frit
-                          else "Fig. 3: MEC with a constant gain K" if hasattr(gain, "K")
-                          else "MEC with the gain from " + gain.name)
-        labels[nominal.name] = "$L_n$"
-        hints["beside"] = {nominal.name: plant.name}
-    if compensator is not None:
-        labels[compensator.name] = r"$\mu_n + K\,(h_n - h)$"
-    if frit:  # the tuner (eq. 15-30) reads mu, hn and h: drawn under the output
-        labels[gain.name] = "FRIT"
-        hints.setdefault("beside", {})[gain.name] = output.name
-    elif hasattr(gain, "K"):  # constant_gain
-        labels[gain.name] = "$K$"
-    return hints
 
 
 def linearized_plant(plant=None, linearizer=None, *, Ts=sc.TS_PAPER, continuous_plant=False,
@@ -90,7 +105,8 @@ def linearized_plant(plant=None, linearizer=None, *, Ts=sc.TS_PAPER, continuous_
         Keep the plant continuous behind a zero-order hold (a sampled-data diagram)
         instead of sampling it (see :func:`output_zeroing_loop`).
     name : str
-        System name.
+        System name; the drawing's title unless it is the default (then the paper's
+        figure, when the blocks are the paper's).
 
     Returns
     -------
@@ -104,7 +120,8 @@ def linearized_plant(plant=None, linearizer=None, *, Ts=sc.TS_PAPER, continuous_
     >>> sys.input_labels, sys.output_labels[:2]
     (['mu[0]', 'mu[1]'], ['h[0]', 'h[1]'])
     """
-    plant, linearizer, hold, make = _plant_side(plant, linearizer, Ts, continuous_plant)
+    plant, linearizer, hold, make = _plant_side(plant, linearizer, Ts, continuous_plant,
+                                                name)
     output = sc.attitude_output()
 
     #        +------------+  u   +-------------+  q   +--------+  h
@@ -119,8 +136,10 @@ def linearized_plant(plant=None, linearizer=None, *, Ts=sc.TS_PAPER, continuous_
         outputs=H + U + Q,
         name=name,
     )
-    sys.drawing_hints = _drawing_hints(plant, linearizer, output)
-    sys.drawing_hints["title"] = "Fig. 2 (red frame): the linearized plant"
+    papers = _is_papers(linearizer, "linearizer")
+    sys.drawing_hints = _drawing_hints(name, "linearized_plant",
+                                       "linearized_plant" if papers else None,
+                                       plant, linearizer, output)
     return sys
 
 
@@ -150,7 +169,8 @@ def output_zeroing_loop(
         :func:`controlkit.input_output_response`), its plant integrated between samples
         by an adaptive method; the two agree to the integrator's tolerance.
     name : str
-        System name.
+        System name; the drawing's title unless it is the default (then Fig. 2's, when
+        the linearizer and the controller are the paper's).
 
     Returns
     -------
@@ -166,8 +186,11 @@ def output_zeroing_loop(
     >>> loop.nstates, loop.dt
     (4, 0.1)
     """
-    plant, linearizer, hold, make = _plant_side(plant, linearizer, Ts, continuous_plant)
+    plant, linearizer, hold, make = _plant_side(plant, linearizer, Ts, continuous_plant,
+                                                name)
     controller = controller if controller is not None else sc.outer_controller()
+    for block in (linearizer, controller):
+        require_period(block, Ts, static_ok=True, loop=name)
     output = sc.attitude_output()
 
     #          +------------+  mu  +------------+  u   +-------------+  q   +-------+
@@ -183,7 +206,9 @@ def output_zeroing_loop(
         outputs=H + U + Q + MU,
         name=name,
     )
-    sys.drawing_hints = _drawing_hints(plant, linearizer, output, controller)
+    papers = _is_papers(linearizer, "linearizer") and _is_papers(controller, "controller")
+    sys.drawing_hints = _drawing_hints(name, "fig2_loop", "fig2_loop" if papers else None,
+                                       plant, linearizer, output)
     return sys
 
 
@@ -209,8 +234,10 @@ def mec_loop(
     plant, linearizer : control.NonlinearIOSystem, optional
         As in :func:`linearized_plant`.
     controller : control.NonlinearIOSystem, optional
-        Outer controller with output ``mu_n``; default
-        ``outer_controller(F=0.0009, output="mu_n")``.
+        Outer controller with output ``mu_n``, static or discrete at ``Ts``; default
+        ``outer_controller(F=0.0009, output="mu_n")``. With ``K="frit"`` its attribute
+        ``F`` is the ``F`` of the tuner's reference model ``M = F/(s+F)``; a controller
+        without one gets the paper's ``F = 0.0009`` and a warning saying so.
     K : float, array_like, "frit" or control.NonlinearIOSystem
         The gain source (see above).
     nominal : control.NonlinearIOSystem, optional
@@ -223,7 +250,8 @@ def mec_loop(
         Keep the plant continuous behind a zero-order hold (a sampled-data diagram)
         instead of sampling it (see :func:`output_zeroing_loop`).
     name : str
-        System name.
+        System name, and the title of its drawing: with the default name and the paper's
+        blocks the drawing is titled as Fig. 3 or Fig. 4, otherwise ``name``.
 
     Returns
     -------
@@ -232,28 +260,36 @@ def mec_loop(
         r[1]``; outputs ``h[0], h[1], u[0], u[1],
         q[0]..q[3], mu[0], mu[1], mu_n[0], mu_n[1], hn[0], hn[1], K[0]..K[3]``.
 
+    Raises
+    ------
+    ValueError
+        A block of another period, or a continuous one (the message names it and says
+        how to sample it, or to wire the diagram with :func:`controlkit.interconnect`);
+        a gain source without the outputs ``K[0]..K[3]``.
+
     Examples
     --------
     >>> loop = mec_loop(K=0.1)
     >>> [s.name for s in loop.syslist]
     ['plant', 'output', 'nominal', 'gain', 'controller', 'mec', 'linearizer']
     """
-    plant, linearizer, hold, make = _plant_side(plant, linearizer, Ts, continuous_plant)
+    plant, linearizer, hold, make = _plant_side(plant, linearizer, Ts, continuous_plant,
+                                                name)
     controller = controller if controller is not None else sc.outer_controller(output="mu_n")
     nominal = nominal if nominal is not None else mec.nominal_model(Ts)
+    for block in (linearizer, controller, nominal):
+        require_period(block, Ts, static_ok=True, loop=name)
     if isinstance(K, str):
         if K != "frit":
             raise ValueError(f'K must be a gain, "frit" or a gain-source block, got {K!r}')
-        gain = frit.frit_tuner(controller.F if hasattr(controller, "F") else sc.F_PAPER, Ts,
-                              h0=h0)
+        gain = frit.frit_tuner(_frit_filter_constant(controller), Ts, h0=h0)
     elif isinstance(K, ct.InputOutputSystem):
         gain = K
     else:
         gain = mec.constant_gain(K)
     if gain.output_labels != mec.K_SIGNALS:
         raise ValueError(f"the gain source must output {mec.K_SIGNALS}, got {gain.output_labels}")
-    for block in (nominal, gain):
-        require_period(block, Ts, static_ok=True)
+    require_period(gain, Ts, static_ok=True, loop=name)
     compensator = mec.mec_compensator()
     MU_N, HN = ["mu_n[0]", "mu_n[1]"], ["hn[0]", "hn[1]"]
 
@@ -277,6 +313,30 @@ def mec_loop(
         outputs=H + U + Q + MU + MU_N + HN + mec.K_SIGNALS,
         name=name,
     )
-    sys.drawing_hints = _drawing_hints(plant, linearizer, output, controller, nominal, gain,
-                                       compensator)
+    figure = ("fig4" if _is_papers(gain, "frit") else
+              "fig3" if _is_papers(gain, "constant_gain") else None)
+    if not all(_is_papers(b, role) for b, role in ((linearizer, "linearizer"),
+                                                   (controller, "controller"),
+                                                   (nominal, "nominal"))):
+        figure = None
+    sys.drawing_hints = _drawing_hints(name, "mec_loop", figure, plant, linearizer, output,
+                                       nominal, gain)
     return sys
+
+
+def _frit_filter_constant(controller):
+    """The ``F`` of the FRIT tuner's reference model ``M = F / (s + F)``: the controller's.
+
+    The tuner asks which ``K`` makes the loop look like ``F / (s + F)``, so ``F`` must be
+    the outer loop's. A controller of the papers (:func:`~controlkit.blocks.spacecraft.
+    outer_controller`) says its ``F``; for any other the paper's value is used, with a
+    warning that names it and how to choose another.
+    """
+    if hasattr(controller, "F"):
+        return controller.F
+    warnings.warn(
+        f"mec_loop(K=\"frit\"): controller {controller.name!r} has no attribute F, so the "
+        f"FRIT tuner's reference model M = F/(s+F) uses the paper's F = {sc.F_PAPER} 1/s; "
+        f"for another, pass K=controlkit.blocks.frit.frit_tuner(F, Ts, h0=h0) or set "
+        f"{controller.name}.F", UserWarning, stacklevel=3)
+    return sc.F_PAPER

@@ -78,20 +78,32 @@ def metrics_from_table(cols) -> dict:
     }
 
 
+#: Where the figures come from, in every title: the CMG thesis numbers its figures too,
+#: and results/ holds both studies' "Fig. 5".
+SOURCE = "spacecraft paper"
 # (file stem, title, y label, columns)
 FIGURES = (
-    ("fig05_h1", "Fig. 5  Output h1", "h1 = q1 [-]", ("h1",)),
-    ("fig06_h2", "Fig. 6  Output h2", "h2 = q2 [-]", ("h2",)),
-    ("fig07_pointing_error", "Fig. 7  Pointing error of antenna", "pointing error [deg]",
-     ("pointing_error_deg",)),
-    ("fig08_K", "Fig. 8  Compensation gain K", "K [1/s]", ("K11", "K12", "K21", "K22")),
-    ("fig09_u1", "Fig. 9  Input u1", "u1 [rad/s]", ("u1",)),
-    ("fig10_u2", "Fig. 10  Input u2", "u2 [rad/s]", ("u2",)),
+    ("fig05_h1", f"Fig. 5 of the {SOURCE}: output h1", "h1 = q1 [-]", ("h1",)),
+    ("fig06_h2", f"Fig. 6 of the {SOURCE}: output h2", "h2 = q2 [-]", ("h2",)),
+    ("fig07_pointing_error", f"Fig. 7 of the {SOURCE}: pointing error of the antenna",
+     "pointing error [deg]", ("pointing_error_deg",)),
+    ("fig08_K", f"Fig. 8 of the {SOURCE}: compensation gain K", "K [1/s]",
+     ("K11", "K12", "K21", "K22")),
+    ("fig09_u1", f"Fig. 9 of the {SOURCE}: input u1", "u1 [rad/s]", ("u1",)),
+    ("fig10_u2", f"Fig. 10 of the {SOURCE}: input u2", "u2 [rad/s]", ("u2",)),
 )
-#: Line style of each entry of ``K`` in Fig. 8 (the colour is the case's).
+#: Colour of each entry of ``K`` in Fig. 8 (Okabe-Ito: told apart in colour-blind
+#: vision and in greyscale print, together with the line styles).
+K_COLORS = {"K11": "#0072B2", "K12": "#E69F00", "K21": "#009E73", "K22": "#CC79A7"}
+#: Line style of each entry of ``K`` in Fig. 8, with one case; with several cases the
+#: style tells the cases apart.
 K_STYLES = {"K11": "-", "K12": "--", "K21": "-.", "K22": ":"}
-#: Lowest pointing error shown on Fig. 7's log axis, in degrees.
-FIG7_FLOOR_DEG = 1e-4
+#: Line style of each case in Fig. 8 when several cases have a compensator.
+CASE_STYLES = ("-", "--", ":", "-.")
+#: Lowest pointing error Fig. 7's log axis may show, in degrees: the axis starts at the
+#: power of ten below the smallest error drawn (the ideal case reaches 3e-7 deg at
+#: 20 000 s), but no lower than this.
+FIG7_FLOOR_DEG = 1e-9
 # ~4 000 points per curve: identical at slide size, and quick to draw
 _POINTS = 4000
 
@@ -111,8 +123,10 @@ def figure(tables: dict[str, dict[str, np.ndarray]], stem: str):
     """One of the paper's Fig. 5-10 as a slide-sized :class:`matplotlib.figure.Figure`.
 
     The ideal case (no model error) is dashed and drawn on top; the legend sits below the
-    axes. Fig. 7 has a log axis with the 0.05 deg requirement; Fig. 8 shows only the
-    cases with a compensator, one colour per case and one line style per entry of ``K``.
+    axes. Fig. 7 has a log axis with the 0.05 deg requirement, reaching down to the
+    smallest error drawn; Fig. 8 shows only the cases with a compensator, one colour
+    (:data:`K_COLORS`) per entry of ``K`` and, with several cases, one line style per
+    case.
 
     Parameters
     ----------
@@ -145,15 +159,20 @@ def figure(tables: dict[str, dict[str, np.ndarray]], stem: str):
     order = sorted(shown, key=lambda n: n == "ideal")
     with slide_style():
         fig, (ax,) = new_figure()
-        for name in order:
+        for number, name in enumerate(order):
             columns, case = shown[name], scenario.CASES[name]
             every = slice(None, None, max(1, len(columns["time"]) // _POINTS))
-            style = dict(IDEAL_STYLE) if name == "ideal" else {}
-            for col in cols:
-                if len(cols) > 1:
-                    style["linestyle"] = K_STYLES[col]
-                ax.plot(columns["time"][every], columns[col][every], color=case.color,
-                        label=case.label if len(cols) == 1 else f"{col}", **style)
+            if len(cols) == 1:
+                style = dict(IDEAL_STYLE) if name == "ideal" else {}
+                ax.plot(columns["time"][every], columns[cols[0]][every], color=case.color,
+                        label=case.label, **style)
+                continue
+            for col in cols:  # Fig. 8: a colour per entry of K, a style per case
+                style = K_STYLES[col] if len(shown) == 1 else CASE_STYLES[
+                    number % len(CASE_STYLES)]
+                ax.plot(columns["time"][every], columns[col][every], color=K_COLORS[col],
+                        linestyle=style, linewidth=2.0,
+                        label=col if number == 0 or len(shown) == 1 else None)
         ax.set_xlabel("time [s]")
         ax.set_ylabel(ylabel)
         ax.set_title(title)
@@ -162,16 +181,20 @@ def figure(tables: dict[str, dict[str, np.ndarray]], stem: str):
             ax.axhline(POINTING_REQUIREMENT_DEG, color="k", linestyle=":", linewidth=1.6,
                        label=f"requirement {POINTING_REQUIREMENT_DEG} deg", zorder=6)
             top = max([1.0] + [float(np.max(c["pointing_error_deg"])) for c in shown.values()])
-            ax.set_ylim(FIG7_FLOOR_DEG, 2 * top)
+            positive = [float(np.min(e[e > 0])) for c in shown.values()
+                        if ((e := np.asarray(c["pointing_error_deg"])) > 0).any()]
+            low = min(positive, default=POINTING_REQUIREMENT_DEG / 10)
+            ax.set_ylim(max(FIG7_FLOOR_DEG, 10.0 ** np.floor(np.log10(low))), 2 * top)
         if stem == "fig08_K":
             if not shown:
                 ax.text(0.5, 0.5, "no case with a compensator", transform=ax.transAxes,
                         ha="center", va="center")
-            elif len(shown) > 1:  # one colour per case, named once
+            elif len(shown) > 1:  # one line style per case, named once
                 from matplotlib.lines import Line2D
 
-                for name in order:
-                    ax.add_line(Line2D([], [], color=scenario.CASES[name].color,
+                for number, name in enumerate(order):
+                    ax.add_line(Line2D([], [], color="0.25",
+                                       linestyle=CASE_STYLES[number % len(CASE_STYLES)],
                                        label=scenario.CASES[name].label))
         if ax.get_legend_handles_labels()[0]:
             legend_outside(fig, ncols=4 if stem == "fig08_K" else None)

@@ -90,6 +90,62 @@ def initial_attitude() -> np.ndarray:
     return sc.quaternion_from_axis_angle([1.0, 2.0, 3.0], 30.0)
 
 
+def requirement_time(F=sc.F_PAPER, Ts=sc.TS_PAPER) -> float:
+    r"""When the ideal loop's pointing error first falls under the requirement, in s.
+
+    With the exact model the loop is linear, ``h[k] = (1 - F Ts)^k h[0]`` (eq. 10-12),
+    and for small angles the pointing error ``e`` is proportional to ``|h|``, so it
+    falls from ``e0`` (Table 2's attitude) under ``e_req = 0.05`` deg after
+
+    .. math:: t^* = T_s \, \frac{\ln(e_0 / e_{req})}{-\ln(1 - F T_s)}
+              \approx \frac{\ln(e_0 / e_{req})}{F}.
+
+    No loop with the paper's ``F`` gets there sooner: the compensators recover the
+    ideal response, they do not speed it up.
+
+    Examples
+    --------
+    >>> round(requirement_time())
+    6527
+    """
+    e0 = float(sc.pointing_error_deg(initial_attitude()[:, np.newaxis])[0])
+    return Ts * np.log(e0 / sc.POINTING_REQUIREMENT_DEG) / -np.log1p(-F * Ts)
+
+
+def claim_horizon(F=sc.F_PAPER, Ts=sc.TS_PAPER) -> float:
+    """The shortest horizon that can show the paper's claim: ``2 t*``, to the next 1000 s.
+
+    The requirement is judged over the last half of a run (``metrics``), so the run must
+    last twice :func:`requirement_time`.
+
+    Examples
+    --------
+    >>> claim_horizon()
+    14000.0
+    """
+    return float(1000.0 * np.ceil(2 * requirement_time(F, Ts) / 1000.0))
+
+
+def horizon_note(horizon) -> str | None:
+    """What a run of ``horizon`` seconds cannot show of the paper's claim, or None.
+
+    Examples
+    --------
+    >>> horizon_note(20000.0) is None
+    True
+    >>> horizon_note(2000.0).startswith("at 2000 s the paper's claim cannot show")
+    True
+    """
+    shortest = claim_horizon()
+    if horizon >= shortest:
+        return None
+    return (f"at {horizon:g} s the paper's claim cannot show: the requirement "
+            f"({sc.POINTING_REQUIREMENT_DEG:g} deg) is judged over the last half of a run, "
+            f"and even the ideal loop needs {requirement_time():.0f} s to get under it "
+            f"(h decays as (1 - F Ts)^k, F = {sc.F_PAPER:g} 1/s); --horizon {shortest:g} is "
+            f"the shortest run that shows it (the published {HORIZON:g} s take seconds)")
+
+
 def true_plant(model_error: bool, *, inertia_error_scale=1.0, momentum_scale=1.0,
                name="plant"):
     """The plant the controller faces.

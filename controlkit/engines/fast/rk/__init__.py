@@ -138,10 +138,16 @@ from .workspace import (
     NEXT_STEP,
     NFEV,
     NON_FINITE,
+    PROJECTED_STEPS,
+    RUN_ACCEPTED,
     STAGE_ROWS,
     STATUS,
     STATUS_MESSAGES,
     STEP_TOO_SMALL,
+    STIFF,
+    STIFF_STEP_BUDGET,
+    STIFF_STEPS_BEFORE_PROJECTING,
+    STIFFNESS,
     SUCCESS,
     T_REQUEST,
     TIME_FAILED,
@@ -149,6 +155,7 @@ from .workspace import (
     Workspace,
     load,
     make_workspace,
+    set_horizon,
     stage_input,
     state,
     step_times,
@@ -162,11 +169,13 @@ __all__ = [
     "ERROR_EMBEDDED", "FINISHED", "HAVE_NUMBA", "INVALID_ARGUMENT", "MAX_FACTOR",
     "METHODS", "METHOD_INDEX", "MIN_FACTOR", "NEXT_EVAL", "NEXT_STEP", "NFEV",
     "NON_FINITE", "N_ACCEPTED", "N_DENSE", "N_FLOAT_SLOTS", "N_INT_SLOTS", "N_REJECTED",
-    "RK23", "RK45", "RTOL_FLOOR", "SAFETY", "STAGE_ROWS", "STATUS", "STATUS_MESSAGES",
-    "STEP_TOO_SMALL", "SUCCESS", "TABLEAUX", "TIME_FAILED", "TIME_REACHED", "T_REQUEST",
+    "PROJECTED_STEPS", "RK23", "RK45", "RTOL_FLOOR", "RUN_ACCEPTED", "SAFETY", "STAGE_ROWS",
+    "STATUS", "STATUS_MESSAGES", "STEP_TOO_SMALL", "STIFF", "STIFFNESS", "STIFF_STEP_BUDGET",
+    "STIFF_STEPS_BEFORE_PROJECTING",
+    "SUCCESS", "TABLEAUX", "TIME_FAILED", "TIME_REACHED", "T_REQUEST",
     "Tableau", "Workspace", "first_class", "load", "machine", "machine_function",
-    "machine_on_arrays", "make_workspace", "solve_interval", "solve_ivp", "stage_input",
-    "state", "step_times",
+    "machine_on_arrays", "make_workspace", "set_horizon", "solve_interval", "solve_ivp",
+    "stage_input", "state", "step_times",
 ]
 
 
@@ -236,8 +245,10 @@ def solve_ivp(rhs, t_span, y0, method="RK45", t_eval=None, args=(), rtol=1e-3, a
     dict
         ``t`` (the evaluation times served), ``y`` (shape ``(n, len(t))``, scipy's
         layout), ``y_end``, ``status`` (0 success; -1 step too small; -2 non-finite;
-        -3 invalid argument), ``message``, ``success``, ``nfev``, ``n_accepted``,
-        ``n_rejected``, ``t_reached``, ``step_times``.
+        -3 invalid argument; -4 stiff, :data:`STIFF`), ``message``, ``success``,
+        ``nfev``, ``n_accepted``, ``n_rejected``, ``t_reached``, ``step_times``,
+        ``stiffness`` (the estimate of ``|h lambda|`` on the last accepted step) and
+        ``projected_steps`` (the steps a run stopped as stiff would have needed, else 0).
 
     Raises
     ------
@@ -292,4 +303,6 @@ def solve_ivp(rhs, t_span, y0, method="RK45", t_eval=None, args=(), rtol=1e-3, a
         "n_rejected": int(work.ints[N_REJECTED]),
         "t_reached": float(work.floats[TIME_REACHED]),
         "step_times": step_times(work).copy(),
+        "stiffness": float(work.floats[STIFFNESS]),
+        "projected_steps": float(work.floats[PROJECTED_STEPS]),
     }

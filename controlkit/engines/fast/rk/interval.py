@@ -110,7 +110,9 @@ def solve_interval(machine_function, rhs, args, method_index, t0, t1, y0, rtol, 
     Returns
     -------
     status : int
-        :data:`SUCCESS`, :data:`STEP_TOO_SMALL`, :data:`NON_FINITE` or
+        :data:`SUCCESS`, :data:`STEP_TOO_SMALL`, :data:`NON_FINITE`, :data:`STIFF` (a
+        run that looks stiff and would need more than :data:`STIFF_STEP_BUDGET` steps,
+        projected over :func:`set_horizon`'s span or else the interval) or
         :data:`INVALID_ARGUMENT` (meanings in :data:`STATUS_MESSAGES`).
     next_eval : int
         Index of the first evaluation time not served.

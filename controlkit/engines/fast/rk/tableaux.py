@@ -55,6 +55,8 @@ Tableau = namedtuple(
         "E",
         "E_low",
         "dense",
+        "stiffness_weights",
+        "stiffness_bound",
     ],
 )
 Tableau.__doc__ = """An explicit Runge-Kutta pair with its error estimate and dense output.
@@ -93,6 +95,18 @@ E, E_low : numpy.ndarray
 dense : numpy.ndarray
     ``P`` (``(S+1) x p``) for :data:`DENSE_POWERS`, ``D`` (``4 x n_rows``) for
     :data:`DENSE_DOP853`.
+stiffness_weights : numpy.ndarray
+    ``w_j = b_j - a_{S-1,j}`` (``S``): ``y_new - y_{S-1} = h sum_j w_j k_j``, the
+    difference between the new state and the argument of the last stage, which both
+    sit at ``t + h`` when ``c_{S-1} = 1`` (Hairer's stiffness test, see
+    ``stiffness_bound``).
+stiffness_bound : float
+    The bound on the estimate ``|h lambda| = |k_S - k_{S-1}| / |sum_j w_j k_j|`` of the
+    step size times the Jacobian's largest eigenvalue along the step above which a step
+    is limited by stability rather than accuracy: 3.25 for RK45 and 6.1 for DOP853, the
+    values of Hairer's codes DOPRI5 and DOP853 (Hairer & Wanner, *Solving Ordinary
+    Differential Equations II*, 2nd ed., Sec. IV.2); 0 for RK23, whose last stage is not
+    at ``t + h`` (no test).
 
 Examples
 --------
@@ -109,11 +123,16 @@ weights satisfy the first two order conditions, ``sum b_j = 1`` and
 """
 
 
-def _tableau(*, n_stages, error_kind, dense_kind, estimator_order, C, A, B, E, E_low, dense):
+def _tableau(*, n_stages, error_kind, dense_kind, estimator_order, C, A, B, E, E_low, dense,
+             stiffness_bound=0.0):
     """Pack a tableau as C-contiguous float64 arrays (numba freezes such globals)."""
     C = np.ascontiguousarray(C, dtype=np.float64)
     A = np.ascontiguousarray(A, dtype=np.float64)
     n_rows = C.shape[0] if C.shape[0] > n_stages else n_stages + 1
+    weights = np.zeros(n_stages)
+    if stiffness_bound:
+        assert C[n_stages - 1] == 1.0, "the stiffness test needs a last stage at t + h"
+        weights = np.asarray(B, dtype=np.float64) - A[n_stages - 1, :n_stages]
     return Tableau(
         n_stages=int(n_stages),
         n_rows=int(n_rows),
@@ -127,6 +146,8 @@ def _tableau(*, n_stages, error_kind, dense_kind, estimator_order, C, A, B, E, E
         E=np.ascontiguousarray(E, dtype=np.float64),
         E_low=np.ascontiguousarray(E_low, dtype=np.float64),
         dense=np.ascontiguousarray(dense, dtype=np.float64),
+        stiffness_weights=np.ascontiguousarray(weights),
+        stiffness_bound=float(stiffness_bound),
     )
 
 
@@ -182,6 +203,7 @@ RK45 = _tableau(
         [0, -282668133 / 205662961, 2019193451 / 616988883, -1453857185 / 822651844],
         [0, 40617522 / 29380423, -110615467 / 29380423, 69997945 / 29380423],
     ],
+    stiffness_bound=3.25,
 )
 
 
@@ -198,6 +220,7 @@ DOP853 = _tableau(
     E=dop853_coefficients.E5,
     E_low=dop853_coefficients.E3,
     dense=dop853_coefficients.D,
+    stiffness_bound=6.1,
 )
 
 #: The methods by the names ``solve_ivp`` knows them by.

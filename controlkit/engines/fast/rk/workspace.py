@@ -53,8 +53,16 @@ _FIRST_STEP = 15
 _H0 = 16
 _D1 = 17
 _RTOL_GIVEN = 18
+#: ``floats`` slot: the stiffness estimate ``|h lambda|`` of the last accepted step
+#: (see :func:`set_horizon`; 0 for a method without the test).
+STIFFNESS = 19
+#: ``floats`` slot: the steps the whole run was projected to need when it stopped as
+#: :data:`STIFF`.
+PROJECTED_STEPS = 20
+_RUN_START = 21
+_RUN_END = 22
 #: Number of scalar slots at the start of ``work.floats``.
-N_FLOAT_SLOTS = 19
+N_FLOAT_SLOTS = 23
 
 # The vectors after the scalars, in this order (each of the state's size).
 _Y = 0
@@ -94,8 +102,13 @@ _EXACT = 13
 _CLOSED_RIGHT = 14
 _LOG_SIZE = 15
 _EVAL_CAPACITY = 16
+#: ``ints`` slot: accepted steps since :func:`set_horizon` (over all the intervals of a
+#: run; :func:`load` keeps it).
+RUN_ACCEPTED = 17
+_STIFF_IN_ROW = 18
+_NONSTIFF_IN_ROW = 19
 #: Number of slots of ``work.ints``.
-N_INT_SLOTS = 17
+N_INT_SLOTS = 20
 
 # Status codes returned by solve_interval.
 #: The interval was integrated to its end.
@@ -106,12 +119,32 @@ STEP_TOO_SMALL = -1
 NON_FINITE = -2
 #: An argument is out of range (see :data:`STATUS_MESSAGES`).
 INVALID_ARGUMENT = -3
+#: The problem is stiff for the method and the run would take too many steps.
+STIFF = -4
+
+#: Accepted steps in a row that must look stiff before :data:`STIFF` may be declared
+#: (Hairer's DOPRI5 and DOP853 print their "problem seems to become stiff" after 15).
+STIFF_STEPS_IN_ROW = 15
+#: Non-stiff-looking steps in a row that clear the count (6, as in DOPRI5).
+NONSTIFF_STEPS_IN_ROW = 6
+#: Accepted steps of a run before its progress is projected (the first steps, from the
+#: starting step, are shorter than the rest).
+STIFF_STEPS_BEFORE_PROJECTING = 1000
+#: A run that looks stiff stops as :data:`STIFF` when the steps it would need, projected
+#: from its progress so far, exceed this: at 1-3 us a step for a small diagram, half a
+#: minute or more of a run that an implicit method (BDF, LSODA, Radau) does in a fraction
+#: of a second. Below it the run goes on, as scipy's would.
+STIFF_STEP_BUDGET = 10_000_000
 
 #: What each status code means.
 STATUS_MESSAGES = {
     SUCCESS: "The solver successfully reached the end of the integration interval.",
     STEP_TOO_SMALL: "Required step size is less than spacing between numbers.",
     NON_FINITE: "The state or its derivative became non-finite (NaN or infinite).",
+    STIFF: (
+        "The problem is stiff: the explicit method's step is held down by stability, not "
+        "accuracy, and the run would need too many steps; use an implicit method (BDF, "
+        "LSODA or Radau)."),
     INVALID_ARGUMENT: (
         "Invalid argument: max_step must be > 0, first_step in [0, |t1 - t0|], "
         "atol >= 0 of the state's size, t0 and t1 finite, the evaluation times "
@@ -198,7 +231,33 @@ def make_workspace(n, log_size=0, eval_capacity=0):
     ints = np.zeros(N_INT_SLOTS, dtype=np.int64)
     ints[_LOG_SIZE] = log_size
     ints[_EVAL_CAPACITY] = eval_capacity
+    floats[_RUN_START] = math.nan
+    floats[_RUN_END] = math.nan
     return Workspace(floats, stages_flat.reshape((STAGE_ROWS, n)), stages_flat, ints)
+
+
+@jit
+def set_horizon(work, t_start, t_end):
+    """Tell the integrator the whole run's span, over which it projects its progress.
+
+    A sampled-data run integrates many short intervals; the stiffness test
+    (:data:`STIFF`) projects the steps the run needs from the steps taken since
+    ``t_start`` and the time reached, towards ``t_end``. Without this call the interval
+    being integrated is the span. Resets the run's step count and stiffness counters.
+
+    Examples
+    --------
+    >>> work = make_workspace(1)
+    >>> set_horizon(work, 0.0, 100.0)
+    >>> float(work.floats[_RUN_END]), int(work.ints[RUN_ACCEPTED])
+    (100.0, 0)
+    """
+    work.floats[_RUN_START] = t_start
+    work.floats[_RUN_END] = t_end
+    work.floats[STIFFNESS] = 0.0
+    work.ints[RUN_ACCEPTED] = 0
+    work.ints[_STIFF_IN_ROW] = 0
+    work.ints[_NONSTIFF_IN_ROW] = 0
 
 
 @jit(inline=True)
@@ -362,8 +421,10 @@ def load(method_index, t0, t1, y0, rtol, atol, max_step, first_step, i_eval, clo
     """Put an interval's arguments into ``work``; :func:`machine` then starts on it.
 
     Arguments as :func:`solve_interval`; ``method_index`` is ``METHOD_INDEX[name]``.
-    The counters are reset; arguments are checked when the machine starts (a state or
-    tolerance of the wrong size makes it finish at once with ``INVALID_ARGUMENT``).
+    The counters are reset (the run's step count and stiffness counters too, unless
+    :func:`set_horizon` gave the run a span); arguments are checked when the machine
+    starts (a state or tolerance of the wrong size makes it finish at once with
+    ``INVALID_ARGUMENT``).
 
     Examples
     --------
@@ -388,6 +449,10 @@ def load(method_index, t0, t1, y0, rtol, atol, max_step, first_step, i_eval, clo
     f[_RTOL_GIVEN] = rtol
     f[_MAX_STEP] = max_step
     f[_FIRST_STEP] = first_step
+    if not math.isfinite(f[_RUN_END]):  # no run span set: this interval is the run
+        st[RUN_ACCEPTED] = 0
+        st[_STIFF_IN_ROW] = 0
+        st[_NONSTIFF_IN_ROW] = 0
     st[_METHOD] = method_index
     st[NEXT_EVAL] = i_eval
     st[_CLOSED_RIGHT] = 1 if closed_right else 0
