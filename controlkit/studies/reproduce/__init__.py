@@ -26,7 +26,8 @@ written) and :mod:`.manifest` (``run.json``, and the cleaning of a killed run's 
 """
 
 from .checks import CSV_BYTES_PER_SIGNAL, MEMORY_LIMIT, OWN_OPTIONS
-from .checks import _writable as _writable  # the CLI proves its --out writable so
+from .checks import _horizons as _horizons  # the CLI's note on a short horizon
+from .checks import _writable as _writable  # the sweep command checks its --out with it
 from .command import LOCK_FILE, reproduce
 from .manifest import MANIFEST
 from .study import CASE_FAILURES, FIGURE_POINTS
