@@ -317,6 +317,7 @@ def load_python(source: str, injected: dict):
     from .rk.interval import _solve_interval_python
 
     python_rk = SimpleNamespace(solve_interval=_solve_interval_python,
+                                set_horizon=py(rk.set_horizon),
                                 make_workspace=rk.make_workspace, SUCCESS=rk.SUCCESS)
     # the loops' own Python code, reading Python versions of what they call
     scope = dict(vars(loops), rk=python_rk)
