@@ -178,19 +178,18 @@ class _Translator(_OutsideReads, _HelperCalls, ast.NodeTransformer):
         if self._is_source(node.value):
             self._opaque("it writes into params")
             return node
-        chain = self._chain(node)
-        if chain is not None:
-            return chain
-        return self.generic_visit(node)
+        return self._chain_or_visit(node)
 
     def visit_Attribute(self, node):
         if self._is_source(node.value):
             self._opaque(f"it uses params.{node.attr}")
             return node
+        return self._chain_or_visit(node)
+
+    def _chain_or_visit(self, node):
+        """A read from an object outside, frozen (:meth:`_chain`), else ``node`` visited."""
         chain = self._chain(node)
-        if chain is not None:
-            return chain
-        return self.generic_visit(node)
+        return chain if chain is not None else self.generic_visit(node)
 
     def visit_Compare(self, node):
         if len(node.ops) == 1 and isinstance(node.ops[0], ast.In | ast.NotIn) \
