@@ -612,9 +612,9 @@ def test_a_running_scheduler_is_used(tmp_path):
 
 def test_store_that_cannot_be_written_is_refused(tmp_path):
     (tmp_path / "file").write_text("")
-    with pytest.raises(ValueError, match=r"store .*file is a file, not a folder"):
+    with pytest.raises(ValueError, match=r"store '.*file' is a file, not a folder"):
         sweep(square, grid={"x": [1]}, executor="serial", store=tmp_path / "file")
-    with pytest.raises(ValueError, match=r"store .*file/sub cannot be made: .*file is a file"):
+    with pytest.raises(ValueError, match=r"cannot write to store '.*file/sub': .*file is a file"):
         sweep(square, grid={"x": [1]}, executor="serial", store=tmp_path / "file" / "sub")
     locked = tmp_path / "read-only"
     locked.mkdir()
@@ -622,7 +622,7 @@ def test_store_that_cannot_be_written_is_refused(tmp_path):
     try:
         if os.access(locked, os.W_OK):
             pytest.skip("this user writes anywhere (root)")
-        with pytest.raises(ValueError, match=r"cannot write to store .*read-only/s: "
+        with pytest.raises(ValueError, match=r"cannot write to store '.*read-only/s': "
                                              r".*read-only is not writable"):
             sweep(square, grid={"x": [1]}, executor="serial", store=locked / "s")
     finally:

@@ -13,12 +13,13 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import _checks
 from .._store import RunStore
 from .._workers import ProcessRunner, ThreadRunner
 from ..outputs.export import json_default
 from .executors import _check_executor, _check_sendable, _connect, _on_executor, process_context
 from .points import plan
-from .rows import _call, _call_elsewhere, _failed_row, _row
+from .rows import _call, _call_elsewhere, _failed_row, _pandas, _row
 
 
 def _spec_key(function, runs, *, stored: bool) -> str:
@@ -93,21 +94,7 @@ def check_folder(path, name: str = "store") -> Path:
     ...
     ValueError: --out must name a folder, got ''
     """
-    if not isinstance(path, str | os.PathLike):
-        raise ValueError(f"{name} must be a folder path, got {path!r}")
-    if not str(os.fspath(path)).strip():
-        raise ValueError(f"{name} must name a folder, got {path!r}")
-    folder = Path(path).expanduser()  # "~/results" means the home folder, as in a shell
-    if folder.exists() and not folder.is_dir():
-        raise ValueError(f"{name} {folder} is a file, not a folder")
-    existing = folder.absolute()
-    while not existing.exists():
-        existing = existing.parent
-    if not existing.is_dir():
-        raise ValueError(f"{name} {folder} cannot be made: {existing} is a file")
-    if not os.access(existing, os.W_OK | os.X_OK):
-        raise ValueError(f"cannot write to {name} {folder}: {existing} is not writable")
-    return folder
+    return _checks.folder(name, path)
 
 
 def _progress_bar(total, enabled):
@@ -221,11 +208,7 @@ def sweep(function: Callable[..., dict], *, grid: dict | None = None,
     >>> table[["F", "stable"]].values.tolist()
     [[1.0, True], [30.0, False]]
     """
-    try:
-        import pandas as pd
-    except ImportError:
-        raise ImportError('controlkit.sweep returns a pandas DataFrame: '
-                          'pip install "controlkit[sweep]"') from None
+    pd = _pandas()
     # --- every argument, before anything is created -------------------------------------
     if not callable(function):
         raise ValueError(f"function must be callable, got {function!r}")

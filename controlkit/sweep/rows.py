@@ -11,6 +11,16 @@ from .._store import plain, same_value
 from .points import RESERVED, Run
 
 
+def _pandas():
+    """pandas, which a sweep's table is; ImportError naming the extra that installs it."""
+    try:
+        import pandas
+    except ImportError:
+        raise ImportError('controlkit.sweep returns a pandas DataFrame: '
+                          'pip install "controlkit[sweep]"') from None
+    return pandas
+
+
 def _describe(exc: BaseException) -> str:
     """``"Type: message"`` of an exception, even one whose message cannot be made."""
     name = type(exc).__name__

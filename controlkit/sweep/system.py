@@ -7,7 +7,7 @@ import sys
 import time
 
 from .points import plan
-from .rows import _describe, _plain_metrics
+from .rows import _describe, _pandas, _plain_metrics
 
 
 def sweep_system(sys, timepts, inputs=0.0, initial_state=0.0, *, metrics, grid=None,
@@ -59,11 +59,7 @@ def sweep_system(sys, timepts, inputs=0.0, initial_state=0.0, *, metrics, grid=N
     >>> table[["a", "final"]].values.tolist()
     [[0.5, 1.836], [1.0, 0.993], [2.0, 0.5]]
     """
-    try:
-        import pandas as pd
-    except ImportError:
-        raise ImportError('controlkit.sweep returns a pandas DataFrame: '
-                          'pip install "controlkit[sweep]"') from None
+    pd = _pandas()
     if not callable(metrics):
         raise ValueError(f"metrics must be a function of a response, got {metrics!r}")
     runs = plan(grid=grid, draws=draws, samples=samples, seed=seed)

@@ -87,23 +87,12 @@ def _checked_folder(out) -> Path:
     """``out`` as a folder path (``~`` expanded), refused without creating anything when
     empty (it would mean the current folder), a file, or under a file or a place that
     cannot be written."""
-    import os
+    from ... import _checks
 
-    if not isinstance(out, str | os.PathLike):
-        raise UsageError(f"out must be a folder path, got {out!r}")
-    if not str(os.fspath(out)).strip():
-        raise UsageError(f"out must name a folder, got {out!r}")
-    folder = Path(out).expanduser()
-    if folder.exists() and not folder.is_dir():
-        raise UsageError(f"out {str(folder)!r} is a file, not a folder")
-    existing = folder.absolute()
-    while not existing.exists():
-        existing = existing.parent
-    if not existing.is_dir():
-        raise UsageError(f"cannot write to out {str(folder)!r}: {existing} is a file")
-    if not os.access(existing, os.W_OK | os.X_OK):
-        raise UsageError(f"cannot write to out {str(folder)!r}: {existing} is not writable")
-    return folder
+    try:
+        return _checks.folder("out", out)
+    except ValueError as error:
+        raise UsageError(str(error)) from None
 
 
 def _writable(out) -> Path:
