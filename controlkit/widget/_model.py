@@ -39,14 +39,16 @@ class DiagramModel:
 
     Examples
     --------
+    A PI controller acting on ``r - y`` (one state-space block) around a first-order plant:
+
     >>> import control as ct
-    >>> motor = ct.tf2ss(ct.tf([1], [1, 1]), name="motor", inputs="v", outputs="w")
-    >>> pi = ct.tf2ss(ct.tf([2, 1], [1, 0]), name="pi", inputs="e", outputs="v")
-    >>> error = ct.summing_junction(inputs=["w_ref", "-w"], output="e", name="error")
-    >>> loop = ct.interconnect([error, pi, motor], inputs="w_ref", outputs="w")
+    >>> plant = ct.ss(-1.0, 1.0, 1.0, 0.0, name="plant", inputs="u", outputs="y")
+    >>> pi = ct.ss(0.0, [[1.0, -1.0]], 2.0, [[3.0, -3.0]], name="pi", inputs=["r", "y"],
+    ...            outputs="u")
+    >>> loop = ct.interconnect([pi, plant], inputs="r", outputs="y")
     >>> model = DiagramModel.from_interconnect(loop)
     >>> [f"{w.src[0]}.{w.src[1]} -> {w.dst[0]}.{w.dst[1]}" for w in model.wires]
-    ['motor.w -> error.w', 'error.e -> pi.e', 'pi.v -> motor.v']
+    ['plant.y -> pi.y', 'pi.u -> plant.u']
     >>> np.array_equal(model.system().connect_map, loop.connect_map)
     True
     """
