@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 
 import pytest
+from processes import children_of, session_processes, wait_for
 from sweep_faults_helpers import PID_FOLDER, misbehave, sleepy, square
 
 from controlkit import _lock
@@ -52,45 +53,6 @@ def lines(store) -> list[bytes]:
         return (Path(store) / "runs.jsonl").read_bytes().splitlines()
     except FileNotFoundError:
         return []
-
-
-def wait_for(condition, seconds, what):
-    deadline = time.monotonic() + seconds
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"waited {seconds} s for {what}")
-        time.sleep(0.01)
-
-
-def session_processes(session: int) -> list[int]:
-    """Live processes of a session (from /proc: field 6 of /proc/PID/stat)."""
-    found = []
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit():
-            continue
-        try:
-            text = (entry / "stat").read_text()
-        except OSError:
-            continue
-        fields = text[text.rindex(")") + 2:].split()
-        if int(fields[3]) == session and fields[0] not in "ZX":
-            found.append(int(entry.name))
-    return found
-
-
-def children() -> set[int]:
-    """Live child processes of this process."""
-    me = str(os.getpid())
-    found = set()
-    for entry in Path("/proc").iterdir():
-        try:
-            text = (entry / "stat").read_text()
-        except OSError:
-            continue
-        fields = text[text.rindex(")") + 2:].split()
-        if fields[1] == me and fields[0] not in "ZX":
-            found.add(int(entry.name))
-    return found
 
 
 def expected_table(runs, pause):
@@ -567,13 +529,13 @@ def _lambda_function(x):
 def test_bad_arguments_are_refused_before_anything_is_created(tmp_path, kwargs, message):
     arguments = {"function": _lambda_function, "draws": {"x": (0, 1)}, "samples": 3,
                  "store": tmp_path / "store", "progress": False, **kwargs}
-    before = children()
+    before = set(children_of(os.getpid()))
     started = time.monotonic()
     with pytest.raises(ValueError, match=message):
         sweep(arguments.pop("function"), **arguments)
     assert time.monotonic() - started < 2
     assert not (tmp_path / "store").exists()
-    assert children() <= before
+    assert set(children_of(os.getpid())) <= before
 
 
 @pytest.mark.parametrize(("address", "message"), [
