@@ -38,9 +38,20 @@ STATIC, DISCRETE, SAMPLED, CONTINUOUS = range(4)
 X0, NX, U0, NU, Y0, NY, P0, NP, FT, OUT, UPD, KIND, EVERY, SUB = range(14)
 COLUMNS = ("X0", "NX", "U0", "NU", "Y0", "NY", "P0", "NP", "FT", "OUT", "UPD", "KIND",
            "EVERY", "SUB")
-#: One row of :attr:`Plan.table` by column name (``row.X0``), for the Python that reads it;
-#: compiled code reads the columns by the constants above.
-TableRow = namedtuple("TableRow", COLUMNS)
+
+
+class TableRow(namedtuple("TableRow", COLUMNS)):
+    """One row of :attr:`Plan.table` by column name (``row.X0``), for the Python that reads
+    it (:mod:`.codegen`); compiled code reads the columns by the constants above.
+
+    Examples
+    --------
+    >>> row = TableRow(*range(len(COLUMNS)))
+    >>> row.X0, row.KIND, row.SUB
+    (0, 11, 13)
+    """
+
+    __slots__ = ()
 
 
 @dataclass
