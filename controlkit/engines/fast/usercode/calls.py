@@ -103,3 +103,12 @@ def missing_parameter(key):
     """
     raise KeyError(key)
 
+
+
+# Generated kernel modules import these from the package (``from
+# controlkit.engines.fast.usercode import clip``), as they did before it was split, and
+# numba's cache refers to them by module: the package is their home, so that a kernel
+# module's text, and with it its name in the cache, does not depend on this file's name.
+for _public in (store, clip, missing_parameter):
+    _public.__module__ = "controlkit.engines.fast.usercode"
+del _public
