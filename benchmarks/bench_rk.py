@@ -61,84 +61,48 @@ def rhs(t, y, args, out):
 ''',
 }
 
-LINKED_TEMPLATE = '''
+#: The first lines of every generated module (the right-hand side pasted in at {rhs}).
+HEADER = '''
 import numpy as np
 import numba
 from controlkit.engines.fast import rk
 {rhs}
 
 @numba.njit(cache=True)
-def run(y0, t_eval, y_eval, work):
-    args = (np.array([2.0]), np.zeros(2), np.zeros((0, 2)))
-    y_end = np.empty(y0.shape[0])
-    return rk.solve_interval(rk.machine, rhs, args, {index}, 0.0, 20.0, y0, 1e-3,
+'''
+#: The problem every design solves: van der Pol from (2, 0) over 20 s, 101 points.
+ARGS = "    args = (np.array([2.0]), np.zeros(2), np.zeros((0, 2)))\n"
+PROBLEM = '''    y0 = np.array([2.0, 0.0])
+    t_eval = np.linspace(0.0, 20.0, 101)
+    y_eval = np.zeros((101, 2))
+    work = rk.make_workspace(2, 0, 101)
+'''
+#: ``run``'s call of the integrator, through ``{machine}``.
+SOLVE = '''    y_end = np.empty(y0.shape[0])
+    return rk.solve_interval({machine}, rhs, args, {{index}}, 0.0, 20.0, y0, 1e-3,
                              np.full(y0.shape[0], 1e-6), np.inf, 0.0, t_eval, 0, True,
                              y_eval, y_end, work, True)
 
 
 def first_call():
-    y0 = np.array([2.0, 0.0])
-    t_eval = np.linspace(0.0, 20.0, 101)
-    y_eval = np.zeros((101, 2))
-    work = rk.make_workspace(2, 0, 101)
-    return run(y0, t_eval, y_eval, work), y_eval[-1]
 '''
 
-POINTER_TEMPLATE = '''
-import numpy as np
-import numba
-from controlkit.engines.fast import rk
-{rhs}
+LINKED_TEMPLATE = (HEADER + "def run(y0, t_eval, y_eval, work):\n" + ARGS
+                   + SOLVE.format(machine="rk.machine") + PROBLEM
+                   + "    return run(y0, t_eval, y_eval, work), y_eval[-1]\n")
 
-@numba.njit(cache=True)
-def run(machine, y0, t_eval, y_eval, work):
-    args = (np.array([2.0]), np.zeros(2), np.zeros((0, 2)))
-    y_end = np.empty(y0.shape[0])
-    return rk.solve_interval(machine, rhs, args, {index}, 0.0, 20.0, y0, 1e-3,
-                             np.full(y0.shape[0], 1e-6), np.inf, 0.0, t_eval, 0, True,
-                             y_eval, y_end, work, True)
+POINTER_TEMPLATE = (HEADER + "def run(machine, y0, t_eval, y_eval, work):\n" + ARGS
+                    + SOLVE.format(machine="machine") + PROBLEM
+                    + "    return run(rk.machine_function(), y0, t_eval, y_eval, work), "
+                      "y_eval[-1]\n")
 
+BOTH_POINTERS_TEMPLATE = (
+    HEADER + "def run(machine, rhs, args, y0, t_eval, y_eval, work):\n"
+    + SOLVE.format(machine="machine") + ARGS + PROBLEM
+    + "    return run(rk.machine_function(), rk.first_class(rhs, args), args, y0, t_eval, "
+      "y_eval,\n               work), y_eval[-1]\n")
 
-def first_call():
-    y0 = np.array([2.0, 0.0])
-    t_eval = np.linspace(0.0, 20.0, 101)
-    y_eval = np.zeros((101, 2))
-    work = rk.make_workspace(2, 0, 101)
-    return run(rk.machine_function(), y0, t_eval, y_eval, work), y_eval[-1]
-'''
-
-BOTH_POINTERS_TEMPLATE = '''
-import numpy as np
-import numba
-from controlkit.engines.fast import rk
-{rhs}
-
-@numba.njit(cache=True)
-def run(machine, rhs, args, y0, t_eval, y_eval, work):
-    y_end = np.empty(y0.shape[0])
-    return rk.solve_interval(machine, rhs, args, {index}, 0.0, 20.0, y0, 1e-3,
-                             np.full(y0.shape[0], 1e-6), np.inf, 0.0, t_eval, 0, True,
-                             y_eval, y_end, work, True)
-
-
-def first_call():
-    args = (np.array([2.0]), np.zeros(2), np.zeros((0, 2)))
-    y0 = np.array([2.0, 0.0])
-    t_eval = np.linspace(0.0, 20.0, 101)
-    y_eval = np.zeros((101, 2))
-    work = rk.make_workspace(2, 0, 101)
-    return run(rk.machine_function(), rk.first_class(rhs, args), args, y0, t_eval, y_eval,
-               work), y_eval[-1]
-'''
-
-BASELINE_TEMPLATE = '''
-import numpy as np
-import numba
-from controlkit.engines.fast import rk
-{rhs}
-
-@numba.njit(cache=True)
-def run(y0, t_eval, y_eval, work):
+BASELINE_TEMPLATE = HEADER + '''def run(y0, t_eval, y_eval, work):
     """No integrator: 1000 explicit Euler steps (the floor of a diagram's compile time)."""
     args = (np.array([2.0]), np.zeros(2), np.zeros((0, 2)))
     y = np.empty(y0.shape[0])

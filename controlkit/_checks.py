@@ -1,4 +1,4 @@
-"""Argument checks shared by the blocks.
+"""Argument checks shared by the blocks, the sweep and ``reproduce``.
 
 Every function raises a ``ValueError`` whose message names the offending
 argument and says what is allowed, so that a student who mistypes a
@@ -8,7 +8,9 @@ parameter is told which one and why.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 
@@ -271,3 +273,34 @@ def unit_quaternion(name: str, value, tol: float = 1e-6) -> np.ndarray:
             f"got norm {n:.9g}; build one with quaternion_from_axis_angle(axis, angle)"
         )
     return q / n
+
+
+def folder(name: str, path) -> Path:
+    """``path`` as a folder to write into (``~`` expanded), refused before anything is
+    created when it is empty (it would mean the current folder), a file, or under a file
+    or a place that cannot be written.
+
+    Examples
+    --------
+    >>> folder("out", "~/results").name
+    'results'
+    >>> folder("out", " ")
+    Traceback (most recent call last):
+    ...
+    ValueError: out must name a folder, got ' '
+    """
+    if not isinstance(path, str | os.PathLike):
+        raise ValueError(f"{name} must be a folder path, got {path!r}")
+    if not str(os.fspath(path)).strip():
+        raise ValueError(f"{name} must name a folder, got {path!r}")
+    found = Path(path).expanduser()  # "~/results" means the home folder, as in a shell
+    if found.exists() and not found.is_dir():
+        raise ValueError(f"{name} {str(found)!r} is a file, not a folder")
+    existing = found.absolute()
+    while not existing.exists():
+        existing = existing.parent
+    if not existing.is_dir():
+        raise ValueError(f"cannot write to {name} {str(found)!r}: {existing} is a file")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise ValueError(f"cannot write to {name} {str(found)!r}: {existing} is not writable")
+    return found

@@ -238,12 +238,22 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
     if isinstance(sys, SampledDataSystem):
         return _sampled_data_response(sys, T, U, X0, engine, options)
     if engine == "fast":
-        try:
-            return engines.backend("fast").response(sys, T, U, X0, **options)
-        except UnsupportedSystem as reason:
-            warnings.warn(f"fast engine not used, running python-control instead: {reason} "
-                          f"(controlkit.explain(sys) lists every block's tier)", stacklevel=2)
+        response = _fast_response(sys, T, U, X0, options, "python-control", stacklevel=3,
+                                  advice=" (controlkit.explain(sys) lists every block's tier)")
+        if response is not None:
+            return response
     return ct.input_output_response(sys, T, U, X0, **options)
+
+
+def _fast_response(sys, T, U, X0, options, instead, *, stacklevel, advice=""):
+    """The fast backend's response, or None after a warning that names why it cannot run
+    ``sys`` and what runs ``instead`` (``stacklevel`` as seen from this function)."""
+    try:
+        return engines.backend("fast").response(sys, T, U, X0, **options)
+    except UnsupportedSystem as reason:
+        warnings.warn(f"fast engine not used, running {instead} instead: {reason}{advice}",
+                      stacklevel=stacklevel)
+        return None
 
 
 def _runs(sys, X0, params):
@@ -311,11 +321,10 @@ def _sampled_data_response(sys, T, U, X0, engine, options):
 
     arguments = python_control_arguments(sys, T, U, X0, options)
     if engine == "fast":
-        try:
-            return engines.backend("fast").response(sys, T, U, X0, **options)
-        except UnsupportedSystem as reason:
-            warnings.warn(f"fast engine not used, running controlkit's Python reference "
-                          f"instead: {reason}", stacklevel=3)
+        response = _fast_response(sys, T, U, X0, options, "controlkit's Python reference",
+                                  stacklevel=4)
+        if response is not None:
+            return response
     T, U, X0, t_eval, method, solve_ivp_kwargs = arguments
     resp = reference.simulate_sampled_data(sys, T, X0, U, params=options["params"],
                                            t_eval=t_eval, method=method,

@@ -23,13 +23,10 @@ from idiom_diagrams import (
     ECOSYSTEM,
     arm_dynamics,
     arm_position,
-    bicycle,
-    bicycle_output,
     car_dynamics,
     hares_and_lynx,
-    lane_reference,
     motor_lag,
-    steering_law,
+    steering_loop,
 )
 
 from controlkit import interconnect
@@ -119,26 +116,7 @@ def pendulum():
 
 
 def steering():
-    vehicle = ct.nlsys(bicycle, bicycle_output, states=3, inputs=["v", "delta"],
-                       outputs=["x", "y", "theta"], params={"wheelbase": 3.0, "max_steer": 0.5},
-                       name="bicycle")
-    controller = ct.nlsys(None, steering_law, inputs=["ex", "ey", "etheta", "vd", "deltad"],
-                          outputs=["v", "delta"], name="controller",
-                          params={"pole_v": -2.0, "pole_1": -0.6 + 1.0j,
-                                  "pole_2": -0.6 - 1.0j, "wheelbase": 3})
-    reference = ct.nlsys(None, lane_reference, inputs=["v_ref", "y_ref"],
-                         outputs=["xd", "yd", "thetad", "vd", "deltad"], name="reference")
-    loop = ct.interconnect(
-        [reference, controller, vehicle],
-        connections=[["controller.ex", "reference.xd", "-bicycle.x"],
-                     ["controller.ey", "reference.yd", "-bicycle.y"],
-                     ["controller.etheta", "reference.thetad", "-bicycle.theta"],
-                     ["controller.vd", "reference.vd"],
-                     ["controller.deltad", "reference.deltad"],
-                     ["bicycle.v", "controller.v"], ["bicycle.delta", "controller.delta"]],
-        inplist=["reference.v_ref", "reference.y_ref"], inputs=["v_ref", "y_ref"],
-        outlist=["bicycle.x", "bicycle.y", "bicycle.theta", "controller.delta"],
-        outputs=["x", "y", "theta", "delta"], name="steering")
+    loop = steering_loop(0)
     T = np.linspace(0.0, 10.0, 201)
     U = np.vstack([8.0 * np.ones_like(T), np.where(T > 2.0, 1.0, 0.0)])
     return loop, T, np.array([0.0, -0.5, 0.0]), U

@@ -229,22 +229,23 @@ def lane_reference(t, x, u, params):
     return np.array([v_ref * t, y_ref, 0, v_ref, 0])
 
 
-def steering(steps=200):
-    #  [v_ref, y_ref] --> reference --> (-) --> controller --> bicycle --+--> x, y, theta
-    #                                    ^                                |
-    #                                    +--------------------------------+
-    vehicle = sample_nlsys(ct.nlsys(bicycle, bicycle_output, states=3, inputs=["v", "delta"],
-                                    outputs=["x", "y", "theta"],
-                                    params={"wheelbase": 3.0, "max_steer": 0.5},
-                                    name="bicycle"), TS)
+def steering_loop(dt, *, merged_params=False):
+    """The bicycle, its controller and its lane reference wired: continuous (``dt`` 0) or
+    with the bicycle sampled at :data:`TS` and the static blocks on any timebase (``dt``
+    None); with ``merged_params`` the loop's ``params`` are its blocks'."""
+    vehicle = ct.nlsys(bicycle, bicycle_output, states=3, inputs=["v", "delta"],
+                       outputs=["x", "y", "theta"], params={"wheelbase": 3.0, "max_steer": 0.5},
+                       name="bicycle")
+    if dt is None:
+        vehicle = sample_nlsys(vehicle, TS)
     controller = ct.nlsys(None, steering_law, inputs=["ex", "ey", "etheta", "vd", "deltad"],
-                          outputs=["v", "delta"], dt=None, name="controller",
+                          outputs=["v", "delta"], dt=dt, name="controller",
                           params={"pole_v": -2.0, "pole_1": -0.6 + 1.0j,
                                   "pole_2": -0.6 - 1.0j, "wheelbase": 3})
     reference = ct.nlsys(None, lane_reference, inputs=["v_ref", "y_ref"],
-                         outputs=["xd", "yd", "thetad", "vd", "deltad"], dt=None,
+                         outputs=["xd", "yd", "thetad", "vd", "deltad"], dt=dt,
                          name="reference")
-    loop = ct.interconnect(
+    return ct.interconnect(
         [reference, controller, vehicle],
         connections=[["controller.ex", "reference.xd", "-bicycle.x"],
                      ["controller.ey", "reference.yd", "-bicycle.y"],
@@ -255,7 +256,15 @@ def steering(steps=200):
         inplist=["reference.v_ref", "reference.y_ref"], inputs=["v_ref", "y_ref"],
         outlist=["bicycle.x", "bicycle.y", "bicycle.theta", "controller.delta"],
         outputs=["x", "y", "theta", "delta"], name="steering",
-        params=reference.params | vehicle.params | controller.params)
+        **({"params": reference.params | vehicle.params | controller.params}
+           if merged_params else {}))
+
+
+def steering(steps=200):
+    #  [v_ref, y_ref] --> reference --> (-) --> controller --> bicycle --+--> x, y, theta
+    #                                    ^                                |
+    #                                    +--------------------------------+
+    loop = steering_loop(None, merged_params=True)
     T = np.arange(steps) * TS
     U = np.vstack([8.0 * np.ones_like(T), np.ones_like(T)])
     return loop, T, [0.0, -1.0, 0.0], U, {"pole_1": -0.8 + 0.8j, "pole_2": -0.8 - 0.8j}

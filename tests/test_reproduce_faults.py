@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 
 import pytest
+from processes import alive, children_of, wait_for
 
 from controlkit import cli
 from controlkit._lock import FolderLock
@@ -33,36 +34,6 @@ def start(*args):
     return subprocess.Popen([sys.executable, "-m", "controlkit", *args],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True, env=env)
-
-
-def wait_for(condition, seconds, what):
-    deadline = time.monotonic() + seconds
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"waited {seconds} s for {what}")
-        time.sleep(0.01)
-
-
-def live_children(pid: int) -> list[int]:
-    """Live (not zombie) processes whose parent is ``pid``."""
-    found = []
-    for entry in Path("/proc").iterdir():
-        try:
-            text = (entry / "stat").read_text()
-        except OSError:
-            continue
-        fields = text[text.rindex(")") + 2:].split()
-        if fields[1] == str(pid) and fields[0] not in "ZX":
-            found.append(int(entry.name))
-    return found
-
-
-def alive(pid: int) -> bool:
-    try:
-        text = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return False
-    return text[text.rindex(")") + 2:].split()[0] not in "ZX"
 
 
 def manifest(folder) -> dict:
@@ -89,7 +60,7 @@ def test_a_stopped_run_leaves_no_worker_and_the_next_run_tells_the_truth(tmp_pat
     wait_for(lambda: folder.exists() and any(p.name.startswith(moment) and
                                              p.name.endswith(".partial")
                                              for p in folder.iterdir()), 120, moment)
-    workers = live_children(process.pid)
+    workers = children_of(process.pid)
     assert workers  # the figure workers
     process.send_signal(sig)  # the parent only: its workers must notice
     _, err = process.communicate(timeout=60)

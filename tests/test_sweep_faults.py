@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 
 import pytest
+from processes import children_of, session_processes, wait_for
 from sweep_faults_helpers import PID_FOLDER, misbehave, sleepy, square
 
 from controlkit import _lock
@@ -52,45 +53,6 @@ def lines(store) -> list[bytes]:
         return (Path(store) / "runs.jsonl").read_bytes().splitlines()
     except FileNotFoundError:
         return []
-
-
-def wait_for(condition, seconds, what):
-    deadline = time.monotonic() + seconds
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"waited {seconds} s for {what}")
-        time.sleep(0.01)
-
-
-def session_processes(session: int) -> list[int]:
-    """Live processes of a session (from /proc: field 6 of /proc/PID/stat)."""
-    found = []
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit():
-            continue
-        try:
-            text = (entry / "stat").read_text()
-        except OSError:
-            continue
-        fields = text[text.rindex(")") + 2:].split()
-        if int(fields[3]) == session and fields[0] not in "ZX":
-            found.append(int(entry.name))
-    return found
-
-
-def children() -> set[int]:
-    """Live child processes of this process."""
-    me = str(os.getpid())
-    found = set()
-    for entry in Path("/proc").iterdir():
-        try:
-            text = (entry / "stat").read_text()
-        except OSError:
-            continue
-        fields = text[text.rindex(")") + 2:].split()
-        if fields[1] == me and fields[0] not in "ZX":
-            found.add(int(entry.name))
-    return found
 
 
 def expected_table(runs, pause):
@@ -567,13 +529,13 @@ def _lambda_function(x):
 def test_bad_arguments_are_refused_before_anything_is_created(tmp_path, kwargs, message):
     arguments = {"function": _lambda_function, "draws": {"x": (0, 1)}, "samples": 3,
                  "store": tmp_path / "store", "progress": False, **kwargs}
-    before = children()
+    before = set(children_of(os.getpid()))
     started = time.monotonic()
     with pytest.raises(ValueError, match=message):
         sweep(arguments.pop("function"), **arguments)
     assert time.monotonic() - started < 2
     assert not (tmp_path / "store").exists()
-    assert children() <= before
+    assert set(children_of(os.getpid())) <= before
 
 
 @pytest.mark.parametrize(("address", "message"), [
@@ -612,9 +574,9 @@ def test_a_running_scheduler_is_used(tmp_path):
 
 def test_store_that_cannot_be_written_is_refused(tmp_path):
     (tmp_path / "file").write_text("")
-    with pytest.raises(ValueError, match=r"store .*file is a file, not a folder"):
+    with pytest.raises(ValueError, match=r"store '.*file' is a file, not a folder"):
         sweep(square, grid={"x": [1]}, executor="serial", store=tmp_path / "file")
-    with pytest.raises(ValueError, match=r"store .*file/sub cannot be made: .*file is a file"):
+    with pytest.raises(ValueError, match=r"cannot write to store '.*file/sub': .*file is a file"):
         sweep(square, grid={"x": [1]}, executor="serial", store=tmp_path / "file" / "sub")
     locked = tmp_path / "read-only"
     locked.mkdir()
@@ -622,7 +584,7 @@ def test_store_that_cannot_be_written_is_refused(tmp_path):
     try:
         if os.access(locked, os.W_OK):
             pytest.skip("this user writes anywhere (root)")
-        with pytest.raises(ValueError, match=r"cannot write to store .*read-only/s: "
+        with pytest.raises(ValueError, match=r"cannot write to store '.*read-only/s': "
                                              r".*read-only is not writable"):
             sweep(square, grid={"x": [1]}, executor="serial", store=locked / "s")
     finally:

@@ -32,23 +32,21 @@ def params_read(block):
     if isinstance(block, KernelBlock | ct.StateSpace):
         return set()  # controlkit blocks take theirs when built; LTI blocks have none
     if isinstance(block, ct.InterconnectedSystem):
-        keys = set(block.params)
-        for sub in block.syslist:
-            more = params_read(sub)
-            if more is None:
-                return None
-            keys |= more
-        return keys
+        return _union(block.params, (params_read(sub) for sub in block.syslist))
     if isinstance(block, SampledSystem):
-        inner = params_read(block.continuous)
-        return None if inner is None else inner | set(block.params)
-    keys = set(block.params)
-    for fn in (block.updfcn, block.outfcn):
-        if fn is not None:
-            more = used_params(fn)
-            if more is None:
-                return None
-            keys |= more
+        return _union(block.params, [params_read(block.continuous)])
+    return _union(block.params, (used_params(fn) for fn in (block.updfcn, block.outfcn)
+                                 if fn is not None))
+
+
+def _union(keys, more):
+    """The set of ``keys`` and of every set in ``more``; None (not known) as soon as one of
+    them is None."""
+    keys = set(keys)
+    for part in more:
+        if part is None:
+            return None
+        keys |= part
     return keys
 
 

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from ..sweep import sweep, wilson_interval
 from . import STUDIES
+from ._sweep_results import requirement_met, write_table_and_summary
 
 
 def _robustness(name):
@@ -198,16 +199,8 @@ def study(name, *, samples=None, seed=None, cases=None, horizon=None, ranges=Non
 def _write_without_figures(table, summary, out, settings) -> None:
     """``sweep.csv`` and ``summary.json`` of a sweep in which no run finished (the
     figures plot metrics that no run returned)."""
-    import json
-
-    from ..outputs.export import atomic
-
-    out = Path(out)
-    with atomic(out / "sweep.csv") as partial:
-        table.to_csv(partial, index=False)
-    with atomic(out / "summary.json") as partial:
-        partial.write_text(json.dumps({"settings": settings, "cases": summary,
-                                       "figures": "none: no run finished"}, indent=2) + "\n")
+    write_table_and_summary(table, {"settings": settings, "cases": summary,
+                                    "figures": "none: no run finished"}, out)
 
 
 def summarize(table, cases, spec, span) -> dict:
@@ -233,7 +226,7 @@ def summarize(table, cases, spec, span) -> dict:
     for case in cases:
         mine = table[table["case"] == case]
         good = ok[mine.index]
-        met = int((mine[spec.success].fillna(False).astype(bool) & good).sum())
+        met = int(requirement_met(mine, spec.success).sum())
         low, high = wilson_interval(met, len(mine))
         errors = mine.loc[good, spec.error]
         key, bins = spec.binned(mine, span)

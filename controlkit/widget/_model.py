@@ -7,82 +7,30 @@ call, as an object (:meth:`DiagramModel.system`) and as source code
 (:meth:`DiagramModel.code`). Wires join one output signal to one input signal
 with a gain (python-control's ``connect_map`` entry); the editor shows them
 grouped into ports (:func:`~controlkit.widget._ports.port_groups`).
+
+The pieces (:class:`Block`, :class:`Wire`, :class:`Problem`) live in
+:mod:`._parts`, the checks in :mod:`._problems`, the code writer in :mod:`._code` and
+saving in :mod:`._saving`; this module is the model and its edits.
 """
 
 from __future__ import annotations
 
 import copy
 import json
-import keyword
-import re
 import warnings
 from dataclasses import dataclass, field
 
 import control as ct
 import numpy as np
 
-from ..blocks.sampling import SampledSystem
-from . import _palette
-from ._ports import compress_range, next_element, port_groups, runs
+from . import _palette, _saving
+from ._code import interconnect_specs, write_code
+from ._parts import FORMAT, PROBLEM_KINDS, Block, Problem, Wire, timebase
+from ._ports import port_groups
+from ._problems import find_problems, passes_input
 
-FORMAT = "controlkit.widget/1"
-
-
-@dataclass
-class Block:
-    """One block of the diagram.
-
-    Attributes
-    ----------
-    system : control.InputOutputSystem
-        The block itself.
-    recipe : dict or None
-        How to build it again: ``{"kind": palette key, "kwargs": {...}}``,
-        ``{"kind": "variable", "variable": name}`` (an object of the notebook), or None
-        for a block taken as it is from an opened interconnect.
-    label : str or None
-        Display name (TeX, e.g. ``"$L_a$"``).
-    position : tuple of float or None
-        Centre on the editor's canvas, in pixels.
-    look : dict or None
-        Size, orientation and port order the editor draws it with (``w``, ``h``,
-        ``flip``, ``order``), taken from the drawing's layout when first placed.
-    """
-
-    system: ct.InputOutputSystem
-    recipe: dict | None = None
-    label: str | None = None
-    position: tuple | None = None
-    look: dict | None = None
-
-
-@dataclass
-class Wire:
-    """Output ``src = (block, signal)`` feeds input ``dst = (block, signal)`` times ``gain``."""
-
-    src: tuple
-    dst: tuple
-    gain: float = 1.0
-
-
-@dataclass
-class Problem:
-    """A wiring mistake: ``kind`` is one of :data:`PROBLEM_KINDS`, ``blocks`` the blocks named."""
-
-    kind: str
-    severity: str
-    blocks: list
-    message: str
-
-    def as_dict(self):
-        return {"kind": self.kind, "severity": self.severity, "blocks": list(self.blocks),
-                "message": self.message}
-
-
-#: What :meth:`DiagramModel.problems` reports; ``error`` problems stop a run.
-PROBLEM_KINDS = {"unconnected input": "warning", "two drivers": "error",
-                 "algebraic loop": "error", "mismatched timebases": "error",
-                 "unused output": "note"}
+__all__ = ["FORMAT", "PROBLEM_KINDS", "Block", "DiagramModel", "Problem", "Wire",
+           "passes_input"]
 
 
 @dataclass
@@ -91,14 +39,16 @@ class DiagramModel:
 
     Examples
     --------
+    A PI controller acting on ``r - y`` (one state-space block) around a first-order plant:
+
     >>> import control as ct
-    >>> motor = ct.tf2ss(ct.tf([1], [1, 1]), name="motor", inputs="v", outputs="w")
-    >>> pi = ct.tf2ss(ct.tf([2, 1], [1, 0]), name="pi", inputs="e", outputs="v")
-    >>> error = ct.summing_junction(inputs=["w_ref", "-w"], output="e", name="error")
-    >>> loop = ct.interconnect([error, pi, motor], inputs="w_ref", outputs="w")
+    >>> plant = ct.ss(-1.0, 1.0, 1.0, 0.0, name="plant", inputs="u", outputs="y")
+    >>> pi = ct.ss(0.0, [[1.0, -1.0]], 2.0, [[3.0, -3.0]], name="pi", inputs=["r", "y"],
+    ...            outputs="u")
+    >>> loop = ct.interconnect([pi, plant], inputs="r", outputs="y")
     >>> model = DiagramModel.from_interconnect(loop)
     >>> [f"{w.src[0]}.{w.src[1]} -> {w.dst[0]}.{w.dst[1]}" for w in model.wires]
-    ['motor.w -> error.w', 'error.e -> pi.e', 'pi.v -> motor.v']
+    ['plant.y -> pi.y', 'pi.u -> plant.u']
     >>> np.array_equal(model.system().connect_map, loop.connect_map)
     True
     """
@@ -343,79 +293,16 @@ class DiagramModel:
         self.wires = [w for w in self.wires if (w.src[0] != name or w.src[1] in outs)
                       and (w.dst[0] != name or w.dst[1] in ins)]
 
+
     # ------------------------------------------------------------------ building
 
     def period(self):
         """The diagram's sampling period: the one discrete ``dt`` of its blocks, else None."""
-        periods = {s.dt for s in self.systems() if _timebase(s.dt) == "discrete"}
+        periods = {s.dt for s in self.systems() if timebase(s.dt) == "discrete"}
         return periods.pop() if len(periods) == 1 else None
 
     def systems(self):
         return [b.system for b in self.blocks.values()]
-
-    def _specs(self):
-        """``connections``, ``inplist``, ``inputs``, ``outlist``, ``outputs`` for interconnect."""
-        by_dst = {}
-        for w in self.wires:
-            by_dst.setdefault(w.dst, []).append(w)
-        connections = []
-        for name, block in self.blocks.items():
-            items = [(label, by_dst[(name, label)]) for label in block.system.input_labels
-                     if (name, label) in by_dst]
-
-            def continues(a, b):
-                (la, wa), (lb, wb) = a, b
-                return (len(wa) == len(wb) == 1 and next_element(la, lb)
-                        and wa[0].src[0] == wb[0].src[0] and wa[0].gain == wb[0].gain
-                        and next_element(wa[0].src[1], wb[0].src[1]))
-
-            for run in runs(items, continues):
-                if len(run) == 1:
-                    label, feeds = run[0]
-                    connections.append([_spec(name, label)]
-                                       + [_spec(*w.src, w.gain) for w in feeds])
-                else:
-                    first = run[0][1][0]
-                    connections.append([
-                        _spec(name, compress_range([label for label, _ in run])),
-                        _spec(first.src[0], compress_range([f[0].src[1] for _, f in run]),
-                              first.gain)])
-        inplist, inputs = [], []
-
-        def input_continues(a, b):
-            (na, ta), (nb, tb) = a, b
-            return (len(ta) == len(tb) == 1 and ta[0][0] == tb[0][0] and ta[0][2] == tb[0][2]
-                    and next_element(ta[0][1], tb[0][1]) and next_element(na, nb))
-
-        for run in runs(self.inputs, input_continues):
-            names = [n for n, _ in run]
-            if len(run) > 1:
-                block, _, gain = run[0][1][0]
-                inplist.append(_spec(block, compress_range([t[0][1] for _, t in run]), gain))
-            else:
-                targets = run[0][1]
-                specs = [_spec(b, s, g) for b, s, g in targets]
-                inplist.append(specs[0] if len(specs) == 1 else specs)
-            inputs += names
-        outlist, outputs = [], []
-
-        def output_continues(a, b):
-            (na, sa), (nb, sb) = a, b
-            return (len(sa) == len(sb) == 1 and sa[0][:2] == sb[0][:2]
-                    and sa[0][3] == sb[0][3] and next_element(sa[0][2], sb[0][2])
-                    and next_element(na, nb))
-
-        for run in runs(self.outputs, output_continues):
-            names = [n for n, _ in run]
-            if len(run) > 1:
-                _, block, _, gain = run[0][1][0]
-                outlist.append(_spec(block, compress_range([s[0][2] for _, s in run]), gain))
-            else:
-                sources = run[0][1]
-                specs = [_spec(b, s, g) for _, b, s, g in sources]
-                outlist.append(specs[0] if len(specs) == 1 else specs)
-            outputs += names
-        return connections, inplist, inputs, outlist, outputs
 
     def system(self):
         """The diagram as a ``control.interconnect`` (with ``drawing_hints`` attached).
@@ -432,7 +319,7 @@ class DiagramModel:
             raise ValueError("the diagram cannot be built: " + "; ".join(errors))
         if not self.blocks:
             raise ValueError("the diagram has no blocks")
-        connections, inplist, inputs, outlist, outputs = self._specs()
+        connections, inplist, inputs, outlist, outputs = interconnect_specs(self)
         with warnings.catch_warnings():  # unused signals are reported by problems()
             warnings.filterwarnings("ignore", message=r"Unused (input|output)",
                                     category=UserWarning)
@@ -464,67 +351,13 @@ class DiagramModel:
         ``source``); executing the code where those names exist gives an interconnect
         equal to :meth:`system`.
         """
-        variable = variable or _identifier(self.name)
-        source = self.source_name or "source"
-        needs, lines, names = {"ct"}, [], {}
-        for name, block in self.blocks.items():
-            names[name] = var = _identifier(name, taken=set(names.values()) | {variable})
-            recipe = block.recipe
-            if recipe and recipe["kind"] in _palette.PALETTE:
-                entry = _palette.PALETTE[recipe["kind"]]
-                needs |= entry.imports(self.period())
-                lines.append(f"{var} = {entry.source(name, recipe['kwargs'], self.period())}")
-            elif recipe and recipe["kind"] == "variable":
-                expression = recipe["variable"]
-                lines.append(f"{var} = {expression}" if var != expression else None)
-                if block.system.name != _variable_name(recipe):
-                    lines[-1] = f"{var} = {expression}.copy(name={name!r})"
-            else:
-                lines.append(f"{var} = {source}_blocks[{name!r}]")
-        lines = [line for line in lines if line]
-        aliases = list(_palette.IMPORTS)
-        head = [_palette.IMPORTS[alias] for alias in sorted(needs, key=aliases.index)]
-        if any(b.recipe is None for b in self.blocks.values()):
-            head.append(f"{source}_blocks = {{s.name: s for s in {source}.syslist}}  "
-                        f"# the blocks of the diagram you opened")
-        connections, inplist, inputs, outlist, outputs = self._specs()
-        body = [f"{variable} = ct.interconnect(",
-                f"    [{', '.join(names.values())}],"]
-        body.append("    connections=[" if connections else "    connections=False,")
-        for c in connections:
-            body.append(f"        {_list(c)},")
-        if connections:
-            body.append("    ],")
-        for key, items in (("inplist", inplist), ("inputs", inputs), ("outlist", outlist),
-                           ("outputs", outputs)):
-            body += _argument(key, items)
-        body.append(f"    name={self.name!r},")
-        body.append(")")
-        hints = self.drawing_hints()
-        tail = [f"{variable}.drawing_hints = {_hints_literal(hints)}"] if hints else []
-        return "\n".join(head + [""] + lines + [""] + body + tail) + "\n"
+        return write_code(self, variable)
 
     # ------------------------------------------------------------------ saving
 
     def to_dict(self):
         """The diagram as JSON-ready data (blocks by recipe; opened blocks by name)."""
-        blocks = []
-        for name, b in self.blocks.items():
-            s = b.system
-            blocks.append({"name": name, "recipe": b.recipe, "label": b.label,
-                           "position": list(b.position) if b.position else None,
-                           "look": b.look,
-                           "inputs": list(s.input_labels), "outputs": list(s.output_labels),
-                           "dt": _dt_json(s.dt)})
-        return {
-            "format": FORMAT, "name": self.name, "source_name": self.source_name,
-            "blocks": blocks,
-            "wires": [[*w.src, *w.dst, w.gain] for w in self.wires],
-            "inputs": [[n, [list(t) for t in targets]] for n, targets in self.inputs],
-            "outputs": [[n, [list(s) for s in sources]] for n, sources in self.outputs],
-            "summed": sorted(list(d) for d in self.summed),
-            "hints": self.hints,
-        }
+        return _saving.to_dict(self)
 
     def to_json(self, path=None):
         """JSON text of :meth:`to_dict`; also written to ``path`` when given."""
@@ -547,47 +380,7 @@ class DiagramModel:
         namespace : dict, optional
             The notebook's variables, for blocks added by variable name.
         """
-        if not isinstance(data, dict) or data.get("format") != FORMAT:
-            raise ValueError(f"not a saved diagram: the data must have format {FORMAT!r}")
-        if isinstance(systems, ct.InterconnectedSystem):
-            systems = {s.name: s for s in systems.syslist}
-        systems, namespace = dict(systems or {}), dict(namespace or {})
-        model = cls(name=data["name"], hints=data.get("hints") or {},
-                    source_name=data.get("source_name"))
-        for saved in data["blocks"]:
-            name, recipe = saved["name"], saved["recipe"]
-            period = _dt_value(saved["dt"])
-            if recipe and recipe["kind"] in _palette.PALETTE:
-                system = _palette.build(recipe["kind"], name, recipe["kwargs"],
-                                        period if _timebase(period) == "discrete" else None)
-            elif recipe and recipe["kind"] == "variable":
-                if recipe["variable"] not in namespace:
-                    raise ValueError(f"block {name!r} was the notebook's variable "
-                                     f"{recipe['variable']!r}, which is not in namespace")
-                system = namespace[recipe["variable"]]
-                if not _palette.is_system(system):
-                    raise ValueError(f"variable {recipe['variable']!r} holds a "
-                                     f"{type(system).__name__}, not a python-control system")
-                if system.name != name:
-                    system = system.copy(name=name)
-            else:
-                if name not in systems:
-                    raise ValueError(f"block {name!r} was taken from an opened diagram; pass "
-                                     f"that diagram (or {{name: system}}) as systems=")
-                system = systems[name]
-            if (list(system.input_labels), list(system.output_labels)) != (
-                    saved["inputs"], saved["outputs"]):
-                raise ValueError(f"block {name!r} has inputs {system.input_labels} and outputs "
-                                 f"{system.output_labels}, the saved diagram expects "
-                                 f"{saved['inputs']} and {saved['outputs']}")
-            model.blocks[name] = Block(system, recipe, saved["label"],
-                                       tuple(saved["position"]) if saved["position"] else None,
-                                       saved.get("look"))
-        model.wires = [Wire((a, b), (c, d), g) for a, b, c, d, g in data["wires"]]
-        model.inputs = [(n, [tuple(t) for t in targets]) for n, targets in data["inputs"]]
-        model.outputs = [(n, [tuple(s) for s in sources]) for n, sources in data["outputs"]]
-        model.summed = {tuple(d) for d in data["summed"]}
-        return model
+        return _saving.from_dict(cls, data, systems=systems, namespace=namespace)
 
     # ------------------------------------------------------------------ checks
 
@@ -608,238 +401,4 @@ class DiagramModel:
         -------
         list of Problem
         """
-        found = []
-        drivers = {}
-        for w in self.wires:
-            drivers.setdefault(w.dst, []).append(f"{w.src[0]}.{w.src[1]}")
-        for name, targets in self.inputs:
-            for block, signal, _ in targets:
-                drivers.setdefault((block, signal), []).append(f"external input {name}")
-        used = {w.src for w in self.wires} | {(b, s) for _, src in self.outputs
-                                              for side, b, s, _ in src if side == "out"}
-        for name, block in self.blocks.items():
-            s = block.system
-            loose = [label for label in s.input_labels if (name, label) not in drivers]
-            if loose:
-                found.append(Problem(
-                    "unconnected input", "warning", [name],
-                    f"unconnected input: {_signals(name, loose)} of block {name!r} has no "
-                    f"driver (python-control reads it as 0)"))
-            for label in s.input_labels:
-                feeds = drivers.get((name, label), [])
-                if len(feeds) > 1 and (name, label) not in self.summed:
-                    blocks = [name] + [f.split(".")[0] for f in feeds
-                                       if not f.startswith("external")]
-                    found.append(Problem(
-                        "two drivers", "error", list(dict.fromkeys(blocks)),
-                        f"two drivers on one signal: {name}.{label} is driven by "
-                        f"{' and '.join(feeds)}; remove one wire, or add them in a summing "
-                        f"junction"))
-            unused = [label for label in s.output_labels if (name, label) not in used]
-            if unused:
-                found.append(Problem(
-                    "unused output", "note", [name],
-                    f"unused output: {_signals(name, unused)} of block {name!r} goes nowhere"))
-        found += self._algebraic_loops()
-        found += self._timebases()
-        return found
-
-    def _algebraic_loops(self):
-        direct = {n for n, b in self.blocks.items() if passes_input(b.system)}
-        succ = {n: set() for n in direct}
-        for w in self.wires:
-            if w.src[0] in direct and w.dst[0] in direct:
-                succ[w.src[0]].add(w.dst[0])
-        found = []
-        for component in _strong_components(succ):
-            if len(component) == 1 and component[0] not in succ[component[0]]:
-                continue
-            cycle = _cycle(component, succ)
-            order = " -> ".join(repr(n) for n in cycle + cycle[:1])
-            found.append(Problem(
-                "algebraic loop", "error", cycle,
-                f"algebraic loop through blocks {order}: each passes its input straight to "
-                f"its output, so no order of computing them exists; put a block with a "
-                f"state (a delay, a plant, a filter) in the loop"))
-        return found
-
-    def _timebases(self):
-        kinds = {}
-        for name, b in self.blocks.items():
-            kind = _timebase(b.system.dt)
-            if kind == "continuous":
-                kinds.setdefault("continuous (dt = 0)", []).append(name)
-            elif kind == "discrete":
-                kinds.setdefault(f"dt = {b.system.dt:g} s", []).append(name)
-        if len(kinds) < 2:
-            return []
-        parts = [f"{', '.join(repr(n) for n in names)} "
-                 f"{'runs' if len(names) == 1 else 'run'} {'at ' if k.startswith('dt') else ''}"
-                 f"{k.replace(' (dt = 0)', '')}" for k, names in kinds.items()]
-        advice = ("sample the continuous blocks (controlkit.blocks.sampling.sample_nlsys, "
-                  "control.sample_system)" if "continuous (dt = 0)" in kinds
-                  else "build all discrete blocks with one dt")
-        blocks = [n for names in kinds.values() for n in names]
-        return [Problem("mismatched timebases", "error", blocks,
-                        f"mismatched timebases: {'; '.join(parts)}; {advice}")]
-
-
-# ---------------------------------------------------------------------- helpers
-
-def passes_input(system):
-    """Whether a block's output can move with its input at the same instant (feedthrough).
-
-    A controlkit block declares it (``kernels.feedthrough``); a block sampled by
-    :func:`~controlkit.blocks.sampling.sample_nlsys` has that of its continuous block; an LTI
-    block has it where ``D`` is not zero; for any other block the output function is
-    tried at a few points (a block whose output fails there counts as feedthrough).
-
-    Examples
-    --------
-    >>> import control as ct
-    >>> passes_input(ct.tf([1], [1, 1])), passes_input(ct.tf([1, 0], [1, 1]))
-    (False, True)
-    """
-    kernels = getattr(system, "kernels", None)
-    if kernels is not None and hasattr(kernels, "feedthrough"):
-        return bool(kernels.feedthrough)
-    if isinstance(system, SampledSystem):
-        return passes_input(system.continuous)
-    if not system.ninputs or not system.noutputs:
-        return False
-    if isinstance(system, ct.TransferFunction):
-        try:
-            system = ct.tf2ss(system)
-        except Exception:  # noqa: BLE001 - an improper tf passes its input on
-            return True
-    if isinstance(system, ct.StateSpace):
-        return bool(np.any(np.asarray(system.D) != 0))
-    rng = np.random.default_rng(0)
-    for _ in range(3):
-        x = rng.uniform(-0.5, 0.5, system.nstates)
-        u = rng.uniform(-0.5, 0.5, system.ninputs)
-        try:
-            with warnings.catch_warnings(), np.errstate(all="ignore"):
-                warnings.simplefilter("ignore")
-                a = np.asarray(system.output(0.0, x, np.zeros(system.ninputs)), dtype=float)
-                b = np.asarray(system.output(0.0, x, u), dtype=float)
-        except Exception:  # noqa: BLE001 - not defined there: assume the worst
-            return True
-        if not np.array_equal(a, b, equal_nan=True):
-            return True
-    return False
-
-
-def _timebase(dt):
-    if dt is None or dt is True:
-        return "any"
-    return "continuous" if dt == 0 else "discrete"
-
-
-def _dt_json(dt):
-    return dt if dt is None or dt is True else float(dt)
-
-
-def _dt_value(dt):
-    return dt
-
-
-def _signals(block, labels):
-    from ._ports import port_groups as groups
-
-    return ", ".join(f"{block}.{p}" for p, _ in groups(labels))
-
-
-def _spec(block, signal, gain=1.0):
-    """python-control's spec of a signal: ``"sys.sig"``, ``"-sys.sig"`` or a tuple."""
-    if "." in block or block.startswith("-"):
-        return (block, signal, gain)
-    if gain == 1:
-        return f"{block}.{signal}"
-    if gain == -1:
-        return f"-{block}.{signal}"
-    return (block, signal, gain)
-
-
-def _list(items):
-    return "[" + ", ".join(_list(i) if isinstance(i, list) else repr(i) for i in items) + "]"
-
-
-def _argument(key, items, width=95):
-    """``    key=[...],`` on one line, or one item a line when that is too long."""
-    line = f"    {key}={_list(items)},"
-    if len(line) <= width:
-        return [line]
-    return [f"    {key}=["] + [f"        {_list(i) if isinstance(i, list) else repr(i)},"
-                              for i in items] + ["    ],"]
-
-
-def _hints_literal(hints):
-    return repr(json.loads(json.dumps(hints)))
-
-
-def _identifier(name, taken=()):
-    """A Python variable name for a block name (``plant$sampled`` -> ``plant_sampled``)."""
-    var = re.sub(r"\W", "_", name) or "block"
-    if var[0].isdigit() or keyword.iskeyword(var) or var in _palette.IMPORTS:
-        var = f"{var}_block"
-    base, k = var, 2
-    while var in taken:
-        var, k = f"{base}_{k}", k + 1
-    return var
-
-
-def _variable_name(recipe):
-    return recipe.get("system_name", recipe["variable"])
-
-
-def _strong_components(succ):
-    """Tarjan's strongly connected components of a graph ``{node: successors}``."""
-    index, low, stack, on, out = {}, {}, [], set(), []
-
-    def visit(v):
-        index[v] = low[v] = len(index)
-        stack.append(v)
-        on.add(v)
-        for w in sorted(succ[v]):
-            if w not in index:
-                visit(w)
-                low[v] = min(low[v], low[w])
-            elif w in on:
-                low[v] = min(low[v], index[w])
-        if low[v] == index[v]:
-            component = []
-            while True:
-                w = stack.pop()
-                on.discard(w)
-                component.append(w)
-                if w == v:
-                    break
-            out.append(component)
-
-    for v in sorted(succ):
-        if v not in index:
-            visit(v)
-    return out
-
-
-def _cycle(component, succ):
-    """One cycle through the first node of a strongly connected component, in order."""
-    members = set(component)
-    start = min(component)
-    path, seen = [start], {start}
-
-    def walk(v):
-        for w in sorted(succ[v] & members):
-            if w == start:
-                return True
-            if w not in seen:
-                seen.add(w)
-                path.append(w)
-                if walk(w):
-                    return True
-                path.pop()
-        return False
-
-    walk(start)
-    return path
+        return find_problems(self)

@@ -9,6 +9,8 @@ from dataclasses import dataclass
 import control as ct
 import numpy as np
 
+from ._code import interconnect_specs
+
 
 def simulate(sys, T, X0, U=0.0):
     """Simulate ``sys``: the one place where the editor calls a simulator.
@@ -180,7 +182,7 @@ def recording_system(model):
             specs.append((s.name, label, 1.0))
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message=r"Unused (input|output)", category=UserWarning)
-        connections, inplist, inputs, _, _ = model._specs()
+        connections, inplist, inputs, _, _ = interconnect_specs(model)
         recording = ct.interconnect(
             sys.syslist, connections=connections or False, inplist=inplist, inputs=inputs,
             outlist=specs, outputs=[f"y[{k}]" for k in range(len(specs))],

@@ -13,8 +13,8 @@ import control as ct
 import numpy as np
 
 from . import _palette
-from ._model import passes_input
 from ._ports import port_groups
+from ._problems import passes_input
 
 #: Pixels per inch of the drawing's layout.
 SCALE = 80.0

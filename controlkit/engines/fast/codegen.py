@@ -17,25 +17,7 @@ import numpy as np
 
 from ... import _jit
 from ..contract import UnsupportedSystem
-from .plan import (
-    CONTINUOUS,
-    DISCRETE,
-    EVERY,
-    FT,
-    KIND,
-    NP,
-    NU,
-    NX,
-    NY,
-    OUT,
-    P0,
-    SAMPLED,
-    SUB,
-    U0,
-    UPD,
-    X0,
-    Y0,
-)
+from .plan import CONTINUOUS, DISCRETE, SAMPLED
 
 
 def evaluation_order(sys, blocks):
@@ -115,24 +97,20 @@ def generate(plan, held_logic):
 
     Examples
     --------
-    >>> from controlkit.engines.fast.tiers import blocks_of
-    >>> from controlkit.engines.fast.plan import make_plan
+    >>> from controlkit.engines.fast.run import prepare
     >>> from controlkit.studies.cmg.diagrams import cmg_loop
-    >>> loop = cmg_loop()
-    >>> blocks = blocks_of(loop)
-    >>> source, injected = generate(make_plan(loop, blocks, evaluation_order(loop, blocks)),
-    ...                             held_logic=False)
+    >>> source, injected = generate(prepare(cmg_loop()).plan, held_logic=False)
     >>> [line for line in source.splitlines() if line.startswith("def run")], injected
     (['def run_discrete(T, X0, U, P, Y, X, status, k0, k1):'], {})
     """
-    table, ny = plan.table, plan.ny
+    rows, ny = plan.rows(), plan.ny
     names, imports, injected = _kernel_names(plan)
     ptr, cols, gain = plan.inputs
 
     def gather(b):
         return [f"ui[{r}] = " + _terms(ptr, cols, gain, r, lambda c: f"ys[{c}]" if c < ny
                                        else f"U[{c - ny}, col]")
-                for r in range(table[b, U0], table[b, U0] + table[b, NU])]
+                for r in range(rows[b].U0, rows[b].U0 + rows[b].NU)]
 
     def view(array, start, size):
         # a slice, not a borrowed view (.views): numba's dead-store elimination once
@@ -141,31 +119,31 @@ def generate(plan, held_logic):
         return f"{array}[{start}:{start + size}]"
 
     def args(b, out, size):
-        row = table[b]
-        return (f"{view('x', row[X0], row[NX])}, {view('ui', row[U0], row[NU])}, "
-                f"{view('P', row[P0], row[NP])}, {view(out[0], out[1], size)}")
+        row = rows[b]
+        return (f"{view('x', row.X0, row.NX)}, {view('ui', row.U0, row.NU)}, "
+                f"{view('P', row.P0, row.NP)}, {view(out[0], out[1], size)}")
 
     evaluate = []
     for b in plan.order:
-        row = table[b]
+        row = rows[b]
         evaluate.append(f"# {plan.sys.syslist[b].name}")
-        if row[FT]:
+        if row.FT:
             evaluate += gather(b)
-        call = [f"{names[row[OUT]]}(t, {args(b, ('ys', row[Y0]), row[NY])})"]
-        if row[NY]:
-            call += [f"if np.isnan(ys[{row[Y0]}]):", f"    return {b}"]
-        held = row[KIND] in (DISCRETE, SAMPLED) and held_logic
+        call = [f"{names[row.OUT]}(t, {args(b, ('ys', row.Y0), row.NY)})"]
+        if row.NY:
+            call += [f"if np.isnan(ys[{row.Y0}]):", f"    return {b}"]
+        held = row.KIND in (DISCRETE, SAMPLED) and held_logic
         if held:
-            fires = "k >= 0" if row[EVERY] == 1 else f"k >= 0 and k % {row[EVERY]} == 0"
+            fires = "k >= 0" if row.EVERY == 1 else f"k >= 0 and k % {row.EVERY} == 0"
             evaluate += [f"if {fires}:", *["    " + c for c in call],
-                         f"    for q in range({row[NY]}):",
-                         f"        held[{row[Y0]} + q] = ys[{row[Y0]} + q]",
-                         "else:", f"    for q in range({row[NY]}):",
-                         f"        ys[{row[Y0]} + q] = held[{row[Y0]} + q]"]
+                         f"    for q in range({row.NY}):",
+                         f"        held[{row.Y0} + q] = ys[{row.Y0} + q]",
+                         "else:", f"    for q in range({row.NY}):",
+                         f"        ys[{row.Y0} + q] = held[{row.Y0} + q]"]
         else:
             evaluate += call
-    for b, row in enumerate(table):
-        if not row[FT]:
+    for b, row in enumerate(rows):
+        if not row.FT:
             evaluate += gather(b)
     evaluate.append("return -1")
 
@@ -176,28 +154,28 @@ def generate(plan, held_logic):
 
     nx = plan.sys.nstates
     update = [f"for i in range({nx}):", "    xn[i] = x[i]"]
-    for b, row in enumerate(table):
-        if row[UPD] < 0 or not row[NX] or row[KIND] not in (DISCRETE, SAMPLED):
+    for b, row in enumerate(rows):
+        if row.UPD < 0 or not row.NX or row.KIND not in (DISCRETE, SAMPLED):
             continue
         lines = []
-        if row[KIND] == DISCRETE:
-            lines.append(f"{names[row[UPD]]}(t, {args(b, ('xn', row[X0]), row[NX])})")
+        if row.KIND == DISCRETE:
+            lines.append(f"{names[row.UPD]}(t, {args(b, ('xn', row.X0), row.NX)})")
         else:
-            n, h = row[NX], float(plan.h[b])
+            n, h = row.NX, float(plan.h[b])
             work = ", ".join(view("scratch", j * n, n) for j in range(5))
-            lines += [f"xs = {view('xn', row[X0], n)}", f"for i in range({row[SUB]}):",
-                      f"    rk4_step({names[row[UPD]]}, t + i * {h!r}, xs, "
-                      f"{view('ui', row[U0], row[NU])}, {view('P', row[P0], row[NP])}, "
+            lines += [f"xs = {view('xn', row.X0, n)}", f"for i in range({row.SUB}):",
+                      f"    rk4_step({names[row.UPD]}, t + i * {h!r}, xs, "
+                      f"{view('ui', row.U0, row.NU)}, {view('P', row.P0, row.NP)}, "
                       f"{h!r}, ({work}), xs)"]
-        if held_logic and row[EVERY] > 1:
-            update += [f"if k % {row[EVERY]} == 0:", *["    " + line for line in lines]]
+        if held_logic and row.EVERY > 1:
+            update += [f"if k % {row.EVERY} == 0:", *["    " + line for line in lines]]
         else:
             update += lines
 
-    derivatives = [f"{names[row[UPD]]}(t, {args(b, ('dx', row[X0]), row[NX])})"
-                   for b, row in enumerate(table) if row[KIND] == CONTINUOUS] or ["pass"]
+    derivatives = [f"{names[row.UPD]}(t, {args(b, ('dx', row.X0), row.NX)})"
+                   for b, row in enumerate(rows) if row.KIND == CONTINUOUS] or ["pass"]
 
-    widest = max([1, *table[:, NX].tolist()])
+    widest = max([1, *(row.NX for row in rows)])
     buffers = [f"ys = np.zeros({ny})", f"ui = np.zeros({plan.nu})",
                f"xn = np.empty({nx})", f"scratch = np.empty({5 * widest})"]
     cidx = plan.continuous.tolist()

@@ -78,13 +78,9 @@ def plan_arguments(plan, addresses) -> tuple:
 
     Examples
     --------
-    >>> from controlkit.engines.fast.tiers import blocks_of
-    >>> from controlkit.engines.fast.codegen import evaluation_order
-    >>> from controlkit.engines.fast.plan import make_plan
+    >>> from controlkit.engines.fast.run import prepare
     >>> from controlkit.studies.cmg.diagrams import cmg_loop
-    >>> loop = cmg_loop()
-    >>> blocks = blocks_of(loop)
-    >>> p = make_plan(loop, blocks, evaluation_order(loop, blocks))
+    >>> p = prepare(cmg_loop()).plan
     >>> len(plan_arguments(p, np.zeros(len(p.kernels), dtype=np.int64)))
     11
     """

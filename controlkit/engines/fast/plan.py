@@ -22,6 +22,7 @@ A block is one of four kinds (:data:`KINDS`), by its timebase:
 
 from __future__ import annotations
 
+from collections import namedtuple
 from dataclasses import dataclass
 
 import control as ct
@@ -37,6 +38,20 @@ STATIC, DISCRETE, SAMPLED, CONTINUOUS = range(4)
 X0, NX, U0, NU, Y0, NY, P0, NP, FT, OUT, UPD, KIND, EVERY, SUB = range(14)
 COLUMNS = ("X0", "NX", "U0", "NU", "Y0", "NY", "P0", "NP", "FT", "OUT", "UPD", "KIND",
            "EVERY", "SUB")
+
+
+class TableRow(namedtuple("TableRow", COLUMNS)):
+    """One row of :attr:`Plan.table` by column name (``row.X0``), for the Python that reads
+    it (:mod:`.codegen`); compiled code reads the columns by the constants above.
+
+    Examples
+    --------
+    >>> row = TableRow(*range(len(COLUMNS)))
+    >>> row.X0, row.KIND, row.SUB
+    (0, 11, 13)
+    """
+
+    __slots__ = ()
 
 
 @dataclass
@@ -72,13 +87,10 @@ class Plan:
 
     Examples
     --------
-    >>> from controlkit.engines.fast.tiers import blocks_of
-    >>> from controlkit.engines.fast.codegen import evaluation_order
+    >>> from controlkit.engines.fast.run import prepare
     >>> from controlkit.studies.cmg.diagrams import cmg_loop
-    >>> loop = cmg_loop()
-    >>> blocks = blocks_of(loop)
-    >>> plan = make_plan(loop, blocks, evaluation_order(loop, blocks))
-    >>> [KINDS[k] for k in plan.table[:, KIND]], plan.mode
+    >>> plan = prepare(cmg_loop()).plan
+    >>> [KINDS[row.KIND] for row in plan.rows()], plan.mode
     (['static', 'sampled', 'discrete', 'static'], 'discrete')
     """
 
@@ -100,6 +112,10 @@ class Plan:
         """``"discrete"`` (nothing integrated in continuous time) or ``"continuous"``
         (some states are, with or without discrete blocks)."""
         return "continuous" if self.continuous.size else "discrete"
+
+    def rows(self) -> list[TableRow]:
+        """The table's rows as :class:`TableRow` of plain ints, in block order."""
+        return [TableRow(*map(int, row)) for row in self.table]
 
     def parameters(self) -> np.ndarray:
         """The stacked parameter vector ``P`` (each block's packed ``p``, in order)."""

@@ -9,13 +9,17 @@ second. :data:`ROBUSTNESS` is the study's entry;
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
-from ...outputs.export import atomic
 from ...outputs.style import legend_outside, log_scale, new_figure, save, slide_style
+from .._sweep_results import (
+    requirement_met,
+    success_by_bin,
+    warming,
+    write_table_and_summary,
+)
 from ..registry import Robustness
 from . import scenario
 from .outputs import metrics
@@ -48,15 +52,8 @@ def run(case="thesis", *, friction_scale=1.0, inertia_scale=1.0, horizon=None) -
     return out
 
 
-def warm(cases) -> None:
-    """Compile each case's simulation loop once (numba's disk cache), before workers start.
-
-    Examples
-    --------
-    >>> warm(["thesis"])
-    """
-    for case in cases:
-        scenario.run(case, horizon=2 * scenario.cmg.TS_CMG)
+#: Compiles each case's loop before the workers start (``warm(cases)``).
+warm = warming(scenario.run, scenario.cmg.TS_CMG)
 
 
 def binned(rows, span) -> tuple[str, list[dict]]:
@@ -72,21 +69,14 @@ def binned(rows, span) -> tuple[str, list[dict]]:
     ('success_by_friction', [1.0, 0.0])
     """
     edges = np.linspace(span["friction_scale"][0], span["friction_scale"][1], 6)
-    met = rows["tracking_met"].fillna(False).astype(bool) & (rows["error"] == "")
-    out = []
-    for a, b in zip(edges[:-1], edges[1:], strict=True):
-        inside = (rows["friction_scale"] >= a) & (rows["friction_scale"] <= b)
-        n = int(inside.sum())
-        rate = float(met[inside].mean())
-        out.append({"friction_scale_low": float(a), "friction_scale_high": float(b),
-                    "runs": n, "success_rate": rate if n else float("nan")})
-    return "success_by_friction", out
+    met = requirement_met(rows, "tracking_met")
+    return "success_by_friction", success_by_bin(rows["friction_scale"], met, edges,
+                                                 "friction_scale", closed=True)
 
 
 def write(table, summary, out, **settings) -> list[Path]:
-    """Write ``sweep.csv``, ``summary.json`` and the tracking figure into ``out``.
-
-    Each file is written under a temporary name and renamed when complete.
+    """The study's files in ``out``: those of every sweep (``sweep.csv``, ``summary.json``)
+    and the tracking errors over the friction factor, against the bound.
 
     Examples
     --------
@@ -97,14 +87,8 @@ def write(table, summary, out, **settings) -> list[Path]:
     >>> [p.name for p in write(t, s, tempfile.mkdtemp())]
     ['sweep.csv', 'summary.json', 'cmg_tracking_vs_friction.png', 'cmg_tracking_vs_friction.svg']
     """
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    with atomic(out / "sweep.csv") as partial:
-        table.to_csv(partial, index=False)
-    with atomic(out / "summary.json") as partial:
-        partial.write_text(json.dumps({"settings": settings, "tracking_bound_rad":
-                                       TRACKING_BOUND_RAD, "cases": summary}, indent=2) + "\n")
-    paths = [out / "sweep.csv", out / "summary.json"]
+    paths = write_table_and_summary(table, {"settings": settings, "tracking_bound_rad":
+                                            TRACKING_BOUND_RAD, "cases": summary}, out)
     with slide_style():
         fig, (ax,) = new_figure()
         for case in summary:
@@ -120,7 +104,7 @@ def write(table, summary, out, **settings) -> list[Path]:
         ax.set_ylabel("max |error| after 1 s [rad]")
         ax.set_title("CMG tracking over drawn friction and inertia")
         legend_outside(fig)
-        paths += save(fig, out / "cmg_tracking_vs_friction.png")
+        paths += save(fig, Path(out) / "cmg_tracking_vs_friction.png")
     return paths
 
 

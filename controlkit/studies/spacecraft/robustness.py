@@ -13,7 +13,6 @@ against the size of the inertia error. :data:`ROBUSTNESS` is the study's entry;
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +22,12 @@ from ...blocks.spacecraft import (
     TS_PAPER,
     pointing_error_deg,
     quaternion_from_axis_angle,
+)
+from .._sweep_results import (
+    requirement_met,
+    success_by_bin,
+    warming,
+    write_table_and_summary,
 )
 from ..registry import Robustness
 from . import scenario
@@ -118,15 +123,8 @@ def run(case, *, inertia_error_x=1.0, inertia_error_y=1.0, inertia_error_z=1.0,
     return result
 
 
-def warm(cases) -> None:
-    """Compile each case's simulation loop once (numba's disk cache), before workers start.
-
-    Examples
-    --------
-    >>> warm(["ideal"])
-    """
-    for case in cases:
-        scenario.run(case, horizon=2 * TS_PAPER)
+#: Compiles each case's loop before the workers start (``warm(cases)``).
+warm = warming(scenario.run, TS_PAPER)
 
 
 def binned(rows, span) -> tuple[str, list[dict]]:
@@ -146,20 +144,13 @@ def binned(rows, span) -> tuple[str, list[dict]]:
     high = np.mean([span[f"inertia_error_{a}"][1] for a in "xyz"])
     edges = np.linspace(low, high, 7)
     factor = rows[["inertia_error_x", "inertia_error_y", "inertia_error_z"]].mean(axis=1)
-    met = rows["requirement_met_last_half"].fillna(False).astype(bool) & (rows["error"] == "")
-    out = []
-    for a, b in zip(edges[:-1], edges[1:], strict=True):
-        inside = (factor >= a) & (factor < b if b < edges[-1] else factor <= b)
-        n = int(inside.sum())
-        out.append({"mean_factor_low": float(a), "mean_factor_high": float(b), "runs": n,
-                    "success_rate": float(met[inside].mean()) if n else float("nan")})
-    return "success_by_inertia_error", out
+    met = requirement_met(rows, "requirement_met_last_half")
+    return "success_by_inertia_error", success_by_bin(factor, met, edges, "mean_factor")
 
 
 def write(table, summary, out, **settings) -> list[Path]:
-    """Write ``sweep.csv``, ``summary.json`` and the study's figures into ``out``.
-
-    Each file is written under a temporary name and renamed when complete.
+    """The study's files in ``out``: those of every sweep (``sweep.csv``, ``summary.json``)
+    and the two figures of :func:`figures`.
 
     Examples
     --------
@@ -170,21 +161,12 @@ def write(table, summary, out, **settings) -> list[Path]:
     >>> sorted(p.name for p in write(t, s, tempfile.mkdtemp()))[-2:]
     ['summary.json', 'sweep.csv']
     """
-    from ...outputs.export import atomic
     from ...outputs.style import save
 
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    paths = []
-    with atomic(out / "sweep.csv") as partial:
-        table.to_csv(partial, index=False)
-    with atomic(out / "summary.json") as partial:
-        partial.write_text(json.dumps({"settings": settings, "requirement_deg":
-                                       POINTING_REQUIREMENT_DEG, "cases": summary},
-                                      indent=2) + "\n")
-    paths += [out / "sweep.csv", out / "summary.json"]
+    paths = write_table_and_summary(table, {"settings": settings, "requirement_deg":
+                                            POINTING_REQUIREMENT_DEG, "cases": summary}, out)
     for stem, fig in figures(table, summary).items():
-        paths += save(fig, out / f"{stem}.png")
+        paths += save(fig, Path(out) / f"{stem}.png")
     return paths
 
 

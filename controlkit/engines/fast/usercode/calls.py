@@ -1,0 +1,114 @@
+"""What compiled user code calls: the result stored into ``out``, numbers clipped, and a
+missing parameter raising ``KeyError``; each with its numba implementation.
+
+The kernel modules written by :mod:`.writer` import these by their package's name
+(``controlkit.engines.fast.usercode``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .... import _jit
+
+
+def store(r, out):
+    """Copy a user function's result (number, sequence or array) into ``out``.
+
+    Examples
+    --------
+    >>> store([1.0, 2.0], np.empty(2)).tolist()
+    [1.0, 2.0]
+    """
+    out[:] = np.asarray(r, dtype=float).reshape(-1)
+    return out
+
+
+def clip(a, a_min, a_max):
+    """:func:`numpy.clip`, which compiled user functions call instead (numba's takes arrays
+    only; python-control's examples clip numbers: ``np.clip(u[0], -umax, umax)``).
+
+    Examples
+    --------
+    >>> clip(2.5, 0.0, 1.0), clip(-1.0, 0, None)
+    (np.float64(1.0), np.float64(0.0))
+    """
+    return np.clip(a, a_min, a_max)
+
+
+if _jit.HAVE_NUMBA:
+    from numba import types as _nbtypes
+    from numba.extending import overload
+
+    @overload(store)
+    def _store_overload(r, out):
+        if isinstance(r, _nbtypes.Number | _nbtypes.Boolean):
+            def impl(r, out):
+                out[0] = r
+                return out
+        elif isinstance(r, _nbtypes.Array):
+            def impl(r, out):
+                flat = r.ravel()
+                for i in range(out.size):
+                    out[i] = flat[i]
+                return out
+        elif isinstance(r, _nbtypes.UniTuple | _nbtypes.List | _nbtypes.Tuple):
+            def impl(r, out):
+                for i in range(len(r)):
+                    out[i] = r[i]
+                return out
+        else:
+            return None
+        return impl
+
+    def _none(bound):
+        return bound is None or isinstance(bound, _nbtypes.NoneType | _nbtypes.Omitted)
+
+    @overload(clip)
+    def _clip_overload(a, a_min, a_max):
+        if isinstance(a, _nbtypes.Array):
+            def impl(a, a_min, a_max):
+                return np.clip(a, a_min, a_max)
+            return impl
+        if not isinstance(a, _nbtypes.Number):
+            return None
+        # numpy's order: maximum with a_min, then minimum with a_max; NaN anywhere wins
+        if _none(a_min) and _none(a_max):
+            return None
+        if _none(a_min):
+            def impl(a, a_min, a_max):
+                return a if a <= a_max or a != a else a_max
+        elif _none(a_max):
+            def impl(a, a_min, a_max):
+                return a if a >= a_min or a != a else a_min
+        else:
+            def impl(a, a_min, a_max):
+                low = a if a >= a_min or a != a else a_min
+                return low if low <= a_max or low != low else a_max
+        return impl
+
+
+@_jit.jit
+def missing_parameter(key):
+    """What a compiled ``params[key]`` becomes when ``params`` has no ``key``: Python's
+    ``KeyError`` if it runs (numba refuses to compile it unless it is in a branch that
+    can never run, such as one under ``if key in params:``).
+
+    Examples
+    --------
+    >>> missing_parameter("kp")
+    Traceback (most recent call last):
+    ...
+    KeyError: 'kp'
+    """
+    raise KeyError(key)
+
+
+
+# Generated kernel modules import these from the package (``from
+# controlkit.engines.fast.usercode import clip``), as they did before it was split, and
+# numba's cache refers to them by module: the package is their home, so that a kernel
+# module's text, and with it its name in the cache, does not depend on this file's name.
+for _public in (store, clip, missing_parameter):
+    _public.__module__ = "controlkit.engines.fast.usercode"
+del _public

@@ -1,0 +1,225 @@
+"""Loading a kernel module with numba, and trusting it only once it agrees with the
+user's Python function at trial points; the Python fallback kernel.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import os
+import sys as pysys
+import types as pytypes
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from .... import _jit
+from ...source import NotCompilable, Plan, plan_function
+from .layout import ParamLayout
+from .writer import kernel_source
+
+
+def load_kernel(source: str, folder: Path):
+    """Write ``source`` as an importable module in ``folder``; its ``kernel``, compiled.
+
+    Every function of the module is compiled with numba (cached on disk), the user's
+    functions inlined into ``kernel``. Loading is
+    all or nothing: a module that fails to load is not left behind in ``sys.modules``.
+    Returns ``(kernel, module_name)``.
+
+    Raises
+    ------
+    NotCompilable
+        When the module cannot be loaded.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> src = kernel_source(lambda t, x, u, params: 3.0 * u, {})
+    >>> kernel, name = load_kernel(src, Path(tempfile.mkdtemp()))
+    >>> kernel(0.0, np.zeros(0), np.ones(1), np.zeros(0), np.empty(1)).tolist()
+    [3.0]
+    """
+    key = hashlib.sha256((source + str(_jit.HAVE_NUMBA) + str(_jit.CACHE_FORMAT)
+                          + _COMPILE_OPTIONS).encode()).hexdigest()[:20]
+    name = f"controlkit_user_{key}"
+    if name in pysys.modules:
+        return pysys.modules[name].kernel, name
+    path = folder / f"{name}.py"
+    if not path.exists():  # keep an existing file's date: numba's cache keys on it
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(source)
+        os.replace(tmp, path)
+    if str(folder) not in pysys.path:
+        pysys.path.append(str(folder))
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    pysys.modules[name] = module  # numba's disk cache re-imports it by name
+    try:
+        spec.loader.exec_module(module)
+        if _jit.HAVE_NUMBA:
+            defined = [n for n, v in vars(module).items()
+                       if isinstance(v, pytypes.FunctionType) and v.__module__ == name]
+            for n in defined:
+                # the user's functions and helpers are inlined into the kernel by numba:
+                # called as separate functions, reads of p cost 50 ns a call more
+                inline = "never" if n == "kernel" else "always"
+                setattr(module, n, _jit.numba.njit(cache=True, inline=inline,
+                                                   error_model="numpy")(getattr(module, n)))
+        kernel = module.kernel
+    except Exception as error:  # the generated module does not load: nothing is kept
+        del pysys.modules[name]
+        raise NotCompilable(f"its compiled module does not load ({type(error).__name__}: "
+                            f"{error})") from None
+    return kernel, name
+
+
+#: How the modules' functions are compiled, part of their names: numba's disk cache would
+#: otherwise hand back code compiled with other options from the same source.
+_COMPILE_OPTIONS = "inline=always,error_model=numpy"
+
+
+class CompiledKernel(NamedTuple):
+    """A user function compiled: ``kernel(t, x, u, p, out)``, and ``pack(values) -> p``.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> f = lambda t, x, u, params: [params["k"] * u[0]]
+    >>> compiled = compiled_kernel(f, {"k": 2.0}, Path(tempfile.mkdtemp()), 1, 0, 1)
+    >>> compiled.pack({"k": 5.0}).tolist(), compiled.layout.size
+    ([5.0], 1)
+    """
+
+    kernel: object
+    pack: object
+    module: str
+    layout: ParamLayout
+
+
+def _trial_points(n_x, n_u, trials):
+    """The run's own points first, then all zeros, then three random ones."""
+    points = [(float(t), np.array(x, dtype=float).reshape(-1), np.array(u, dtype=float)
+               .reshape(-1)) for t, x, u in trials or ()]
+    points = [(t, x, u) for t, x, u in points if x.size == n_x and u.size == n_u]
+    points.append((0.0, np.zeros(n_x), np.zeros(n_u)))
+    rng = np.random.default_rng(0)
+    for t in (0.0, 0.37, 1.9):
+        points.append((t, rng.uniform(0.1, 0.9, n_x), rng.uniform(0.1, 0.9, n_u)))
+    return points
+
+
+def _is_compile_error(error) -> bool:
+    if isinstance(error, RecursionError):  # a recursive helper, inlined without end
+        return True
+    if not _jit.HAVE_NUMBA:
+        return False
+    from numba.core.errors import NumbaError
+
+    return isinstance(error, NumbaError)
+
+
+def _first_line(error) -> str:
+    message = str(error).strip().splitlines()
+    first = next((m for m in message if m.strip() and "TypingError" not in m
+                  and "Failed in nopython" not in m), "")
+    return first.strip()[:200]
+
+
+def compiled_kernel(fn, values: dict, folder: Path, n_out: int, n_x: int, n_u: int, *,
+                    layout: ParamLayout | None = None, trials=(),
+                    plan: Plan | None = None) -> CompiledKernel:
+    """``fn`` compiled for the types of ``values``, checked against ``fn`` at trial points.
+
+    The compiled kernel is compared with ``fn`` itself at ``trials`` (``(t, x, u)``
+    points, such as the run's initial state and inputs), at zero and at random points;
+    it must agree wherever ``fn`` can be evaluated, and ``fn`` must be evaluable at one
+    point at least. ``layout`` (the block's, shared by its functions) and ``plan`` (of
+    ``fn``) are made here when not given.
+
+    Raises
+    ------
+    NotCompilable
+        With the reason, when it cannot be compiled or does not agree with ``fn``.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> f = lambda t, x, u, params: [x[0] + params.get("k", 2.0) * u[0]]
+    >>> compiled = compiled_kernel(f, {"k": 3.0}, Path(tempfile.mkdtemp()), 1, 1, 1)
+    >>> p = compiled.pack({"k": 0.5})
+    >>> compiled.kernel(0.0, np.ones(1), np.ones(1), p, np.empty(1)).tolist()
+    [1.5]
+    """
+    plan = plan or plan_function(fn)
+    why = plan.why_not()
+    if why is not None:
+        raise NotCompilable(why)
+    layout = layout or ParamLayout.of([plan], values)
+    p = layout.pack(values)
+    points = _trial_points(n_x, n_u, trials)
+    attempts = [(False, True), (False, False)]
+    if layout.has_ints:
+        attempts += [(True, True), (True, False)]
+    failure = None
+    for exact, direct in attempts:
+        try:
+            source = kernel_source(fn, values, direct, layout=layout, exact=exact, plan=plan)
+        except NotCompilable as why:
+            if direct:
+                continue  # not every return is a literal list: copy the result instead
+            raise
+        kernel, name = load_kernel(source, folder)
+        ours = []
+        try:
+            for t, x, u in points:
+                try:
+                    ours.append(kernel(t, x.copy(), u.copy(), p, np.full(n_out, np.nan)))
+                except Exception as error:  # noqa: BLE001 - compared with Python's below
+                    if _is_compile_error(error):
+                        raise
+                    ours.append(error)
+        except Exception as error:  # noqa: BLE001 - numba's typing errors
+            failure = failure or error
+            continue
+        break
+    else:
+        raise NotCompilable(f"numba cannot compile it: {_first_line(failure)}")
+    compared = 0
+    for (t, x, u), mine in zip(points, ours, strict=True):
+        try:
+            ref = np.asarray(fn(t, x.copy(), u.copy(), dict(values)), dtype=float).reshape(-1)
+        except Exception:  # noqa: BLE001 - undefined there: not a point to compare at
+            continue
+        if ref.shape != (n_out,):
+            raise NotCompilable(f"it returns {ref.size} values, the block declares {n_out}")
+        if isinstance(mine, Exception):
+            raise NotCompilable(f"its compiled version raises {type(mine).__name__} at "
+                                f"t = {t:g}, where Python's does not")
+        if not np.allclose(mine, ref, rtol=1e-12, atol=1e-12, equal_nan=True):
+            raise NotCompilable(f"its compiled version differs from it at t = {t:g} "
+                                f"(x = {np.round(x, 6).tolist()}, u = {np.round(u, 6).tolist()})")
+        compared += 1
+    if not compared:
+        raise NotCompilable("it raises at every trial point, so its compiled version could "
+                            "not be checked against it")
+    return CompiledKernel(kernel, layout.pack, name, layout)
+
+
+def python_kernel(fn, values: dict):
+    """A kernel ``(t, x, u, p, out)`` calling the user's ``fn`` from Python.
+
+    Examples
+    --------
+    >>> k = python_kernel(lambda t, x, u, params: params["a"] * x, {"a": 2.0})
+    >>> k(0.0, np.ones(1), np.zeros(0), None, np.empty(1)).tolist()
+    [2.0]
+    """
+    params = dict(values)
+
+    def kernel(t, x, u, p, out):
+        out[:] = np.asarray(fn(t, x, u, params), dtype=float).reshape(-1)
+        return out
+
+    return kernel

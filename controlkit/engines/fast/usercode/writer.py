@@ -1,0 +1,286 @@
+"""Writing the module of a user function's kernel: every ``params`` read becomes a read
+of ``p`` (:class:`~.layout.ParamLayout`), the values read from outside become
+module-level constants, and ``kernel(t, x, u, p, out)`` calls the user's function.
+"""
+
+from __future__ import annotations
+
+import ast
+import copy
+import importlib
+import types as pytypes
+
+import numpy as np
+
+from .... import _jit
+from ...source import PARAM_READ, NotCompilable, Plan, plan_function
+from .layout import ParamLayout
+
+
+class _Reads(ast.NodeTransformer):
+    """``__controlkit_param__(params, key, how, default)`` -> the read of ``p``."""
+
+    def __init__(self, layout, exact):
+        self.layout, self.exact = layout, exact
+
+    def visit_Call(self, node):
+        node = self.generic_visit(node)
+        if not (isinstance(node.func, ast.Name) and node.func.id == PARAM_READ):
+            return node
+        vector, key, how, default = node.args
+        e = self.layout.by_key[key.value]
+        if e.kind == "absent":
+            if how.value == "in":
+                return ast.copy_location(ast.Constant(False), node)
+            if how.value == "item":  # KeyError if run, as in Python (``if "k" in params:``
+                # around it compiles to ``if False:``, which numba drops)
+                return ast.copy_location(ast.Call(ast.Name("_ck_missing", ast.Load()),
+                                                  [ast.Constant(key.value)], []), node)
+            return default
+        if how.value == "in":
+            return ast.copy_location(ast.Constant(True), node)
+        return ast.copy_location(ast.parse(self._read(vector.id, e), mode="eval").body, node)
+
+    def _read(self, p, e):
+        i = e.offset
+        if e.kind == "none":
+            return "None"
+        if e.kind == "float" or e.kind == "int" and not self.exact:
+            return f"{p}[{i}]"
+        if e.kind == "int":
+            return f"int({p}[{i}])"
+        if e.kind == "bool":
+            return f"({p}[{i}] != 0.0)"
+        if e.kind == "complex":
+            return f"complex({p}[{i}], {p}[{i + 1}])"
+        text = f"{p}[{i}:{i + e.size}]"
+        if e.kind == "array-b":
+            text = f"({text} != 0.0)"
+        elif e.kind == "array-i" and self.exact:
+            text = f"{text}.astype(_np_.int64)"
+        return text if len(e.shape) == 1 else f"{text}.reshape({e.shape!r})"
+
+
+# --- the generated module -----------------------------------------------------------------
+
+def _number(value) -> str:
+    value = float(value)
+    if value != value:
+        return "_np_.nan"
+    if value in (np.inf, -np.inf):
+        return "_np_.inf" if value > 0 else "-_np_.inf"
+    return repr(value)
+
+
+def _literal(name, value, lines, imports):
+    """A module-level line freezing ``value`` as ``name`` (or NotCompilable)."""
+    if isinstance(value, pytypes.ModuleType):
+        imports.append(f"import {value.__name__} as {name}")
+    elif value is None or isinstance(value, bool | str):
+        lines.append(f"{name} = {value!r}")
+    elif isinstance(value, np.bool_):
+        lines.append(f"{name} = _np_.bool_({bool(value)!r})")
+    elif isinstance(value, int) or isinstance(value, float) and type(value) is float:
+        lines.append(f"{name} = {_number(value) if isinstance(value, float) else repr(value)}")
+    elif isinstance(value, complex):
+        lines.append(f"{name} = complex({_number(value.real)}, {_number(value.imag)})")
+    elif isinstance(value, np.ndarray | np.generic | list | tuple):
+        array = np.asarray(value)
+        if array.dtype.kind not in "biufc":
+            raise NotCompilable(f"it reads {name.split('_', 2)[-1]!r}, which is not numeric")
+        if array.dtype.kind == "c":
+            text = repr(array.tolist())
+        else:
+            text = repr(array.tolist()).replace("inf", "_np_.inf").replace("nan", "_np_.nan")
+        if isinstance(value, np.ndarray | list | tuple):
+            lines.append(f"{name} = _np_.array({text}, dtype=_np_.{array.dtype.name})")
+        else:  # a numpy scalar keeps its type
+            lines.append(f"{name} = _np_.{array.dtype.name}({text})")
+    elif callable(value) and getattr(value, "__module__", None) and getattr(
+            value, "__name__", None):
+        fn = _jit.python_function(value)
+        module, attr = getattr(fn, "__module__", None), getattr(fn, "__name__", "")
+        try:
+            ok = module is not None and getattr(importlib.import_module(module), attr,
+                                                None) is value
+        except ImportError:
+            ok = False
+        if not ok:
+            raise NotCompilable(f"it calls {attr!r}, which cannot be imported by name")
+        imports.append(f"from {module} import {attr} as {name}")
+    else:
+        raise NotCompilable(f"it reads {name.split('_', 2)[-1]!r}, a {type(value).__name__}, "
+                            f"which numba cannot compile")
+
+
+def _literal_items(value):
+    """The elements of ``[a, b]``, ``(a, b)`` or ``np.array([a, b])``, else None."""
+    if isinstance(value, ast.Call) and isinstance(value.func, ast.Attribute) \
+            and value.func.attr in ("array", "asarray") and len(value.args) == 1 \
+            and not value.keywords:
+        value = value.args[0]
+    if isinstance(value, ast.List | ast.Tuple) and not any(
+            isinstance(e, ast.Starred) for e in value.elts):
+        return value.elts
+    return None
+
+
+#: The name of the output buffer in a function that writes its result into it.
+_OUT = "_ck_out"
+
+
+class _WriteOut(ast.NodeTransformer):
+    """``return [a, b]`` -> ``out[0] = a; out[1] = b; return out``: no array per call."""
+
+    def visit_Return(self, node):
+        items = _literal_items(node.value)
+        lines = [ast.Assign([ast.Subscript(ast.Name(_OUT, ast.Load()), ast.Constant(i),
+                                           ast.Store())], item, lineno=0)
+                 for i, item in enumerate(items)]
+        return [*lines, ast.Return(ast.Name(_OUT, ast.Load()))]
+
+    def visit_FunctionDef(self, node):
+        return node
+
+    def visit_Lambda(self, node):
+        return node
+
+
+def _returns(body):
+    """The return statements of ``body`` itself (not of functions defined in it)."""
+    found, stack = [], list(body)
+    while stack:
+        node = stack.pop()
+        if isinstance(node, ast.Return):
+            found.append(node)
+        elif not isinstance(node, ast.FunctionDef | ast.Lambda | ast.ClassDef):
+            stack.extend(ast.iter_child_nodes(node))
+    return found
+
+
+def _function(name, arguments, body):
+    args = ast.arguments(posonlyargs=[], args=[ast.arg(a) for a in arguments], vararg=None,
+                         kwonlyargs=[], kw_defaults=[], kwarg=None, defaults=[])
+    node = ast.FunctionDef(name=name, args=args, body=body, decorator_list=[], returns=None,
+                           type_params=[])
+    return ast.unparse(ast.fix_missing_locations(ast.Module([node], [])))
+
+
+def kernel_source(fn, values: dict, direct: bool = False, *, layout=None, exact=False,
+                  plan: Plan | None = None) -> str:
+    """The module source of the kernel compiled from ``fn`` for the types of ``values``.
+
+    ``direct`` writes a literal result straight into ``out`` (NotCompilable when a return
+    is not a literal list); ``exact`` casts integer
+    parameters back to integers (else they are read as floats, so that ``kp=1`` and
+    ``kp=1.5`` share one compiled kernel).
+
+    Raises
+    ------
+    NotCompilable
+        Saying why ``fn`` cannot be turned into a kernel.
+
+    Examples
+    --------
+    >>> src = kernel_source(lambda t, x, u, params: params["k"] * x, {"k": 2.0})
+    >>> "return params[0] * x" in src, "2.0" in src
+    (True, False)
+    """
+    plan = plan or plan_function(fn)
+    why = plan.why_not()
+    if why is not None:
+        raise NotCompilable(why)
+    layout = layout or ParamLayout.of([plan], values)
+    written = plan.written  # the functions' text, per layout
+    key = (layout.entries, bool(direct), bool(exact))
+    if key not in written:
+        try:
+            written[key] = _functions(plan, layout, direct, exact)
+        except NotCompilable as why:
+            written[key] = why
+    if isinstance(written[key], NotCompilable):
+        raise NotCompilable(str(written[key]))
+    functions, call = written[key]
+    imports = ["import numpy as _np_",
+               "from controlkit.engines.fast.usercode import missing_parameter as _ck_missing",
+               "from controlkit.engines.fast.usercode import store"]
+    lines = []
+    for each in plan.tree():  # read now: an array may have been changed in place
+        for name, value in each.frozen.items():
+            _literal(name, value, lines, imports)
+    code = plan.function.__code__
+    return "\n".join([
+        f"# generated by controlkit from {plan.function.__qualname__} "
+        f"({code.co_filename}:{code.co_firstlineno}): do not edit",
+        *dict.fromkeys(imports), *lines, "", "", functions, "", "",
+        "def kernel(t, x, u, p, out):",
+        call,
+        "",
+    ])
+
+
+def _read_only_lists(body):
+    """``name = [1, 2, 3]`` -> ``name = (1, 2, 3)`` where ``name`` is only ever indexed.
+
+    Compiled, a list literal is a new list at every call (python-control's cruise-control
+    example reads its gear ratios so: ``alpha = params.get("alpha", [40, 25, 16, 12,
+    10])``, which cost the vehicle's kernel three quarters of its time); a tuple of numbers
+    is a constant. Only a name assigned once, from numbers, and read only as ``name[i]``
+    or ``len(name)`` is changed: Python reads the two alike.
+    """
+    tree = ast.Module(body, [])
+    stores, uses = {}, {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Name):
+            if isinstance(node.ctx, ast.Store):
+                stores[node.id] = stores.get(node.id, 0) + 1
+            else:
+                uses.setdefault(node.id, []).append(node)
+    parents = {child: parent for parent in ast.walk(tree)
+               for child in ast.iter_child_nodes(parent)}
+
+    def read_only(name):
+        for node in uses.get(name, []):
+            parent = parents.get(node)
+            indexed = (isinstance(parent, ast.Subscript) and parent.value is node
+                       and isinstance(parent.ctx, ast.Load))
+            measured = (isinstance(parent, ast.Call) and isinstance(parent.func, ast.Name)
+                        and parent.func.id == "len" and parent.args == [node])
+            if not (indexed or measured):
+                return False
+        return True
+
+    for node in ast.walk(tree):
+        if (isinstance(node, ast.Assign) and len(node.targets) == 1
+                and isinstance(node.targets[0], ast.Name) and isinstance(node.value, ast.List)
+                and node.value.elts and all(isinstance(e, ast.Constant) and isinstance(
+                    e.value, int | float) and not isinstance(e.value, bool)
+                    for e in node.value.elts)
+                and stores.get(node.targets[0].id) == 1 and read_only(node.targets[0].id)):
+            node.value = ast.copy_location(ast.Tuple(node.value.elts, ast.Load()), node.value)
+    return body
+
+
+def _functions(plan, layout, direct, exact):
+    """The text of the plan's functions, params read from ``p``, and the kernel's call."""
+    if direct:
+        returns = _returns(plan.body)
+        if not returns or _OUT in {n.id for n in ast.walk(ast.Module(plan.body, []))
+                                   if isinstance(n, ast.Name)} \
+                or any(_literal_items(r.value) is None for r in returns):
+            raise NotCompilable("not every return is a literal list")
+    functions = []
+    for each in plan.tree():
+        reads = _Reads(layout, exact)
+        body = _read_only_lists([reads.visit(stmt) for stmt in copy.deepcopy(each.body)])
+        functions.append(_function(each.name, each.arguments, body))
+        if each is plan:
+            top = body
+    call = "    return store(user(t, x, u, p), out)"
+    if direct:
+        written = [_WriteOut().visit(stmt) for stmt in copy.deepcopy(top)]
+        written = [s for stmt in written for s in (stmt if isinstance(stmt, list) else [stmt])]
+        functions.append(_function("user_out", [*plan.arguments, _OUT], written))
+        call = "    return user_out(t, x, u, p, out)"
+    return "\n\n\n".join(functions), call
+

@@ -1,0 +1,169 @@
+"""Reading a function's own source: the ``def`` or ``lambda`` its code object was compiled
+from (never the function a decorator wraps), and what calling a callable runs (a
+partial's function, a bound method's, an object's ``__call__``).
+"""
+
+from __future__ import annotations
+
+import ast
+import functools
+import inspect
+import linecache
+import types
+
+from ... import _jit
+
+
+class NotCompilable(Exception):
+    """Why a user function cannot be compiled (the message is shown by ``explain``).
+
+    Examples
+    --------
+    >>> str(NotCompilable("no source"))
+    'no source'
+    """
+
+
+#: The call every read of the run-time ``params`` becomes in a plan's statements:
+#: ``__controlkit_param__(params, key, how, default)`` with ``how`` one of ``"item"``
+#: (``params[key]``), ``"get"`` (``params.get(key, default)``) or ``"in"`` (``key in
+#: params``). The compiler replaces it by the read of the packed parameter vector.
+PARAM_READ = "__controlkit_param__"
+
+
+def _lambda_body(code):
+    """The expression of a lambda, cut from its file by the positions of its code."""
+    # (line, end line, column, end column) of each instruction, not the zero-width ones
+    spans = [(line, end, col, end_col) for line, end, col, end_col in code.co_positions()
+             if None not in (line, end, col, end_col) and (line, col) != (end, end_col)]
+    lines = linecache.getlines(code.co_filename)
+    if not spans or not lines:
+        raise NotCompilable("its source is not available")
+    first = min((line, col) for line, _, col, _ in spans)
+    last = max((end, end_col) for _, end, _, end_col in spans)
+    chunk = lines[first[0] - 1:last[0]]
+    if not chunk:
+        raise NotCompilable("its source is not available")
+    chunk[-1] = chunk[-1].encode()[:last[1]].decode(errors="ignore")
+    chunk[0] = chunk[0].encode()[first[1]:].decode(errors="ignore")
+    try:
+        node = ast.parse("(" + "".join(chunk) + ")", mode="eval").body
+    except SyntaxError:
+        raise NotCompilable("its source could not be parsed") from None
+    return node.body if isinstance(node, ast.Lambda) else node
+
+
+#: Definitions by code object: the def's source, written out once (or the NotCompilable).
+_PARSED: dict = {}
+
+
+def _definition(code):
+    """``(arguments, body)`` of the def or lambda whose code is ``code``, a fresh tree.
+
+    The source is found from the code object itself, never through ``__wrapped__``
+    (``inspect.getsource`` of a decorated function gives the function it wraps). It is
+    read once per code object and parsed again for each plan (``ast.parse`` is ten times
+    faster than copying the tree).
+    """
+    hit = _PARSED.get(code)
+    if hit is None:
+        try:
+            arguments, body = _parse_definition(code)
+            node = ast.FunctionDef(name="f", args=arguments, body=body, decorator_list=[],
+                                   returns=None, type_params=[])
+            hit = ast.unparse(ast.fix_missing_locations(ast.Module([node], [])))
+        except NotCompilable as why:
+            hit = why
+        _PARSED[code] = hit
+    if isinstance(hit, NotCompilable):
+        raise NotCompilable(str(hit))
+    node = ast.parse(hit).body[0]
+    return node.args, node.body
+
+
+def _parse_definition(code):
+    if code.co_name == "<lambda>":
+        names = code.co_varnames[:code.co_argcount]
+        arguments = ast.arguments(posonlyargs=[], args=[ast.arg(n) for n in names],
+                                  vararg=None, kwonlyargs=[], kw_defaults=[], kwarg=None,
+                                  defaults=[])
+        if code.co_flags & (inspect.CO_VARARGS | inspect.CO_VARKEYWORDS) \
+                or code.co_kwonlyargcount:
+            raise NotCompilable("it is a lambda taking *args or keyword-only arguments")
+        return arguments, [ast.Return(_lambda_body(code))]
+    try:
+        lines, _ = inspect.getsourcelines(code)
+    except (OSError, TypeError) as error:
+        raise NotCompilable(f"its source is not available ({error})") from None
+    text = "".join(lines)
+    if text[:1] in (" ", "\t"):  # a nested def: parse it inside a block, not dedented
+        text = "if 1:\n" + text
+    try:
+        tree = ast.parse(text)
+    except SyntaxError:
+        raise NotCompilable("its source could not be parsed") from None
+    for node in ast.walk(tree):
+        if isinstance(node, ast.FunctionDef) and node.name == code.co_name:
+            return node.args, node.body
+    if any(isinstance(node, ast.AsyncFunctionDef) for node in ast.walk(tree)):
+        raise NotCompilable("it is a coroutine")
+    raise NotCompilable("its definition was not found in its source")
+
+
+def function_node(fn):
+    """The positional argument names and body statements of ``fn`` (a def or a lambda).
+
+    The source is that of ``fn``'s own code: for a decorated function, the wrapper.
+
+    Examples
+    --------
+    >>> names, body = function_node(lambda t, x, u, params: -x)
+    >>> names, type(body[0]).__name__
+    (['t', 'x', 'u', 'params'], 'Return')
+    """
+    fn = _jit.python_function(fn)
+    if not isinstance(fn, types.FunctionType):
+        raise NotCompilable(f"it is a {type(fn).__name__}, not a Python function")
+    arguments, body = _definition(fn.__code__)
+    return [a.arg for a in arguments.posonlyargs + arguments.args], body
+
+
+# --- what Python calls ------------------------------------------------------------------
+
+def call_target(fn):
+    """``(function, bound positional values, bound keyword values)``: what calling ``fn`` runs.
+
+    ``fn(t, x, u, params)`` runs ``function(*bound, t, x, u, params, **keywords)``. A
+    :func:`functools.partial` adds its arguments, a bound method its ``self``, an object
+    with ``__call__`` itself; a numba function is planned from its Python source.
+
+    Raises
+    ------
+    NotCompilable
+        For a callable that is none of these (a builtin, a C extension).
+
+    Examples
+    --------
+    >>> import functools
+    >>> def f(t, x, u, params, gain=1.0):
+    ...     return gain * x
+    >>> target, bound, keywords = call_target(functools.partial(f, gain=2.0))
+    >>> target is f, bound, keywords
+    (True, [], {'gain': 2.0})
+    """
+    fn = _jit.python_function(fn)
+    if isinstance(fn, types.FunctionType):
+        return fn, [], {}
+    if isinstance(fn, functools.partial):
+        target, bound, keywords = call_target(fn.func)
+        return target, bound + list(fn.args), {**keywords, **fn.keywords}
+    if isinstance(fn, types.MethodType):
+        target, bound, keywords = call_target(fn.__func__)
+        return target, bound + [fn.__self__], keywords
+    call = vars(type(fn)).get("__call__") if callable(fn) else None
+    for kind in type(fn).__mro__[1:]:
+        call = call or vars(kind).get("__call__")
+    if isinstance(call, types.FunctionType):
+        return call, [fn], {}
+    raise NotCompilable(f"it is a {type(fn).__name__}, not a Python function")
+

@@ -1,0 +1,111 @@
+"""Rewrites of a function's statements made before it is translated: the names it binds,
+how often, and loops over literal lists of ``params`` keys written out one copy per key.
+"""
+
+from __future__ import annotations
+
+import ast
+import copy
+
+
+def _stored_names(body):
+    """Names bound anywhere in ``body`` (assigned, loop targets, inner functions' args)."""
+    names = set()
+    for node in ast.walk(ast.Module(body, [])):
+        if isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store | ast.Del):
+            names.add(node.id)
+        elif isinstance(node, ast.arg):
+            names.add(node.arg)
+        elif isinstance(node, ast.FunctionDef | ast.ClassDef):
+            names.add(node.name)
+        elif isinstance(node, ast.ExceptHandler) and node.name:
+            names.add(node.name)
+        elif isinstance(node, ast.alias):
+            names.add((node.asname or node.name).split(".")[0])
+    return names
+
+
+def _store_counts(body):
+    counts = {}
+    for node in ast.walk(ast.Module(body, [])):
+        if isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store | ast.Del):
+            counts[node.id] = counts.get(node.id, 0) + 1
+        elif isinstance(node, ast.AugAssign) and isinstance(node.target, ast.Name):
+            counts[node.target.id] = counts.get(node.target.id, 0) + 1
+    return counts
+
+
+def _string_items(node, lookup):
+    """The strings of a literal list/tuple of strings (or of a name holding one), else None.
+
+    ``lookup(name)`` is ``(found, value)`` for a name read from outside the function.
+    """
+    if isinstance(node, ast.List | ast.Tuple):
+        if node.elts and all(isinstance(e, ast.Constant) and isinstance(e.value, str)
+                             for e in node.elts):
+            return [e.value for e in node.elts]
+        return None
+    if isinstance(node, ast.Name):
+        found, value = lookup(node.id)
+        if found and isinstance(value, list | tuple) and value \
+                and all(isinstance(v, str) for v in value):
+            return list(value)
+    return None
+
+
+class _Substitute(ast.NodeTransformer):
+    """Loads of ``name`` -> a constant."""
+
+    def __init__(self, name, value):
+        self.name, self.value = name, value
+
+    def visit_Name(self, node):
+        if node.id == self.name and isinstance(node.ctx, ast.Load):
+            return ast.copy_location(ast.Constant(self.value), node)
+        return node
+
+
+def _has_jump(statements):
+    for node in ast.walk(ast.Module(statements, [])):
+        if isinstance(node, ast.Break | ast.Continue):
+            return True
+    return False
+
+
+class _Unroll(ast.NodeTransformer):
+    """Loops and comprehensions over a literal sequence of strings (params keys), written
+    out one copy per string, so that each key is a constant."""
+
+    def __init__(self, lookup):
+        self.lookup = lookup
+
+    def visit_For(self, node):
+        node = self.generic_visit(node)
+        keys = _string_items(node.iter, self.lookup)
+        if keys is None or not isinstance(node.target, ast.Name) or node.orelse \
+                or _has_jump(node.body):
+            return node
+        out = []
+        for key in keys:
+            for stmt in copy.deepcopy(node.body):
+                out.append(_Substitute(node.target.id, key).visit(stmt))
+        return out or [ast.Pass()]
+
+    def _expand(self, node, make):
+        if len(node.generators) != 1:
+            return node
+        gen = node.generators[0]
+        keys = _string_items(gen.iter, self.lookup)
+        if keys is None or gen.ifs or not isinstance(gen.target, ast.Name):
+            return node
+        items = [_Substitute(gen.target.id, k).visit(copy.deepcopy(node.elt)) for k in keys]
+        return ast.copy_location(make(items), node)
+
+    def visit_ListComp(self, node):
+        node = self.generic_visit(node)
+        return self._expand(node, lambda items: ast.List(items, ast.Load()))
+
+    def visit_GeneratorExp(self, node):
+        node = self.generic_visit(node)
+        return self._expand(node, lambda items: ast.Tuple(items, ast.Load()))
+

@@ -1,0 +1,277 @@
+"""Translating one function's statements into a plan's: every read of the run-time
+``params`` written as one :data:`~.reading.PARAM_READ` call, keys held in variables made
+constants, names from outside and helper calls handed to :mod:`.outside` and
+:mod:`.helpers`.
+"""
+
+from __future__ import annotations
+
+import ast
+import functools
+import importlib
+import types
+
+from .bindings import PARAMS, RUNTIME
+from .helpers import _HelperCalls
+from .outside import _OutsideReads
+from .reading import PARAM_READ
+from .rewrites import _store_counts, _stored_names, _string_items, _Unroll
+from .values import _MISSING, _UNKNOWN, _global, _is_plain
+
+
+class _Translator(_OutsideReads, _HelperCalls, ast.NodeTransformer):
+    """One function's statements -> a plan's (params reads, helpers, frozen values)."""
+
+    def __init__(self, build, plan, fn, bindings):
+        self.build, self.plan, self.fn, self.bindings = build, plan, fn, bindings
+        self.fixed = {}       # names bound for this plan only: hoisted imports, objects
+        self.sources = {}     # name -> RUNTIME (the params vector) or a frozen dict
+        self.renamed = {}     # free name -> module-level name
+        self.strings = {}     # name -> the one string it is assigned
+
+    # -- setting up ------------------------------------------------------------------------
+
+    def translate(self, body):
+        plan, prologue, kept = self.plan, [], set()
+        for name, binding in self.bindings.items():
+            if binding is RUNTIME:
+                plan.arguments.append(name)
+            elif binding == PARAMS:
+                plan.arguments.append(name)
+                self.sources[name] = RUNTIME
+            elif isinstance(binding.value, dict):
+                self.sources[name] = binding.value
+            elif isinstance(binding.value, str):
+                self.strings[name] = binding.value  # a key handed in: reads are constant
+            elif _is_plain(binding.value) and not isinstance(binding.value, types.ModuleType
+                                                                    | types.FunctionType):
+                frozen = self._freeze_value(name, binding.value)
+                prologue.append(ast.Assign([ast.Name(name, ast.Store())],
+                                           ast.Name(frozen, ast.Load()), lineno=0))
+                kept.add(name)
+            else:
+                self.fixed[name] = binding.value  # an object, a module, a function
+        body = self._hoist_imports(body)
+        body = [_Unroll(self._lookup).visit(stmt) for stmt in body]
+        body = [s for stmt in body for s in (stmt if isinstance(stmt, list) else [stmt])]
+        counts = _store_counts(body)
+        self._find_aliases(body, counts)
+        self._find_strings(body, counts)
+        self.local = _stored_names(body) | kept | set(plan.arguments)
+        self.local -= set(self.sources)
+        for name in self.sources:
+            if counts.get(name, 0) > (1 if name not in self.bindings else 0):
+                self._opaque(f"params ({name!r}) is assigned more than once")
+        body = [self.visit(stmt) for stmt in body]
+        body = [s for stmt in body for s in (stmt if isinstance(stmt, list) else [stmt])]
+        plan.body = prologue + body or [ast.Pass()]
+
+    def _hoist_imports(self, body):
+        kept = []
+        for stmt in body:
+            if isinstance(stmt, ast.Import):
+                for alias in stmt.names:
+                    module = importlib.import_module(alias.name)
+                    if alias.asname:
+                        self.fixed[alias.asname] = module
+                    else:
+                        self.fixed[alias.name.split(".")[0]] = importlib.import_module(
+                            alias.name.split(".")[0])
+            elif isinstance(stmt, ast.ImportFrom) and not stmt.level:
+                module = importlib.import_module(stmt.module)
+                for alias in stmt.names:
+                    if alias.name == "*":
+                        self._problem("it imports * inside itself")
+                        continue
+                    self.fixed[alias.asname or alias.name] = getattr(module, alias.name)
+            else:
+                kept.append(stmt)
+        return kept
+
+    def _find_aliases(self, body, counts):
+        changed = True
+        while changed:
+            changed = False
+            for node in ast.walk(ast.Module(body, [])):
+                if isinstance(node, ast.Assign) and len(node.targets) == 1 \
+                        and isinstance(node.targets[0], ast.Name) \
+                        and isinstance(node.value, ast.Name) and node.value.id in self.sources \
+                        and node.targets[0].id not in self.sources:
+                    self.sources[node.targets[0].id] = self.sources[node.value.id]
+                    changed = True
+
+    def _find_strings(self, body, counts):
+        for node in ast.walk(ast.Module(body, [])):
+            if isinstance(node, ast.Assign) and len(node.targets) == 1 \
+                    and isinstance(node.targets[0], ast.Name) \
+                    and isinstance(node.value, ast.Constant) \
+                    and isinstance(node.value.value, str) \
+                    and counts.get(node.targets[0].id) == 1 \
+                    and node.targets[0].id not in self.bindings:
+                self.strings[node.targets[0].id] = node.value.value
+
+    # -- recording ---------------------------------------------------------------------------
+
+    def _problem(self, why):
+        if self.plan.problem is None:
+            self.plan.problem = why
+
+    def _opaque(self, why):
+        if self.plan.opaque is None:
+            self.plan.opaque = why
+
+    def _freeze_value(self, name, value):
+        frozen = f"_g{self.plan.index}_{name}"
+        self.plan.frozen[frozen] = value
+        return frozen
+
+    # -- params reads -------------------------------------------------------------------------
+
+    def _key(self, node):
+        """The constant a key expression stands for, else a sentinel."""
+        if isinstance(node, ast.Constant):
+            return node.value
+        if isinstance(node, ast.Name) and node.id in self.strings:
+            return self.strings[node.id]
+        if isinstance(node, ast.Name) and node.id not in self.local \
+                and node.id not in self.sources:
+            found, value = self._lookup(node.id)
+            if found and isinstance(value, str):
+                return value
+        return _UNKNOWN
+
+    def _read(self, source_name, key, how, default, node):
+        source = self.sources[source_name]
+        if key is _UNKNOWN:
+            self._opaque(f"params is read with a key that is not known: "
+                         f"{ast.unparse(node)[:60]}")
+            return ast.copy_location(ast.Constant(None), node)
+        if default is not None:
+            default = self.visit(default)
+        if source is RUNTIME:
+            self.plan.keys.add(key)
+            call = ast.Call(ast.Name(PARAM_READ, ast.Load()),
+                            [ast.Name(source_name, ast.Load()), ast.Constant(key),
+                             ast.Constant(how), default or ast.Constant(None)], [])
+            return ast.copy_location(call, node)
+        # a dict known when the plan is made (a default {}, a dict handed to a helper)
+        self.plan.checks.append((functools.partial(_global, source, key), source.get(
+            key, _MISSING)))
+        if how == "in":
+            return ast.copy_location(ast.Constant(key in source), node)
+        if key in source:
+            return ast.copy_location(ast.Name(self._freeze_value(
+                f"param_{len(self.plan.frozen)}", source[key]), ast.Load()), node)
+        if how == "item":
+            self._problem(f"params has no key {key!r}")
+            return ast.copy_location(ast.Constant(None), node)
+        return default or ast.copy_location(ast.Constant(None), node)
+
+    def _is_source(self, node):
+        return isinstance(node, ast.Name) and node.id in self.sources
+
+    # -- visitors ---------------------------------------------------------------------------
+
+    def visit_Subscript(self, node):
+        if self._is_source(node.value) and isinstance(node.ctx, ast.Load):
+            return self._read(node.value.id, self._key(node.slice), "item", None, node)
+        if self._is_source(node.value):
+            self._opaque("it writes into params")
+            return node
+        return self._chain_or_visit(node)
+
+    def visit_Attribute(self, node):
+        if self._is_source(node.value):
+            self._opaque(f"it uses params.{node.attr}")
+            return node
+        return self._chain_or_visit(node)
+
+    def _chain_or_visit(self, node):
+        """A read from an object outside, frozen (:meth:`_chain`), else ``node`` visited."""
+        chain = self._chain(node)
+        return chain if chain is not None else self.generic_visit(node)
+
+    def visit_Compare(self, node):
+        if len(node.ops) == 1 and isinstance(node.ops[0], ast.In | ast.NotIn) \
+                and self._is_source(node.comparators[0]):
+            read = self._read(node.comparators[0].id, self._key(node.left), "in", None, node)
+            if isinstance(node.ops[0], ast.NotIn):
+                read = ast.copy_location(ast.UnaryOp(ast.Not(), read), node)
+            return read
+        return self.generic_visit(node)
+
+    def visit_Assign(self, node):
+        if len(node.targets) == 1 and isinstance(node.targets[0], ast.Name) \
+                and self._is_source(node.value):
+            if self.sources[node.value.id] is RUNTIME:
+                return node  # an alias of the parameter vector
+            return []  # an alias of a dict known now: its reads are constants
+        if len(node.targets) == 1 and isinstance(node.targets[0], ast.Name) \
+                and node.targets[0].id in self.strings:
+            return []  # a key held in a variable: its reads are constants
+        return self.generic_visit(node)
+
+    def visit_Name(self, node):
+        name = node.id
+        if name in self.sources:
+            if isinstance(node.ctx, ast.Load):
+                self._opaque(f"it uses params ({name!r}) otherwise than as params['key'] "
+                             f"or params.get('key', default)")
+            return node
+        if isinstance(node.ctx, ast.Load) and name in self.strings:
+            return ast.copy_location(ast.Constant(self.strings[name]), node)
+        if name in self.local or not isinstance(node.ctx, ast.Load):
+            return node
+        return self._free(node)
+
+    def visit_Global(self, node):
+        self._problem("it declares a global")
+        return node
+
+    visit_Nonlocal = visit_Global
+
+    def visit_Import(self, node):
+        self._problem("it imports inside a block")
+        return node
+
+    visit_ImportFrom = visit_Import
+
+    def visit_Call(self, node):
+        f = node.func
+        # params.get("k", default)
+        if isinstance(f, ast.Attribute) and self._is_source(f.value) and f.attr == "get" \
+                and node.args and len(node.args) <= 2 and not node.keywords:
+            default = node.args[1] if len(node.args) == 2 else None
+            return self._read(f.value.id, self._key(node.args[0]), "get", default, node)
+        # map(params.get, ["a", "b"]) -> a tuple of reads
+        if isinstance(f, ast.Name) and f.id == "map" and f.id not in self.local \
+                and len(node.args) == 2 and isinstance(node.args[0], ast.Attribute) \
+                and self._is_source(node.args[0].value) \
+                and node.args[0].attr in ("get", "__getitem__"):
+            keys = _string_items(node.args[1], self._lookup)
+            if keys is None:
+                self._opaque("params is mapped over keys that are not known")
+                return node
+            how = "get" if node.args[0].attr == "get" else "item"
+            items = [self._read(node.args[0].value.id, k, how, None, node) for k in keys]
+            return ast.copy_location(ast.Tuple(items, ast.Load()), node)
+        # list(...) / tuple(...) of a tuple written out above
+        if isinstance(f, ast.Name) and f.id in ("list", "tuple") and f.id not in self.local \
+                and len(node.args) == 1 and not node.keywords:
+            inner = self.visit(node.args[0])
+            if isinstance(inner, ast.Tuple):
+                kind = ast.List if f.id == "list" else ast.Tuple
+                return ast.copy_location(kind(inner.elts, ast.Load()), node)
+            node.args[0] = inner
+            return node
+        target = self._callee(f)
+        if target is not None:
+            return self._helper_call(node, *target)
+        for arg in [*node.args, *(k.value for k in node.keywords)]:
+            if self._is_source(arg) or (isinstance(arg, ast.Starred)
+                                        and self._is_source(arg.value)):
+                self._opaque(f"params is handed to {ast.unparse(f)[:40]}, which is not "
+                             f"compiled")
+                return node
+        return self.generic_visit(node)
+

@@ -1,0 +1,120 @@
+"""Values a function reads from outside itself (its module, its closure, objects): which
+ones the compiler can freeze, how each is read again to tell whether a plan is still
+valid, and the markers of a value not known or not there.
+"""
+
+from __future__ import annotations
+
+import types
+
+import numpy as np
+
+#: Modules whose functions numba compiles itself: calls into them are left as written.
+NUMERIC_MODULES = ("numpy", "math", "cmath")
+
+#: Packages whose plain Python functions are never compiled as helpers (their internals
+#: are not numerical kernels: a python-control system's methods, numpy's Python layer).
+_NOT_HELPERS = ("control", "numpy", "scipy", "controlkit", "numba", "functools", "builtins")
+
+
+def _is_number(value):
+    return isinstance(value, bool | int | float | complex | np.number | np.bool_)
+
+
+def _is_array_like(value):
+    """A numpy array, or a list or tuple of numbers (nested lists: a matrix)."""
+    if isinstance(value, np.ndarray):
+        return True
+    if isinstance(value, list | tuple) and value:
+        try:
+            return np.asarray(value).dtype.kind in "biufc"
+        except (ValueError, TypeError):
+            return False
+    return False
+
+
+def _is_numeric_function(value):
+    """A function numba compiles itself: numpy's, math's, a ufunc."""
+    module = getattr(value, "__module__", None) or ""
+    return callable(value) and not isinstance(value, type) and (
+        isinstance(value, np.ufunc) or module.split(".")[0] in NUMERIC_MODULES)
+
+
+def _is_numba_function(value):
+    return hasattr(value, "py_func") and hasattr(value, "targetoptions")
+
+
+def _is_plain(value):
+    """A value the compiler can freeze as it is (not an object to read attributes of)."""
+    return (value is None or isinstance(value, str) or _is_number(value)
+            or _is_array_like(value) or isinstance(value, types.ModuleType)
+            or _is_numeric_function(value) or _is_numba_function(value)
+            or isinstance(value, types.FunctionType))
+
+
+def _helper_allowed(fn):
+    module = (getattr(fn, "__module__", None) or "").split(".")[0]
+    return module not in _NOT_HELPERS
+
+
+class _Unknown:
+    def __repr__(self):
+        return "<unknown>"
+
+
+_UNKNOWN = _Unknown()
+
+
+def _cell(cell):
+    try:
+        return cell.cell_contents
+    except ValueError:  # an empty cell: a name defined later in the enclosing function
+        return None
+
+
+class _Missing:
+    def __repr__(self):
+        return "<missing>"
+
+
+_MISSING = _Missing()
+
+
+def _global(namespace, name):
+    return namespace.get(name, _MISSING)
+
+
+
+
+def _evaluate(value, steps):
+    """``value.a[b]...`` for ``steps`` ``[("attr", "a"), ("item", b), ...]``."""
+    for kind, step in steps:
+        value = getattr(value, step) if kind == "attr" else value[step]
+    return value
+
+
+def _reevaluate(root, steps):
+    try:
+        return _evaluate(root(), steps)
+    except Exception:  # noqa: BLE001 - not readable now: the plan is out of date
+        return _MISSING
+
+
+def _same(a, b) -> bool:
+    """Whether a value read now is the one a plan was made with."""
+    if a is b:
+        return True
+    if type(a) is not type(b):
+        return False
+    if isinstance(a, str) or _is_number(a):
+        return bool(a == b) or (a != a and b != b)
+    if isinstance(a, types.MethodType):  # a new bound method object at each read
+        return a.__func__ is b.__func__ and a.__self__ is b.__self__
+    return False
+
+
+def _clip():
+    from ..fast.usercode import clip  # the compiled clip that takes numbers too
+
+    return clip
+
