@@ -296,8 +296,8 @@ def test_a_short_stiff_run_goes_on_as_python_control():
 @pytest.mark.parametrize("which", ["fig2", "fig3", "fig4", "cmg"])
 def test_the_papers_loops_with_the_continuous_plant_agree_with_the_sampled_plant(which):
     from controlkit.blocks import spacecraft as sc
-    from controlkit.simulation import initial_state, simulate
     from controlkit.blocks.cmg import adaptive_smc
+    from controlkit.simulation import initial_state, simulate
     from controlkit.studies.cmg.diagrams import cmg_loop
     from controlkit.studies.cmg.scenario import X0_THESIS
     from controlkit.studies.spacecraft.diagrams import mec_loop, output_zeroing_loop
