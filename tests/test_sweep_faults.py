@@ -488,6 +488,17 @@ def _lambda_function(x):
     return {"y": x}
 
 
+def _closure_over_a_lock():
+    """A function neither importable by name nor picklable by value (it holds a lock)."""
+    lock = threading.Lock()
+
+    def under_lock(x):
+        with lock:
+            return {"y": x}
+
+    return under_lock
+
+
 @pytest.mark.parametrize(("kwargs", "message"), [
     ({"workers": 0}, r"workers must be an integer >= 1, got 0"),
     ({"workers": 10 ** 6}, r"workers must be <= \d+ for executor='processes' on this "
@@ -518,10 +529,10 @@ def _lambda_function(x):
                           r"\['x'\]\)"),
     ({"cases": ["a"]}, r"takes no parameter \['case'\].*cases= passes case="),
     ({"draws": {"z": (0, 1)}}, r"takes no parameter \['z'\]"),
-    ({"function": lambda x: {"y": x}}, r"executor='processes' makes the runs in other "
-                                       r"processes, "
-                                       r"which needs a function importable by name"),
-    ({"function": lambda x: {"y": x}, "executor": "threads", "timeout": 5},
+    ({"function": _closure_over_a_lock()}, r"executor='processes' makes the runs in other "
+                                           r"processes, which cannot import .* by name, nor "
+                                           r"send it by value \(TypeError: cannot pickle"),
+    ({"function": _closure_over_a_lock(), "executor": "threads", "timeout": 5},
      r"timeout= makes each run in another process"),
     ({"function": sleepy}, r"sleepy\(\) takes no parameter \['x'\]"),
     ({"function": divmod}, r"divmod\(\) takes \['x'\] by position only"),
@@ -604,3 +615,22 @@ def test_cli_refuses_bad_out_and_workers_before_creating_the_store(tmp_path, cap
                  "--out", str(tmp_path / "o")]) == 2
     assert "workers must be an integer >= 1, got 0" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("options", [{"executor": "processes", "workers": 2},
+                                     {"executor": "threads", "timeout": 30}])
+def test_a_function_of_a_notebook_goes_to_the_workers_by_value(tmp_path, options):
+    # what a notebook cell defines: a function of __main__ reading a notebook variable
+    scope = {"__name__": "__main__", "offset": 10.0}
+    exec("def shifted(x):\n    return {'y': x + offset}\n", scope)
+    table = sweep(scope["shifted"], grid={"x": [1.0, 2.0, 3.0]}, progress=False,
+                  store=tmp_path / "store", **options)
+    assert table["y"].tolist() == [11.0, 12.0, 13.0]
+    assert (table["error"] == "").all()
+
+
+def test_without_cloudpickle_the_message_says_what_to_install(monkeypatch):
+    monkeypatch.setitem(sys.modules, "cloudpickle", None)  # import cloudpickle fails
+    with pytest.raises(ValueError, match=r"sending it by value needs cloudpickle: pip install "
+                                         r'"controlkit\[sweep\]", or use executor=\'threads\''):
+        sweep(lambda x: {"y": x}, grid={"x": [1]}, progress=False)

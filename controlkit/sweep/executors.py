@@ -96,31 +96,73 @@ def _check_executor(executor, workers, scheduler, timeout) -> str:
     return kind
 
 
-def _check_sendable(function, kind, executor, timeout) -> None:
-    """Refuse a function that the executor would have to send to another process but
-    cannot (a lambda, a closure, a function of an interactive session)."""
+class _ByValue:
+    """A function sent to other processes as its code and the values it reads
+    (``cloudpickle``), for one that cannot be imported there by name: defined in a notebook
+    or an interactive session, a lambda, a closure. Called as the function; loaded once
+    per process."""
+
+    def __init__(self, function):
+        import cloudpickle
+
+        self.payload = cloudpickle.dumps(function)
+        self.shown = repr(function)
+        self._function = function
+
+    def __getstate__(self):
+        return {"payload": self.payload, "shown": self.shown}
+
+    def __setstate__(self, state):
+        self.payload, self.shown, self._function = state["payload"], state["shown"], None
+
+    def __call__(self, *args, **kwargs):
+        if self._function is None:
+            self._function = pickle.loads(self.payload)
+        return self._function(*args, **kwargs)
+
+    def __repr__(self):
+        return self.shown
+
+
+def _sendable(function, kind, executor, timeout):
+    """The function as the executor will send it: itself when other processes can import it
+    by name (or no other process is involved), else sent by value (:class:`_ByValue`).
+
+    Raises
+    ------
+    ValueError
+        The function must go to other processes, cannot be imported there and cannot be
+        sent by value (cloudpickle is not installed, or it fails on the function).
+    """
     given_processes = kind == "given" and isinstance(executor, cf.ProcessPoolExecutor)
     if kind != "processes" and timeout is None and not given_processes:
-        return  # threads and this process take any callable; Dask uses cloudpickle
+        return function  # threads and this process take any callable; Dask uses cloudpickle
+    main = sys.modules.get("__main__")
+    interactive = getattr(function, "__module__", None) == "__main__" and \
+        not getattr(main, "__file__", None)
+    if not interactive:
+        try:
+            pickle.dumps(function)
+            return function
+        except Exception:  # noqa: BLE001 - not importable by name: try by value below
+            pass
     why = ("timeout= makes each run in another process (a thread cannot be stopped)"
            if timeout is not None and kind != "processes" else
            f"executor={kind if kind != 'given' else executor!r} makes the runs in other "
            "processes")
-    main = sys.modules.get("__main__")
-    if getattr(function, "__module__", None) == "__main__" and \
-            not getattr(main, "__file__", None):
-        raise ValueError(f"{why}, which cannot import {function!r} from an interactive "
-                         "session or notebook; define it in a module (a .py file) and "
-                         "import it, or use executor='threads' or 'serial'"
-                         + (" without timeout=" if timeout is not None else ""))
+    other = "use executor='threads' or 'serial'" + (
+        " without timeout=" if timeout is not None else "")
     try:
-        pickle.dumps(function)
+        return _ByValue(function)
+    except ImportError:
+        raise ValueError(f"{why}, which cannot import {function!r} by name (a function of "
+                         "a notebook or interactive session, a lambda or a closure); "
+                         'sending it by value needs cloudpickle: pip install '
+                         f'"controlkit[sweep]", or {other}') from None
     except Exception as exc:
-        raise ValueError(f"{why}, which needs a function importable by name (defined at the "
-                         f"top of a module, not a lambda or a closure); {function!r} is "
-                         f"not ({type(exc).__name__}: {exc}); use executor='threads' or "
-                         "'serial'" + (" without timeout=" if timeout is not None else "")
-                         ) from None
+        raise ValueError(f"{why}, which cannot import {function!r} by name, nor send it by "
+                         f"value ({type(exc).__name__}: {exc}); define it at the top of a "
+                         f"module (a .py file) and import it, or {other}") from None
 
 
 def _unreachable(scheduler: str, why: str) -> ValueError:

@@ -17,7 +17,7 @@ from .. import _checks
 from .._store import RunStore
 from .._workers import ProcessRunner, ThreadRunner
 from ..outputs.export import json_default
-from .executors import _check_executor, _check_sendable, _connect, _on_executor, process_context
+from .executors import _check_executor, _connect, _on_executor, _sendable, process_context
 from .points import plan
 from .rows import _call, _call_elsewhere, _failed_row, _pandas, _row
 
@@ -143,8 +143,9 @@ def sweep(function: Callable[..., dict], *, grid: dict | None = None,
         ``"trajectory"`` (a dict of arrays, e.g. decimated time and error) is kept per run
         in ``result.attrs["trajectories"]``, not in the table. A metric may not be named
         as one of :data:`RESERVED`, nor as a parameter unless it has the parameter's
-        value. For process executors, and with ``timeout``, it must be importable (a
-        module-level function, not a lambda).
+        value. For process executors, and with ``timeout``, a function that other
+        processes cannot import by name (one defined in a notebook, a lambda, a closure)
+        is sent by value, with ``cloudpickle`` (in the ``sweep`` extra).
     grid : dict, optional
         Name to a list of values: every combination is run (with ``draws`` too: each
         combination with every draw).
@@ -224,7 +225,7 @@ def sweep(function: Callable[..., dict], *, grid: dict | None = None,
         raise ValueError("resume=True needs store= (the folder of the sweep to complete)")
     runs = plan(grid=grid, draws=draws, samples=samples, seed=seed, cases=cases, fixed=fixed)
     _check_signature(function, runs[0].params, runs[0].case is not None)
-    _check_sendable(function, kind, executor, timeout)
+    sent = _sendable(function, kind, executor, timeout)
     key = _spec_key(function, runs, stored=store is not None)
     run_store = None
     if store is not None:
@@ -238,7 +239,7 @@ def sweep(function: Callable[..., dict], *, grid: dict | None = None,
             rows.update(run_store.open())
         todo = [r for r in runs if r.index not in rows]
         if todo:
-            _make(function, todo, rows, run_store, kind, executor, workers, client, timeout,
+            _make(sent, todo, rows, run_store, kind, executor, workers, client, timeout,
                   warmup, len(runs), progress)
     finally:
         if run_store is not None:
