@@ -82,6 +82,12 @@ def misbehave(kind):
         return [1, 2]
     if kind == "interrupt":
         raise KeyboardInterrupt
+    if kind == "generator_exit":
+        raise GeneratorExit("closed")
+    if kind == "cancelled":
+        import asyncio
+
+        raise asyncio.CancelledError("the task was cancelled")
     if kind == "unprintable":
         raise Unprintable
     return {"y": 0.0}

@@ -456,6 +456,8 @@ EVERY_WAY = {
     "not_a_dict": "TypeError: the swept function must return a dict of metrics, got list",
     "interrupt": "KeyboardInterrupt: raised by the function",
     "unprintable": "Unprintable: (its message cannot be shown: RuntimeError)",
+    "generator_exit": "GeneratorExit: closed",
+    "cancelled": "CancelledError: the task was cancelled",
     "fine": "",
 }
 
@@ -466,7 +468,7 @@ def test_a_misbehaving_function_is_a_failed_row_whatever_it_does(tmp_path):
     for expected, error in zip(EVERY_WAY.values(), table["error"], strict=True):
         assert error.startswith(expected) if expected else error == "", (expected, error)
     y = table["y"].tolist()
-    assert y[-5] == 1.0 and y[-1] == 0.0  # same_parameter_value and fine, after the others
+    assert y[list(EVERY_WAY).index("same_parameter_value")] == 1.0 and y[-1] == 0.0
     assert table["y"].isna().sum() == len(EVERY_WAY) - 2  # only two runs gave metrics
     stored = [json.loads(line) for line in lines(tmp_path / "store")]
     assert sorted(r["run"] for r in stored) == list(range(len(EVERY_WAY)))
@@ -475,7 +477,8 @@ def test_a_misbehaving_function_is_a_failed_row_whatever_it_does(tmp_path):
 
 def test_in_this_process_too_except_what_ends_the_process():
     safe = ["raise", "sys_exit", "unpicklable", "reserved_run", "other_parameter_value",
-            "same_parameter_value", "not_a_dict", "unprintable", "fine"]
+            "same_parameter_value", "not_a_dict", "unprintable", "generator_exit",
+            "cancelled", "fine"]
     for executor in ("serial", "threads"):
         table = sweep(misbehave, grid={"kind": safe}, executor=executor, progress=False)
         for kind, error in zip(safe, table["error"], strict=True):
@@ -634,3 +637,28 @@ def test_without_cloudpickle_the_message_says_what_to_install(monkeypatch):
     with pytest.raises(ValueError, match=r"sending it by value needs cloudpickle: pip install "
                                          r'"controlkit\[sweep\]", or use executor=\'threads\''):
         sweep(lambda x: {"y": x}, grid={"x": [1]}, progress=False)
+
+
+def appends(x, seen):
+    """Changes the list it is given (a notebook's accumulator)."""
+    seen.append(x)
+    return {"n": len(seen)}
+
+
+@pytest.mark.parametrize("executor", ["serial", "threads", "processes"])
+def test_a_function_that_changes_its_arguments_changes_no_other_run(tmp_path, executor):
+    workers = {} if executor == "serial" else {"workers": 2}
+    table = sweep(appends, grid={"x": [0, 1, 2]}, fixed={"seen": []}, executor=executor,
+                  store=tmp_path / "store", progress=False, **workers)
+    assert table["n"].tolist() == [1, 1, 1]  # each run is handed its own list
+    assert table["seen"].tolist() == [[], [], []]  # the rows record what the runs were given
+    again = sweep(appends, grid={"x": [0, 1, 2]}, fixed={"seen": []}, executor=executor,
+                  store=tmp_path / "store", resume=True, progress=False, **workers)
+    assert len(lines(tmp_path / "store")) == 3  # every run was kept, none made again
+    assert again["n"].tolist() == [1, 1, 1]
+
+
+def test_a_generator_as_grid_values_is_refused():
+    with pytest.raises(ValueError, match=r"grid\['x'\] is a generator, which can be read only "
+                                         r"once .* give a list"):
+        sweep(_lambda_function, grid={"x": (v for v in [1, 2])}, progress=False)

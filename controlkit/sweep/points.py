@@ -3,9 +3,10 @@ of named distributions, crossed with cases."""
 
 from __future__ import annotations
 
+import copy
 import itertools
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -43,8 +44,22 @@ class Run:
     params: dict
 
     def kwargs(self) -> dict:
-        """The function's keyword arguments: the parameters, and ``case`` if any."""
-        return self.params if self.case is None else {"case": self.case, **self.params}
+        """The function's keyword arguments: the parameters, and ``case`` if any.
+
+        A list, dict, set or array among them is a fresh copy for each call: a function
+        that changes the one it is given changes neither the next run's nor the row's
+        record of this one's, whatever the executor (a worker process gets a copy anyway).
+        """
+        fresh = {name: _fresh(value) for name, value in self.params.items()}
+        return fresh if self.case is None else {"case": self.case, **fresh}
+
+
+def _fresh(value):
+    """A copy of a mutable container of values, else the value itself (shared, as Python
+    shares an object passed to a function)."""
+    if isinstance(value, list | dict | set | bytearray | np.ndarray):
+        return copy.deepcopy(value)
+    return value
 
 
 def _grid_values(grid: dict) -> list[list]:
@@ -59,6 +74,10 @@ def _grid_values(grid: dict) -> list[list]:
             raise ValueError(f"grid[{name!r}] is a {type(vals).__name__}, which has no fixed "
                              "order (the runs' order would change from one session to the "
                              "next); give a list")
+        if isinstance(vals, Iterator):
+            raise ValueError(f"grid[{name!r}] is a {type(vals).__name__}, which can be read "
+                             "only once (a resume or a second look would find it empty); "
+                             "give a list, e.g. list(...)")
         vals = list(np.atleast_1d(vals)) if not isinstance(vals, list | tuple) else list(vals)
         if not vals:
             raise ValueError(f"grid[{name!r}] has no values")

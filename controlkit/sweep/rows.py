@@ -103,13 +103,17 @@ def _failed_row(run: Run, error: str, wall_time_s: float) -> dict:
 def _call(function, run: Run) -> dict:
     """Make one run; whatever the function raises (or returns wrong) is the row's error.
 
-    A KeyboardInterrupt is not caught: in this process it stops the sweep.
+    A KeyboardInterrupt is not caught: in this process it stops the sweep. Anything else
+    the function raises (an ``Exception``, ``SystemExit``, ``GeneratorExit``, asyncio's
+    ``CancelledError``, a ``BaseException`` of its own) is the row's error.
     """
     started = time.perf_counter()
     try:
         metrics, trajectory = _metrics(function(**run.kwargs()), run)
         error = ""
-    except (Exception, SystemExit) as exc:  # a failing run is a row, not the end
+    except KeyboardInterrupt:
+        raise
+    except BaseException as exc:  # noqa: B036 - a failing run is a row, not the end
         metrics, trajectory, error = {}, None, _describe(exc)
     return _row(run, metrics, error, time.perf_counter() - started, trajectory)
 
