@@ -63,3 +63,43 @@ def test_sweep_system_gives_one_row_per_run_with_its_metrics_and_errors():
                                rtol=1e-3)
     assert table["error"].tolist()[:2] == ["", ""]
     assert "ValueError: ran away" in table["error"][2]
+
+
+def _decay_plant():
+    def decay(t, x, u, params):
+        return -params["a"] * x + u
+
+    return ct.nlsys(decay, None, inputs="u", outputs="y", states=1, params={"a": 1.0},
+                    name="plant")
+
+
+@pytest.mark.parametrize(("options", "message"), [
+    ({"grid": {"bogus": [1.0, 2.0]}}, r"params \['bogus'\] are read by no block of 'plant' "
+                                      r"\(they read \['a'\]\)"),
+    ({"grid": {"a": [1.0]}, "progress": "no"}, r"progress must be True or False, got 'no'"),
+    ({"grid": {"a": [1.0]}, "params": [1, 2]}, r"params must be a dict of the values every "
+                                               r"run shares, got list"),
+])
+def test_sweep_system_refuses_what_would_change_nothing_or_is_not_what_it_takes(options,
+                                                                                 message):
+    with pytest.raises(ValueError, match=message):
+        sweep_system(_decay_plant(), np.linspace(0.0, 1.0, 11), 1.0, 0.0,
+                     metrics=lambda r: {"y": 0.0}, **options)
+
+
+def test_sweep_system_rows_keep_their_own_columns_and_a_bad_value_fails_its_row():
+    T = np.linspace(0.0, 1.0, 11)
+    table = sweep_system(_decay_plant(), T, 1.0, 0.0, grid={"a": [1.0, 2.0]},
+                         metrics=lambda r: {"run": 7, "a": 0.0, "final": 1.0})
+    assert table["run"].tolist() == [0, 1] and table["a"].tolist() == [1.0, 2.0]
+    assert table["error"].str.startswith("ValueError: metrics returned ['a', 'run']").all()
+    # a value the diagram cannot take fails its own row, the others are made
+    table = sweep_system(_decay_plant(), T, 1.0, 0.0, grid={"a": [1.0, "fast"]},
+                         metrics=lambda r: {"final": float(r.outputs[-1])})
+    assert table["error"][0] == "" and table["final"][0] == pytest.approx(1 - np.exp(-1.0),
+                                                                          rel=1e-3)
+    assert table["error"][1] != ""
+    # the same bad argument for every run is the call's error, not a table of failures
+    with pytest.raises(ValueError):
+        sweep_system(_decay_plant(), T, np.ones((3, T.size)), 0.0, grid={"a": [1.0, 2.0]},
+                     metrics=lambda r: {"final": 0.0})

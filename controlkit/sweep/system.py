@@ -6,7 +6,8 @@ from __future__ import annotations
 import sys
 import time
 
-from .points import plan
+from ..engines.params import check_params
+from .points import RESERVED, plan
 from .rows import _describe, _pandas, _plain_metrics
 
 
@@ -62,45 +63,60 @@ def sweep_system(sys, timepts, inputs=0.0, initial_state=0.0, *, metrics, grid=N
     pd = _pandas()
     if not callable(metrics):
         raise ValueError(f"metrics must be a function of a response, got {metrics!r}")
+    if not isinstance(progress, bool):
+        raise ValueError(f"progress must be True or False, got {progress!r}")
+    if params is not None and not isinstance(params, dict):
+        raise ValueError(f"params must be a dict of the values every run shares, got "
+                         f"{type(params).__name__} {params!r:.60}")
     runs = plan(grid=grid, draws=draws, samples=samples, seed=seed)
     shared = dict(params or {})
     params_list = [{**shared, **run.params} for run in runs]
+    check_params(sys, params_list[0])  # a swept name no block reads would change nothing
     started = time.perf_counter()
     from ..simulation import input_output_response
 
-    rows = []
     try:
         responses = input_output_response(sys, timepts, inputs, initial_state,
                                           params=params_list, **simulation)
         failures = [None] * len(runs)
-    except (ArithmeticError, RuntimeError):  # one failed: run each on its own, to know which
+    except Exception as together:  # noqa: BLE001 - run each on its own, to know which
         responses, failures = [], []
         for p in params_list:
             try:
                 responses.append(input_output_response(sys, timepts, inputs, initial_state,
                                                        params=p, **simulation))
                 failures.append(None)
-            except (ArithmeticError, RuntimeError, ValueError) as each:
+            except Exception as each:  # noqa: BLE001 - this run's error, in its row
                 responses.append(None)
-                failures.append(f"{type(each).__name__}: {each}")
-    for run, resp, failure in zip(runs, responses, failures, strict=True):
-        row = {"run": run.index, **run.params}
-        if failure is None:
-            try:
-                result = metrics(resp)
-                if not isinstance(result, dict):
-                    raise TypeError(f"metrics must return a dict, got {type(result).__name__}")
-                row.update(_plain_metrics(result))
-                row["error"] = ""
-            except Exception as error:  # noqa: BLE001 - a failing metric is the row's error
-                row["error"] = _describe(error)
-        else:
-            row["error"] = failure
-        rows.append(row)
+                failures.append(_describe(each))
+        if len(set(failures)) == 1 and failures[0] is not None:
+            raise together  # every run fails alike: the call's arguments, not a run
+    rows = [_system_row(run, resp, failure, metrics)
+            for run, resp, failure in zip(runs, responses, failures, strict=True)]
     if progress:
         elapsed = time.perf_counter() - started
         print(f"sweep_system: {len(runs)} runs in {elapsed:.2f} s", file=_stderr())
     return pd.DataFrame(rows)
+
+
+def _system_row(run, resp, failure, metrics) -> dict:
+    """One run's row: its parameters, the metrics of its response, or why it has none."""
+    row = {"run": run.index, **run.params}
+    if failure is not None:
+        return {**row, "error": failure}
+    try:
+        result = metrics(resp)
+        if not isinstance(result, dict):
+            raise TypeError(f"metrics must return a dict, got {type(result).__name__}")
+        clash = sorted(k for k in result if k in RESERVED or k in run.params)
+        if clash:
+            raise ValueError(f"metrics returned {clash}: names of the table's own columns "
+                             f"(run, error and the swept parameters); rename these metrics")
+        row.update(_plain_metrics(result))
+        row["error"] = ""
+    except Exception as error:  # noqa: BLE001 - a failing metric is the row's error
+        row["error"] = _describe(error)
+    return row
 
 
 def _stderr():
