@@ -54,6 +54,9 @@ API_CASES = {
     "horizon bool": (lambda: reproduce(horizon=True), r"horizon must be a number of seconds"),
     "horizon unknown study": (lambda: reproduce(horizon={"moon": 5.0}),
                               r"horizon names unknown studies \['moon'\]"),
+    "horizon study not run": (lambda: reproduce(study="cmg", horizon={"spacecraft": 5.0}),
+                              r"horizon names \['spacecraft'\], which this run does not "
+                              r"include \(it runs \['cmg'\]\)"),
     "stride 0": (lambda: reproduce(stride=0), r"stride must be an integer >= 1, got 0"),
     "stride float": (lambda: reproduce(stride=2.5), r"stride must be an integer >= 1, got 2.5"),
     "stride bool": (lambda: reproduce(stride=True), r"stride must be an integer >= 1"),
@@ -174,6 +177,8 @@ CLI_CASES = {
                          "horizon must be a positive multiple of Ts = 0.1"),
     "horizon unknown study": (["reproduce", "--horizon", "moon=5"],
                               "horizon names unknown studies ['moon']"),
+    "horizon study not run": (["reproduce", "cmg", "--horizon", "spacecraft=5"],
+                              "horizon names ['spacecraft'], which this run does not include"),
     "stride 0": (["reproduce", "--stride", "0"], "stride must be an integer >= 1, got 0"),
     "stride text": (["reproduce", "--stride", "x"], "argument --stride: invalid int value"),
     "unknown case": (["reproduce", "--case", "nope"], "unknown case ['nope']"),

@@ -65,6 +65,11 @@ def _horizons(studies, horizon) -> dict[str, float | None]:
         if unknown:
             raise UsageError(f"horizon names unknown studies {unknown}; studies: "
                              f"{list(STUDIES)}")
+        unused = sorted(set(given) - {s.name for s in studies})
+        if unused:  # a horizon for a study this run leaves out would be dropped unseen
+            raise UsageError(f"horizon names {unused}, which this run does not include (it "
+                             f"runs {[s.name for s in studies]}); add the study or drop "
+                             f"its horizon")
     else:
         given = {s.name: horizon for s in studies}
     out = {}
