@@ -3,6 +3,9 @@ failing runs as rows, and interrupted sweeps resumed without repeating runs."""
 
 import concurrent.futures as cf
 import json
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pandas as pd
@@ -227,3 +230,20 @@ def test_cmg_plant_options_are_checked():
         cmg.build_loop(plant_options={"mass": 2.0})
     with pytest.raises(ValueError, match=r"inertia_scale must be finite and > 0"):
         cmg.true_plant(inertia_scale=0.0)
+
+
+def test_a_killed_runs_half_written_outputs_are_removed_by_the_next_run(tmp_path):
+    # what a SIGKILL during the writing leaves: temporary files of a process that is gone
+    gone = subprocess.Popen([sys.executable, "-c", "pass"])
+    gone.wait()
+    out = tmp_path / "out"
+    out.mkdir()
+    stale = [out / f".sweep.csv.{gone.pid}.0123abcd.partial",
+             out / f".robustness_errors.png.{gone.pid}.partial"]
+    live = out / f".summary.json.{os.getpid()}.89abcdef.partial"  # a writer still at work
+    for path in [*stale, live]:
+        path.write_text("half")
+    table, _ = robustness.study("spacecraft", samples=1, seed=1, cases=["without_mec"],
+                                horizon=100.0, executor="serial", out=out, progress=False)
+    assert (table["error"] == "").all() and (out / "sweep.csv").is_file()
+    assert not any(path.exists() for path in stale) and live.exists()

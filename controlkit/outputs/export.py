@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import re
 import secrets
 from pathlib import Path
 
@@ -102,6 +103,45 @@ def atomic(path):
     finally:
         with contextlib.suppress(FileNotFoundError):
             partial.unlink()
+
+
+def remove_stale_partials(folder) -> int:
+    """Remove the temporary files that killed writers left in ``folder``; how many.
+
+    A temporary file (:func:`atomic`, ``.NAME.PID[.TOKEN].partial``) whose writer's
+    process no longer runs is a leftover; one of a live process, this one included, is
+    being written and stays.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> _ = (folder / f".a.csv.{2 ** 22 + 7}.0123abcd.partial").write_text("half")
+    >>> _ = (folder / f".b.csv.{os.getpid()}.partial").write_text("being written")
+    >>> remove_stale_partials(folder), sorted(p.name for p in folder.iterdir())[0][:6]
+    (1, '.b.csv')
+    """
+    removed = 0
+    for leftover in Path(folder).glob(".*.partial"):
+        found = (re.search(r"\.(\d+)\.[0-9a-f]{8}\.partial$", leftover.name)
+                 or re.search(r"\.(\d+)\.partial$", leftover.name))
+        if found is None or _running(int(found[1])):
+            continue
+        with contextlib.suppress(OSError):
+            leftover.unlink()
+            removed += 1
+    return removed
+
+
+def _running(pid: int) -> bool:
+    """Whether a process ``pid`` runs (one of another user's counts as running)."""
+    try:
+        os.kill(pid, 0)
+    except (ProcessLookupError, OverflowError):
+        return False
+    except PermissionError:
+        return True
+    return True
 
 
 def write_json(path, data) -> Path:

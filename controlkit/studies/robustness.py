@@ -13,6 +13,7 @@ import math
 import warnings
 from pathlib import Path
 
+from ..outputs.export import remove_stale_partials
 from ..sweep import sweep, wilson_interval
 from . import STUDIES
 from ._sweep_results import requirement_met, write_table_and_summary
@@ -187,6 +188,7 @@ def study(name, *, samples=None, seed=None, cases=None, horizon=None, ranges=Non
                   progress=progress)
     summary = summarize(table, cases, spec, span)
     if out is not None:
+        remove_stale_partials(out)  # what a killed run of this sweep was writing
         settings = dict(seed=seed, samples=samples, horizon=horizon, ranges=ranges,
                         grid=grid)
         if (table["error"] == "").any():
