@@ -247,3 +247,17 @@ def test_a_killed_runs_half_written_outputs_are_removed_by_the_next_run(tmp_path
                                 horizon=100.0, executor="serial", out=out, progress=False)
     assert (table["error"] == "").all() and (out / "sweep.csv").is_file()
     assert not any(path.exists() for path in stale) and live.exists()
+
+
+def test_stored_metrics_of_the_wrong_kind_are_named_with_the_runs_and_the_store(tmp_path):
+    args = dict(samples=2, seed=1, cases=["without_mec"], horizon=100.0, executor="serial",
+                out=tmp_path, progress=False)
+    table, _ = robustness.study("spacecraft", **args)
+    store = tmp_path / "store" / "runs.jsonl"
+    rows = [json.loads(line) for line in store.read_text().splitlines()]
+    error = next(c for c in table.columns if c.startswith("max_") and c.endswith("_deg"))
+    rows[1][error] = "0.0"  # edited by hand: a number written as text
+    store.write_text("".join(json.dumps(row) + "\n" for row in rows))
+    with pytest.raises(ValueError, match=rf"the finished runs \[1\] have a '{error}' that is "
+                                         r"not a number \(e.g. '0.0'\): rows of the store"):
+        robustness.study("spacecraft", resume=True, **args)

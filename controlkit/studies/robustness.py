@@ -225,6 +225,7 @@ def summarize(table, cases, spec, span) -> dict:
     ok = table["error"] == ""
     # metrics no run returned (every run failed) are missing, not zero
     table = table.assign(**{c: None for c in (spec.success, spec.error) if c not in table})
+    _check_metric_kinds(table[ok], spec)
     for case in cases:
         mine = table[table["case"] == case]
         good = ok[mine.index]
@@ -243,3 +244,24 @@ def summarize(table, cases, spec, span) -> dict:
             key: bins,
         }
     return summary
+
+
+def _check_metric_kinds(finished, spec) -> None:
+    """ValueError naming the runs whose stored metrics are not of their kind (a number for
+    ``spec.error``, True/False for ``spec.success``): rows edited by hand or written by
+    something else, which the summary cannot count."""
+    kinds = ((spec.error, "a number", lambda v: isinstance(v, int | float) and
+              not isinstance(v, bool)),
+             (spec.success, "True or False", lambda v: isinstance(v, bool)))
+    for column, kind, fits in kinds:
+        runs = finished["run"] if "run" in finished else finished.index
+        bad = [(int(run), v) for run, v in zip(runs, finished[column], strict=True)
+               if v is not None and not (isinstance(v, float) and math.isnan(v))
+               and not fits(v.item() if hasattr(v, "item") else v)]
+        if bad:
+            shown = [run for run, _ in bad[:5]]
+            raise ValueError(f"the finished runs {shown}{' ...' if len(bad) > 5 else ''} "
+                             f"have a {column!r} that is not {kind} (e.g. "
+                             f"{bad[0][1]!r}): rows of the "
+                             "store (store/runs.jsonl) edited or written by something else; "
+                             "remove those lines and resume to make these runs again")
