@@ -105,7 +105,8 @@ def process_alive(pid: int, start_ticks: int | None = None) -> bool:
 
 def _holder_text(holder: dict) -> str:
     if not holder.get("pid"):
-        return "another process (it is writing its details just now)"
+        return ("another process, which has not written its details (one that is starting "
+                "now, or a program other than controlkit holding the lock)")
     mine = holder["pid"] == os.getpid() and holder.get("host") == socket.gethostname()
     text = f"process {holder['pid']}{' (this one)' if mine else ''} on {holder.get('host', '?')}"
     if holder.get("started"):

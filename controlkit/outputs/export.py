@@ -11,6 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .._lock import process_alive
+
 
 def write_csv(path, columns: dict[str, np.ndarray], *, stride: int = 1) -> Path:
     """Write equal-length columns as CSV, keeping every ``stride``-th row.
@@ -125,23 +127,12 @@ def remove_stale_partials(folder) -> int:
     for leftover in Path(folder).glob(".*.partial"):
         found = (re.search(r"\.(\d+)\.[0-9a-f]{8}\.partial$", leftover.name)
                  or re.search(r"\.(\d+)\.partial$", leftover.name))
-        if found is None or _running(int(found[1])):
+        if found is None or process_alive(int(found[1])):
             continue
         with contextlib.suppress(OSError):
             leftover.unlink()
             removed += 1
     return removed
-
-
-def _running(pid: int) -> bool:
-    """Whether a process ``pid`` runs (one of another user's counts as running)."""
-    try:
-        os.kill(pid, 0)
-    except (ProcessLookupError, OverflowError):
-        return False
-    except PermissionError:
-        return True
-    return True
 
 
 def write_json(path, data) -> Path:
