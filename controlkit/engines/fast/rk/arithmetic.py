@@ -106,41 +106,6 @@ def _all_finite(f, start, count):
 
 
 @jit(inline=True)
-def _stiffness(method, K, n):
-    """Hairer's estimate of ``|h lambda|`` for the accepted step (0 without the test).
-
-    The new state and the last stage's argument both sit at ``t + h``; their
-    derivatives ``k_S`` and ``k_{S-1}`` differ by about the Jacobian times their
-    difference ``h sum_j w_j k_j`` (``w``: the tableau's ``stiffness_weights``), so
-
-    .. math::
-
-        |h \\lambda| \\approx \\frac{\\lVert k_S - k_{S-1} \\rVert}
-        {\\lVert \\sum_j w_j k_j \\rVert}
-
-    estimates the step size times the largest eigenvalue of the Jacobian along the
-    step. An explicit step whose value sits at the edge of the method's stability
-    region (above ``stiffness_bound``) is held down by stability: the problem is stiff.
-    """
-    if method.stiffness_bound == 0.0:
-        return 0.0
-    S = method.n_stages
-    w = method.stiffness_weights
-    num = 0.0
-    den = 0.0
-    for i in range(n):
-        d = K[S, i] - K[S - 1, i]
-        num += d * d
-        c = 0.0
-        for j in range(S):
-            c += w[j] * K[j, i]
-        den += c * c
-    if den == 0.0:
-        return 0.0
-    return math.sqrt(num / den)
-
-
-@jit(inline=True)
 def _error_norm(method, K, K_flat, f, h, rtol, n, exact):
     """Scaled RMS error of the trial step; the step is accepted when this is below 1.
 

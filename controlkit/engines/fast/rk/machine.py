@@ -35,8 +35,8 @@ from .arithmetic import (
     _py_min,
     _rms,
     _stage_argument,
-    _stiffness,
 )
+from .stiffness import _too_stiff
 from .tableaux import DENSE_DOP853, MAX_FACTOR, MIN_FACTOR, RTOL_FLOOR, SAFETY, TABLEAUX
 from .workspace import (
     _ATOL,
@@ -56,7 +56,6 @@ from .workspace import (
     _MAX_STEP,
     _METHOD,
     _MIN_STEP,
-    _NONSTIFF_IN_ROW,
     _PHASE,
     _PHASE_ACCEPTED,
     _PHASE_BAD_SIZES,
@@ -73,11 +72,8 @@ from .workspace import (
     _REJECTED,
     _RTOL,
     _RTOL_GIVEN,
-    _RUN_END,
-    _RUN_START,
     _SCALE,
     _STAGE,
-    _STIFF_IN_ROW,
     _STOP,
     _T,
     _T0,
@@ -98,17 +94,11 @@ from .workspace import (
     NEXT_STEP,
     NFEV,
     NON_FINITE,
-    NONSTIFF_STEPS_IN_ROW,
-    PROJECTED_STEPS,
     RUN_ACCEPTED,
     STAGE_ROWS,
     STATUS,
     STEP_TOO_SMALL,
     STIFF,
-    STIFF_STEP_BUDGET,
-    STIFF_STEPS_BEFORE_PROJECTING,
-    STIFF_STEPS_IN_ROW,
-    STIFFNESS,
     SUCCESS,
     T_REQUEST,
     TIME_FAILED,
@@ -135,45 +125,6 @@ def _finish(st, status):
     st[STATUS] = status
     st[_PHASE] = _PHASE_DONE
     return FINISHED
-
-
-@jit(inline=True)
-def _too_stiff(method, K, f, st, n, t):
-    """Hairer's stiffness test on the step just accepted, and whether the run must stop.
-
-    A step counts as stiff when :func:`~.arithmetic._stiffness` exceeds the method's
-    bound; :data:`STIFF_STEPS_IN_ROW` of them (with fewer than
-    :data:`NONSTIFF_STEPS_IN_ROW` other steps in between) make the run look stiff. It
-    then stops if the steps it would need, ``N (t_end - t_start) / (t - t_start)`` from
-    the ``N`` accepted since the run's start (:func:`~.workspace.set_horizon`, else the
-    interval's), exceed :data:`STIFF_STEP_BUDGET`.
-    """
-    h_lambda = _stiffness(method, K, n)
-    f[STIFFNESS] = h_lambda
-    if h_lambda <= method.stiffness_bound:
-        st[_NONSTIFF_IN_ROW] += 1
-        if st[_NONSTIFF_IN_ROW] >= NONSTIFF_STEPS_IN_ROW:
-            st[_STIFF_IN_ROW] = 0
-        return False
-    st[_NONSTIFF_IN_ROW] = 0
-    st[_STIFF_IN_ROW] += 1
-    if st[_STIFF_IN_ROW] < STIFF_STEPS_IN_ROW or \
-            st[RUN_ACCEPTED] < STIFF_STEPS_BEFORE_PROJECTING:
-        return False
-    start = f[_RUN_START]
-    end = f[_RUN_END]
-    if not (math.isfinite(start) and math.isfinite(end)):
-        start = f[_T0]
-        end = f[_T1]
-    done = abs(t - start)
-    if done == 0.0:
-        return False
-    projected = st[RUN_ACCEPTED] * (abs(end - start) / done)
-    if projected <= STIFF_STEP_BUDGET:
-        return False
-    f[PROJECTED_STEPS] = projected
-    f[TIME_FAILED] = t
-    return True
 
 
 @jit(inline=True)
