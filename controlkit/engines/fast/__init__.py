@@ -12,8 +12,9 @@ same system.
 
 from __future__ import annotations
 
-from .continuous import StiffProblem, response, run_continuous
+from .continuous import StiffProblem, run_continuous
 from .loader import CACHE_DIR
+from .response import response
 from .run import STREAM_CHUNK_STEPS, compile_system, prepare, simulate
 from .tiers import TIERS, BlockTier, explain
 

@@ -11,84 +11,23 @@ with the diagram's compiled right-hand side.
 
 from __future__ import annotations
 
-import math
-
 import control as ct
 import numpy as np
 
 from ..contract import (
     UnsupportedSystem,
-    python_control_arguments,
-    result_flags,
 )
 from ..contract import response as base_response
 from . import loader, rk
 from .diagnose import explain_nan
+from .instants import _eval_instants, _instants
 from .loops import INTEGRATOR_FAILED
-from .run import Job, prepare, simulate
-from .tiers import as_interconnect
 
 #: The methods integrated by compiled code; the stiff ones go to scipy.
 EXPLICIT_METHODS = ("RK23", "RK45", "DOP853")
 STIFF_METHODS = ("LSODA", "BDF", "Radau")
 #: The ``solve_ivp`` options the engine takes; any other sends the run to python-control.
 SOLVER_OPTIONS = ("rtol", "atol", "max_step", "first_step")
-#: An evaluation time within this fraction of the base period of an instant is on it.
-INSTANT_TOLERANCE = 1e-9
-
-
-def response(sys, T, U, X0, **options) -> ct.TimeResponseData:
-    """The fast engine behind :func:`controlkit.input_output_response` (same arguments).
-
-    Raises
-    ------
-    UnsupportedSystem
-        For what the engine does not run (the caller then runs python-control).
-
-    Examples
-    --------
-    >>> sys = ct.nlsys(lambda t, x, u, p: 0.5 * x + u, inputs=1, states=1, outputs=1, dt=1)
-    >>> loop = ct.interconnect([sys], inputs="u[0]", outputs="y[0]")
-    >>> response(loop, np.arange(3.0), 1.0, 1.0).outputs.tolist()
-    [1.0, 1.5, 1.75]
-    """
-    given, sys = sys, as_interconnect(sys)  # the response keeps a single block's labels
-    T, U, X0, t_eval, method, solver = python_control_arguments(sys, T, U, X0, options)
-    params = options.get("params")
-    if sys.isdtime(strict=True):
-        if not np.array_equal(t_eval, T):  # python-control interpolates U at t_eval
-            U = _interpolated(T, U, t_eval)
-        resp = simulate(sys, t_eval, X0, U, params=params)
-    else:
-        resp = run_continuous(prepare(sys, params, (T[0], X0, U[:, 0])), T, U, X0,
-                              t_eval=t_eval, method=method, **solver)
-    return base_response(given, resp.t, resp.y, resp.x, resp.u, **result_flags(options))
-
-
-def _interpolated(T, U, t):
-    """``U`` at the times ``t``, interpolated as python-control does."""
-    idx = np.clip(np.searchsorted(T, t, side="left"), 1, len(T) - 1)
-    dt = (t - T[idx - 1]) / (T[idx] - T[idx - 1])
-    return U[:, idx - 1] * (1.0 - dt) + U[:, idx] * dt
-
-
-def _instants(sys, T0, Tf):
-    """The discrete instants ``T0 + k h`` up to ``Tf`` (``[T0]`` without discrete blocks)."""
-    h = float(getattr(sys, "base_period", 0.0) or 0.0)
-    if not h:
-        return np.array([T0]), 0.0
-    count = math.floor((Tf - T0) / h * (1 + 1e-12)) + 1
-    return T0 + np.arange(count) * h, h
-
-
-def _eval_instants(t_eval, instants, h):
-    """For each evaluation time, the index of the instant it is on, else -1."""
-    if not h:
-        return np.where(t_eval == instants[0], 0, -1).astype(np.int64)
-    k = np.rint((t_eval - instants[0]) / h).astype(np.int64)
-    on = (k >= 0) & (k < instants.size) & (
-        np.abs(t_eval - instants[0] - k * h) <= INSTANT_TOLERANCE * h)
-    return np.where(on, k, -1).astype(np.int64)
 
 
 
@@ -128,7 +67,7 @@ def _solver_options(n, rtol=1e-3, atol=1e-6, max_step=np.inf, first_step=None, *
             0.0 if first_step is None else float(first_step))
 
 
-def run_continuous(job: Job, T, U, X0, *, t_eval=None, method="RK45", generic=None,
+def run_continuous(job, T, U, X0, *, t_eval=None, method="RK45", generic=None,
                    **solver) -> ct.TimeResponseData:
     """Run a diagram with continuous states (or of several rates): the whole horizon.
 
@@ -158,6 +97,7 @@ def run_continuous(job: Job, T, U, X0, *, t_eval=None, method="RK45", generic=No
 
     Examples
     --------
+    >>> from controlkit.engines.fast.run import prepare
     >>> plant = ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], name="p", inputs="u",
     ...               outputs="y")
     >>> loop = ct.interconnect([plant], inputs="u", outputs="y")

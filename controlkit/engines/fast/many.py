@@ -19,13 +19,12 @@ from ..contract import response as base_response
 from . import loader, rk
 from .continuous import (
     EXPLICIT_METHODS,
-    _eval_instants,
-    _instants,
     _integrator_error,
     _solver_options,
     run_continuous,
 )
 from .diagnose import explain_nan
+from .instants import _eval_instants, _instants
 from .loops import INTEGRATOR_FAILED
 from .run import prepare, simulate
 

@@ -28,6 +28,7 @@ from ..contract import (
 from ..contract import response as base_response
 from . import loader
 from .codegen import evaluation_order, generate
+from .continuous import run_continuous
 from .diagnose import explain_divergence, explain_failure
 from .plan import Plan, make_plan
 from .tiers import blocks_of
@@ -232,8 +233,6 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
                                 f"interconnects")
     T, X0, U = check_arguments(sys, T, X0, U)  # a lazy TimeGrid stays lazy, U a view
     if not sys.isdtime(strict=True):  # continuous states: the whole run at once
-        from .continuous import run_continuous
-
         T = np.asarray(T, dtype=float)
         resp = run_continuous(prepare(sys, params, (T[0], X0, U[:, 0])), T, U, X0)
         if on_chunk is not None:

@@ -13,6 +13,7 @@ import numpy as np
 import scipy.integrate
 
 from ..contract import response as base_response
+from .instants import _eval_instants, _instants
 from .loops import INTEGRATOR_FAILED
 
 
@@ -31,7 +32,6 @@ def run_stiff(job, T, U, X0, t_eval, method, solver):
     >>> bool(abs(resp.outputs[-1] - 1.0) < 1e-3)
     True
     """
-    from .continuous import _eval_instants, _instants
 
     sys, plan = job.sys, job.plan
     functions, plan_args = _compiled_evaluator(job)

@@ -9,6 +9,8 @@ import types
 
 import numpy as np
 
+from ...kernels.user_calls import clip
+
 #: Modules whose functions numba compiles itself: calls into them are left as written.
 NUMERIC_MODULES = ("numpy", "math", "cmath")
 
@@ -114,7 +116,5 @@ def _same(a, b) -> bool:
 
 
 def _clip():
-    from ..fast.usercode import clip  # the compiled clip that takes numbers too
-
-    return clip
+    return clip  # the compiled clip that takes numbers too
 

@@ -26,12 +26,12 @@ several trial points (the run's initial state and inputs among them). A function
 that cannot be planned, compiled or matched gets the reason instead; the engine
 then calls it from Python inside its own loop.
 
-The package's rooms: :mod:`.calls` (what compiled code calls), :mod:`.layout` (the
-packed vector ``p``), :mod:`.writer` (the kernel module's text), :mod:`.compiling`
-(loading, checking, the Python fallback).
+The package's rooms: :mod:`.layout` (the packed vector ``p``), :mod:`.writer` (the kernel
+module's text), :mod:`.compiling` (loading, checking, the Python fallback); what compiled
+code calls is in :mod:`controlkit.kernels.user_calls`, re-exported here.
 """
 
-from .calls import clip, missing_parameter, store
+from ....kernels.user_calls import clip, missing_parameter, store
 from .compiling import CompiledKernel, compiled_kernel, load_kernel, python_kernel
 from .layout import ParamEntry, ParamLayout
 from .writer import kernel_source

@@ -15,9 +15,15 @@ from typing import NamedTuple
 import numpy as np
 
 from .... import _jit
+from ....kernels import user_calls
 from ...source import NotCompilable, Plan, plan_function
 from .layout import ParamLayout
 from .writer import kernel_source
+
+#: The source of what kernels call (clip, store, missing_parameter): numba's cache refers
+#: to their compiled code by their module, so a kernel's name changes with it and a cache
+#: written by another version of them is never loaded.
+_CALLS_SOURCE = Path(user_calls.__file__).read_text()
 
 
 def load_kernel(source: str, folder: Path):
@@ -42,7 +48,7 @@ def load_kernel(source: str, folder: Path):
     [3.0]
     """
     key = hashlib.sha256((source + str(_jit.HAVE_NUMBA) + str(_jit.CACHE_FORMAT)
-                          + _COMPILE_OPTIONS).encode()).hexdigest()[:20]
+                          + _COMPILE_OPTIONS + _CALLS_SOURCE).encode()).hexdigest()[:20]
     name = f"controlkit_user_{key}"
     if name in pysys.modules:
         return pysys.modules[name].kernel, name

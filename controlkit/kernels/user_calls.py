@@ -1,15 +1,15 @@
 """What compiled user code calls: the result stored into ``out``, numbers clipped, and a
 missing parameter raising ``KeyError``; each with its numba implementation.
 
-The kernel modules written by :mod:`.writer` import these by their package's name
-(``controlkit.engines.fast.usercode``).
+The kernel modules written by :mod:`controlkit.engines.fast.usercode.writer` import these by
+the name of the package that re-exports them (``controlkit.engines.fast.usercode``).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .... import _jit
+from .. import _jit
 
 
 def store(r, out):
@@ -17,6 +17,7 @@ def store(r, out):
 
     Examples
     --------
+    >>> import numpy as np
     >>> store([1.0, 2.0], np.empty(2)).tolist()
     [1.0, 2.0]
     """

@@ -1,0 +1,49 @@
+"""The fast engine behind :func:`controlkit.input_output_response`: a discrete diagram runs
+step by step (:func:`.run.simulate`), any other through :func:`.continuous.run_continuous`;
+the result is python-control's response object."""
+
+from __future__ import annotations
+
+import control as ct
+import numpy as np
+
+from ..contract import python_control_arguments, result_flags
+from ..contract import response as base_response
+from .continuous import run_continuous
+from .run import prepare, simulate
+from .tiers import as_interconnect
+
+
+def response(sys, T, U, X0, **options) -> ct.TimeResponseData:
+    """The fast engine behind :func:`controlkit.input_output_response` (same arguments).
+
+    Raises
+    ------
+    UnsupportedSystem
+        For what the engine does not run (the caller then runs python-control).
+
+    Examples
+    --------
+    >>> sys = ct.nlsys(lambda t, x, u, p: 0.5 * x + u, inputs=1, states=1, outputs=1, dt=1)
+    >>> loop = ct.interconnect([sys], inputs="u[0]", outputs="y[0]")
+    >>> response(loop, np.arange(3.0), 1.0, 1.0).outputs.tolist()
+    [1.0, 1.5, 1.75]
+    """
+    given, sys = sys, as_interconnect(sys)  # the response keeps a single block's labels
+    T, U, X0, t_eval, method, solver = python_control_arguments(sys, T, U, X0, options)
+    params = options.get("params")
+    if sys.isdtime(strict=True):
+        if not np.array_equal(t_eval, T):  # python-control interpolates U at t_eval
+            U = _interpolated(T, U, t_eval)
+        resp = simulate(sys, t_eval, X0, U, params=params)
+    else:
+        resp = run_continuous(prepare(sys, params, (T[0], X0, U[:, 0])), T, U, X0,
+                              t_eval=t_eval, method=method, **solver)
+    return base_response(given, resp.t, resp.y, resp.x, resp.u, **result_flags(options))
+
+
+def _interpolated(T, U, t):
+    """``U`` at the times ``t``, interpolated as python-control does."""
+    idx = np.clip(np.searchsorted(T, t, side="left"), 1, len(T) - 1)
+    dt = (t - T[idx - 1]) / (T[idx] - T[idx - 1])
+    return U[:, idx - 1] * (1.0 - dt) + U[:, idx] * dt
