@@ -33,7 +33,7 @@ def pack(A, B, C, D) -> np.ndarray:
     return np.concatenate([[n, m, q], A.ravel(), B.ravel(), C.ravel(), D.ravel()])
 
 
-@jit
+@jit(inline=True)
 def _affine(p, first, second, rows, x, u, out):
     """``out = F x + G u`` with ``F`` (``rows`` x n) at ``p[first:]`` and ``G`` (``rows`` x m)
     at ``p[second:]``, row-major: the two products summed as numpy's ``F @ x + G @ u`` does,
@@ -50,7 +50,7 @@ def _affine(p, first, second, rows, x, u, out):
     return out
 
 
-@jit
+@jit(inline=True)
 def lti_output(t, x, u, p, out):
     """``y = C x + D u`` with ``p`` from :func:`pack`.
 
@@ -65,7 +65,7 @@ def lti_output(t, x, u, p, out):
     return _affine(p, c0, c0 + q * n, q, x, u, out)
 
 
-@jit
+@jit(inline=True)
 def lti_update(t, x, u, p, out):
     """``x[k+1] = A x + B u`` (or ``x' = A x + B u`` when sampled) with ``p`` from :func:`pack`.
 

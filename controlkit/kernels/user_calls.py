@@ -41,7 +41,7 @@ if _jit.HAVE_NUMBA:
     from numba import types as _nbtypes
     from numba.extending import overload
 
-    @overload(store)
+    @overload(store, inline="always")
     def _store_overload(r, out):
         if isinstance(r, _nbtypes.Number | _nbtypes.Boolean):
             def impl(r, out):
@@ -65,7 +65,7 @@ if _jit.HAVE_NUMBA:
     def _none(bound):
         return bound is None or isinstance(bound, _nbtypes.NoneType | _nbtypes.Omitted)
 
-    @overload(clip)
+    @overload(clip, inline="always")
     def _clip_overload(a, a_min, a_max):
         if isinstance(a, _nbtypes.Array):
             def impl(a, a_min, a_max):
