@@ -300,6 +300,8 @@ class RunStore:
                 problems.append((number, f"not text ({exc.reason})"))
                 continue
             for row, problem in _split_glued(line):
+                if row is None and not problem:  # the JSON value null: a line, not a row
+                    problem = "not a row (a JSON null)"
                 if row is None:
                     if number == last + 1:
                         problem = "cut (no end of line: a write interrupted)"

@@ -261,3 +261,12 @@ def test_stored_metrics_of_the_wrong_kind_are_named_with_the_runs_and_the_store(
     with pytest.raises(ValueError, match=rf"the finished runs \[1\] have a '{error}' that is "
                                          r"not a number \(e.g. '0.0'\): rows of the store"):
         robustness.study("spacecraft", resume=True, **args)
+
+
+def test_a_folder_where_the_table_goes_is_refused_before_any_run(tmp_path):
+    (tmp_path / "sweep.csv").mkdir()
+    with pytest.raises(ValueError, match=r"out: .*sweep.csv is a folder, where the sweep "
+                                         r"writes its sweep.csv"):
+        robustness.study("spacecraft", samples=1, seed=1, cases=["without_mec"],
+                         horizon=100.0, executor="serial", out=tmp_path, progress=False)
+    assert not (tmp_path / "store").exists()

@@ -348,8 +348,9 @@ def test_spec_without_runs_file_starts_the_runs(full_store):
      r"line 2: run 1 has x=7, this sweep's run 1 has x=1"),
     (lambda b: b + b.splitlines()[0] + b"\n", [], r"line 7: run 0 again"),
     (lambda b: b + b"[1, 2]\n", [], r"line 7: not a row \(a JSON list\)"),
+    (lambda b: b + b"null\n", [], r"line 7: not a row \(a JSON null\)"),
 ], ids=["cut", "glued", "bad_json", "not_utf8", "missing_fields", "unknown_run",
-        "wrong_parameter", "duplicate", "not_a_row"])
+        "wrong_parameter", "duplicate", "not_a_row", "null"])
 def test_damaged_rows_are_skipped_named_and_rerun(full_store, edit, rerun, match):
     store, reference = full_store
     _rewrite_runs(store, edit)
@@ -491,6 +492,13 @@ def _lambda_function(x):
     return {"y": x}
 
 
+def _shut_down_pool():
+    """An executor object that was shut down: it takes no more work."""
+    pool = cf.ThreadPoolExecutor(1)
+    pool.shutdown()
+    return pool
+
+
 def _closure_over_a_lock():
     """A function neither importable by name nor picklable by value (it holds a lock)."""
     lock = threading.Lock()
@@ -538,6 +546,9 @@ def _closure_over_a_lock():
     ({"function": _closure_over_a_lock(), "executor": "threads", "timeout": 5},
      r"timeout= makes each run in another process"),
     ({"function": sleepy}, r"sleepy\(\) takes no parameter \['x'\]"),
+    ({"executor": _shut_down_pool()}, r"executor <concurrent.futures.thread.ThreadPoolExecutor "
+                                      r"object at .*> takes no work \(RuntimeError: cannot "
+                                      r"schedule new futures after shutdown\)"),
     ({"function": divmod}, r"divmod\(\) takes \['x'\] by position only"),
 ])
 def test_bad_arguments_are_refused_before_anything_is_created(tmp_path, kwargs, message):

@@ -14,6 +14,9 @@ from pathlib import Path
 
 from ..outputs.export import atomic
 
+#: The files every robustness sweep writes in its ``out`` folder (the figures come after).
+RESULT_FILES = ("sweep.csv", "summary.json")
+
 
 def warming(run, step: float):
     """A study's ``warmup(cases)``: each case run for two steps of ``step`` s, which compiles
@@ -49,11 +52,11 @@ def write_table_and_summary(table, summary: dict, out) -> list[Path]:
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    with atomic(out / "sweep.csv") as partial:
+    with atomic(out / RESULT_FILES[0]) as partial:
         table.to_csv(partial, index=False)
-    with atomic(out / "summary.json") as partial:
+    with atomic(out / RESULT_FILES[1]) as partial:
         partial.write_text(json.dumps(summary, indent=2) + "\n")
-    return [out / "sweep.csv", out / "summary.json"]
+    return [out / name for name in RESULT_FILES]
 
 
 def requirement_met(rows, success: str):

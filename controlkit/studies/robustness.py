@@ -16,7 +16,7 @@ from pathlib import Path
 from ..outputs.export import remove_stale_partials
 from ..sweep import sweep, wilson_interval
 from . import STUDIES
-from ._sweep_results import requirement_met, write_table_and_summary
+from ._sweep_results import RESULT_FILES, requirement_met, write_table_and_summary
 
 
 def _robustness(name):
@@ -181,6 +181,11 @@ def study(name, *, samples=None, seed=None, cases=None, horizon=None, ranges=Non
                 raise ValueError(f"grid[{k!r}] has no values")
         _check_values(name, spec, cases[0], checked)
     fixed = {} if horizon is None else {"horizon": horizon}
+    if out is not None:  # found after the runs, a folder in the way would cost them all
+        for name in RESULT_FILES:
+            if (Path(out) / name).is_dir():
+                raise ValueError(f"out: {Path(out) / name} is a folder, where the sweep "
+                                 f"writes its {name}; move it away or choose another out")
     table = sweep(spec.run, grid=grid or None, draws=draws or None, samples=samples,
                   seed=seed, cases=cases, fixed=fixed, executor=executor, workers=workers,
                   scheduler=scheduler, store=None if out is None else Path(out) / "store",

@@ -93,7 +93,19 @@ def _check_executor(executor, workers, scheduler, timeout) -> str:
             timeout, int | float | np.integer | np.floating) or not math.isfinite(timeout)
             or timeout <= 0):
         raise ValueError(f"timeout must be a finite number of seconds > 0, got {timeout!r}")
+    if kind == "given":
+        _check_open(executor)
     return kind
+
+
+def _check_open(executor) -> None:
+    """ValueError if ``executor`` takes no more work (shut down, or its workers gone): found
+    now, before a store exists, rather than at the first run."""
+    try:
+        executor.submit(int).result(timeout=SCHEDULER_TIMEOUT_S)
+    except (RuntimeError, cf.BrokenExecutor, cf.TimeoutError) as exc:
+        raise ValueError(f"executor {executor!r} takes no work ({type(exc).__name__}: {exc}); "
+                         "pass one that is open, or a name such as 'processes'") from None
 
 
 class _ByValue:
