@@ -22,9 +22,7 @@ from __future__ import annotations
 
 import math
 import os
-import statistics
 import sys
-import time
 from pathlib import Path
 
 import control as ct
@@ -32,7 +30,8 @@ import numba
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-import cruise  # noqa: E402  (this folder's module)
+import cruise  # noqa: E402  (this folder's modules)
+from timing import median_seconds  # noqa: E402
 
 import controlkit  # noqa: E402
 
@@ -112,15 +111,6 @@ def servo_by_hand(r, Am, Bm, Ap, Bp, Cp, Dp, v_max):
     return Y
 
 
-def _median_seconds(call, repeats=5):
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        call()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
-
-
 def main() -> int:
     os.environ.setdefault("CONTROLKIT_MODULES", "now")  # the diagram's own module, compiled
     rows = []
@@ -132,8 +122,8 @@ def main() -> int:
     ours = controlkit.input_output_response(loop, T, U, X0)  # compiles what it needs
     hand = cruise_by_hand(U, X0[0], X0[1], 0.1)
     rows.append(("cruise (2 states, 2 user nlsys)",
-                 _median_seconds(lambda: controlkit.input_output_response(loop, T, U, X0)),
-                 _median_seconds(lambda: cruise_by_hand(U, X0[0], X0[1], 0.1)),
+                 median_seconds(lambda: controlkit.input_output_response(loop, T, U, X0)),
+                 median_seconds(lambda: cruise_by_hand(U, X0[0], X0[1], 0.1)),
                  float(np.abs(ours.outputs - hand).max())))
     # --- servo
     loop, motor, pi = servo()
@@ -144,9 +134,9 @@ def main() -> int:
             12.0)
     hand = servo_by_hand(*args)
     rows.append(("servo (3 states, LTI + user nlsys)",
-                 _median_seconds(lambda: controlkit.input_output_response(loop, T, r,
+                 median_seconds(lambda: controlkit.input_output_response(loop, T, r,
                                                                            np.zeros(3))),
-                 _median_seconds(lambda: servo_by_hand(*args)),
+                 median_seconds(lambda: servo_by_hand(*args)),
                  float(np.abs(ours.outputs - hand).max())))
     print(f"{STEPS:,} steps a call, median of 5 warm calls")
     print("| diagram | controlkit (ns/step) | by hand (ns/step) | ratio | max difference |")

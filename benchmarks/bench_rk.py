@@ -41,9 +41,9 @@ import subprocess
 import sys
 import tempfile
 import textwrap
-import time
 
 import numpy as np
+from timing import median_seconds  # this folder's module
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 TESTS = os.path.join(ROOT, "tests")
@@ -262,15 +262,6 @@ def _evaluate_compiled(rhs, args, n, t, y):
     return out
 
 
-def _median_time(function, repeats):
-    samples = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        function()
-        samples.append(time.perf_counter() - start)
-    return statistics.median(samples)
-
-
 def bench_runtime(repeats=5, horizon=1e5, scipy_horizon=1e3):
     """Nanoseconds per step of each integrator on two problems; see the module docstring."""
     import rk_problems as P
@@ -312,7 +303,7 @@ def bench_runtime(repeats=5, horizon=1e5, scipy_horizon=1e3):
                                          work, exact)
                 status, _ = call()
                 assert status == rk.SUCCESS
-                seconds = _median_time(call, repeats)
+                seconds = median_seconds(call, repeats)
                 counts[name] = (int(work.ints[rk.N_ACCEPTED]), int(work.ints[rk.NFEV]))
                 per_step[name] = seconds / counts[name][0] * 1e9
             steps, nfev = counts["exact, linked"]
@@ -326,7 +317,7 @@ def bench_runtime(repeats=5, horizon=1e5, scipy_horizon=1e3):
                                                        method=method).t.size - 1
                 call = functools.partial(scipy.integrate.solve_ivp, fun, (0.0, scipy_horizon),
                                          problem.y0, method=method, t_eval=short_eval)
-                per_step[name] = _median_time(call, max(1, repeats // 2)) / step_count * 1e9
+                per_step[name] = median_seconds(call, max(1, repeats // 2)) / step_count * 1e9
 
             # plain RK4 making as many evaluations as our run
             rk4_steps = max(1, nfev // 4)
@@ -335,7 +326,7 @@ def bench_runtime(repeats=5, horizon=1e5, scipy_horizon=1e3):
             rk4_fixed(problem.rhs, args, problem.y0, 0.0, h, 10, rk4_work)
             call = functools.partial(rk4_fixed, problem.rhs, args, problem.y0, 0.0, h,
                                      rk4_steps, rk4_work)
-            seconds = _median_time(call, repeats)
+            seconds = median_seconds(call, repeats)
             row = {"problem": label, "method": method, "steps": steps, "nfev": nfev,
                    "ns_per_step": per_step,
                    "ns_per_evaluation_ours": per_step["exact, linked"] * steps / nfev,
