@@ -199,3 +199,79 @@ def test_values_read_by_a_user_function_are_taken_afresh_at_each_run():
     ref = simulate(loop, T, X0=[0.0], U=1.0, params={"leak": 0.3}).outputs
     np.testing.assert_allclose(second, ref, rtol=0, atol=1e-12)
     assert np.abs(second - first).max() > 0.1
+
+
+# --- the diagram's own module and the generic driver: the same numbers ---------------------
+
+def _large_blocks():
+    """An LTI block too large to be written out term by term, and a sampled block with more
+    states than are written out one line each (codegen's two loop forms)."""
+    rng = np.random.default_rng(3)
+    n = 14
+    A = -np.eye(n) + 0.1 * rng.standard_normal((n, n))
+    big = ct.sample_system(ct.ss(A, rng.standard_normal((n, 2)), rng.standard_normal((2, n)),
+                                 np.zeros((2, 2)), inputs=["a", "b"], outputs=["p", "q"],
+                                 name="big"), TS)
+    chain = ct.nlsys(lambda t, x, u, params: np.concatenate([[u[0] - x[0]], x[:-1] - x[1:]]),
+                     lambda t, x, u, params: x[-1], inputs="p", outputs="c", states=10,
+                     name="chain")
+    loop = ct.interconnect([big, sample_nlsys(chain, TS, substeps=2)], inputs=["a", "b"],
+                           outputs=["p", "q", "c"], name="large")
+    T = np.arange(300) * TS
+    return loop, T, np.zeros(loop.nstates), np.vstack([np.sin(T), np.cos(T)]), None
+
+
+@pytest.mark.parametrize("name", [*DIAGRAMS, "large blocks"])
+def test_the_diagrams_own_module_gives_the_drivers_numbers_to_the_bit(name):
+    # LTI blocks and RK4 substeps are written out in the module, looped over in the driver:
+    # a first call (driver) and a later one (module) must not differ in a single bit
+    from controlkit.engines.fast.run import prepare
+
+    loop, T, X0, U, params = (DIAGRAMS.get(name) or _large_blocks)()
+    X0 = np.asarray(X0, dtype=float)
+    U = np.broadcast_to(np.atleast_2d(U), (loop.ninputs, T.size)).copy()
+    job = prepare(loop, params)
+    results = []
+    for policy in ("never", "now"):
+        run, generic = job.loop("run_discrete", policy=policy)
+        extra = (job.generic_plan(),) if generic else ()
+        Y, X = np.zeros((loop.noutputs, T.size)), np.zeros((loop.nstates, T.size))
+        status = np.full(3, -1, dtype=np.int64)
+        run(T, X0.copy(), U, job.P, Y, X, status, 0, T.size, *extra)
+        assert status[0] == -1
+        results.append((Y, X))
+    (Yd, Xd), (Ym, Xm) = results
+    np.testing.assert_array_equal(Ym, Yd)
+    np.testing.assert_array_equal(Xm, Xd)
+    assert np.abs(Yd).max() > 0.01
+
+
+def test_a_nan_is_named_at_its_block_and_never_reaches_a_later_user_function(monkeypatch):
+    # the module checks our own blocks' outputs for NaN together, before the next user
+    # function: the NaN of 'bad' passes through an LTI gain, and 'watch' never sees it
+    from controlkit.engines.fast import run as fast_run
+
+    seen, stops = [], []
+
+    def watch(t, x, u, params):
+        seen.append(float(u[0]))
+        return u[0]
+
+    def stopped(sys, blocks, T, X, U, status, params=None):  # before python-control looks
+        stops.append((int(status[0]), blocks[int(status[1])].system.name, list(seen)))
+        raise FloatingPointError("stopped")
+
+    monkeypatch.setattr(fast_run, "explain_failure", stopped)
+    bad = ct.nlsys(None, lambda t, x, u, params: np.log(u[0] - 2.0), inputs="u", outputs="w",
+                   dt=TS, name="bad")
+    gain = ct.ss([], [], [], [[3.0]], dt=TS, inputs="w", outputs="g", name="gain")
+    watcher = ct.nlsys(None, watch, inputs="g", outputs="y", dt=TS, name="watch",
+                       params={"label": "python tier"})  # a str: runs as Python
+    loop = ct.interconnect([bad, gain, watcher], inputs="u", outputs="y")
+    T = np.arange(10) * TS
+    U = np.where(np.arange(10) < 5, 4.0, 1.0)  # log of a negative number from step 5
+    with pytest.raises(FloatingPointError, match="stopped"):
+        simulate(loop, T, X0=[], U=U, engine="fast")
+    (step, block, calls), = stops
+    assert (step, block) == (5, "bad")
+    assert len(calls) >= 5 and np.isfinite(calls).all()

@@ -88,7 +88,8 @@ def check_arguments(sys, T, X0, U=0.0):
         steps = np.diff(T)
         if (steps <= 0).any():
             raise ValueError("T must be increasing")
-        if discrete and T.size > 1 and not np.allclose(steps, sys.dt):
+        # np.isclose(step, dt) holds on an interval of steps: the extremes decide for all
+        if discrete and T.size > 1 and not np.allclose([steps.min(), steps.max()], sys.dt):
             raise ValueError(f"time steps of T must equal the sampling time {sys.dt} of "
                              f"{sys.name!r}, got steps from {steps.min():g} to "
                              f"{steps.max():g}")

@@ -73,19 +73,20 @@ if _jit.HAVE_NUMBA:
             return impl
         if not isinstance(a, _nbtypes.Number):
             return None
-        # numpy's order: maximum with a_min, then minimum with a_max; NaN anywhere wins
+        # numpy's own definition, maximum with a_min then minimum with a_max (NaN anywhere
+        # wins), as ufuncs on numbers: no branch, which numba's SSA pass warned about
+        # (NumbaIRAssumptionWarning) once the overload was inlined several times
         if _none(a_min) and _none(a_max):
             return None
         if _none(a_min):
             def impl(a, a_min, a_max):
-                return a if a <= a_max or a != a else a_max
+                return np.minimum(a, a_max)
         elif _none(a_max):
             def impl(a, a_min, a_max):
-                return a if a >= a_min or a != a else a_min
+                return np.maximum(a, a_min)
         else:
             def impl(a, a_min, a_max):
-                low = a if a >= a_min or a != a else a_min
-                return low if low <= a_max or low != low else a_max
+                return np.minimum(np.maximum(a, a_min), a_max)
         return impl
 
 
