@@ -167,6 +167,10 @@ def _sources(modules) -> str:
     return "".join(texts)
 
 
+#: Hashed names of the modules' sources met in this process (see :func:`module_path`).
+_KEYS: dict[str, str] = {}
+
+
 def module_path(source: str, prefix: str = "diagram") -> Path:
     """Where the module of ``source`` is written: a name hashed from its text and code.
 
@@ -179,11 +183,15 @@ def module_path(source: str, prefix: str = "diagram") -> Path:
     >>> module_path("import numpy as np\\n").name.startswith("diagram_")
     True
     """
-    modules = sorted({line.split()[1] for line in source.splitlines()
-                      if line.startswith("from ") and " import " in line}
-                     - {"controlkit.engines.fast"})
-    key = hashlib.sha256((source + _sources([*modules, *PASTED_IN]) + str(_jit.HAVE_NUMBA)
-                          + str(_jit.CACHE_FORMAT)).encode()).hexdigest()[:20]
+    key = _KEYS.get(source)
+    if key is None:  # read once a process: a call on the driver asks again (16 files, 1 ms)
+        modules = sorted({line.split()[1] for line in source.splitlines()
+                          if line.startswith("from ") and " import " in line}
+                         - {"controlkit.engines.fast"})
+        key = hashlib.sha256((source + _sources([*modules, *PASTED_IN])
+                              + str(_jit.HAVE_NUMBA) + str(_jit.CACHE_FORMAT)
+                              ).encode()).hexdigest()[:20]
+        _KEYS[source] = key
     folder = cache_folder()
     path = folder / f"{prefix}_{key}.py"
     if not path.exists():  # keep the file's date: numba's cache index keys on it
