@@ -14,7 +14,8 @@ A reference slower than ``--budget`` seconds is run over a shorter horizon and s
 the full one (marked ``~``). Then 1000 runs of one continuous diagram over parameter draws,
 in one call, against python-control's time per run.
 
-Run: ``python benchmarks/bench_continuous.py [--budget 60]`` (about 10-20 minutes).
+Run: ``python benchmarks/bench_continuous.py [--budget 60] [--only ROW ...]`` (about 10-20
+minutes for all; a row is ``diagram`` or ``diagram:horizon``, ``many`` the 1000 runs).
 The machine is shared: compare the ratios, measured in the same process.
 """
 
@@ -155,6 +156,8 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--budget", type=float, default=60.0,
                         help="longest reference run in seconds (beyond: scaled, marked ~)")
+    parser.add_argument("--only", nargs="+", metavar="ROW",
+                        help="rows to run, as diagram or diagram:horizon (short, long)")
     parser.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     parser.add_argument("--many", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
@@ -174,6 +177,8 @@ def main(argv=None) -> int:
     print("|---|---|---|---|---|---|---|---|---|")
     for name in (*CONTINUOUS, *MIXED):
         for label in HORIZONS:
+            if args.only and name not in args.only and f"{name}:{label}" not in args.only:
+                continue
             out = subprocess.run([sys.executable, __file__, "--child", name, label,
                                   "--budget", str(args.budget)], env=env,
                                  capture_output=True, text=True)
@@ -189,6 +194,8 @@ def main(argv=None) -> int:
                   f"{r['mark']}{_times(r['reference'] / r['first'])} | "
                   f"{r['mark']}{_times(r['reference'] / r['warm'])} | {jit} | {vs_jit} |",
                   flush=True)
+    if args.only and "many" not in args.only:
+        return 0
     out = subprocess.run([sys.executable, __file__, "--many"], env=env, capture_output=True,
                          text=True, check=True)
     m = json.loads(out.stdout.strip().splitlines()[-1])

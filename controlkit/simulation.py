@@ -238,10 +238,10 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
     if isinstance(sys, SampledDataSystem):
         return _sampled_data_response(sys, T, U, X0, engine, options)
     if engine == "fast":
-        response = _fast_response(sys, T, U, X0, options, "python-control", stacklevel=3,
-                                  advice=" (controlkit.explain(sys) lists every block's tier)")
-        if response is not None:
-            return response
+        fast = _fast_response(sys, T, U, X0, options, "python-control", stacklevel=3,
+                              advice=" (controlkit.explain(sys) lists every block's tier)")
+        if fast is not None:
+            return fast
     return ct.input_output_response(sys, T, U, X0, **options)
 
 
@@ -321,10 +321,10 @@ def _sampled_data_response(sys, T, U, X0, engine, options):
 
     arguments = python_control_arguments(sys, T, U, X0, options)
     if engine == "fast":
-        response = _fast_response(sys, T, U, X0, options, "controlkit's Python reference",
-                                  stacklevel=4)
-        if response is not None:
-            return response
+        fast = _fast_response(sys, T, U, X0, options, "controlkit's Python reference",
+                              stacklevel=4)
+        if fast is not None:
+            return fast
     T, U, X0, t_eval, method, solve_ivp_kwargs = arguments
     resp = reference.simulate_sampled_data(sys, T, X0, U, params=options["params"],
                                            t_eval=t_eval, method=method,

@@ -199,6 +199,17 @@ def test_sampled_data_diagram_equals_the_reference(name):
     assert scaled_error(ours.x, X) <= 1e-8
 
 
+def test_a_sampled_data_diagram_runs_on_the_python_reference_when_asked():
+    # engine="python-control" on a diagram python-control refuses: the plain-Python
+    # reference, with the compiled engine's numbers (it once failed with UnboundLocalError)
+    loop, T, X0, U = servo_pi_discrete()
+    T, U = T[:41], U[:41]
+    slow = controlkit.input_output_response(loop, T, U, X0, engine="python-control")
+    quick = controlkit.input_output_response(loop, T, U, X0)
+    assert slow.outputs.shape == quick.outputs.shape == (2, 41)
+    assert scaled_error(slow.outputs, quick.outputs) <= 1e-6
+
+
 def test_python_control_refuses_a_sampled_data_diagram_with_the_remedy():
     loop, T, X0, U = servo_pi_discrete()
     with pytest.raises(ValueError, match=r"sampled-data diagram .* use "
