@@ -166,6 +166,43 @@ def compiled_kernel(fn, values: dict, folder: Path, n_out: int, n_x: int, n_u: i
     layout = layout or ParamLayout.of([plan], values)
     p = layout.pack(values)
     points = _trial_points(n_x, n_u, trials)
+    try:  # the function's text with what it reads from outside frozen in: its identity
+        identity = kernel_source(fn, values, False, layout=layout, exact=False, plan=plan)
+    except NotCompilable:
+        identity = None
+    key = identity and (identity, layout.entries, p.tobytes(), n_out, n_x, n_u,
+                        tuple((t, x.tobytes(), u.tobytes()) for t, x, u in points))
+    known = _CHECKED.get(key) if key else None
+    if known is not None:  # checked at these very points with these values: as then
+        if isinstance(known, str):
+            raise NotCompilable(known)
+        return known
+    try:
+        result = _checked_kernel(fn, values, folder, n_out, n_x, n_u, layout, plan, p,
+                                 points)
+    except NotCompilable as why:
+        _remember(key, str(why))
+        raise
+    _remember(key, result)
+    return result
+
+
+#: Kernels checked in this process by what decides the check's outcome (the function's
+#: text with its outside reads frozen, the parameters, the trial points): a notebook's
+#: repeated call checked the same kernel again, 0.4 ms a function a call (a third of a
+#: short continuous run of the car in benchmarks/bench_continuous.py).
+_CHECKED: dict = {}
+
+
+def _remember(key, outcome) -> None:
+    if key:
+        if len(_CHECKED) >= 4096:  # a long sweep over initial states: start again
+            _CHECKED.clear()
+        _CHECKED[key] = outcome
+
+
+def _checked_kernel(fn, values, folder, n_out, n_x, n_u, layout, plan, p, points):
+    """:func:`compiled_kernel`'s work: compile, then compare with ``fn`` at ``points``."""
     attempts = [(False, True), (False, False)]
     if layout.has_ints:
         attempts += [(True, True), (True, False)]
@@ -173,7 +210,7 @@ def compiled_kernel(fn, values: dict, folder: Path, n_out: int, n_x: int, n_u: i
     for exact, direct in attempts:
         try:
             source = kernel_source(fn, values, direct, layout=layout, exact=exact, plan=plan)
-        except NotCompilable as why:
+        except NotCompilable:
             if direct:
                 continue  # not every return is a literal list: copy the result instead
             raise
