@@ -275,3 +275,36 @@ def test_a_nan_is_named_at_its_block_and_never_reaches_a_later_user_function(mon
     (step, block, calls), = stops
     assert (step, block) == (5, "bad")
     assert len(calls) >= 5 and np.isfinite(calls).all()
+
+
+def test_the_background_compiler_compiles_a_diagram_of_user_functions(tmp_path):
+    # the background process imports the diagram's module in a fresh interpreter: its user
+    # kernels must be compiled there too (they were plain Python, the compile failed, and
+    # such diagrams ran on the generic driver for good). Empty caches, so that nothing
+    # compiled earlier answers for it.
+    import os
+    import subprocess
+    import sys
+    import textwrap
+
+    script = textwrap.dedent("""
+        import subprocess, sys
+        from user_diagrams import tank_with_params
+        from controlkit.engines.fast import loader
+        from controlkit.engines.fast.run import prepare
+        loop, T, X0, U, params = tank_with_params()
+        job = prepare(loop, params)
+        path = loader.module_path(job.source)
+        assert "from controlkit_user_" in path.read_text()
+        done = subprocess.run([sys.executable, "-m", "controlkit.engines.fast.background",
+                               str(path), "run_discrete"])
+        print(done.returncode, loader.is_compiled(loader.load(job.source).run_discrete))
+    """)
+    env = dict(os.environ, CONTROLKIT_CACHE_DIR=str(tmp_path / "engine"),
+               NUMBA_CACHE_DIR=str(tmp_path / "numba"), CONTROLKIT_MODULES="never",
+               PYTHONPATH=os.pathsep.join([os.path.dirname(__file__),
+                                           os.environ.get("PYTHONPATH", "")]))
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          env=env, timeout=900)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["0", "True"]

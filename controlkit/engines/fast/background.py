@@ -25,7 +25,11 @@ def main(argv=None) -> int:
     try:
         from .loader import compiled, import_module
         from .run import prime
+        from .usercode.compiling import import_user_module
 
+        for line in Path(path).read_text().splitlines():  # its user kernels, compiled first
+            if line.startswith("from controlkit_user_"):
+                import_user_module(Path(path).parent / f"{line.split()[1]}.py")
         module = compiled(import_module(Path(path)))
         prime(getattr(module, entry), entry)
     except Exception:  # noqa: BLE001 - the caller keeps running on the driver

@@ -58,8 +58,26 @@ def load_kernel(source: str, folder: Path):
         tmp = path.with_suffix(f".{os.getpid()}.tmp")
         tmp.write_text(source)
         os.replace(tmp, path)
-    if str(folder) not in pysys.path:
-        pysys.path.append(str(folder))
+    try:
+        return import_user_module(path).kernel, name
+    except Exception as error:  # the generated module does not load: nothing is kept
+        raise NotCompilable(f"its compiled module does not load ({type(error).__name__}: "
+                            f"{error})") from None
+
+
+def import_user_module(path: Path):
+    """Import the user kernel module at ``path`` (see :func:`load_kernel`), its functions
+    compiled as the engine calls them; it stays in ``sys.modules`` only if it loads.
+
+    A diagram's module imports its user kernels by name: a process that imports it
+    without having made them (the background compiler, :mod:`..background`) loads them
+    here first, or it would find plain Python functions numba cannot call.
+    """
+    name = path.stem
+    if name in pysys.modules:
+        return pysys.modules[name]
+    if str(path.parent) not in pysys.path:
+        pysys.path.append(str(path.parent))
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
     pysys.modules[name] = module  # numba's disk cache re-imports it by name
@@ -74,12 +92,11 @@ def load_kernel(source: str, folder: Path):
                 inline = "never" if n == "kernel" else "always"
                 setattr(module, n, _jit.numba.njit(cache=True, inline=inline,
                                                    error_model="numpy")(getattr(module, n)))
-        kernel = module.kernel
-    except Exception as error:  # the generated module does not load: nothing is kept
+        module.kernel  # noqa: B018 - a module without its kernel does not load
+    except Exception:
         del pysys.modules[name]
-        raise NotCompilable(f"its compiled module does not load ({type(error).__name__}: "
-                            f"{error})") from None
-    return kernel, name
+        raise
+    return module
 
 
 #: How the modules' functions are compiled, part of their names: numba's disk cache would
