@@ -72,6 +72,15 @@ def import_user_module(path: Path):
     A diagram's module imports its user kernels by name: a process that imports it
     without having made them (the background compiler, :mod:`..background`) loads them
     here first, or it would find plain Python functions numba cannot call.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> src = kernel_source(lambda t, x, u, params: 2.0 * u, {})
+    >>> _, name = load_kernel(src, Path(tempfile.mkdtemp()))
+    >>> module = import_user_module(Path(pysys.modules[name].__file__))
+    >>> module.kernel(0.0, np.zeros(0), np.ones(1), np.zeros(0), np.empty(1)).tolist()
+    [2.0]
     """
     name = path.stem
     if name in pysys.modules:
