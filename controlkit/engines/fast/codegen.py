@@ -173,6 +173,22 @@ def generate(plan, held_logic):
     >>> [line for line in source.splitlines() if line.startswith("def run")], injected
     (['def run_discrete(T, X0, U, P, Y, X, status, k0, k1):'], {})
     """
+    key = (held_logic, plan.table.tobytes(), plan.order.tobytes(), plan.h.tobytes(),
+           plan.continuous.tobytes(), *(a.tobytes() for a in (*plan.inputs, *plan.outputs)),
+           plan.ny, plan.nu, tuple(plan.kernels), plan.sys.noutputs, plan.sys.nstates,
+           tuple(s.name for s in plan.sys.syslist))
+    if key not in _GENERATED:  # a diagram called again writes the same text (0.1 ms)
+        if len(_GENERATED) >= 1024:
+            _GENERATED.clear()
+        _GENERATED[key] = _generate(plan, held_logic)
+    return _GENERATED[key]
+
+
+#: Sources written in this process, by everything :func:`_generate` reads of a plan.
+_GENERATED: dict = {}
+
+
+def _generate(plan, held_logic):
     rows, ny = plan.rows(), plan.ny
     names, imports, injected = _kernel_names(plan)
     trusted = {names.index(alias) for module, _, alias in imports
