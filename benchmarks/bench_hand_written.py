@@ -165,7 +165,7 @@ def main() -> int:
     print("|---|---|---|---|---|---|---|")
     for name, call_s, loop_s, hand_s, diff in rows:
         ns = [f"{s / STEPS * 1e9:.0f}" for s in (call_s, loop_s, hand_s)]
-        print(f"| {name} | {' | '.join(ns)} | {call_s / hand_s:.1f}x | {loop_s / hand_s:.1f}x "
+        print(f"| {name} | {' | '.join(ns)} | {call_s / hand_s:.2f}x | {loop_s / hand_s:.2f}x "
               f"| {diff:.1e} |")
     return 0
 

@@ -73,10 +73,11 @@ def _terms(ptr, cols, gain, r, name):
 LTI_TERMS_WRITTEN_OUT = 256
 
 
-def _lti_lines(kernel, row, out, start):
-    """Lines computing an LTI block's outputs (``kernel`` is :func:`~controlkit.kernels.lti.
-    lti_output`) or next state (``lti_update``) into ``out[start:]``, with every index a
-    literal; None for another kernel or a large block.
+def _lti_sums(kernel, row, ref):
+    """The right-hand sides of an LTI block's outputs (``kernel`` is
+    :func:`~controlkit.kernels.lti.lti_output`) or next state (``lti_update``), one per
+    row, with every index a literal (``ref(array, i)`` names ``x[i]`` or ``ui[i]``); None
+    for another kernel or a large block.
 
     The sums run in the kernel's order (``F x`` from 0.0, then ``G u`` from 0.0, added), so
     the numbers are the kernel's to the bit; written out, a small block costs a few
@@ -93,12 +94,19 @@ def _lti_lines(kernel, row, out, start):
         return None
     if count * (n + m) > LTI_TERMS_WRITTEN_OUT:
         return None
-    lines = []
+    sums = []
     for i in range(count):
-        fx = "".join(f" + P[{first + i * n + j}] * x[{row.X0 + j}]" for j in range(n))
-        gu = "".join(f" + P[{second + i * m + j}] * ui[{row.U0 + j}]" for j in range(m))
-        lines.append(f"{out}[{start + i}] = (0.0{fx}) + (0.0{gu})")
-    return lines
+        fx = "".join(f" + P[{first + i * n + j}] * {ref('x', row.X0 + j)}" for j in range(n))
+        gu = "".join(f" + P[{second + i * m + j}] * {ref('ui', row.U0 + j)}"
+                     for j in range(m))
+        sums.append(f"(0.0{fx}) + (0.0{gu})")
+    return sums
+
+
+def _lti_lines(kernel, row, out, start):
+    """:func:`_lti_sums` assigned to ``out[start:]`` (None where that is None)."""
+    sums = _lti_sums(kernel, row, lambda array, i: f"{array}[{i}]")
+    return None if sums is None else [f"{out}[{start + i}] = {e}" for i, e in enumerate(sums)]
 
 
 def _rk4_lines(kernel, row, h, view):
@@ -195,10 +203,41 @@ def _generate(plan, held_logic):
                if module.startswith("controlkit.")}
     ptr, cols, gain = plan.inputs
 
+    # In evaluate, the signals that written-out lines compute are also kept in locals
+    # (``_y3``, ``_u4``, ``_x0``), which later lines read: LLVM cannot keep an array entry
+    # in a register across stores into other arrays that might alias it (servo loop 18.4
+    # -> 17.0 ns a step). Only at the function's top level, where every path defines them.
+    known, loads = {}, []
+
+    def ref(array, i):
+        if array == "x" and ("x", i) not in known:
+            loads.append(f"_x{i} = x[{i}]")
+            known[("x", i)] = f"_x{i}"
+        return known.get((array, i), f"{array}[{i}]")
+
     def gather(b):
-        return [f"ui[{r}] = " + _terms(ptr, cols, gain, r, lambda c: f"ys[{c}]" if c < ny
-                                       else f"U[{c - ny}, col]")
-                for r in range(rows[b].U0, rows[b].U0 + rows[b].NU)]
+        lines = []
+        for r in range(rows[b].U0, rows[b].U0 + rows[b].NU):
+            value = _terms(ptr, cols, gain, r, lambda c: ref("ys", c) if c < ny
+                           else f"U[{c - ny}, col]")
+            lines += [f"_u{r} = {value}", f"ui[{r}] = _u{r}"]
+            known[("ui", r)] = f"_u{r}"
+        return lines
+
+    def written_out(b, held):
+        """The lines of block ``b``'s outputs written out (None: its kernel is called)."""
+        row = rows[b]
+        sums = _lti_sums(plan.kernels[row.OUT], row, ref)
+        if sums is None:
+            return None
+        if held:  # inside a branch: into the array only
+            return [f"ys[{row.Y0 + i}] = {e}" for i, e in enumerate(sums)]
+        lines = []
+        for i, e in enumerate(sums):
+            y = row.Y0 + i
+            lines += [f"_y{y} = {e}", f"ys[{y}] = _y{y}"]
+            known[("ys", y)] = f"_y{y}"
+        return lines
 
     def view(array, start, size):
         # a slice, not a borrowed view (.views): numba's dead-store elimination once
@@ -221,7 +260,7 @@ def _generate(plan, held_logic):
 
     def checks():
         lines = [line for y0, b in unchecked
-                 for line in (f"if np.isnan(ys[{y0}]):", f"    return {b}")]
+                 for line in (f"if np.isnan({ref('ys', y0)}):", f"    return {b}")]
         unchecked.clear()
         return lines
 
@@ -232,11 +271,13 @@ def _generate(plan, held_logic):
         evaluate.append(f"# {plan.sys.syslist[b].name}")
         if row.FT:
             evaluate += gather(b)
-        call = (_lti_lines(plan.kernels[row.OUT], row, "ys", row.Y0)
+        held = row.KIND in (DISCRETE, SAMPLED) and held_logic
+        call = (written_out(b, held)
                 or [f"{names[row.OUT]}(t, {args(b, ('ys', row.Y0), row.NY)})"])
+        evaluate += loads  # the states these lines read, loaded once at the top level
+        loads.clear()
         if row.NY:
             unchecked.append((row.Y0, b))
-        held = row.KIND in (DISCRETE, SAMPLED) and held_logic
         if held:
             fires = "k >= 0" if row.EVERY == 1 else f"k >= 0 and k % {row.EVERY} == 0"
             evaluate += [f"if {fires}:", *["    " + c for c in call],
