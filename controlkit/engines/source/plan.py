@@ -48,6 +48,9 @@ class Plan:
         it again (see :meth:`valid`).
     written : dict
         The compiler's text of the plan's functions, by parameter layout.
+    finished : list or None
+        :meth:`tree` of a finished plan (set by :func:`plan_function`), which no longer
+        changes; None while the plan is being built.
 
     Examples
     --------
@@ -74,6 +77,7 @@ class Plan:
     defaults: object = None
     kwdefaults: object = None
     written: dict = field(default_factory=dict)
+    finished: list | None = field(default=None, repr=False, compare=False)
 
     def valid(self) -> bool:
         """Whether everything this plan (and each plan it calls) read from outside its
@@ -91,6 +95,8 @@ class Plan:
 
     def tree(self):
         """This plan and every plan it calls, each once (callers first)."""
+        if self.finished is not None:  # a finished plan's helpers no longer change
+            return self.finished
         seen, order, stack = set(), [], [self]
         while stack:
             plan = stack.pop()
@@ -152,6 +158,7 @@ def plan_function(fn):
     _definition(target.__code__)  # no source: NotCompilable, nothing is known
     plan = build.plan(target, bindings, name="user")
     plan.input_name = _input_name(bindings)
+    plan.finished = plan.tree()  # asked for at every run (its validity, keys, reasons)
     try:
         _PLANS[fn] = plan
     except TypeError:
