@@ -25,10 +25,10 @@ def main(argv=None) -> int:
     try:
         from .loader import compiled, import_module
         from .run import prime
-        from .usercode.compiling import import_user_module
+        from .usercode.compiling import USER_MODULE_PREFIX, import_user_module
 
         for line in Path(path).read_text().splitlines():  # its user kernels, compiled first
-            if line.startswith("from controlkit_user_"):
+            if line.startswith(f"from {USER_MODULE_PREFIX}"):
                 import_user_module(Path(path).parent / f"{line.split()[1]}.py")
         module = compiled(import_module(Path(path)))
         prime(getattr(module, entry), entry)

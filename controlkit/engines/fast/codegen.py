@@ -103,9 +103,9 @@ def _lti_sums(kernel, row, ref):
     return sums
 
 
-def _lti_lines(kernel, row, out, start):
+def _lti_lines(kernel, row, out, start, ref=lambda array, i: f"{array}[{i}]"):
     """:func:`_lti_sums` assigned to ``out[start:]`` (None where that is None)."""
-    sums = _lti_sums(kernel, row, lambda array, i: f"{array}[{i}]")
+    sums = _lti_sums(kernel, row, ref)
     return None if sums is None else [f"{out}[{start + i}] = {e}" for i, e in enumerate(sums)]
 
 
@@ -227,11 +227,11 @@ def _generate(plan, held_logic):
     def written_out(b, held):
         """The lines of block ``b``'s outputs written out (None: its kernel is called)."""
         row = rows[b]
+        if held:  # inside a branch: into the array only
+            return _lti_lines(plan.kernels[row.OUT], row, "ys", row.Y0, ref)
         sums = _lti_sums(plan.kernels[row.OUT], row, ref)
         if sums is None:
             return None
-        if held:  # inside a branch: into the array only
-            return [f"ys[{row.Y0 + i}] = {e}" for i, e in enumerate(sums)]
         lines = []
         for i, e in enumerate(sums):
             y = row.Y0 + i
@@ -302,14 +302,13 @@ def _generate(plan, held_logic):
     # states no kernel rewrites whole at every step keep their value (a discrete block's
     # update writes all of its next state, rule 3 of the block contract; a sampled block's
     # RK4 steps from xn itself): copying only these saved 2 of 19 ns a step of a servo loop
-    kept = [i for row in rows for i in range(row.X0, row.X0 + row.NX)
-            if not (row.KIND == DISCRETE and row.UPD >= 0
-                    and not (held_logic and row.EVERY > 1))]
     update = []
     for row in rows:
-        first, last = row.X0, row.X0 + row.NX
-        if not row.NX or first not in kept:
+        rewritten = (row.KIND == DISCRETE and row.UPD >= 0
+                     and not (held_logic and row.EVERY > 1))
+        if not row.NX or rewritten:
             continue
+        first, last = row.X0, row.X0 + row.NX
         update += ([f"xn[{i}] = x[{i}]" for i in range(first, last)] if row.NX <= 8 else
                    [f"for i in range({first}, {last}):", "    xn[i] = x[i]"])
     for b, row in enumerate(rows):

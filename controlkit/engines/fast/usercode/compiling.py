@@ -28,6 +28,11 @@ from .writer import kernel_source
 _CALLS_SOURCE = Path(user_calls.__file__).read_text()
 
 
+#: The start of a user kernel module's name (and of the line of a diagram's module that
+#: imports it: ``from controlkit_user_<hash> import kernel as kernel_<i>``).
+USER_MODULE_PREFIX = "controlkit_user_"
+
+
 def load_kernel(source: str, folder: Path):
     """Write ``source`` as an importable module in ``folder``; its ``kernel``, compiled.
 
@@ -51,7 +56,7 @@ def load_kernel(source: str, folder: Path):
     """
     key = hashlib.sha256((source + str(_jit.HAVE_NUMBA) + str(_jit.CACHE_FORMAT)
                           + _COMPILE_OPTIONS + _CALLS_SOURCE).encode()).hexdigest()[:20]
-    name = f"controlkit_user_{key}"
+    name = f"{USER_MODULE_PREFIX}{key}"
     if name in pysys.modules:
         return pysys.modules[name].kernel, name
     path = folder / f"{name}.py"
