@@ -10,7 +10,13 @@ first call of each wiring pays what a notebook's first call pays), with the disk
 it is (``warm``: a user's second session) or emptied (``cold``: a first session, which
 also compiles the engine's driver once).
 
-Run: ``python benchmarks/bench_session.py [--cold] [--variant discrete|continuous]``.
+``--notebook`` plays the session as a person types it: ``CONTROLKIT_WARMUP=1`` (what a
+Jupyter kernel gets by itself: numba's start runs in a thread from ``import controlkit``
+on, see :mod:`controlkit._warmup`) and a pause of ``--pause`` seconds (default 2) after
+the imports' cell and after the cell that builds the loop. Without it the calls follow
+each other at once, as in a script.
+
+Run: ``python benchmarks/bench_session.py [--cold] [--notebook] [--variant discrete|continuous]``.
 The machine is shared: compare the ratios, measured in the same process.
 """
 
@@ -33,17 +39,23 @@ KPS = (0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
 REWIRED_KPS = (0.45, 0.55, 0.65, 0.75)
 
 
-def session(variant: str) -> list[dict]:
-    """The 11 calls of one session in this process: per call, both times and the ratio."""
+def session(variant: str, pause: float = 0.0) -> list[dict]:
+    """The 11 calls of one session in this process: per call, both times and the ratio.
+
+    ``pause``: seconds between the imports, the building of the loop and its first call.
+    """
     import control as ct
-    from cruise import loop
 
     import controlkit
+
+    time.sleep(pause)
+    from cruise import loop
 
     dt = 0.1 if variant == "discrete" else None
     rows = []
     for label, filtered, kps in (("wiring 1", False, KPS), ("rewired", True, REWIRED_KPS)):
         sys_, T, X0, U = loop(dt, filtered=filtered)
+        time.sleep(pause)
         for i, kp in enumerate(kps):
             params = {"kp": kp}
             start = time.perf_counter()
@@ -63,10 +75,17 @@ def main(argv=None) -> int:
     parser.add_argument("--cold", action="store_true",
                         help="empty caches: the engine and the loops compile from nothing")
     parser.add_argument("--variant", choices=["discrete", "continuous"], action="append")
+    parser.add_argument("--notebook", action="store_true",
+                        help="numba's start in a thread (CONTROLKIT_WARMUP=1) and a pause "
+                             "between the cells, as a person works")
+    parser.add_argument("--pause", type=float, default=2.0,
+                        help="seconds between the cells with --notebook (default 2)")
     parser.add_argument("--child", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
+    if args.pause < 0:
+        parser.error(f"--pause must be >= 0 seconds, got {args.pause}")
     if args.child:
-        print(json.dumps(session(args.child)))
+        print(json.dumps(session(args.child, args.pause if args.notebook else 0.0)))
         return 0
     for variant in args.variant or ["discrete", "continuous"]:
         env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(HERE),
@@ -75,10 +94,13 @@ def main(argv=None) -> int:
             folder = tempfile.mkdtemp(prefix="controlkit-cold-")
             env.update(CONTROLKIT_CACHE_DIR=folder + "/engine",
                        NUMBA_CACHE_DIR=folder + "/numba")
-        out = subprocess.run([sys.executable, __file__, "--child", variant], env=env,
+        env["CONTROLKIT_WARMUP"] = "1" if args.notebook else "0"
+        child = [sys.executable, __file__, "--child", variant, "--pause", str(args.pause)]
+        out = subprocess.run(child + (["--notebook"] if args.notebook else []), env=env,
                              capture_output=True, text=True, check=True).stdout
         rows = json.loads(out.strip().splitlines()[-1])
-        print(f"\n{variant} loop, {'cold' if args.cold else 'warm'} cache "
+        how = f", a notebook ({args.pause:g} s between cells)" if args.notebook else ""
+        print(f"\n{variant} loop, {'cold' if args.cold else 'warm'} cache{how} "
               f"(20 000 points per call)")
         print(f"{'call':<22}{'ours':>10}{'python-control':>16}{'ratio':>9}{'max diff':>11}")
         for r in rows:

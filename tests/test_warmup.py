@@ -1,0 +1,93 @@
+"""The notebook warm-up (controlkit._warmup): it starts where it should, finishes, is
+waited for by a fork, and never imports beside the person's own imports."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+#: A Jupyter kernel, as far as controlkit can tell (IPython's shell is running).
+AS_IN_A_KERNEL = ("import sys, types; sys.modules['IPython'] = types.ModuleType('IPython')\n"
+                  "sys.modules['IPython'].get_ipython = object\n")
+
+
+def _run(code: str, **env) -> subprocess.CompletedProcess:
+    environment = {k: v for k, v in os.environ.items() if k != "CONTROLKIT_WARMUP"}
+    environment.update(env)
+    return subprocess.run([sys.executable, "-c", code], env=environment, timeout=120,
+                          capture_output=True, text=True)
+
+
+def test_in_a_kernel_numba_and_the_engine_are_ready_before_the_first_call():
+    result = _run(AS_IN_A_KERNEL + (
+        "import control as ct\n"
+        "import controlkit\n"
+        "from controlkit import _warmup\n"
+        "assert _warmup._THREAD is not None and _warmup._THREAD.daemon\n"
+        "_warmup.wait()\n"
+        "assert not _warmup._THREAD.is_alive()\n"
+        "assert 'controlkit.engines.fast.response' in sys.modules\n"
+        "import numpy as np\n"
+        "p = ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], inputs='u', outputs='y')\n"
+        "T = np.linspace(0, 1, 3)\n"
+        "ours = controlkit.input_output_response(p, T, 1.0).outputs\n"
+        "print(np.abs(ours - ct.input_output_response(p, T, 1.0).outputs).max())\n"))
+    assert result.returncode == 0, result.stderr
+    assert float(result.stdout) < 1e-12
+
+
+@pytest.mark.parametrize("setting, started", [("0", False), ("1", True)])
+def test_the_setting_decides(setting, started):
+    code = "import controlkit\nprint(controlkit._warmup._THREAD is not None)\n"
+    result = _run(code, CONTROLKIT_WARMUP=setting)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == [str(started)]
+
+
+def test_outside_a_kernel_nothing_starts_and_a_bad_setting_is_named():
+    result = _run("import IPython, controlkit\nprint(controlkit._warmup._THREAD is None)\n",
+                  PYTHONWARNINGS="always")  # IPython imported, but no shell runs
+    assert result.stdout.split() == ["True"], result.stderr
+    result = _run(AS_IN_A_KERNEL + "import controlkit\n"
+                  "print(controlkit._warmup._THREAD is not None)\n",
+                  CONTROLKIT_WARMUP="yes", PYTHONWARNINGS="always")
+    assert result.stdout.split() == ["True"], result.stderr
+    assert "CONTROLKIT_WARMUP must be '0' or '1', not 'yes'; ignored" in result.stderr
+
+
+def test_a_fork_waits_for_the_warm_up_and_the_child_uses_numba():
+    result = _run(
+        "import os, control, controlkit\n"
+        "from controlkit import _warmup\n"
+        "pid = os.fork()\n"
+        "if pid == 0:\n"
+        "    from controlkit.kernels.common import rk4_step\n"
+        "    import controlkit._jit as j\n"
+        "    os._exit(0 if j.HAVE_NUMBA else 3)\n"
+        "print(_warmup._THREAD.is_alive(), os.waitpid(pid, 0)[1])\n",
+        CONTROLKIT_WARMUP="1")
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == ["False", "0"]
+
+
+@pytest.mark.parametrize("imports", [
+    # A package's module imported directly while the thread imports the package: ended
+    # in "cannot import name 'prepare' from partially initialized module" in 3 of 8 runs
+    # when the thread imported beside the person's cells.
+    "import controlkit.studies.spacecraft.diagrams, controlkit.engines.fast.run",
+    "import numba; from numba.typed import List; import controlkit.blocks.sampling",
+    "import time; time.sleep(0.2); import controlkit.sweep, controlkit.drawing",
+])
+def test_the_persons_imports_while_it_runs_are_never_half_done(imports):
+    result = _run(
+        f"import control, controlkit\n{imports}\n"
+        "from controlkit import simulate, initial_state, time_grid\n"
+        "import controlkit.studies.spacecraft.diagrams as d\n"
+        "loop = d.output_zeroing_loop()\n"
+        "r = simulate(loop, time_grid(0.5, 0.1), X0=initial_state(loop, plant=[1, 0, 0, 0]))\n"
+        "print(r.outputs.shape[-1])\n", CONTROLKIT_WARMUP="1")
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == ["6"]
