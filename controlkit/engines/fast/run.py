@@ -26,7 +26,7 @@ from ..contract import (
     recorded_indices,
 )
 from ..contract import response as base_response
-from . import loader
+from . import loader, reuse
 from .codegen import evaluation_order, generate
 from .continuous import run_continuous
 from .diagnose import explain_divergence, explain_failure
@@ -137,10 +137,16 @@ def prepare(sys, params=None, start=None) -> Job:
     """
     from ...sampled_data import SampledDataSystem
 
+    key = reuse.job_key(sys, params, start)
+    job = reuse.reused(sys, key)
+    if job is not None:  # called again with nothing it depends on changed
+        return job
     blocks = blocks_of(sys, params, start)
     plan = make_plan(sys, blocks, evaluation_order(sys, blocks))
     source, injected = generate(plan, held_logic=isinstance(sys, SampledDataSystem))
-    return Job(sys, plan, plan.parameters(), source, injected)
+    job = Job(sys, plan, plan.parameters(), source, injected)
+    reuse.keep(sys, key, job)
+    return job
 
 
 def prime(function, name: str):

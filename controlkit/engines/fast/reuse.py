@@ -1,0 +1,198 @@
+"""Using a prepared :class:`~.run.Job` again when a diagram is called again unchanged.
+
+A notebook calls the same diagram again and again. :func:`~.run.prepare` reads every
+user function's outside values afresh, writes their text, checks each compiled kernel's
+record and lays out the diagram's tables: about 0.2 ms of a 0.5 ms call of a two-block
+continuous loop over 100 s (``benchmarks/bench_continuous.py``, car_pi). The
+:func:`job_key` of a call holds everything that work depends on, read now; when it is
+the key of the diagram's last job, that job is the one :func:`~.run.prepare` would make
+again.
+
+What the key holds, block by block (anything else, or a value it cannot hold exactly,
+gives no key, and the job is made afresh):
+
+- a controlkit block: the block and its kernels (made when it was built);
+- an LTI block: the bytes of its ``A``, ``B``, ``C``, ``D`` (changed in place or not);
+- a user's ``nlsys``: its functions, their :class:`~controlkit.engines.source.Plan`
+  (the same plan object only while everything it read from outside is unchanged:
+  :meth:`~controlkit.engines.source.Plan.valid`), the contents of the arrays, lists and
+  tuples those plans read, and the parameters python-control hands the block;
+- a sampled block (RK4): its rate and substeps and the key of the block it samples;
+- the run's start ``(t0, X0, U0)``, where compiled kernels are checked against Python.
+
+Only jobs whose every block is compiled are kept: a block called from Python holds its
+parameters in a closure made for the run.
+"""
+
+from __future__ import annotations
+
+import weakref
+
+import control as ct
+import numpy as np
+
+from ...blocks.contract import KernelBlock
+from ...blocks.sampling import SampledSystem
+from .. import source
+from . import loader
+from .tiers import _local_params
+
+
+class _Unknown(Exception):
+    """A part of the key that cannot be held exactly: no key."""
+
+
+class _Same:
+    """An object in a key: equal to the very same object only (and kept alive, so that
+    no other object can take its place)."""
+
+    __slots__ = ("obj",)
+
+    def __init__(self, obj):
+        self.obj = obj
+
+    def __eq__(self, other):
+        return isinstance(other, _Same) and self.obj is other.obj
+
+    __hash__ = None
+
+
+def _value(value):
+    """``value`` as an exactly comparable, hashable-free tuple (raises _Unknown)."""
+    if value is None or isinstance(value, bool | int | float | complex | str | np.generic):
+        if isinstance(value, np.generic) and value.dtype.kind not in "biufc":
+            raise _Unknown
+        return (type(value), value)
+    if isinstance(value, np.ndarray):
+        if value.dtype.kind not in "biufc":
+            raise _Unknown
+        return (np.ndarray, value.dtype.str, value.shape, value.tobytes())
+    if isinstance(value, list | tuple):
+        return (type(value), tuple(_value(v) for v in value))
+    raise _Unknown
+
+
+def _contents(value):
+    """What can change inside ``value`` without changing its identity."""
+    if isinstance(value, np.ndarray | list | tuple):
+        return _value(value)
+    return None
+
+
+def _params(local: dict):
+    return tuple((key, _value(v)) for key, v in local.items())
+
+
+def _user(block, local):
+    """The key of a user's ``nlsys`` given the parameters it is handed."""
+    parts = []
+    for fn in (block.outfcn, block.updfcn if block.nstates else None):
+        if fn is None:
+            parts.append(None)
+            continue
+        try:
+            plan = source.plan_function(fn)
+        except source.NotCompilable:
+            raise _Unknown from None
+        if plan.why_not() is not None:
+            raise _Unknown
+        inside = tuple(_contents(v) for each in plan.tree() for v in each.frozen.values())
+        read = tuple(_contents(v) for each in plan.tree() for _, v in each.checks)
+        parts.append((_Same(fn), _Same(plan), inside, read))
+    return (_Same(block), tuple(parts), _params(local))
+
+
+def _block(sys, block, params):
+    if isinstance(block, KernelBlock):
+        if block.kernels is None:
+            raise _Unknown
+        return (_Same(block), _Same(block.kernels))
+    if isinstance(block, ct.StateSpace):
+        return (_Same(block), *(_value(np.asarray(m)) for m in (block.A, block.B, block.C,
+                                                             block.D)))
+    local = _local_params(sys, block, params)
+    if isinstance(block, SampledSystem):
+        inner = block.continuous
+        if block.method != "rk4":
+            raise _Unknown
+        if isinstance(inner, KernelBlock) and inner.kernels is not None:
+            within = (_Same(inner), _Same(inner.kernels))
+        elif isinstance(inner, ct.InterconnectedSystem | KernelBlock):
+            raise _Unknown
+        else:
+            within = _user(inner, {**inner.params, **local})
+        return (_Same(block), block.dt, block.substeps, within)
+    if isinstance(block, ct.InterconnectedSystem) or not isinstance(
+            block, ct.NonlinearIOSystem):
+        raise _Unknown
+    return _user(block, local)
+
+
+def job_key(sys, params=None, start=None):
+    """Everything :func:`~.run.prepare` reads of ``sys``, ``params`` and ``start``, read
+    now, as a comparable tuple; None when some of it cannot be held exactly.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> sys = ct.nlsys(lambda t, x, u, params: -params["a"] * x + u, None, inputs=1,
+    ...                states=1, outputs=1, params={"a": 1.0}, name="lag")
+    >>> loop = ct.interconnect([sys], inputs="u[0]", outputs="y[0]")
+    >>> job_key(loop, {"a": 2.0}) == job_key(loop, {"a": 2.0})
+    True
+    >>> job_key(loop, {"a": 2.0}) == job_key(loop, {"a": 3.0})
+    False
+    >>> job_key(loop, {"a": object()}) is None  # not a value it can compare exactly
+    True
+    """
+    if not isinstance(sys, ct.InterconnectedSystem):
+        return None
+    try:
+        blocks = tuple(_block(sys, block, params) for block in sys.syslist)
+        if start is None:
+            begin = None
+        else:
+            t0, X0, U0 = start
+            begin = (_value(float(t0)), _value(np.asarray(X0, dtype=float)),
+                     _value(np.asarray(U0, dtype=float)))
+    except _Unknown:
+        return None
+    return (str(loader.CACHE_DIR), begin, blocks)
+
+
+def reused(sys, key):
+    """The job kept for ``sys`` under ``key``, else None.
+
+    Examples
+    --------
+    >>> reused(object(), None) is None
+    True
+    """
+    if key is None:
+        return None
+    try:
+        kept = _JOBS.get(sys)
+    except TypeError:
+        return None
+    if kept is None or kept[0] != key:
+        return None
+    return kept[1]
+
+
+def keep(sys, key, job) -> None:
+    """Keep ``job`` for ``sys`` under ``key`` when every block of it is compiled.
+
+    Examples
+    --------
+    >>> keep(object(), None, None)
+    """
+    if key is None or any(block.tier != "compiled" for block in job.blocks):
+        return
+    try:
+        _JOBS[sys] = (key, job)
+    except TypeError:
+        pass
+
+
+#: The last job of each diagram, with its key, while the diagram lives.
+_JOBS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()

@@ -1,0 +1,158 @@
+"""A diagram called again reuses its prepared job only while nothing it depends on has
+changed: each change a notebook makes between two calls gives python-control's new answer."""
+
+import functools
+
+import control as ct
+import numpy as np
+import pytest
+
+import controlkit
+from controlkit.engines.fast import reuse
+from controlkit.engines.fast.run import prepare
+
+T = np.linspace(0.0, 4.0, 81)
+GAIN = 2.0  # read by ``scaled`` below, from this module
+
+
+def shaping(v):
+    return GAIN * v
+
+
+def scaled(t, x, u, params):
+    return [shaping(u[0]) - params["a"] * x[0]]
+
+
+def agrees(loop, U, X0, **kwargs):
+    """controlkit's response equals python-control's, to 1e-9."""
+    ours = controlkit.input_output_response(loop, T, U, X0, **kwargs)
+    ref = ct.input_output_response(loop, T, U, X0, **kwargs)
+    np.testing.assert_allclose(ours.outputs, ref.outputs, rtol=1e-9, atol=1e-12)
+    return ours.outputs
+
+
+def lag_loop(update, params=None, dt=0):
+    block = ct.nlsys(update, None, inputs="u", outputs="y", states="y", dt=dt, name="lag",
+                     params=params or {"a": 1.0})
+    return ct.interconnect([block], inputs="u", outputs="y", name="lag_loop")
+
+
+def test_a_diagram_called_again_unchanged_reuses_its_job_and_a_new_value_does_not():
+    loop = lag_loop(scaled)
+    start = (0.0, np.zeros(1), np.ones(1))
+    first = prepare(loop, {"a": 1.0}, start)
+    assert prepare(loop, {"a": 1.0}, start) is first
+    assert prepare(loop, {"a": 1.5}, start) is not first
+    assert prepare(loop, {"a": 1.5}, (0.0, np.ones(1), np.ones(1))) is not first
+
+
+def test_a_closure_array_changed_in_place_between_calls_is_read_again():
+    gains = np.array([1.0, 0.5])
+
+    def update(t, x, u, params):
+        return [gains[0] * u[0] - gains[1] * x[0]]
+
+    loop = lag_loop(update)
+    before = agrees(loop, 1.0, [0.0])
+    gains[1] = 3.0
+    after = agrees(loop, 1.0, [0.0])
+    assert after[-1] == pytest.approx(1.0 / 3.0, rel=1e-3) and before[-1] > 0.8
+
+
+def test_a_closure_list_changed_in_place_between_calls_is_read_again():
+    gains = [1.0, 0.5]
+
+    def update(t, x, u, params):
+        return [gains[0] * u[0] - gains[1] * x[0]]
+
+    loop = lag_loop(update)
+    agrees(loop, 1.0, [0.0])
+    gains[0] = -1.0
+    assert agrees(loop, 1.0, [0.0])[-1] < 0
+
+
+def test_block_and_diagram_params_dicts_changed_in_place_are_read_again():
+    loop = lag_loop(scaled)
+    agrees(loop, 1.0, [0.0])
+    del loop.params["a"]  # the diagram's own params (copied from its blocks) come last
+    loop.syslist[0].params["a"] = 4.0
+    assert agrees(loop, 1.0, [0.0])[-1] == pytest.approx(0.5, rel=1e-3)
+    loop.params["a"] = 8.0
+    assert agrees(loop, 1.0, [0.0])[-1] == pytest.approx(0.25, rel=1e-3)
+
+
+def test_a_module_global_and_a_helper_reassigned_between_calls_are_read_again():
+    global GAIN, shaping
+    loop = lag_loop(scaled)
+    saved = GAIN, shaping
+    try:
+        agrees(loop, 1.0, [0.0])
+        GAIN = 3.0
+        assert agrees(loop, 1.0, [0.0])[-1] == pytest.approx(3.0, rel=2e-2)
+        shaping = lambda v: -v  # noqa: E731 - a helper replaced, as in a notebook cell
+        assert agrees(loop, 1.0, [0.0])[-1] == pytest.approx(-1.0, rel=2e-2)
+    finally:
+        GAIN, shaping = saved
+
+
+def test_an_lti_matrix_changed_in_place_is_read_again():
+    plant = ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], inputs="u", outputs="y", name="plant")
+    controller = ct.nlsys(None, lambda t, x, u, params: params["k"] * (u[0] - u[1]),
+                          inputs=["r", "y"], outputs="u", params={"k": 2.0}, name="k")
+    loop = ct.interconnect([plant, controller], inputs="r", outputs="y")
+    before = agrees(loop, 1.0, [0.0])
+    plant.A[0, 0] = -5.0
+    after = agrees(loop, 1.0, [0.0])
+    assert before[-1] == pytest.approx(2.0 / 3.0, rel=1e-3)
+    assert after[-1] == pytest.approx(2.0 / 7.0, rel=1e-3)
+
+
+def test_a_function_swapped_on_the_block_is_used():
+    loop = lag_loop(scaled)
+    agrees(loop, 1.0, [0.0])
+    loop.syslist[0].updfcn = lambda t, x, u, params: [-x[0]]
+    assert agrees(loop, 1.0, [1.0])[-1] == pytest.approx(np.exp(-4.0), rel=1e-2)
+
+
+def test_an_array_bound_by_a_partial_changed_in_place_is_read_again():
+    def update(t, x, u, params, gains):
+        return [gains[0] * u[0] - gains[1] * x[0]]
+
+    gains = np.array([1.0, 1.0])
+    loop = lag_loop(functools.partial(update, gains=gains))
+    agrees(loop, 1.0, [0.0])
+    gains[0] = 2.0
+    assert agrees(loop, 1.0, [0.0])[-1] == pytest.approx(2.0, rel=3e-2)
+
+
+def test_a_discrete_diagram_called_again_after_a_change_gives_the_new_answer():
+    table = np.array([0.5])
+
+    def update(t, x, u, params):
+        return [table[0] * x[0] + u[0]]
+
+    loop = lag_loop(update, dt=0.1)
+    Td = np.arange(20) * 0.1
+    first = controlkit.input_output_response(loop, Td, 1.0, [0.0]).outputs
+    table[0] = 0.9
+    second = controlkit.input_output_response(loop, Td, 1.0, [0.0]).outputs
+    ref = ct.input_output_response(loop, Td, 1.0, [0.0]).outputs
+    np.testing.assert_array_equal(second, ref)
+    assert first[-1] == pytest.approx(2.0, rel=1e-3) and second[-1] > 8.0
+
+
+def test_a_block_run_as_python_is_never_kept():
+    def valve(t, x, u, params):
+        return [-x[0] + (u[0] if params["mode"] == "open" else 0.0)]
+
+    loop = lag_loop(valve, params={"mode": "open"})
+    start = (0.0, np.zeros(1), np.ones(1))
+    first = prepare(loop, None, start)
+    assert [b.tier for b in first.blocks] == ["python"]
+    assert prepare(loop, None, start) is not first
+    agrees(loop, 1.0, [0.0])
+
+
+@pytest.mark.parametrize("value", [object(), {"nested": 1.0}, np.array([None])])
+def test_a_value_the_key_cannot_hold_exactly_gives_no_key(value):
+    assert reuse.job_key(lag_loop(scaled), {"a": value}) is None
