@@ -156,3 +156,112 @@ def test_a_block_run_as_python_is_never_kept():
 @pytest.mark.parametrize("value", [object(), {"nested": 1.0}, np.array([None])])
 def test_a_value_the_key_cannot_hold_exactly_gives_no_key(value):
     assert reuse.job_key(lag_loop(scaled), {"a": value}) is None
+
+
+def test_minus_zero_is_a_new_parameter_value():
+    loop = lag_loop(lambda t, x, u, params: [np.copysign(1.0, params["a"]) * u[0] - x[0]],
+                    params={"a": 0.0})
+    assert agrees(loop, 1.0, [0.0], params={"a": 0.0})[-1] > 0.9
+    assert agrees(loop, 1.0, [0.0], params={"a": -0.0})[-1] < -0.9
+
+
+SIGN = 0.0  # read by ``signed`` below
+
+
+def signed(t, x, u, params):
+    return [np.copysign(1.0, SIGN) * u[0] - x[0]]
+
+
+def test_a_module_global_set_to_minus_zero_is_read_again():
+    global SIGN
+    loop = lag_loop(signed)
+    try:
+        assert agrees(loop, 1.0, [0.0])[-1] > 0.9
+        SIGN = -0.0
+        assert agrees(loop, 1.0, [0.0])[-1] < -0.9
+    finally:
+        SIGN = 0.0
+
+
+def test_the_wiring_changed_through_python_controls_setters_is_read_again():
+    plant = ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], inputs="u", outputs="y", name="plant")
+    controller = ct.nlsys(None, lambda t, x, u, params: params["k"] * (u[0] - u[1]),
+                          inputs=["r", "y"], outputs="u", params={"k": 2.0}, name="k")
+    loop = ct.interconnect([plant, controller], inputs="r", outputs="y")
+    before = agrees(loop, 1.0, [0.0])
+    loop.set_output_map(2.0 * loop.output_map)
+    assert agrees(loop, 1.0, [0.0])[-1] == pytest.approx(2.0 * before[-1], rel=1e-9)
+    loop.set_connect_map(np.zeros_like(loop.connect_map))  # the loop opened
+    assert agrees(loop, 1.0, [0.0])[-1] == 0.0
+
+
+def test_a_controlkit_blocks_parameters_changed_in_place_are_read_again():
+    from controlkit.blocks.common import lowpass_filter
+
+    block = lowpass_filter(tau=1.0, Ts=0.1)
+    loop = ct.interconnect([block], inputs=block.input_labels, outputs=block.output_labels)
+    Td = np.arange(30) * 0.1
+    controlkit.input_output_response(loop, Td, 1.0, [0.0, 0.0])
+    block.kernels.params[:] = 0.3 * block.kernels.params
+    ours = controlkit.input_output_response(loop, Td, 1.0, [0.0, 0.0]).outputs
+    np.testing.assert_array_equal(ours, ct.input_output_response(loop, Td, 1.0,
+                                                                 [0.0, 0.0]).outputs)
+
+
+def gained(t, x, u, params, *, gain=1.0):
+    return [gain * u[0] - x[0]]
+
+
+def test_a_partials_keywords_and_keyword_defaults_changed_in_place_are_read_again():
+    bound = functools.partial(gained, gain=1.0)
+    loop = lag_loop(bound)
+    agrees(loop, 1.0, [0.0])
+    bound.keywords["gain"] = 3.0
+    assert agrees(loop, 1.0, [0.0])[-1] == pytest.approx(3.0, rel=3e-2)
+
+    def own(t, x, u, params, *, gain=1.0):
+        return [gain * u[0] - x[0]]
+
+    loop = lag_loop(own)
+    agrees(loop, 1.0, [0.0])
+    own.__kwdefaults__["gain"] = -2.0
+    assert agrees(loop, 1.0, [0.0])[-1] == pytest.approx(-2.0, rel=3e-2)
+
+
+class Lag:
+    """A callable object as an update function."""
+
+    def __call__(self, t, x, u, params):
+        return [u[0] - x[0]]
+
+
+def test_a_classs_call_replaced_is_what_runs():
+    loop = lag_loop(Lag())
+    agrees(loop, 1.0, [0.0])
+    saved = Lag.__call__
+    try:
+        Lag.__call__ = lambda self, t, x, u, params: [-u[0] - x[0]]
+        assert agrees(loop, 1.0, [0.0])[-1] < -0.9
+    finally:
+        Lag.__call__ = saved
+
+
+def test_a_kept_job_lives_with_its_diagram_and_no_copy_or_pickle_carries_it():
+    import copy
+    import gc
+    import pickle
+
+    cloudpickle = pytest.importorskip("cloudpickle")
+    import weakref
+
+    loop = lag_loop(scaled)
+    agrees(loop, 1.0, [0.0])
+    for other in (copy.copy(loop), copy.deepcopy(loop),
+                  pickle.loads(cloudpickle.dumps(loop))):  # as sweeps send it to workers
+        assert reuse.reused(other, reuse.job_key(other, None, (0.0, np.zeros(1),
+                                                               np.ones(1)))) is None
+        agrees(other, 1.0, [0.0])
+    gone = weakref.ref(loop)
+    del loop
+    gc.collect()
+    assert gone() is None

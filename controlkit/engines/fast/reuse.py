@@ -26,7 +26,7 @@ parameters in a closure made for the run.
 
 from __future__ import annotations
 
-import weakref
+import hashlib
 
 import control as ct
 import numpy as np
@@ -58,18 +58,36 @@ class _Same:
 
 
 def _value(value):
-    """``value`` as an exactly comparable, hashable-free tuple (raises _Unknown)."""
-    if value is None or isinstance(value, bool | int | float | complex | str | np.generic):
-        if isinstance(value, np.generic) and value.dtype.kind not in "biufc":
-            raise _Unknown
+    """``value`` as an exactly comparable tuple (raises _Unknown): numbers by their bits
+    (``0.0`` and ``-0.0`` differ, a NaN equals itself), arrays by their contents."""
+    if value is None or isinstance(value, bool | int | str):
         return (type(value), value)
+    if isinstance(value, float):
+        return (type(value), value.hex())
+    if isinstance(value, complex):
+        return (type(value), value.real.hex(), value.imag.hex())
+    if isinstance(value, np.generic):
+        if value.dtype.kind not in "biufc":
+            raise _Unknown
+        return (type(value), value.tobytes())
     if isinstance(value, np.ndarray):
         if value.dtype.kind not in "biufc":
             raise _Unknown
-        return (np.ndarray, value.dtype.str, value.shape, value.tobytes())
+        return (np.ndarray, value.dtype.str, value.shape, _bytes(value))
     if isinstance(value, list | tuple):
         return (type(value), tuple(_value(v) for v in value))
     raise _Unknown
+
+
+#: Arrays up to this many bytes are kept in a key as they are; larger ones by a digest.
+_DIGEST_ABOVE = 4096
+
+
+def _bytes(array):
+    data = np.ascontiguousarray(array)
+    if data.nbytes <= _DIGEST_ABOVE:
+        return data.tobytes()
+    return hashlib.blake2b(memoryview(data).cast("B"), digest_size=20).digest()
 
 
 def _contents(value):
@@ -103,10 +121,24 @@ def _user(block, local):
 
 
 def _block(sys, block, params):
+    shape = (block.nstates, block.ninputs, block.noutputs, _rate(block.dt))
+    return (shape, _kernels(sys, block, params))
+
+
+def _rate(dt):
+    return dt if dt is None or dt is True else _value(float(dt))
+
+
+def _own(block):
+    """A controlkit block: its kernels (made when it was built) and their parameters."""
+    return (_Same(block), _Same(block.kernels), _value(block.kernels.params))
+
+
+def _kernels(sys, block, params):
     if isinstance(block, KernelBlock):
         if block.kernels is None:
             raise _Unknown
-        return (_Same(block), _Same(block.kernels))
+        return _own(block)
     if isinstance(block, ct.StateSpace):
         return (_Same(block), *(_value(np.asarray(m)) for m in (block.A, block.B, block.C,
                                                              block.D)))
@@ -116,12 +148,12 @@ def _block(sys, block, params):
         if block.method != "rk4":
             raise _Unknown
         if isinstance(inner, KernelBlock) and inner.kernels is not None:
-            within = (_Same(inner), _Same(inner.kernels))
+            within = _own(inner)
         elif isinstance(inner, ct.InterconnectedSystem | KernelBlock):
             raise _Unknown
         else:
             within = _user(inner, {**inner.params, **local})
-        return (_Same(block), block.dt, block.substeps, within)
+        return (_Same(block), _rate(block.dt), block.substeps, within)
     if isinstance(block, ct.InterconnectedSystem) or not isinstance(
             block, ct.NonlinearIOSystem):
         raise _Unknown
@@ -149,6 +181,9 @@ def job_key(sys, params=None, start=None):
         return None
     try:
         blocks = tuple(_block(sys, block, params) for block in sys.syslist)
+        wiring = (_rate(sys.dt), _rate(getattr(sys, "base_period", None)),
+                  *(_value(np.asarray(m, dtype=float))
+                    for m in (sys.connect_map, sys.input_map, sys.output_map)))
         if start is None:
             begin = None
         else:
@@ -157,7 +192,9 @@ def job_key(sys, params=None, start=None):
                      _value(np.asarray(U0, dtype=float)))
     except _Unknown:
         return None
-    return (str(loader.CACHE_DIR), begin, blocks)
+    except Exception:  # noqa: BLE001 - whatever it is, prepare finds it and says so
+        return None
+    return (str(loader.CACHE_DIR), begin, wiring, blocks)
 
 
 def reused(sys, key):
@@ -170,17 +207,18 @@ def reused(sys, key):
     """
     if key is None:
         return None
-    try:
-        kept = _JOBS.get(sys)
-    except TypeError:
+    kept = getattr(sys, _ATTRIBUTE, None)
+    if not isinstance(kept, _Kept) or kept.job is None or kept.job.sys is not sys \
+            or kept.key != key:
         return None
-    if kept is None or kept[0] != key:
-        return None
-    return kept[1]
+    return kept.job
 
 
 def keep(sys, key, job) -> None:
     """Keep ``job`` for ``sys`` under ``key`` when every block of it is compiled.
+
+    The job is kept on the diagram itself: it lives as long as the diagram does, and a
+    copy or a pickle of the diagram (for a worker process) carries none.
 
     Examples
     --------
@@ -189,10 +227,28 @@ def keep(sys, key, job) -> None:
     if key is None or any(block.tier != "compiled" for block in job.blocks):
         return
     try:
-        _JOBS[sys] = (key, job)
-    except TypeError:
+        setattr(sys, _ATTRIBUTE, _Kept(key, job))
+    except (AttributeError, TypeError):  # an object that takes no attributes
         pass
 
 
-#: The last job of each diagram, with its key, while the diagram lives.
-_JOBS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+#: The attribute of a diagram its kept job is held in.
+_ATTRIBUTE = "_controlkit_kept_job"
+
+
+class _Kept:
+    """A diagram's last job and its key; copied or pickled as nothing kept."""
+
+    __slots__ = ("key", "job")
+
+    def __init__(self, key=None, job=None):
+        self.key, self.job = key, job
+
+    def __reduce__(self):
+        return (_Kept, ())
+
+    def __copy__(self):
+        return _Kept()
+
+    def __deepcopy__(self, memo):
+        return _Kept()

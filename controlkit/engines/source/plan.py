@@ -51,6 +51,10 @@ class Plan:
     finished : list or None
         :meth:`tree` of a finished plan (set by :func:`plan_function`), which no longer
         changes; None while the plan is being built.
+    call : tuple or None
+        For the top plan, what calling the callable ran when the plan was made
+        (:func:`~.reading.call_target`: a partial's values, a class's ``__call__``):
+        the plan is used again only while it runs the same.
 
     Examples
     --------
@@ -78,6 +82,7 @@ class Plan:
     kwdefaults: object = None
     written: dict = field(default_factory=dict)
     finished: list | None = field(default=None, repr=False, compare=False)
+    call: tuple | None = field(default=None, repr=False, compare=False)
 
     def valid(self) -> bool:
         """Whether everything this plan (and each plan it calls) read from outside its
@@ -87,7 +92,7 @@ class Plan:
         for plan in self.tree():
             fn = plan.function
             if fn.__code__ is not plan.code or fn.__defaults__ is not plan.defaults \
-                    or fn.__kwdefaults__ is not plan.kwdefaults:
+                    or not _same_items(fn.__kwdefaults__, plan.kwdefaults):
                 return False
             if not all(_same(getter(), value) for getter, value in plan.checks):
                 return False
@@ -147,9 +152,10 @@ def plan_function(fn):
         cached = _PLANS.get(fn)
     except TypeError:  # not hashable or not weakly referable: planned each time
         cached = None
-    if cached is not None and cached.valid():
-        return cached
     target, bound, keywords = call_target(fn)
+    if cached is not None and cached.valid() and cached.call is not None \
+            and _same_call(cached.call, (target, bound, keywords)):
+        return cached
     build = _Build()
     call = [Frozen(v) for v in bound] + [RUNTIME, RUNTIME, RUNTIME, PARAMS]
     bindings = _bind(target, call, {k: Frozen(v) for k, v in keywords.items()})
@@ -158,12 +164,32 @@ def plan_function(fn):
     _definition(target.__code__)  # no source: NotCompilable, nothing is known
     plan = build.plan(target, bindings, name="user")
     plan.input_name = _input_name(bindings)
+    plan.call = (target, list(bound), dict(keywords))
     plan.finished = plan.tree()  # asked for at every run (its validity, keys, reasons)
     try:
         _PLANS[fn] = plan
     except TypeError:
         pass
     return plan
+
+
+def _snapshot(kwdefaults):
+    return None if kwdefaults is None else dict(kwdefaults)
+
+
+def _same_items(now, then) -> bool:
+    """Whether keyword defaults (or a partial's keywords) read now are the ones of then."""
+    if now is None or then is None:
+        return now is None and then is None
+    return now.keys() == then.keys() and all(_same(now[k], then[k]) for k in now)
+
+
+def _same_call(then, now) -> bool:
+    """Whether ``call_target`` of a callable gives what it gave when its plan was made."""
+    (target, bound, keywords), (target_now, bound_now, keywords_now) = then, now
+    return target is target_now and len(bound) == len(bound_now) \
+        and all(_same(a, b) for a, b in zip(bound_now, bound, strict=True)) \
+        and _same_items(keywords_now, keywords)
 
 
 #: Plans by the callable they were made for, kept while it lives and used again while
@@ -185,7 +211,8 @@ class _Build:
             return self.plans[key]
         self.count += 1
         plan = Plan(fn, name or f"_h{self.count}_{fn.__name__.strip('<>')}", self.count,
-                    code=fn.__code__, defaults=fn.__defaults__, kwdefaults=fn.__kwdefaults__)
+                    code=fn.__code__, defaults=fn.__defaults__,
+                    kwdefaults=_snapshot(fn.__kwdefaults__))
         self.plans[key] = plan
         try:
             _, body = _definition(fn.__code__)

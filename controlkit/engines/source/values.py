@@ -108,8 +108,10 @@ def _same(a, b) -> bool:
         return True
     if type(a) is not type(b):
         return False
-    if isinstance(a, str) or _is_number(a):
-        return bool(a == b) or (a != a and b != b)
+    if isinstance(a, str):
+        return a == b
+    if _is_number(a):  # by their bits: 0.0 and -0.0 are equal, yet divide differently
+        return np.asarray(a).tobytes() == np.asarray(b).tobytes() or bool(a != a and b != b)
     if isinstance(a, types.MethodType):  # a new bound method object at each read
         return a.__func__ is b.__func__ and a.__self__ is b.__self__
     return False
