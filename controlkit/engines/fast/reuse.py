@@ -8,16 +8,19 @@ continuous loop over 100 s (``benchmarks/bench_continuous.py``, car_pi). The
 the key of the diagram's last job, that job is the one :func:`~.run.prepare` would make
 again.
 
-What the key holds, block by block (anything else, or a value it cannot hold exactly,
-gives no key, and the job is made afresh):
+What the key holds (anything else, or a value it cannot hold exactly, gives no key, and
+the job is made afresh). Numbers are held by their bits (``0.0`` and ``-0.0`` differ),
+arrays by their contents (a digest above 4 kB):
 
-- a controlkit block: the block and its kernels (made when it was built);
-- an LTI block: the bytes of its ``A``, ``B``, ``C``, ``D`` (changed in place or not);
-- a user's ``nlsys``: its functions, their :class:`~controlkit.engines.source.Plan`
-  (the same plan object only while everything it read from outside is unchanged:
-  :meth:`~controlkit.engines.source.Plan.valid`), the contents of the arrays, lists and
-  tuples those plans read, and the parameters python-control hands the block;
-- a sampled block (RK4): its rate and substeps and the key of the block it samples;
+- the diagram's wiring: its connection, input and output maps and its rate;
+- each block's sizes and rate, and
+  - a controlkit block: the block, its kernels and their parameter vector;
+  - an LTI block: its ``A``, ``B``, ``C``, ``D`` (changed in place or not);
+  - a user's ``nlsys``: its functions, their :class:`~controlkit.engines.source.Plan`
+    (the same plan object only while everything it read from outside is unchanged:
+    :meth:`~controlkit.engines.source.Plan.valid`), the contents of the arrays, lists
+    and tuples those plans read, and the parameters python-control hands the block;
+  - a sampled block (RK4): its substeps and the key of the block it samples;
 - the run's start ``(t0, X0, U0)``, where compiled kernels are checked against Python.
 
 Only jobs whose every block is compiled are kept: a block called from Python holds its
