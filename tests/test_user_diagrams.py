@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from idiom_diagrams import DIAGRAMS as IDIOM_DIAGRAMS
 from user_diagrams import DIAGRAMS
 
 from controlkit.engines import fast as engine
@@ -221,13 +222,23 @@ def _large_blocks():
     return loop, T, np.zeros(loop.nstates), np.vstack([np.sin(T), np.cos(T)]), None
 
 
-@pytest.mark.parametrize("name", [*DIAGRAMS, "large blocks"])
+def _papers_cmg():
+    from controlkit.studies.cmg.diagrams import cmg_loop
+
+    loop = cmg_loop()
+    T = np.arange(2000) * 0.01
+    return loop, T, np.zeros(loop.nstates), np.zeros((loop.ninputs, T.size)), None
+
+
+@pytest.mark.parametrize("name", [*DIAGRAMS, *IDIOM_DIAGRAMS, "large blocks", "cmg"])
 def test_the_diagrams_own_module_gives_the_drivers_numbers_to_the_bit(name):
-    # LTI blocks and RK4 substeps are written out in the module, looped over in the driver:
-    # a first call (driver) and a later one (module) must not differ in a single bit
+    # LTI blocks and RK4 substeps are written out in the module, looped over in the driver,
+    # and a step of the module is written out in its loop, reading signals from locals: a
+    # first call (driver) and a later one (module) must not differ in a single bit
     from controlkit.engines.fast.run import prepare
 
-    loop, T, X0, U, params = (DIAGRAMS.get(name) or _large_blocks)()
+    make = {**DIAGRAMS, **IDIOM_DIAGRAMS, "large blocks": _large_blocks, "cmg": _papers_cmg}
+    loop, T, X0, U, params = make[name]()
     X0 = np.asarray(X0, dtype=float)
     U = np.broadcast_to(np.atleast_2d(U), (loop.ninputs, T.size)).copy()
     job = prepare(loop, params)
