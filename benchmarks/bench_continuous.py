@@ -4,7 +4,9 @@ For diagrams of ``tests/continuous_diagrams.py``, each over a short horizon (100
 long one (10^5 s, 1001 evaluation times each), three ways:
 
 - ``controlkit.input_output_response``: the first call in a fresh process (the disk cache
-  as it is: a user's second session) and the median of later calls;
+  as it is: a user's second session), the first call of the same diagram built again in
+  that running process as a newly wired one (its own module not compiled yet: the generic
+  driver) and the median of later calls;
 - ``control.input_output_response`` (python-control; a sampled-data diagram, which it
   cannot run, is timed on controlkit's plain-Python reference instead);
 - "just jit the right-hand side": scipy's ``solve_ivp`` calling the diagram's compiled
@@ -14,8 +16,10 @@ A reference slower than ``--budget`` seconds is run over a shorter horizon and s
 the full one (marked ``~``). Then 1000 runs of one continuous diagram over parameter draws,
 in one call, against python-control's time per run.
 
-Run: ``python benchmarks/bench_continuous.py [--budget 60] [--only ROW ...]`` (about 10-20
-minutes for all; a row is ``diagram`` or ``diagram:horizon``, ``many`` the 1000 runs).
+Run: ``python benchmarks/bench_continuous.py [--budget 60] [--only ROW ...] [--notebook]``
+(about 10-20 minutes for all; a row is ``diagram`` or ``diagram:horizon``, ``many`` the
+1000 runs; ``--notebook``: each row's process as a notebook's, numba's start in a thread
+and 2 s between the import and the first call).
 The machine is shared: compare the ratios, measured in the same process.
 """
 
@@ -111,9 +115,12 @@ def _jit_rhs(loop, T, X0, U):
                   np.asarray(X0)[plan.continuous], t_eval=T)[0]
 
 
-def child(name, horizon_label, budget):
-    """One row, measured in this (fresh) process."""
+def child(name, horizon_label, budget, pause=0.0):
+    """One row, measured in this (fresh) process (``pause``: seconds between the import
+    and the diagram's building, as a person takes in a notebook)."""
     import controlkit
+
+    time.sleep(pause)
 
     loop, T, X0, U = _case(name, HORIZONS[horizon_label])
     with warnings.catch_warnings():
@@ -121,10 +128,26 @@ def child(name, horizon_label, budget):
         first, _ = _timed(controlkit.input_output_response, loop, T, U, X0)
         warm = statistics.median(
             _timed(controlkit.input_output_response, loop, T, U, X0)[0] for _ in range(5))
+        rewired = _new_wiring(name, horizon_label)
     ref, mark = _reference(loop, T, X0, U, budget)
     jit = _jit_rhs(loop, T, X0, U) if type(loop).__name__ != "SampledDataSystem" else None
     return {"name": name, "horizon": horizon_label, "first": first, "warm": warm,
-            "reference": ref, "mark": mark, "jit_rhs": jit}
+            "rewired": rewired, "reference": ref, "mark": mark, "jit_rhs": jit}
+
+
+def _new_wiring(name, horizon_label):
+    """The first call of a newly wired diagram of known blocks in a running session: the
+    diagram built again (a new object, nothing kept) and run as a wiring whose own module
+    is not compiled yet runs, on the generic driver."""
+    import controlkit
+    from controlkit.engines.fast import run as fast_run
+
+    loop, T, X0, U = _case(name, HORIZONS[horizon_label])
+    saved, fast_run.MODULES = fast_run.MODULES, "never"
+    try:
+        return _timed(controlkit.input_output_response, loop, T, U, X0)[0]
+    finally:
+        fast_run.MODULES = saved
 
 
 def many(budget):
@@ -158,12 +181,17 @@ def main(argv=None) -> int:
                         help="longest reference run in seconds (beyond: scaled, marked ~)")
     parser.add_argument("--only", nargs="+", metavar="ROW",
                         help="rows to run, as diagram or diagram:horizon (short, long)")
+    parser.add_argument("--notebook", action="store_true",
+                        help="each row as in a notebook: numba's start in a thread "
+                             "(CONTROLKIT_WARMUP=1) and 2 s between the import and the "
+                             "first call")
     parser.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
+    parser.add_argument("--pause", type=float, default=0.0, help=argparse.SUPPRESS)
     parser.add_argument("--many", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     sys.path[:0] = [str(TESTS), str(HERE)]
     if args.child:
-        print(json.dumps(child(*args.child, args.budget)))
+        print(json.dumps(child(*args.child, args.budget, args.pause)))
         return 0
     if args.many:
         print(json.dumps(many(args.budget)))
@@ -171,16 +199,18 @@ def main(argv=None) -> int:
     env = {"PYTHONPATH": str(TESTS)}
     import os
 
-    env = dict(os.environ, **env)
-    print("| diagram | horizon | first call | warm call | python-control | ratio first "
-          "| ratio warm | jit rhs (solve_ivp) | ratio vs jit rhs |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    env = dict(os.environ, **env, CONTROLKIT_WARMUP="1" if args.notebook else "0")
+    print("| diagram | horizon | first call | new wiring | warm call | python-control "
+          "| ratio first | ratio new wiring | ratio warm | jit rhs (solve_ivp) "
+          "| ratio vs jit rhs |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for name in (*CONTINUOUS, *MIXED):
         for label in HORIZONS:
             if args.only and name not in args.only and f"{name}:{label}" not in args.only:
                 continue
             out = subprocess.run([sys.executable, __file__, "--child", name, label,
-                                  "--budget", str(args.budget)], env=env,
+                                  "--budget", str(args.budget),
+                                  "--pause", "2" if args.notebook else "0"], env=env,
                                  capture_output=True, text=True)
             if out.returncode:
                 print(f"| {name} | {label} | failed: {out.stderr.strip().splitlines()[-1]} |")
@@ -189,9 +219,10 @@ def main(argv=None) -> int:
             reference = "reference (Python)" if name in MIXED else "python-control"
             jit = f"{r['jit_rhs']:.3f} s" if r["jit_rhs"] is not None else "-"
             vs_jit = _times(r['jit_rhs'] / r['warm']) if r["jit_rhs"] else "-"
-            print(f"| {name} | {label} | {r['first']:.3f} s | {r['warm']:.4f} s | "
-                  f"{r['mark']}{r['reference']:.2f} s ({reference}) | "
+            print(f"| {name} | {label} | {r['first']:.3f} s | {r['rewired']:.4f} s | "
+                  f"{r['warm']:.4f} s | {r['mark']}{r['reference']:.2f} s ({reference}) | "
                   f"{r['mark']}{_times(r['reference'] / r['first'])} | "
+                  f"{r['mark']}{_times(r['reference'] / r['rewired'])} | "
                   f"{r['mark']}{_times(r['reference'] / r['warm'])} | {jit} | {vs_jit} |",
                   flush=True)
     if args.only and "many" not in args.only:

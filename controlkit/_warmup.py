@@ -20,8 +20,11 @@ another thread's first import of a module waits for it (at most the time of one 
 below); modules already imported are not affected. numba's compiler lock is taken first,
 so a compile in another thread is never waited on from inside the import lock.
 
-The work is done in three such phases: numba's import; its tables; the engine's modules
-(python-control with them, if the person has not imported it yet) and RK machine. A fork
+The work is done in four such phases: numba's import; its tables; the engine's modules
+(python-control with them, if the person has not imported it yet) and RK machine; the
+generic driver that runs a newly wired diagram, loaded from numba's disk cache if it is
+there (never compiled here: a compile would hold numba's lock for seconds), so that the
+first new wiring of a session does not pay its loading (about 35 ms). A fork
 waits for the thread (``os.register_at_fork``), and so does the interpreter's exit.
 ``CONTROLKIT_WARMUP=0`` turns it off, ``=1`` starts it outside interactive sessions as
 well (the benchmarks use this to time a notebook's calls from a script).
@@ -145,6 +148,12 @@ def _warm() -> None:
             from controlkit.engines.fast import rk
 
             rk.machine_function()
+        with _alone(global_compiler_lock) as alone:
+            if not alone:
+                return
+            from controlkit.engines.fast.run import load_driver
+
+            load_driver()  # from the disk cache only: a new wiring's first call
     except Exception:  # noqa: BLE001 - the first call then does (and reports) it itself
         pass
 

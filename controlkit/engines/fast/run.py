@@ -170,6 +170,43 @@ def prime(function, name: str):
                  f, f, f, 0, 1e-3, f, np.inf, 0.0, True, status)
 
 
+def load_driver() -> bool:
+    """Load the generic driver's two entry points from numba's disk cache, compiling
+    nothing; False when they are not all there (the first new wiring then compiles them).
+
+    A notebook's warm-up thread (:mod:`controlkit._warmup`) calls it, so that the first
+    newly wired diagram of a session does not pay the driver's loading (about 35 ms of a
+    first call, with the entries of the LTI kernels).
+
+    Examples
+    --------
+    >>> isinstance(load_driver(), bool)
+    True
+    """
+    if not _jit.HAVE_NUMBA:
+        return False
+    from . import rk
+
+    lag = ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], inputs="u", outputs="y", name="lag")
+    job = prepare(ct.interconnect([lag], inputs="u", outputs="y", name="warm_up"))
+    driver = loader.driver()
+    f, i = np.zeros(0), np.zeros(0, dtype=np.int64)
+    m = np.zeros((0, 0))
+    status = np.full(4, -1, dtype=np.int64)
+    # typed as the driver's plan argument (the kernels' addresses are only looked at when
+    # it runs)
+    plan = driver.plan_arguments(job.plan, np.zeros(len(job.plan.kernels), dtype=np.int64))
+    continuous = (rk.machine_function(), f, 0, 0, 0, 0.0, f, m, f, i,
+                  np.zeros(1, dtype=np.int64), m, m, m, f, f, f, 0, 1e-3, f, np.inf, 0.0,
+                  True, status, plan)
+    discrete = (f, f, m, f, m, m, status, 0, 0, plan)
+    if not (loader.from_cache(driver.run_continuous, continuous)
+            and loader.from_cache(driver.run_discrete, discrete)):
+        return False
+    job.generic_plan()  # the LTI kernels' entries, which most diagrams call
+    return True
+
+
 def compile_system(sys, params=None):
     """The compiled discrete loop of ``sys`` and its blocks (compiled now if need be).
 
