@@ -242,9 +242,8 @@ def test_the_diagrams_own_module_gives_the_drivers_numbers_to_the_bit(name, monk
     # LTI blocks and RK4 substeps are written out in the module, looped over in the driver,
     # and a step of the module is written out in its loop, reading signals from locals: a
     # first call (driver) and a later one (module) must not differ in a single bit
-    from controlkit.engines.fast.run import prepare
-
     from controlkit.engines.fast import codegen
+    from controlkit.engines.fast.run import prepare
 
     if name.endswith("in a loop"):  # a step of more states than it holds in locals
         monkeypatch.setattr(codegen, "STATES_HELD_IN_LOCALS", 4)
