@@ -95,11 +95,16 @@ def test_a_module_global_and_a_helper_reassigned_between_calls_are_read_again():
         GAIN, shaping = saved
 
 
-def test_an_lti_matrix_changed_in_place_is_read_again():
+def proportional_loop():
+    """A first-order LTI plant under a user's proportional controller (k = 2)."""
     plant = ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], inputs="u", outputs="y", name="plant")
     controller = ct.nlsys(None, lambda t, x, u, params: params["k"] * (u[0] - u[1]),
                           inputs=["r", "y"], outputs="u", params={"k": 2.0}, name="k")
-    loop = ct.interconnect([plant, controller], inputs="r", outputs="y")
+    return ct.interconnect([plant, controller], inputs="r", outputs="y"), plant
+
+
+def test_an_lti_matrix_changed_in_place_is_read_again():
+    loop, plant = proportional_loop()
     before = agrees(loop, 1.0, [0.0])
     plant.A[0, 0] = -5.0
     after = agrees(loop, 1.0, [0.0])
@@ -184,10 +189,7 @@ def test_a_module_global_set_to_minus_zero_is_read_again():
 
 
 def test_the_wiring_changed_through_python_controls_setters_is_read_again():
-    plant = ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], inputs="u", outputs="y", name="plant")
-    controller = ct.nlsys(None, lambda t, x, u, params: params["k"] * (u[0] - u[1]),
-                          inputs=["r", "y"], outputs="u", params={"k": 2.0}, name="k")
-    loop = ct.interconnect([plant, controller], inputs="r", outputs="y")
+    loop, _ = proportional_loop()
     before = agrees(loop, 1.0, [0.0])
     loop.set_output_map(2.0 * loop.output_map)
     assert agrees(loop, 1.0, [0.0])[-1] == pytest.approx(2.0 * before[-1], rel=1e-9)
