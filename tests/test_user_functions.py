@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from idiom_diagrams import DIAGRAMS, cruise
 
+import controlkit
 from controlkit.engines import fast as engine
 from controlkit.engines.fast import loader, usercode
 from controlkit.engines.source import NotCompilable, used_params
@@ -302,3 +303,29 @@ def test_a_cache_folder_that_cannot_be_made_gives_a_private_one_not_a_shared_tmp
         folder = loader.cache_folder()
     assert folder.name != "controlkit-engine" and folder.name.startswith("controlkit-engine-")
     assert folder.stat().st_mode & 0o777 == 0o700
+
+
+def test_a_module_file_edited_after_its_import_gives_python_controls_answer(tmp_path):
+    # the engine reads a function's source from its file, which an editor may have changed
+    # since the import: the compiled version then differs from what runs and the block runs
+    # as Python, and its feedthrough is asked of the function, not of the new text (it
+    # once came from the text, "reads only x", and the loop lagged by an evaluation)
+    import importlib.util
+
+    path = tmp_path / "edited_model.py"
+    path.write_text("def controller(t, x, u, params):\n"
+                    "    return params['k'] * (u[0] - u[1])\n")
+    spec = importlib.util.spec_from_file_location("edited_model", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    path.write_text("def controller(t, x, u, params):\n"
+                    "    return params['k'] * x\n")
+    plant = ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], inputs="u", outputs="y", name="plant")
+    controller = ct.nlsys(None, module.controller, inputs=["r", "y"], outputs="u",
+                          params={"k": 2.0}, name="k")
+    loop = ct.interconnect([plant, controller], inputs="r", outputs="y")
+    T = np.linspace(0.0, 4.0, 81)
+    ours = controlkit.input_output_response(loop, T, 1.0, [0.0])
+    ref = ct.input_output_response(loop, T, 1.0, [0.0])
+    np.testing.assert_allclose(ours.outputs, ref.outputs, rtol=1e-9, atol=1e-12)
+    assert engine.explain(loop)[1].tier == "python"

@@ -116,9 +116,13 @@ def _python_kernels(block, local, reason):
                   else common.state_output)
         update = usercode.python_kernel(block.updfcn, local) if block.nstates else None
         feed = source.reads_input(block.outfcn) if block.outfcn is not None else False
-    if feed is None or isinstance(block, KernelBlock):
-        feed = _probe_feedthrough(lambda t, x, u, out: output(t, x, u, None, out),
-                                  block.nstates, block.ninputs, block.noutputs)
+    if not feed or isinstance(block, KernelBlock):
+        # its source said no (or nothing): ask the function itself too, for the source
+        # may not be what runs (a module file edited since it was imported; then the
+        # compiled version differed from it, which is how the block came to this tier)
+        probed = _probe_feedthrough(lambda t, x, u, out: output(t, x, u, None, out),
+                                    block.nstates, block.ninputs, block.noutputs)
+        feed = probed if isinstance(block, KernelBlock) else bool(feed) or probed
     return BlockKernels(output, update, np.zeros(0), feed), "python", reason
 
 
