@@ -93,7 +93,8 @@ def test_the_persons_imports_while_it_runs_are_never_half_done(imports):
     assert result.stdout.split() == ["6"]
 
 
-def test_the_warm_up_loads_the_driver_from_the_cache_and_never_compiles_it(tmp_path):
+def test_the_warm_up_loads_the_driver_from_the_cache_and_never_compiles_it(tmp_path,
+                                                                          monkeypatch):
     code = AS_IN_A_KERNEL + (
         "import controlkit\n"
         "from controlkit import _warmup\n"
@@ -108,16 +109,12 @@ def test_the_warm_up_loads_the_driver_from_the_cache_and_never_compiles_it(tmp_p
     import controlkit
     from controlkit.engines.fast import run as fast_run
 
-    saved, fast_run.MODULES = fast_run.MODULES, "never"
-    try:
-        for dt in (0, 0.1):  # the driver's two entry points, compiled if need be
-            lag = ct.ss([[-1.0 if dt == 0 else 0.5]], [[1.0]], [[1.0]], [[0.0]], dt=dt,
-                        inputs="u", outputs="y", name="lag")
-            controlkit.input_output_response(ct.interconnect([lag], inputs="u",
-                                                             outputs="y"),
-                                             np.arange(3) * 0.1, 1.0, 0.0)
-    finally:
-        fast_run.MODULES = saved
+    monkeypatch.setattr(fast_run, "MODULES", "never")
+    for dt in (0, 0.1):  # the driver's two entry points, compiled if need be
+        lag = ct.ss([[-1.0 if dt == 0 else 0.5]], [[1.0]], [[1.0]], [[0.0]], dt=dt,
+                    inputs="u", outputs="y", name="lag")
+        controlkit.input_output_response(ct.interconnect([lag], inputs="u", outputs="y"),
+                                         np.arange(3) * 0.1, 1.0, 0.0)
     result = _run(code)
     assert result.returncode == 0, result.stderr
     assert result.stdout.split() == ["1", "1"]

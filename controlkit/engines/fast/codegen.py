@@ -128,8 +128,6 @@ def _step(plan, rows, names, evaluate, ref, loads, args, view):
     benchmarks/bench_hand_written.py: 21.0 -> 15.9 ns a step, and 13.3 ns with every
     state loaded once at the top of the step and recorded from its local.
     """
-    ny = plan.ny
-    optr, ocols, ogain = plan.outputs
     n = plan.sys.nstates
     if n <= STATES_HELD_IN_LOCALS:
         # every state loaded once, recorded from its local: reading x back after the
@@ -140,22 +138,20 @@ def _step(plan, rows, names, evaluate, ref, loads, args, view):
         loads.clear()
         top = [*loaded, *(f"X[{i}, k] = _x{i}" for i in range(n))]
     else:
-        loaded, top = set(), [f"for i in range({n}):", "    X[i, k] = x[i]"]
+        loaded, top = [], [f"for i in range({n}):", "    X[i, k] = x[i]"]
+    skip = set(loaded)  # loaded at the top of the step already
     lines = []
     for line in evaluate:  # a NaN output stops the run, naming its block
         code = line.strip()
-        if line in loaded:
-            continue  # loaded at the top of the step already
+        if line in skip:
+            continue
         if code.startswith("return "):
             pad = line[:len(line) - len(line.lstrip())]
             lines += [f"{pad}status[0] = k", f"{pad}status[1] = {code.split()[1]}",
                       f"{pad}return x"]
         else:
             lines.append(line)
-    lines += [f"Y[{r}, col] = " + _terms(optr, ocols, ogain, r,
-                                         lambda c: ref("ys", c) if c < ny
-                                         else ref("ui", c - ny))
-              for r in range(plan.sys.noutputs)]
+    lines += _output_lines(plan, "col", ref)
     back = []  # states a kernel steps in xn, copied into x at the end
     for b, row in enumerate(rows):
         if row.UPD < 0 or not row.NX or row.KIND not in (DISCRETE, SAMPLED):
@@ -177,6 +173,17 @@ def _step(plan, rows, names, evaluate, ref, loads, args, view):
     lines += [f"x[{i}] = xn[{i}]" for i in back]
     return ["for k in range(k0, k1):", *("    " + line for line in top), "    t = T[k]",
             "    col = k", *("    " + line for line in lines)]
+
+
+def _output_lines(plan, column, ref):
+    """The diagram's outputs at column ``column`` of ``Y``, read through ``ref(array, i)``
+    (``ys`` for a block's output, ``ui`` for a diagram input)."""
+    optr, ocols, ogain = plan.outputs
+    ny = plan.ny
+    return [f"Y[{r}, {column}] = " + _terms(optr, ocols, ogain, r,
+                                            lambda c: ref("ys", c) if c < ny
+                                            else ref("ui", c - ny))
+            for r in range(plan.sys.noutputs)]
 
 
 #: A discrete step holds this many states in locals at most (a larger diagram's step
@@ -369,10 +376,7 @@ def _generate(plan, held_logic):
     step = None if held_logic else _step(plan, rows, names, evaluate, ref, loads, args, view)
     evaluate.append("return -1")
 
-    optr, ocols, ogain = plan.outputs
-    outputs = [f"Y[{r}, j] = " + _terms(optr, ocols, ogain, r,
-                                        lambda c: f"ys[{c}]" if c < ny else f"ui[{c - ny}]")
-               for r in range(plan.sys.noutputs)] or ["pass"]
+    outputs = _output_lines(plan, "j", lambda array, i: f"{array}[{i}]") or ["pass"]
 
     nx = plan.sys.nstates
     # states no kernel rewrites whole at every step keep their value (a discrete block's

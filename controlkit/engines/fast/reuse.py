@@ -193,9 +193,7 @@ def job_key(sys, params=None, start=None):
             t0, X0, U0 = start
             begin = (_value(float(t0)), _value(np.asarray(X0, dtype=float)),
                      _value(np.asarray(U0, dtype=float)))
-    except _Unknown:
-        return None
-    except Exception:  # noqa: BLE001 - whatever it is, prepare finds it and says so
+    except Exception:  # noqa: BLE001 - _Unknown, or anything prepare finds and says so
         return None
     return (str(loader.CACHE_DIR), begin, wiring, blocks)
 

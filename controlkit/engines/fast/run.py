@@ -157,17 +157,21 @@ def prime(function, name: str):
     --------
     >>> prime(lambda *args: None, "run_discrete")
     """
+    function(*_empty_arguments(name))
+
+
+def _empty_arguments(name: str) -> tuple:
+    """Arguments of the entry point ``name`` of the engine's types that run nothing."""
     f, i = np.zeros(0), np.zeros(0, dtype=np.int64)
     m = np.zeros((0, 0))
-    status = np.full(3, -1, dtype=np.int64)
+    status = np.full(4, -1, dtype=np.int64)
     if name == "run_discrete":
-        function(f, f, m, f, m, m, status, 0, 0)
-    else:
-        from . import rk
+        return (f, f, m, f, m, m, status, 0, 0)
+    from . import rk
 
-        machine = rk.machine_function() if _jit.HAVE_NUMBA else rk.machine
-        function(machine, f, 0, 0, 0, 0.0, f, m, f, i, np.zeros(1, dtype=np.int64), m, m, m,
-                 f, f, f, 0, 1e-3, f, np.inf, 0.0, True, status)
+    machine = rk.machine_function() if _jit.HAVE_NUMBA else rk.machine
+    return (machine, f, 0, 0, 0, 0.0, f, m, f, i, np.zeros(1, dtype=np.int64), m, m, m, f, f,
+            f, 0, 1e-3, f, np.inf, 0.0, True, status)
 
 
 def load_driver() -> bool:
@@ -185,23 +189,14 @@ def load_driver() -> bool:
     """
     if not _jit.HAVE_NUMBA:
         return False
-    from . import rk
-
     lag = ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], inputs="u", outputs="y", name="lag")
     job = prepare(ct.interconnect([lag], inputs="u", outputs="y", name="warm_up"))
     driver = loader.driver()
-    f, i = np.zeros(0), np.zeros(0, dtype=np.int64)
-    m = np.zeros((0, 0))
-    status = np.full(4, -1, dtype=np.int64)
     # typed as the driver's plan argument (the kernels' addresses are only looked at when
     # it runs)
     plan = driver.plan_arguments(job.plan, np.zeros(len(job.plan.kernels), dtype=np.int64))
-    continuous = (rk.machine_function(), f, 0, 0, 0, 0.0, f, m, f, i,
-                  np.zeros(1, dtype=np.int64), m, m, m, f, f, f, 0, 1e-3, f, np.inf, 0.0,
-                  True, status, plan)
-    discrete = (f, f, m, f, m, m, status, 0, 0, plan)
-    if not (loader.from_cache(driver.run_continuous, continuous)
-            and loader.from_cache(driver.run_discrete, discrete)):
+    if not all(loader.from_cache(getattr(driver, name), (*_empty_arguments(name), plan))
+               for name in ("run_continuous", "run_discrete")):
         return False
     job.generic_plan()  # the LTI kernels' entries, which most diagrams call
     return True

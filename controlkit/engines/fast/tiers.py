@@ -120,9 +120,8 @@ def _python_kernels(block, local, reason):
         # its source said no (or nothing): ask the function itself too, for the source
         # may not be what runs (a module file edited since it was imported; then the
         # compiled version differed from it, which is how the block came to this tier)
-        probed = _probe_feedthrough(lambda t, x, u, out: output(t, x, u, None, out),
-                                    block.nstates, block.ninputs, block.noutputs)
-        feed = probed if isinstance(block, KernelBlock) else bool(feed) or probed
+        feed = _probe_feedthrough(lambda t, x, u, out: output(t, x, u, None, out),
+                                  block.nstates, block.ninputs, block.noutputs)
     return BlockKernels(output, update, np.zeros(0), feed), "python", reason
 
 

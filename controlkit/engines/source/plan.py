@@ -153,7 +153,7 @@ def plan_function(fn):
     except TypeError:  # not hashable or not weakly referable: planned each time
         cached = None
     target, bound, keywords = call_target(fn)
-    if cached is not None and cached.valid() and cached.call is not None \
+    if cached is not None and cached.valid() \
             and _same_call(cached.call, (target, bound, keywords)):
         return cached
     build = _Build()
