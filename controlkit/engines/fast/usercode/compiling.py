@@ -7,6 +7,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import importlib.util
+import json
 import os
 import sys as pysys
 import types as pytypes
@@ -67,7 +68,7 @@ def load_kernel(source: str, folder: Path):
     try:
         return import_user_module(path).kernel, name
     except Exception as error:  # the generated module does not load: nothing is kept
-        raise NotCompilable(f"its compiled module does not load ({type(error).__name__}: "
+        raise NotCompilable(f"{_NOT_LOADED} ({type(error).__name__}: "
                             f"{error})") from None
 
 
@@ -207,9 +208,18 @@ def compiled_kernel(fn, values: dict, folder: Path, n_out: int, n_x: int, n_u: i
         identity = kernel_source(fn, values, False, layout=layout, exact=False, plan=plan)
     except NotCompilable:
         identity = None
-    key = identity and (identity, layout.entries, p.tobytes(), n_out, n_x, n_u,
-                        tuple((t, x.tobytes(), u.tobytes()) for t, x, u in points))
+    outcome = identity and (identity, layout.entries, p.tobytes(), n_out, n_x, n_u,
+                            tuple((t, x.tobytes(), u.tobytes()) for t, x, u in points))
+    # the code that runs is part of the key: the text read may not be it (a module file
+    # edited since its import), and the check is what tells them apart
+    codes = tuple(part.function.__code__ for part in plan.tree())
+    key = outcome and (outcome, codes)
     known = _CHECKED.get(key) if key else None
+    record = _Record(outcome, codes, folder) if key and known is None else None
+    if record is not None:  # checked by an earlier process: its outcome, from disk
+        known = record.read(layout)
+        if known is not None:
+            _remember(key, known)
     if known is not None:  # checked at these very points with these values: as then
         if isinstance(known, str):
             raise NotCompilable(known)
@@ -219,8 +229,12 @@ def compiled_kernel(fn, values: dict, folder: Path, n_out: int, n_x: int, n_u: i
                                  points)
     except NotCompilable as why:
         _remember(key, str(why))
+        if record is not None and not str(why).startswith(_NOT_LOADED):
+            record.write({"why": str(why)})
         raise
     _remember(key, result)
+    if record is not None:
+        record.write({"module": result.module})
     return result
 
 
@@ -236,6 +250,82 @@ def _remember(key, outcome) -> None:
         if len(_CHECKED) >= 4096:  # a long sweep over initial states: start again
             _CHECKED.clear()
         _CHECKED[key] = outcome
+
+
+#: The start of the reason given when a kernel module does not load: a passing cause (a
+#: full disk, a folder being cleaned), never kept on disk as the kernel's outcome.
+_NOT_LOADED = "its compiled module does not load"
+
+
+class _Record:
+    """The outcome of a kernel's check kept on disk, for later processes.
+
+    Checking a kernel loads its compiled code from numba's cache to run it at the trial
+    points, about 7 ms a function: most of a notebook's first call of a short run (its
+    diagram's module, itself loaded from the cache, has the kernels compiled into it). The
+    outcome depends on ``outcome`` (the function's text with its outside reads frozen, the
+    parameters, the trial points), on numba's, numpy's and Python's versions, and on the
+    function really being the text read from its file: the contents of ``codes`` (its
+    code and its helpers') are part of the record's name, so a file edited since its
+    import is checked again, against the function that runs.
+    """
+
+    FORMAT = 1
+
+    def __init__(self, outcome, codes, folder: Path):
+        numba_version = _jit.numba.__version__ if _jit.HAVE_NUMBA else "none"
+        digest = hashlib.sha256(repr((self.FORMAT, outcome, numba_version, np.__version__,
+                                      pysys.version, _COMPILE_OPTIONS, _CALLS_SOURCE,
+                                      _jit.CACHE_FORMAT)).encode())
+        for code in codes:
+            _code_digest(code, digest)
+        self.folder = folder
+        self.path = folder / "checked" / f"{digest.hexdigest()[:32]}.json"
+
+    def read(self, layout: ParamLayout):
+        """The kept outcome: a :class:`CompiledKernel`, the reason it is not compilable
+        (a ``str``), or None when there is none (or it cannot be used)."""
+        try:
+            kept = json.loads(self.path.read_text())
+        except (OSError, ValueError):
+            return None
+        if isinstance(kept.get("why"), str):
+            return kept["why"]
+        module = kept.get("module")
+        if not (isinstance(module, str) and module.startswith(USER_MODULE_PREFIX)):
+            return None
+        path = self.folder / f"{module}.py"
+        if not path.exists():
+            return None
+        try:
+            kernel = import_user_module(path).kernel
+        except Exception:  # noqa: BLE001 - checked again, as if never kept
+            return None
+        return CompiledKernel(kernel, layout.pack, module, layout)
+
+    def write(self, outcome: dict) -> None:
+        """Keep ``outcome`` (written whole or not at all; a failure to write is ignored)."""
+        try:
+            self.path.parent.mkdir(exist_ok=True)
+            tmp = self.path.with_suffix(f".{os.getpid()}.tmp")
+            tmp.write_text(json.dumps(outcome))
+            os.replace(tmp, self.path)
+        except OSError:
+            pass
+
+
+def _code_digest(code, digest) -> None:
+    """Feed what ``code`` runs into ``digest``: its bytecode, names and constants (nested
+    code too), none of which depend on the process (unlike ``marshal``'s bytes)."""
+    digest.update(code.co_code)
+    digest.update(repr((code.co_names, code.co_varnames, code.co_freevars)).encode())
+    for const in code.co_consts:
+        if isinstance(const, pytypes.CodeType):
+            _code_digest(const, digest)
+        elif isinstance(const, frozenset):  # its order changes with the hash seed
+            digest.update(repr(sorted(map(repr, const))).encode())
+        else:
+            digest.update(repr(const).encode())
 
 
 def _checked_kernel(fn, values, folder, n_out, n_x, n_u, layout, plan, p, points):
