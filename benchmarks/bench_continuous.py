@@ -18,8 +18,8 @@ in one call, against python-control's time per run.
 
 Run: ``python benchmarks/bench_continuous.py [--budget 60] [--only ROW ...] [--notebook]``
 (about 10-20 minutes for all; a row is ``diagram`` or ``diagram:horizon``, ``many`` the
-1000 runs; ``--notebook``: each row's process as a notebook's, numba's start in a thread
-and 2 s between the import and the first call).
+1000 runs; ``--notebook``: each row's process as a notebook's, numba's start in a thread,
+2 s between the import and the first call and 2 s before the new wiring).
 The machine is shared: compare the ratios, measured in the same process.
 """
 
@@ -128,6 +128,7 @@ def child(name, horizon_label, budget, pause=0.0):
         first, _ = _timed(controlkit.input_output_response, loop, T, U, X0)
         warm = statistics.median(
             _timed(controlkit.input_output_response, loop, T, U, X0)[0] for _ in range(5))
+        time.sleep(pause)  # the person wires the blocks anew in the next cell
         rewired = _new_wiring(name, horizon_label)
     ref, mark = _reference(loop, T, X0, U, budget)
     jit = _jit_rhs(loop, T, X0, U) if type(loop).__name__ != "SampledDataSystem" else None

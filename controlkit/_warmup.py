@@ -24,7 +24,9 @@ The work is done in four such phases: numba's import; its tables; the engine's m
 (python-control with them, if the person has not imported it yet) and RK machine; the
 generic driver that runs a newly wired diagram, loaded from numba's disk cache if it is
 there (never compiled here: a compile would hold numba's lock for seconds), so that the
-first new wiring of a session does not pay its loading (about 35 ms). A fork
+first new wiring of a session does not pay its loading (about 35 ms), then the entries
+of an LTI block's kernels the same way. Later, :func:`later` runs work for the person's
+next call in the same manner (the entries of a diagram's blocks after its call). A fork
 waits for the thread (``os.register_at_fork``), and so does the interpreter's exit.
 ``CONTROLKIT_WARMUP=0`` turns it off, ``=1`` starts it outside interactive sessions as
 well (the benchmarks use this to time a notebook's calls from a script).
@@ -42,6 +44,8 @@ import warnings
 
 #: The warm-up thread once started (at most one per process).
 _THREAD: threading.Thread | None = None
+#: The thread of the last task handed to :func:`later` (each waits for the one before).
+_LATER: threading.Thread | None = None
 _LOCK = threading.Lock()
 
 #: Seconds the thread keeps trying to find a moment when nobody imports, per phase.
@@ -98,9 +102,16 @@ def wanted() -> bool:
 
 
 @contextlib.contextmanager
-def _alone(compiler_lock=None):
+def alone(compiler_lock=None):
     """Hold numba's compiler lock (if given) and Python's import lock, at a moment when no
-    other thread is importing; yields False (holding nothing) if none came in time."""
+    other thread is importing; yields False (holding nothing) if none came in time.
+
+    Examples
+    --------
+    >>> with alone() as quiet:  # nobody else imports in a doctest
+    ...     quiet
+    True
+    """
     import _imp
     from importlib import _bootstrap
 
@@ -129,31 +140,33 @@ def _alone(compiler_lock=None):
 def _warm() -> None:
     """numba's import, its tables, then the engine: each while nobody else imports."""
     try:
-        with _alone() as alone:
-            if not alone:
+        with alone() as quiet:
+            if not quiet:
                 return
             import numba  # noqa: F401
             from numba.core.compiler_lock import global_compiler_lock
             from numba.core.registry import cpu_target
 
-        with _alone(global_compiler_lock) as alone:
-            if not alone:
+        with alone(global_compiler_lock) as quiet:
+            if not quiet:
                 return
             cpu_target.target_context.refresh()
-        with _alone(global_compiler_lock) as alone:
-            if not alone:
+        with alone(global_compiler_lock) as quiet:
+            if not quiet:
                 return
             import controlkit.engines.fast.response  # noqa: F401
             import controlkit.simulation  # noqa: F401
             from controlkit.engines.fast import rk
 
             rk.machine_function()
-        with _alone(global_compiler_lock) as alone:
-            if not alone:
+        with alone(global_compiler_lock) as quiet:
+            if not quiet:
                 return
-            from controlkit.engines.fast.run import load_driver
+            from controlkit.engines.fast.run import load_driver, preload_entries, warm_up_job
 
             load_driver()  # from the disk cache only: a new wiring's first call
+            lag = warm_up_job()
+        preload_entries(lag)  # an LTI block's entries, each loaded alone
     except Exception:  # noqa: BLE001 - the first call then does (and reports) it itself
         pass
 
@@ -179,6 +192,39 @@ def start() -> bool:
         return True
 
 
+def later(task) -> bool:
+    """Run ``task()`` in a daemon thread after the warm-up (and after the tasks handed in
+    before it), if this process warmed up; True if it will run.
+
+    For work a person's next call may need and this one did not, done between two cells
+    (the entries of a diagram's blocks, for a new wiring of them). Its errors are
+    swallowed: the call that needs the work does it (and reports it) itself.
+
+    Examples
+    --------
+    >>> later(lambda: None)  # no warm-up in a doctest: nothing runs
+    False
+    """
+    global _LATER
+    with _LOCK:
+        if _THREAD is None:
+            return False
+        before = _LATER
+
+        def run():
+            for thread in (_THREAD, before):
+                if thread is not None:
+                    thread.join()
+            try:
+                task()
+            except Exception:  # noqa: BLE001 - see above
+                pass
+
+        _LATER = threading.Thread(target=run, name="controlkit-later", daemon=True)
+        _LATER.start()
+        return True
+
+
 def wait() -> None:
     """Return once the warm-up thread (if any) has finished, or after ``WAIT_LIMIT_S``.
 
@@ -188,9 +234,9 @@ def wait() -> None:
     --------
     >>> wait()  # nothing started: returns at once
     """
-    thread = _THREAD
-    if thread is not None and thread is not threading.current_thread():
-        thread.join(WAIT_LIMIT_S)
+    for thread in (_THREAD, _LATER):
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(WAIT_LIMIT_S)
 
 
 if hasattr(os, "register_at_fork"):

@@ -122,3 +122,56 @@ def test_the_warm_up_loads_the_driver_from_the_cache_and_never_compiles_it(tmp_p
     result = _run(code, CONTROLKIT_CACHE_DIR=str(tmp_path / "cache"))
     assert result.returncode == 0, result.stderr
     assert result.stdout.split() == ["0", "0"]
+
+
+def test_after_a_run_on_its_module_a_notebook_loads_its_blocks_entries_for_a_new_wiring(
+        monkeypatch):
+    # the entries in the cache, as a first wiring on the driver leaves them
+    import controlkit
+    from controlkit.engines.fast import run as fast_run
+
+    here = os.path.dirname(os.path.abspath(__file__))
+    sys.path.insert(0, here)
+    from continuous_diagrams import CONTINUOUS
+
+    monkeypatch.setattr(fast_run, "MODULES", "never")
+    loop, T, X0, U = CONTINUOUS["steering"]()
+    controlkit.input_output_response(loop, T, U, X0)
+    result = _run(AS_IN_A_KERNEL + (
+        f"sys.path.insert(0, {here!r})\n"
+        "import numpy as np, controlkit\n"
+        "from controlkit import _warmup\n"
+        "from controlkit.engines.fast import entries, run\n"
+        "from continuous_diagrams import CONTINUOUS\n"
+        "_warmup.wait()\n"
+        "loop, T, X0, U = CONTINUOUS['steering']()\n"
+        "first = controlkit.input_output_response(loop, T, U, X0).outputs\n"
+        "job = run.prepare(loop, None, (T[0], X0, U[:, 0]))  # the call's own, kept\n"
+        "_warmup.wait()  # for the entries, loaded after the call\n"
+        "print(job.how, all(entries.loaded(k) for k in job.plan.kernels))\n"
+        "run.MODULES = 'never'  # the same blocks wired anew: on the driver\n"
+        "before = {m for m in sys.modules if m.startswith('controlkit_entry_')}\n"
+        "loop, T, X0, U = CONTINUOUS['steering']()\n"
+        "again = controlkit.input_output_response(loop, T, U, X0).outputs\n"
+        "after = {m for m in sys.modules if m.startswith('controlkit_entry_')}\n"
+        "print(after == before, np.abs(again - first).max())\n"),
+        CONTROLKIT_MODULES="now")
+    assert result.returncode == 0, result.stderr
+    ran, loaded, nothing_imported, difference = result.stdout.split()
+    assert (ran, loaded, nothing_imported) == ("module", "True", "True")
+    assert float(difference) <= 1e-12
+
+
+def test_the_entries_are_loaded_from_the_cache_only(tmp_path):
+    # an empty cache: nothing is compiled in the background (a compile holds numba's lock)
+    result = _run(
+        "from controlkit.engines.fast import entries\n"
+        "from controlkit.engines.fast.loader import cache_folder\n"
+        "from controlkit.kernels.common import constant_output\n"
+        "print(entries.preload([constant_output], cache_folder()),\n"
+        "      entries.loaded(constant_output),\n"
+        "      len(entries._imported(entries._reference(constant_output),\n"
+        "                            cache_folder()).overloads))\n",
+        CONTROLKIT_CACHE_DIR=str(tmp_path / "cache"))
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == ["0", "False", "0"]

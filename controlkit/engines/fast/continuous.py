@@ -149,6 +149,7 @@ def run_continuous(job, T, U, X0, *, t_eval=None, method="RK45", generic=None,
     if ctrl[0] < m:
         raise RuntimeError(f"the integration of {sys.name!r} stopped at t = "
                            f"{t_eval[ctrl[0]]:g} s without a reason; please report it")
+    job.after_run()
     return base_response(sys, t_eval, Y, X, Uo)
 
 
