@@ -228,6 +228,15 @@ def _check_feedthrough(block, kernel):
             f"its output changes with its input; declare feedthrough=True")
 
 
+def _has_user_functions(block) -> bool:
+    """Whether ``block`` has user functions to compile (and check at the run's start)."""
+    if isinstance(block, KernelBlock | ct.StateSpace | ct.InterconnectedSystem):
+        return False  # controlkit's kernels, an LTI block's, or the python tier
+    if isinstance(block, SampledSystem):
+        return _has_user_functions(block.continuous)
+    return isinstance(block, ct.NonlinearIOSystem)
+
+
 def _start_points(sys, params, start):
     """Each block's ``(t, x, u)`` at the run's start ``(t0, X0, U0)``, by python-control's
     own evaluation of the diagram (None for every block where it cannot be evaluated)."""
@@ -283,7 +292,9 @@ def blocks_of(sys, params=None, start=None):
         name = getattr(sys, "name", type(sys).__name__)
         raise UnsupportedSystem(
             f"{name!r} is a single block; the fast engine runs interconnects")
-    points = _start_points(sys, params, start)
+    # evaluating the diagram calls every block: only where a user function is checked
+    needed = start is not None and any(_has_user_functions(b) for b in sys.syslist)
+    points = _start_points(sys, params, start) if needed else None
     blocks, xs, us, ys, ps = [], 0, 0, 0, 0
     for i, block in enumerate(sys.syslist):
         kernel, tier, reason = _resolve(sys, block, params,
