@@ -6,14 +6,13 @@ module-level constants, and ``kernel(t, x, u, p, out)`` calls the user's functio
 from __future__ import annotations
 
 import ast
-import copy
 import importlib
 import types as pytypes
 
 import numpy as np
 
 from .... import _jit
-from ...source import PARAM_READ, NotCompilable, Plan, plan_function
+from ...source import PARAM_READ, NotCompilable, Plan, copy_tree, plan_function
 from .layout import ParamLayout
 
 
@@ -272,13 +271,13 @@ def _functions(plan, layout, direct, exact):
     functions = []
     for each in plan.tree():
         reads = _Reads(layout, exact)
-        body = _read_only_lists([reads.visit(stmt) for stmt in copy.deepcopy(each.body)])
+        body = _read_only_lists([reads.visit(stmt) for stmt in copy_tree(each.body)])
         functions.append(_function(each.name, each.arguments, body))
         if each is plan:
             top = body
     call = "    return store(user(t, x, u, p), out)"
     if direct:
-        written = [_WriteOut().visit(stmt) for stmt in copy.deepcopy(top)]
+        written = [_WriteOut().visit(stmt) for stmt in copy_tree(top)]
         written = [s for stmt in written for s in (stmt if isinstance(stmt, list) else [stmt])]
         functions.append(_function("user_out", [*plan.arguments, _OUT], written))
         call = "    return user_out(t, x, u, p, out)"
