@@ -19,7 +19,8 @@ in one call, against python-control's time per run.
 Run: ``python benchmarks/bench_continuous.py [--budget 60] [--only ROW ...] [--notebook]``
 (about 10-20 minutes for all; a row is ``diagram`` or ``diagram:horizon``, ``many`` the
 1000 runs; ``--notebook``: each row's process as a notebook's, numba's start in a thread,
-2 s between the import and the first call and 2 s before the new wiring).
+2 s between the import and the first call, and before the later calls and the new
+wiring).
 The machine is shared: compare the ratios, measured in the same process.
 """
 
@@ -126,6 +127,7 @@ def child(name, horizon_label, budget, pause=0.0):
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # a fallback to python-control would not be ours
         first, _ = _timed(controlkit.input_output_response, loop, T, U, X0)
+        time.sleep(pause)  # the next cell (a notebook loads the blocks' entries meanwhile)
         warm = statistics.median(
             _timed(controlkit.input_output_response, loop, T, U, X0)[0] for _ in range(5))
         time.sleep(pause)  # the person wires the blocks anew in the next cell
