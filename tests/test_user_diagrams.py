@@ -49,6 +49,55 @@ def test_block_declared_without_feedthrough_whose_output_moves_with_its_input_is
         engine.simulate(loop, T, np.zeros(loop.nstates), U)
 
 
+def test_a_blocks_declared_feedthrough_is_probed_in_python_without_loading_its_kernel():
+    # the compiled kernel would be loaded from numba's cache for the probe (7 ms of a
+    # first call); its Python function answers the same question
+    import numba
+
+    from controlkit.engines.fast.tiers import blocks_of
+
+    @numba.njit
+    def held(t, x, u, p, out):
+        out[0] = x[0]
+        return out
+
+    @numba.njit
+    def passed_on(t, x, u, p, out):
+        out[0] = x[0] + u[0]
+        return out
+
+    for kernel, refused in ((held, False), (passed_on, True)):
+        block = KernelBlock(kernel, lambda t, x, u, p, out: out, feedthrough=False,
+                            inputs="v", outputs="y", states="z", name="store")
+        loop = ct.interconnect([block], inputs="v", outputs="y")
+        if refused:
+            with pytest.raises(ValueError, match="'store' is declared without feedthrough"):
+                blocks_of(loop)
+        else:
+            assert [b.tier for b in blocks_of(loop)] == ["compiled"]
+        assert len(kernel.overloads) == 0  # never compiled nor loaded for it
+
+
+def test_the_runs_start_is_evaluated_only_for_blocks_with_user_functions(monkeypatch):
+    # python-control's evaluation of the diagram calls every block (loading each
+    # controlkit kernel from numba's cache): only user functions are checked there
+    from controlkit.engines.fast import tiers
+
+    asked = []
+    evaluate = tiers._start_points
+    monkeypatch.setattr(tiers, "_start_points",
+                        lambda *args: asked.append(1) or evaluate(*args))
+    loop = output_zeroing_loop()
+    start = (0.0, initial_state(loop, plant=initial_attitude()), np.zeros(loop.ninputs))
+    tiers.blocks_of(loop, None, start)
+    assert asked == []
+    user = ct.nlsys(lambda t, x, u, params: -x + u, lambda t, x, u, params: x,
+                    inputs="u", outputs="y", states="z", name="lag")
+    tiers.blocks_of(ct.interconnect([user], inputs="u", outputs="y"), None,
+                    (0.0, np.ones(1), np.ones(1)))
+    assert asked == [1]
+
+
 @pytest.mark.parametrize("which", ENGINES)
 def test_unknown_params_key_is_refused_on_both_engines(which):
     loop = output_zeroing_loop(controller=sc.outer_controller(0.5))
