@@ -25,8 +25,10 @@ The work is done in four such phases: numba's import; its tables; the engine's m
 generic driver that runs a newly wired diagram, loaded from numba's disk cache if it is
 there (never compiled here: a compile would hold numba's lock for seconds), so that the
 first new wiring of a session does not pay its loading (about 35 ms), then the entries
-of an LTI block's kernels the same way. Later, :func:`later` runs work for the person's
-next call in the same manner (the entries of a diagram's blocks after its call). A fork
+of an LTI block's kernels the same way, then the modules of the diagrams run last
+(:mod:`controlkit.engines.fast.recent`: a notebook opened again runs them first). Later,
+:func:`later` runs work for the person's next call in the same manner (the entries of
+a diagram's blocks after its call). A fork
 waits for the thread (``os.register_at_fork``), and so does the interpreter's exit.
 ``CONTROLKIT_WARMUP=0`` turns it off, ``=1`` starts it outside interactive sessions as
 well (the benchmarks use this to time a notebook's calls from a script).
@@ -167,6 +169,13 @@ def _warm() -> None:
             load_driver()  # from the disk cache only: a new wiring's first call
             lag = warm_up_job()
         preload_entries(lag)  # an LTI block's entries, each loaded alone
+        from controlkit.engines.fast import recent
+
+        for path, entry in recent.modules():  # the diagrams of the last session
+            with alone(global_compiler_lock) as quiet:
+                if not quiet:
+                    return
+                recent.load(path, entry)
     except Exception:  # noqa: BLE001 - the first call then does (and reports) it itself
         pass
 

@@ -175,3 +175,46 @@ def test_the_entries_are_loaded_from_the_cache_only(tmp_path):
         CONTROLKIT_CACHE_DIR=str(tmp_path / "cache"))
     assert result.returncode == 0, result.stderr
     assert result.stdout.split() == ["0", "False", "0"]
+
+
+def test_a_session_opened_again_finds_the_diagrams_run_last_loaded_before_its_first_call():
+    here = os.path.dirname(os.path.abspath(__file__))
+    build = (f"sys.path.insert(0, {here!r})\n"
+             "import controlkit\n"
+             "from controlkit.engines.fast import loader, run\n"
+             "from continuous_diagrams import CONTINUOUS\n"
+             "loop, T, X0, U = CONTINUOUS['dc_motor']()\n")
+    first = _run("import sys\n" + build + "controlkit.input_output_response(loop, T, U, X0)\n"
+                 "import numpy as np\n"
+                 "print(run.prepare(loop, None, (T[0], np.asarray(X0, float),\n"
+                 "                               np.atleast_2d(U)[:, 0])).how)\n",
+                 CONTROLKIT_MODULES="now", CONTROLKIT_WARMUP="0")
+    assert first.returncode == 0, first.stderr
+    assert first.stdout.split() == ["module"]
+    again = _run(AS_IN_A_KERNEL + "import controlkit\ncontrolkit._warmup.wait()\n" + build + (
+        "module = sys.modules.get('controlkit_' + loader.module_path(\n"
+        "    run.prepare(loop).source).stem)\n"
+        "print(module is not None and len(module.run_continuous.overloads))\n"))
+    assert again.returncode == 0, again.stderr
+    assert again.stdout.split() == ["1"]
+
+
+def test_the_marks_of_diagrams_run_give_the_last_ones_oldest_first(tmp_path, monkeypatch):
+    from controlkit.engines.fast import recent
+
+    monkeypatch.setattr(recent, "_folder", lambda: tmp_path / "recent")
+    (tmp_path / "recent").mkdir()
+    for age, stem in enumerate(["diagram_c", "diagram_b", "diagram_a", "diagram_gone"]):
+        if stem != "diagram_gone":
+            (tmp_path / f"{stem}.py").write_text("")
+        mark = tmp_path / "recent" / f"{stem}.run_continuous"
+        mark.touch()
+        os.utime(mark, (1000.0 - age, 1000.0 - age))
+    (tmp_path / "recent" / "diagram_a.not_an_entry").touch()
+    assert [(p.name, e) for p, e in recent.modules(2)] == [("diagram_b.py", "run_continuous"),
+                                                           ("diagram_c.py", "run_continuous")]
+    left = sorted(p.name for p in (tmp_path / "recent").iterdir())
+    assert left == ["diagram_a.run_continuous", "diagram_b.run_continuous",
+                    "diagram_c.run_continuous"]
+    with pytest.raises(ValueError, match="limit must be 0 or more, got -1"):
+        recent.modules(-1)

@@ -23,18 +23,36 @@ def main(argv=None) -> int:
     """
     path, entry = (argv if argv is not None else sys.argv[1:])[:2]
     try:
-        from .loader import compiled, import_module
         from .run import prime
-        from .usercode.compiling import USER_MODULE_PREFIX, import_user_module
 
-        for line in Path(path).read_text().splitlines():  # its user kernels, compiled first
-            if line.startswith(f"from {USER_MODULE_PREFIX}"):
-                import_user_module(Path(path).parent / f"{line.split()[1]}.py")
-        module = compiled(import_module(Path(path)))
+        module = import_diagram(Path(path))
         prime(getattr(module, entry), entry)
     except Exception:  # noqa: BLE001 - the caller keeps running on the driver
         return 1
     return 0
+
+
+def import_diagram(path: Path):
+    """The diagram module at ``path``, imported with its functions wrapped by numba, its
+    user kernels imported first as the engine makes them (imported by its own
+    ``from ... import`` lines, they would be plain Python functions numba cannot call).
+
+    Examples
+    --------
+    >>> from controlkit.engines.fast.loader import module_path
+    >>> from controlkit.engines.fast.run import prepare
+    >>> from controlkit.studies.cmg.diagrams import cmg_loop
+    >>> hasattr(import_diagram(module_path(prepare(cmg_loop()).source)).run_discrete,
+    ...         "py_func")
+    True
+    """
+    from .loader import compiled, import_module
+    from .usercode.compiling import USER_MODULE_PREFIX, import_user_module
+
+    for line in path.read_text().splitlines():
+        if line.startswith(f"from {USER_MODULE_PREFIX}"):
+            import_user_module(path.parent / f"{line.split()[1]}.py")
+    return compiled(import_module(path))
 
 
 if __name__ == "__main__":

@@ -75,6 +75,7 @@ class Job:
     how: str = ""
     _generic: tuple | None = field(default=None, repr=False)
     _entries_asked: bool = field(default=False, repr=False)
+    _entry: str = field(default="", repr=False)
 
     @property
     def blocks(self):
@@ -95,11 +96,15 @@ class Job:
         """After a run on the diagram's own module, in a session that warms up (a
         notebook): the entries of its kernels are loaded in the background
         (:func:`preload_entries`), so that the same blocks wired anew run on the driver
-        without loading them (about 7 ms a kernel) in the person's next call."""
+        without loading them (about 7 ms a kernel) in the person's next call. In any
+        session the run is marked for a later session's warm-up (:mod:`.recent`)."""
         if self.how != "module" or self._entries_asked or not _jit.HAVE_NUMBA:
             return
         self._entries_asked = True
+        from . import recent
         from .entries import loaded
+
+        recent.note(self.source, self._entry)  # for the next session's warm-up
 
         if not all(loaded(k) for k in self.plan.kernels):
             _warmup.later(functools.partial(preload_entries, self))
@@ -124,7 +129,7 @@ class Job:
         module = loader.load(self.source)
         function = getattr(module, name)
         if loader.is_compiled(function) or policy == "now":
-            self.how = "module"
+            self.how, self._entry = "module", name
             return function, False
         if policy == "background" and loader.BACKGROUND_COMPILE:
             loader.compile_in_background(self.source, name)
@@ -172,11 +177,18 @@ def prime(function, name: str):
     --------
     >>> prime(lambda *args: None, "run_discrete")
     """
-    function(*_empty_arguments(name))
+    function(*empty_arguments(name))
 
 
-def _empty_arguments(name: str) -> tuple:
-    """Arguments of the entry point ``name`` of the engine's types that run nothing."""
+def empty_arguments(name: str) -> tuple:
+    """Arguments of the entry point ``name`` of the engine's types that run nothing (what
+    a module is compiled for in the background, and loaded from the cache for).
+
+    Examples
+    --------
+    >>> len(empty_arguments("run_discrete"))
+    9
+    """
     f, i = np.zeros(0), np.zeros(0, dtype=np.int64)
     m = np.zeros((0, 0))
     status = np.full(4, -1, dtype=np.int64)
@@ -209,7 +221,7 @@ def load_driver() -> bool:
     # typed as the driver's plan argument (the kernels' addresses are only looked at when
     # it runs)
     plan = driver.plan_arguments(job.plan, np.zeros(len(job.plan.kernels), dtype=np.int64))
-    if not all(loader.from_cache(getattr(driver, name), (*_empty_arguments(name), plan))
+    if not all(loader.from_cache(getattr(driver, name), (*empty_arguments(name), plan))
                for name in ("run_continuous", "run_discrete")):
         return False
     return True

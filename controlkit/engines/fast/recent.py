@@ -1,0 +1,108 @@
+"""The diagrams run last, loaded again by the next session's warm-up.
+
+A person who opens a notebook again runs the diagrams of last time. The first call of
+each loads its compiled module from numba's disk cache (about 10 ms: LLVM's bitcode
+parsed and linked), most of a short run's first call once the rest is kept on disk. A
+run on a diagram's own module leaves a mark (:func:`note`): an empty file named after
+the module and its entry point, in ``recent/`` of the cache folder, its date the run's.
+A notebook's warm-up (:mod:`controlkit._warmup`) loads the entry points of the
+:data:`LIMIT` most recent ones from the cache (:func:`load`: never a compile), the
+oldest first, while the person reads and types; the rest is done by the first call as
+ever.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from . import loader
+
+#: How many of the diagrams run last the warm-up loads.
+LIMIT = 8
+#: Marks kept at most (the oldest are removed).
+KEPT = 64
+
+
+def _folder() -> Path:
+    return loader.cache_folder() / "recent"
+
+
+def note(source: str, entry: str) -> None:
+    """Mark the module of ``source`` as run now through ``entry``; a failure is ignored.
+
+    Examples
+    --------
+    >>> from controlkit.engines.fast.run import prepare
+    >>> from controlkit.studies.cmg.diagrams import cmg_loop
+    >>> note(prepare(cmg_loop()).source, "run_discrete")
+    >>> any(entry == "run_discrete" for _, entry in modules())
+    True
+    """
+    if entry not in loader.ENTRY_POINTS:
+        raise ValueError(f"entry must be one of {loader.ENTRY_POINTS}, got {entry!r}")
+    try:
+        folder = _folder()
+        folder.mkdir(exist_ok=True)
+        (folder / f"{loader.module_path(source).stem}.{entry}").touch()
+    except OSError:
+        pass
+
+
+def modules(limit: int = LIMIT) -> list[tuple[Path, str]]:
+    """``(module path, entry point)`` of the ``limit`` diagrams run last, the oldest first.
+
+    Marks beyond :data:`KEPT` are removed, and so are those whose module is gone.
+
+    Examples
+    --------
+    >>> all(path.suffix == ".py" for path, _ in modules())
+    True
+    """
+    if limit < 0:
+        raise ValueError(f"limit must be 0 or more, got {limit}")
+    dated = []
+    try:
+        for mark in _folder().iterdir():
+            try:
+                dated.append((mark.stat().st_mtime, mark))
+            except OSError:
+                continue
+    except OSError:
+        return []
+    dated.sort(reverse=True)
+    found = []
+    for rank, (_, mark) in enumerate(dated):
+        stem, _, entry = mark.name.partition(".")
+        path = mark.parent.parent / f"{stem}.py"
+        if rank >= KEPT or entry not in loader.ENTRY_POINTS or not path.exists():
+            _remove(mark)
+        elif len(found) < limit:
+            found.append((path, entry))
+    return found[::-1]
+
+
+def _remove(mark: Path) -> None:
+    try:
+        os.remove(mark)
+    except OSError:
+        pass
+
+
+def load(path: Path, entry: str) -> bool:
+    """Load the entry point ``entry`` of the diagram module at ``path`` from numba's disk
+    cache, compiling nothing; True if it is loaded now.
+
+    Examples
+    --------
+    >>> from controlkit.engines.fast.run import prepare
+    >>> from controlkit.studies.cmg.diagrams import cmg_loop
+    >>> path = loader.module_path(prepare(cmg_loop()).source)
+    >>> isinstance(load(path, "run_discrete"), bool)
+    True
+    """
+    from .background import import_diagram
+    from .run import empty_arguments
+
+    module = import_diagram(path)
+    return loader.from_cache(getattr(module, entry), empty_arguments(entry))
