@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 from .bindings import PARAMS, RUNTIME, Frozen, _bind, _binding_key, _input_name
 from .reading import NotCompilable, _definition, call_target
+from .rewrites import walk
 from .translator import _Translator
 from .values import _same
 
@@ -283,7 +284,7 @@ def reads_input(fn):
         bindings = _bind(target, call, {k: Frozen(v) for k, v in keywords.items()})
         name = None if isinstance(bindings, str) else _input_name(bindings)
         _READS_INPUT[key] = None if name is None else any(
-            isinstance(n, ast.Name) and n.id == name for n in ast.walk(ast.Module(body, [])))
+            isinstance(n, ast.Name) and n.id == name for n in walk(ast.Module(body, [])))
     return _READS_INPUT[key]
 
 

@@ -13,6 +13,7 @@ import re
 import types
 
 from ... import _jit
+from .rewrites import copy_tree, walk
 
 
 class NotCompilable(Exception):
@@ -54,7 +55,7 @@ def _lambda_body(code):
     return node.body if isinstance(node, ast.Lambda) else node
 
 
-#: Definitions by code object: the def's source, written out once (or the NotCompilable).
+#: Definitions by code object: the def's tree, read once (or the NotCompilable).
 _PARSED: dict = {}
 
 
@@ -63,8 +64,8 @@ def _definition(code):
 
     The source is found from the code object itself, never through ``__wrapped__``
     (``inspect.getsource`` of a decorated function gives the function it wraps). It is
-    read once per code object and parsed again for each plan (``ast.parse`` is ten times
-    faster than copying the tree).
+    read and parsed once per code object, and each plan is handed a copy of the tree
+    (:func:`.rewrites.copy_tree`, as fast as parsing the text again).
     """
     hit = _PARSED.get(code)
     if hit is None:
@@ -72,14 +73,14 @@ def _definition(code):
             arguments, body = _parse_definition(code)
             node = ast.FunctionDef(name="f", args=arguments, body=body, decorator_list=[],
                                    returns=None, type_params=[])
-            hit = ast.unparse(ast.fix_missing_locations(ast.Module([node], [])))
+            ast.fix_missing_locations(ast.Module([node], []))
+            hit = (arguments, body)
         except NotCompilable as why:
             hit = why
         _PARSED[code] = hit
     if isinstance(hit, NotCompilable):
         raise NotCompilable(str(hit))
-    node = ast.parse(hit).body[0]
-    return node.args, node.body
+    return copy_tree(hit[0]), copy_tree(hit[1])
 
 
 def _parse_definition(code):
@@ -99,10 +100,10 @@ def _parse_definition(code):
         tree = ast.parse(text)
     except SyntaxError:
         raise NotCompilable("its source could not be parsed") from None
-    for node in ast.walk(tree):
+    for node in walk(tree):
         if isinstance(node, ast.FunctionDef) and node.name == code.co_name:
             return node.args, node.body
-    if any(isinstance(node, ast.AsyncFunctionDef) for node in ast.walk(tree)):
+    if any(isinstance(node, ast.AsyncFunctionDef) for node in walk(tree)):
         raise NotCompilable("it is a coroutine")
     raise NotCompilable("its definition was not found in its source")
 

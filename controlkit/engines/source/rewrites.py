@@ -5,6 +5,31 @@ how often, and loops over literal lists of ``params`` keys written out one copy 
 from __future__ import annotations
 
 import ast
+from collections import deque
+
+
+def walk(node):
+    """Every node of the tree ``node``, in :func:`ast.walk`'s order, twice as fast (the
+    translator and the writer walk each function's statements several times).
+
+    Examples
+    --------
+    >>> [type(n).__name__ for n in walk(ast.parse("y = 2"))]
+    ['Module', 'Assign', 'Name', 'Constant', 'Store']
+    """
+    todo = deque([node])
+    take, add = todo.popleft, todo.append
+    while todo:
+        node = take()
+        for name in node._fields:
+            value = getattr(node, name, None)
+            if isinstance(value, ast.AST):
+                add(value)
+            elif isinstance(value, list):
+                for item in value:
+                    if isinstance(item, ast.AST):
+                        add(item)
+        yield node
 
 
 def copy_tree(node):
@@ -38,7 +63,7 @@ def copy_tree(node):
 def _stored_names(body):
     """Names bound anywhere in ``body`` (assigned, loop targets, inner functions' args)."""
     names = set()
-    for node in ast.walk(ast.Module(body, [])):
+    for node in walk(ast.Module(body, [])):
         if isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store | ast.Del):
             names.add(node.id)
         elif isinstance(node, ast.arg):
@@ -54,7 +79,7 @@ def _stored_names(body):
 
 def _store_counts(body):
     counts = {}
-    for node in ast.walk(ast.Module(body, [])):
+    for node in walk(ast.Module(body, [])):
         if isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store | ast.Del):
             counts[node.id] = counts.get(node.id, 0) + 1
         elif isinstance(node, ast.AugAssign) and isinstance(node.target, ast.Name):
@@ -93,7 +118,7 @@ class _Substitute(ast.NodeTransformer):
 
 
 def _has_jump(statements):
-    for node in ast.walk(ast.Module(statements, [])):
+    for node in walk(ast.Module(statements, [])):
         if isinstance(node, ast.Break | ast.Continue):
             return True
     return False

@@ -15,7 +15,7 @@ from .bindings import PARAMS, RUNTIME
 from .helpers import _HelperCalls
 from .outside import _OutsideReads
 from .reading import PARAM_READ
-from .rewrites import _store_counts, _stored_names, _string_items, _Unroll
+from .rewrites import _store_counts, _stored_names, _string_items, _Unroll, walk
 from .values import _MISSING, _UNKNOWN, _global, _is_plain
 
 
@@ -92,7 +92,7 @@ class _Translator(_OutsideReads, _HelperCalls, ast.NodeTransformer):
         changed = True
         while changed:
             changed = False
-            for node in ast.walk(ast.Module(body, [])):
+            for node in walk(ast.Module(body, [])):
                 if isinstance(node, ast.Assign) and len(node.targets) == 1 \
                         and isinstance(node.targets[0], ast.Name) \
                         and isinstance(node.value, ast.Name) and node.value.id in self.sources \
@@ -101,7 +101,7 @@ class _Translator(_OutsideReads, _HelperCalls, ast.NodeTransformer):
                     changed = True
 
     def _find_strings(self, body, counts):
-        for node in ast.walk(ast.Module(body, [])):
+        for node in walk(ast.Module(body, [])):
             if isinstance(node, ast.Assign) and len(node.targets) == 1 \
                     and isinstance(node.targets[0], ast.Name) \
                     and isinstance(node.value, ast.Constant) \

@@ -12,7 +12,7 @@ import types as pytypes
 import numpy as np
 
 from .... import _jit
-from ...source import PARAM_READ, NotCompilable, Plan, copy_tree, plan_function
+from ...source import PARAM_READ, NotCompilable, Plan, copy_tree, plan_function, walk
 from .layout import ParamLayout
 
 
@@ -229,13 +229,13 @@ def _read_only_lists(body):
     """
     tree = ast.Module(body, [])
     stores, uses = {}, {}
-    for node in ast.walk(tree):
+    for node in walk(tree):
         if isinstance(node, ast.Name):
             if isinstance(node.ctx, ast.Store):
                 stores[node.id] = stores.get(node.id, 0) + 1
             else:
                 uses.setdefault(node.id, []).append(node)
-    parents = {child: parent for parent in ast.walk(tree)
+    parents = {child: parent for parent in walk(tree)
                for child in ast.iter_child_nodes(parent)}
 
     def read_only(name):
@@ -249,7 +249,7 @@ def _read_only_lists(body):
                 return False
         return True
 
-    for node in ast.walk(tree):
+    for node in walk(tree):
         if (isinstance(node, ast.Assign) and len(node.targets) == 1
                 and isinstance(node.targets[0], ast.Name) and isinstance(node.value, ast.List)
                 and node.value.elts and all(isinstance(e, ast.Constant) and isinstance(
@@ -264,7 +264,7 @@ def _functions(plan, layout, direct, exact):
     """The text of the plan's functions, params read from ``p``, and the kernel's call."""
     if direct:
         returns = _returns(plan.body)
-        if not returns or _OUT in {n.id for n in ast.walk(ast.Module(plan.body, []))
+        if not returns or _OUT in {n.id for n in walk(ast.Module(plan.body, []))
                                    if isinstance(n, ast.Name)} \
                 or any(_literal_items(r.value) is None for r in returns):
             raise NotCompilable("not every return is a literal list")
