@@ -91,7 +91,8 @@ def _remove(mark: Path) -> None:
 
 def load(path: Path, entry: str) -> bool:
     """Load the entry point ``entry`` of the diagram module at ``path`` from numba's disk
-    cache, compiling nothing; True if it is loaded now.
+    cache, compiling nothing; True if it is loaded now, False if not (not in the cache,
+    or its module or a user kernel it imports no longer loads: the first call says why).
 
     Examples
     --------
@@ -104,5 +105,8 @@ def load(path: Path, entry: str) -> bool:
     from .background import import_diagram
     from .run import empty_arguments
 
-    module = import_diagram(path)
+    try:
+        module = import_diagram(path)
+    except Exception:  # noqa: BLE001 - see above
+        return False
     return loader.from_cache(getattr(module, entry), empty_arguments(entry))
