@@ -104,3 +104,51 @@ def test_an_unreadable_record_is_checked_again(tmp_path, monkeypatch):
     monkeypatch.setattr(compiling, "_CHECKED", {})
     assert compiling.compiled_kernel(fn, {}, folder, 1, 1, 1).module == first.module
     assert '"module": "controlkit_user_' in record.read_text()  # written again
+
+
+def test_a_numba_helper_imported_by_name_is_part_of_the_kernels_text(tmp_path, monkeypatch):
+    # numba's cache knows a kernel by its own file: an edited helper it imports must make
+    # a new kernel (and a new record), or the old compiled helper runs, silently
+    import sys
+
+    monkeypatch.syspath_prepend(str(tmp_path))
+    folder = tmp_path / "cache"
+    folder.mkdir()
+    answers = []
+    for factor in ("0.0", "7.0"):
+        for name in ("helper_by_name", "user_of_helper"):
+            sys.modules.pop(name, None)
+        (tmp_path / "helper_by_name.py").write_text(
+            f"import numba\n\n\n@numba.njit\ndef nj(v):\n    return {factor} * v\n")
+        user = _module(tmp_path / "user_of_helper.py", "user_of_helper",
+                       "from helper_by_name import nj\n\n\n"
+                       "def f(t, x, u, params):\n    return [nj(x[0]) + u[0]]\n")
+        compiled = compiling.compiled_kernel(user.f, {}, folder, 1, 1, 1)
+        out = compiled.kernel(0.0, np.array([2.0]), np.array([1.0]), compiled.pack({}),
+                              np.empty(1))
+        answers.append((compiled.module, out.tolist()))
+    (first, at_zero), (second, at_seven) = answers
+    assert first != second
+    assert (at_zero, at_seven) == ([1.0], [15.0])
+
+
+def test_a_record_made_with_numba_disabled_is_not_one_of_a_compiled_run(tmp_path,
+                                                                        monkeypatch):
+    # NUMBA_DISABLE_JIT runs the "compiled" kernel as Python: it always agrees
+    import numba
+
+    outcome, codes = ("text", (), "float64"), (_module.__code__,)
+    compiled = compiling._Record(outcome, codes, tmp_path).path
+    monkeypatch.setattr(numba.config, "DISABLE_JIT", 1)
+    assert compiling._Record(outcome, codes, tmp_path).path != compiled
+
+
+def test_a_list_and_an_array_of_the_same_numbers_are_checked_each(tmp_path):
+    # they pack alike; Python's answer differs (a list repeated, an array doubled)
+    code = "def f(t, x, u, params):\n    return [-x[0] + len(params['v'] * 2)]\n"
+    fn = _module(tmp_path / "lengths.py", "lengths", code).f
+    folder = tmp_path / "cache"
+    folder.mkdir()
+    compiling.compiled_kernel(fn, {"v": np.array([1.0, 2.0])}, folder, 1, 1, 0)
+    with pytest.raises(NotCompilable, match="differs from it"):
+        compiling.compiled_kernel(fn, {"v": [1.0, 2.0]}, folder, 1, 1, 0)

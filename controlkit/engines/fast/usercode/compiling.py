@@ -20,8 +20,9 @@ import numpy as np
 from .... import _jit
 from ....kernels import user_calls
 from ...source import NotCompilable, Plan, plan_function
+from ..loader import IMPORTING
 from .layout import ParamLayout
-from .writer import kernel_source
+from .writer import code_digest, kernel_source
 
 #: The source of what kernels call (clip, store, missing_parameter): numba's cache refers
 #: to their compiled code by their module, so a kernel's name changes with it and a cache
@@ -89,6 +90,11 @@ def import_user_module(path: Path):
     >>> module.kernel(0.0, np.zeros(0), np.ones(1), np.zeros(0), np.empty(1)).tolist()
     [2.0]
     """
+    with IMPORTING:  # never seen half-made by another thread
+        return _import_user_module(path)
+
+
+def _import_user_module(path: Path):
     name = path.stem
     if name in pysys.modules:
         return pysys.modules[name]
@@ -208,7 +214,10 @@ def compiled_kernel(fn, values: dict, folder: Path, n_out: int, n_x: int, n_u: i
         identity = kernel_source(fn, values, False, layout=layout, exact=False, plan=plan)
     except NotCompilable:
         identity = None
-    outcome = identity and (identity, layout.entries, p.tobytes(), n_out, n_x, n_u,
+    # the values' Python types too: a list and an array of the same numbers pack alike,
+    # and Python's answer differs (``v * 2`` repeats a list)
+    outcome = identity and (identity, layout.entries, _kinds(values, layout), p.tobytes(),
+                            n_out, n_x, n_u,
                             tuple((t, x.tobytes(), u.tobytes()) for t, x, u in points))
     # the code that runs is part of the key: the text read may not be it (a module file
     # edited since its import), and the check is what tells them apart
@@ -238,6 +247,19 @@ def compiled_kernel(fn, values: dict, folder: Path, n_out: int, n_x: int, n_u: i
     return result
 
 
+def _kinds(values: dict, layout: ParamLayout) -> tuple:
+    """The Python types of the parameters the layout reads (of a list's or a tuple's
+    items as well)."""
+    kinds = []
+    for entry in layout.entries:
+        value = values.get(entry.key)
+        kind = type(value).__qualname__
+        if isinstance(value, list | tuple):
+            kind += repr(sorted({type(item).__qualname__ for item in value}))
+        kinds.append(kind)
+    return tuple(kinds)
+
+
 #: Kernels checked in this process by what decides the check's outcome (the function's
 #: text with its outside reads frozen, the parameters, the trial points): a notebook's
 #: repeated call checked the same kernel again, 0.4 ms a function a call (a third of a
@@ -264,7 +286,9 @@ class _Record:
     points, about 7 ms a function: most of a notebook's first call of a short run (its
     diagram's module, itself loaded from the cache, has the kernels compiled into it). The
     outcome depends on ``outcome`` (the function's text with its outside reads frozen, the
-    parameters, the trial points), on numba's, numpy's and Python's versions, and on the
+    parameters and their types, the trial points), on numba's, numpy's and Python's
+    versions and numba's settings (``NUMBA_DISABLE_JIT`` runs the "compiled" kernel as
+    Python, which always agrees), and on the
     function really being the text read from its file: the contents of ``codes`` (its
     code and its helpers') are part of the record's name, so a file edited since its
     import is checked again, against the function that runs.
@@ -273,12 +297,14 @@ class _Record:
     FORMAT = 1
 
     def __init__(self, outcome, codes, folder: Path):
-        numba_version = _jit.numba.__version__ if _jit.HAVE_NUMBA else "none"
-        digest = hashlib.sha256(repr((self.FORMAT, outcome, numba_version, np.__version__,
+        numba = ("none",) if not _jit.HAVE_NUMBA else (
+            _jit.numba.__version__, _jit.numba.config.DISABLE_JIT,  # (Python "compiled")
+            _jit.numba.config.BOUNDSCHECK)
+        digest = hashlib.sha256(repr((self.FORMAT, outcome, numba, np.__version__,
                                       pysys.version, _COMPILE_OPTIONS, _CALLS_SOURCE,
                                       _jit.CACHE_FORMAT)).encode())
         for code in codes:
-            _code_digest(code, digest)
+            code_digest(code, digest)
         self.folder = folder
         self.path = folder / "checked" / f"{digest.hexdigest()[:32]}.json"
 
@@ -312,20 +338,6 @@ class _Record:
             os.replace(tmp, self.path)
         except OSError:
             pass
-
-
-def _code_digest(code, digest) -> None:
-    """Feed what ``code`` runs into ``digest``: its bytecode, names and constants (nested
-    code too), none of which depend on the process (unlike ``marshal``'s bytes)."""
-    digest.update(code.co_code)
-    digest.update(repr((code.co_names, code.co_varnames, code.co_freevars)).encode())
-    for const in code.co_consts:
-        if isinstance(const, pytypes.CodeType):
-            _code_digest(const, digest)
-        elif isinstance(const, frozenset):  # its order changes with the hash seed
-            digest.update(repr(sorted(map(repr, const))).encode())
-        else:
-            digest.update(repr(const).encode())
 
 
 def _checked_kernel(fn, values, folder, n_out, n_x, n_u, layout, plan, p, points):

@@ -6,6 +6,7 @@ module-level constants, and ``kernel(t, x, u, p, out)`` calls the user's functio
 from __future__ import annotations
 
 import ast
+import hashlib
 import importlib
 import types as pytypes
 
@@ -106,10 +107,88 @@ def _literal(name, value, lines, imports):
             ok = False
         if not ok:
             raise NotCompilable(f"it calls {attr!r}, which cannot be imported by name")
-        imports.append(f"from {module} import {attr} as {name}")
+        # what it runs, in the text: numba's cache knows the kernel by its own file only,
+        # and would hand back code compiled with an older version of the imported function
+        imports.append(f"from {module} import {attr} as {name}  # {_runs(value)}")
     else:
         raise NotCompilable(f"it reads {name.split('_', 2)[-1]!r}, a {type(value).__name__}, "
                             f"which numba cannot compile")
+
+
+def code_digest(code, digest) -> None:
+    """Feed what ``code`` runs into ``digest`` (a :mod:`hashlib` object): its bytecode,
+    flags, argument counts, names and constants (nested code too), none of which depend
+    on the process (unlike ``marshal``'s bytes, or a frozenset's order).
+
+    Examples
+    --------
+    >>> import hashlib
+    >>> def digest(f):
+    ...     d = hashlib.sha256()
+    ...     code_digest(f.__code__, d)
+    ...     return d.hexdigest()
+    >>> two, three = digest(lambda x: 2 * x), digest(lambda x: 3 * x)
+    >>> two == digest(lambda x: 2 * x), three == two
+    (True, False)
+    """
+    digest.update(code.co_code)
+    digest.update(code.co_exceptiontable)
+    digest.update(repr((code.co_flags, code.co_argcount, code.co_posonlyargcount,
+                        code.co_kwonlyargcount, code.co_names, code.co_varnames,
+                        code.co_freevars, code.co_cellvars)).encode())
+    for const in code.co_consts:
+        if isinstance(const, pytypes.CodeType):
+            code_digest(const, digest)
+        elif isinstance(const, frozenset):
+            digest.update(repr(sorted(map(repr, const))).encode())
+        else:
+            digest.update(repr(const).encode())
+
+
+def _runs(function) -> str:
+    """A digest of what ``function`` (imported by a kernel) runs: its code, and the code
+    and the numbers, strings and arrays of what it reads by global name, followed into
+    the functions it calls that way."""
+    digest = hashlib.sha256()
+    todo, seen = [function], set()
+    while todo:
+        fn = _jit.python_function(todo.pop())
+        code = getattr(fn, "__code__", None)
+        if code is None or id(fn) in seen:
+            continue
+        seen.add(id(fn))
+        code_digest(code, digest)
+        namespace = getattr(fn, "__globals__", {})
+        cells = zip(code.co_freevars, fn.__closure__ or (), strict=False)
+        reads = [(name, namespace.get(name)) for name in _global_names(code)]
+        reads += [(name, cell.cell_contents) for name, cell in cells
+                  if _has_contents(cell)]
+        for name, value in reads:
+            if isinstance(value, bool | int | float | complex | str | bytes) or value is None:
+                digest.update(repr((name, value)).encode())
+            elif isinstance(value, np.ndarray | np.generic):
+                digest.update(repr((name, value.dtype.str, np.shape(value))).encode())
+                digest.update(np.ascontiguousarray(value).tobytes())
+            elif callable(value) and not isinstance(value, type):
+                todo.append(value)
+    return digest.hexdigest()[:16]
+
+
+def _global_names(code):
+    """The global names ``code`` (and the code nested in it) reads."""
+    names = set(code.co_names)
+    for const in code.co_consts:
+        if isinstance(const, pytypes.CodeType):
+            names |= _global_names(const)
+    return sorted(names)
+
+
+def _has_contents(cell) -> bool:
+    try:
+        cell.cell_contents  # noqa: B018 - an empty cell raises
+    except ValueError:
+        return False
+    return True
 
 
 def _literal_items(value):
