@@ -104,9 +104,11 @@ def wanted() -> bool:
 
 
 @contextlib.contextmanager
-def alone(compiler_lock=None):
+def alone(compiler_lock=None, *tried):
     """Hold numba's compiler lock (if given) and Python's import lock, at a moment when no
-    other thread is importing; yields False (holding nothing) if none came in time.
+    other thread is importing, and the locks ``tried`` (taken only if free: their holder
+    may be waiting for Python's import lock); yields False (holding nothing) if no such
+    moment came in time.
 
     Examples
     --------
@@ -123,17 +125,27 @@ def alone(compiler_lock=None):
             compiler_lock.acquire()
         _imp.acquire_lock()
         if not any(ref() is not None for ref in list(_bootstrap._module_locks.values())):
-            break
+            taken = []
+            for lock in tried:
+                if not lock.acquire(blocking=False):
+                    break
+                taken.append(lock)
+            else:
+                break
+            for lock in reversed(taken):
+                lock.release()
         _imp.release_lock()
         if compiler_lock is not None:
             compiler_lock.release()
-        if time.monotonic() > deadline:
+        if time.monotonic() > deadline or _GIVE_UP.is_set():
             yield False
             return
         time.sleep(RETRY_S)
     try:
         yield True
     finally:
+        for lock in reversed(tried):
+            lock.release()
         _imp.release_lock()
         if compiler_lock is not None:
             compiler_lock.release()
@@ -159,9 +171,10 @@ def _warm() -> None:
             import controlkit.engines.fast.response  # noqa: F401
             import controlkit.simulation  # noqa: F401
             from controlkit.engines.fast import rk
+            from controlkit.engines.fast.loader import IMPORTING
 
             rk.machine_function()
-        with alone(global_compiler_lock) as quiet:
+        with alone(global_compiler_lock, IMPORTING) as quiet:
             if not quiet:
                 return
             from controlkit.engines.fast.run import load_driver, preload_entries, warm_up_job
@@ -172,7 +185,7 @@ def _warm() -> None:
         from controlkit.engines.fast import recent
 
         for path, entry in recent.modules():  # the diagrams of the last session
-            with alone(global_compiler_lock) as quiet:
+            with alone(global_compiler_lock, IMPORTING) as quiet:
                 if not quiet:
                     return
                 recent.load(path, entry)
@@ -235,9 +248,8 @@ def later(task) -> bool:
 
 
 def wait() -> None:
-    """Return once the warm-up thread (if any) has finished, or after ``WAIT_LIMIT_S``.
-
-    Called before a fork and at the interpreter's exit.
+    """Return once the warm-up thread and the tasks handed to :func:`later` (if any) have
+    finished, or after ``WAIT_LIMIT_S`` each.
 
     Examples
     --------
@@ -248,6 +260,17 @@ def wait() -> None:
             thread.join(WAIT_LIMIT_S)
 
 
+def _give_up() -> None:
+    """Before a fork or the interpreter's exit: what has not started waiting for a quiet
+    moment is not done (a thread inside an import, forking, would keep it waiting for
+    ``QUIET_WAIT_S``), and what runs is waited for."""
+    _GIVE_UP.set()
+    wait()
+
+
+#: Set before a fork (cleared after it in the parent) and at exit: :func:`alone` gives up.
+_GIVE_UP = threading.Event()
+
 if hasattr(os, "register_at_fork"):
-    os.register_at_fork(before=wait)
-atexit.register(wait)
+    os.register_at_fork(before=_give_up, after_in_parent=_GIVE_UP.clear)
+atexit.register(_give_up)

@@ -218,3 +218,74 @@ def test_the_marks_of_diagrams_run_give_the_last_ones_oldest_first(tmp_path, mon
                     "diagram_c.run_continuous"]
     with pytest.raises(ValueError, match="limit must be 0 or more, got -1"):
         recent.modules(-1)
+
+
+def test_the_warm_up_never_imports_a_persons_module_for_a_diagram_of_last_time(tmp_path):
+    # a user kernel importing the person's numba helper by name: the helper's module is
+    # theirs to import (when and from where they choose), so that diagram is not loaded
+    from controlkit.engines.fast import recent
+
+    (tmp_path / "controlkit_user_a.py").write_text(
+        "import numpy as _np_\nfrom helper_of_theirs import nj as _f_nj  # 0123\n")
+    (tmp_path / "controlkit_user_b.py").write_text("import numpy as _np_\n")
+    for name, kernel in (("diagram_a", "a"), ("diagram_b", "b")):
+        (tmp_path / f"{name}.py").write_text(
+            f"import numpy as np\nfrom controlkit_user_{kernel} import kernel as kernel_0\n")
+    assert recent._imports_only_what_is_there(tmp_path / "diagram_b.py")
+    assert not recent._imports_only_what_is_there(tmp_path / "diagram_a.py")
+    assert recent.load(tmp_path / "diagram_a.py", "run_continuous") is False
+    assert "helper_of_theirs" not in sys.modules and "controlkit_user_a" not in sys.modules
+
+
+def _unloaded_kernel(t, x, u, p, out):
+    """A kernel whose entry no test loads (a module-level function, as entries need)."""
+    out[0] = x[0]
+    return out
+
+
+def test_a_call_never_waits_on_a_background_load_that_waits_for_a_quiet_moment():
+    # the background waits while a module is being imported (the person's `import study`
+    # that runs a diagram): it must not hold the engine's import lock meanwhile, or the
+    # call in that import waits for it (20 s, the quiet wait's limit)
+    import threading
+    import time
+    from importlib import _bootstrap
+
+    import numba
+
+    from controlkit.engines.fast import entries, loader
+
+    kernel = numba.njit(_unloaded_kernel)
+    globals()["_unloaded_kernel_jit"] = kernel  # importable by name, as entries need
+    kernel.py_func.__name__ = "_unloaded_kernel_jit"
+    done = threading.Event()
+
+    def preload():
+        entries.preload([kernel], loader.cache_folder())
+        done.set()
+
+    with _bootstrap._ModuleLockManager("a_module_being_imported"):
+        worker = threading.Thread(target=preload, daemon=True)
+        worker.start()
+        time.sleep(0.2)  # it now waits for a quiet moment
+        assert not done.is_set()
+        assert loader.IMPORTING.acquire(timeout=10)  # free: the call's import goes on
+        loader.IMPORTING.release()
+    worker.join(30)
+    assert done.is_set()
+
+
+def test_the_modules_the_engine_writes_run_under_its_import_lock(tmp_path):
+    # another thread (the warm-up) finds them in sys.modules only once they are whole
+    from controlkit.engines.fast import loader
+    from controlkit.engines.fast.usercode import compiling
+
+    text = ("from controlkit.engines.fast import loader as _loader\n"
+            "OWNED = _loader.IMPORTING._is_owned()\n\n\n"
+            "def kernel(t, x, u, p, out):\n    return out\n")
+    path = loader.module_path(text + "# diagram\n")
+    assert loader.import_module(path).OWNED is True
+    user = tmp_path / "controlkit_user_owned.py"
+    user.write_text(text)
+    assert compiling.import_user_module(user).OWNED is True
+    assert not loader.IMPORTING._is_owned()

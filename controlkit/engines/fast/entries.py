@@ -23,17 +23,14 @@ import importlib.util
 import inspect
 import os
 import sys as pysys
-import threading
 
 import numpy as np
 
 from ... import _jit
+from .loader import IMPORTING
 
 #: Entries loaded in this process, by kernel module and name.
 _LOADED: dict[tuple[str, str], object] = {}
-#: Held while an entry's module is imported: one module object per entry, whichever
-#: thread (a call, or the background's :func:`preload`) comes first.
-_IMPORTING = threading.Lock()
 
 if _jit.HAVE_NUMBA:
     from numba import types as _types
@@ -79,7 +76,7 @@ def entry(kernel, folder):
     ref = _reference(kernel)
     if ref in _LOADED:
         return _LOADED[ref]
-    with _IMPORTING:
+    with IMPORTING:  # one module object per entry, whichever thread comes first
         dispatcher = _imported(ref, folder)
     dispatcher.compile(ENTRY_SIGNATURE.args)  # numba loads it from its cache if there
     _LOADED[ref] = dispatcher
@@ -91,7 +88,8 @@ def preload(kernels, folder) -> int:
     are loaded now (those already loaded included).
 
     Meant for a background thread: each entry is loaded while no other thread imports
-    (:func:`controlkit._warmup.alone`, numba's compiler lock taken first), and an entry
+    (:func:`controlkit._warmup.alone`: numba's compiler lock, Python's import lock and
+    :data:`.loader.IMPORTING`, the last only tried), and an entry
     not in the cache is left for the call that needs it (a compile here would hold numba's
     lock for seconds).
 
@@ -116,7 +114,7 @@ def preload(kernels, folder) -> int:
         if ref in _LOADED:
             loaded += 1
             continue
-        with _IMPORTING, alone(global_compiler_lock) as quiet:
+        with alone(global_compiler_lock, IMPORTING) as quiet:
             if not quiet:
                 break
             dispatcher = _imported(ref, folder)
@@ -148,7 +146,7 @@ def _reference(kernel) -> tuple[str, str]:
 
 def _imported(ref, folder):
     """The (not yet compiled) entry dispatcher of the kernel ``ref``, its module written
-    into ``folder`` if need be and imported (call with :data:`_IMPORTING` held)."""
+    into ``folder`` if need be and imported (call with :data:`.loader.IMPORTING` held)."""
     text = _source(*ref)
     kernel_text = inspect.getsource(pysys.modules[ref[0]])
     key = hashlib.sha256((text + kernel_text + str(_jit.CACHE_FORMAT)).encode()

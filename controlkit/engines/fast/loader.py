@@ -24,6 +24,7 @@ import stat
 import subprocess
 import sys as pysys
 import tempfile
+import threading
 import warnings
 from pathlib import Path
 from types import FunctionType, SimpleNamespace
@@ -47,6 +48,13 @@ ENTRY_POINTS = ("run_discrete", "run_continuous")
 
 #: Modules loaded in this process, by source text.
 _LOADED: dict[str, object] = {}
+
+#: Held while a module the engine wrote (a diagram's, the driver, a user kernel's, an
+#: entry) is imported or wrapped: a module is in ``sys.modules`` before its code has run,
+#: and another thread (the notebook's warm-up) must not find it half-made. The warm-up
+#: only tries it (:func:`controlkit._warmup.alone`), so a call never waits on a thread
+#: that waits for a quiet moment.
+IMPORTING = threading.RLock()
 #: Background compilations started in this process, by module path.
 _BACKGROUND: dict[str, subprocess.Popen] = {}
 
@@ -216,17 +224,18 @@ def import_module(path: Path):
     if folder not in pysys.path:  # compiled user kernels are modules there too
         pysys.path.append(folder)
     name = f"controlkit_{path.stem}"
-    if name in pysys.modules:
-        return pysys.modules[name]
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    pysys.modules[name] = module
-    try:
-        spec.loader.exec_module(module)
-    except BaseException:  # never leave a half-loaded module behind
-        del pysys.modules[name]
-        raise
-    return module
+    with IMPORTING:
+        if name in pysys.modules:
+            return pysys.modules[name]
+        spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(spec)
+        pysys.modules[name] = module
+        try:
+            spec.loader.exec_module(module)
+        except BaseException:  # never leave a half-loaded module behind
+            del pysys.modules[name]
+            raise
+        return module
 
 
 def compiled(module):
@@ -242,20 +251,22 @@ def compiled(module):
     >>> hasattr(module.run_discrete, "py_func")
     True
     """
-    if getattr(module, "_controlkit_compiled", False):
+    with IMPORTING:
+        if getattr(module, "_controlkit_compiled", False):
+            return module
+        numba = _jit.numba
+        for name, value in list(vars(module).items()):
+            if name.startswith("kernel_") and hasattr(value, "py_func"):
+                setattr(module, name, numba.njit(inline="always")(value.py_func))
+        for name in EVALUATOR:  # pasted into the entry points: one function for LLVM, whose
+            # reference-count pruning then drops the slices' counting (0.27 -> x us a step)
+            setattr(module, name, numba.njit(inline="always")(getattr(module, name)))
+        for name in ENTRY_POINTS:
+            if hasattr(module, name):
+                setattr(module, name,
+                        numba.njit(cache=True, nogil=True)(getattr(module, name)))
+        module._controlkit_compiled = True
         return module
-    numba = _jit.numba
-    for name, value in list(vars(module).items()):
-        if name.startswith("kernel_") and hasattr(value, "py_func"):
-            setattr(module, name, numba.njit(inline="always")(value.py_func))
-    for name in EVALUATOR:  # pasted into the entry points: one function for LLVM, whose
-        # reference-count pruning then drops the slices' counting (0.27 -> x us a step)
-        setattr(module, name, numba.njit(inline="always")(getattr(module, name)))
-    for name in ENTRY_POINTS:
-        if hasattr(module, name):
-            setattr(module, name, numba.njit(cache=True, nogil=True)(getattr(module, name)))
-    module._controlkit_compiled = True
-    return module
 
 
 def load(source: str):
@@ -270,12 +281,13 @@ def load(source: str):
     """
     module = _LOADED.get(source)
     if module is None:
-        module = import_module(module_path(source))
-        if _jit.HAVE_NUMBA:
-            for name in EVALUATOR:  # a module with only entry points (tests) compiles too
-                if not hasattr(module, name):
-                    setattr(module, name, lambda *args: None)
-            compiled(module)
+        with IMPORTING:
+            module = import_module(module_path(source))
+            if _jit.HAVE_NUMBA:
+                for name in EVALUATOR:  # a module with only entry points (tests) compiles
+                    if not hasattr(module, name):
+                        setattr(module, name, lambda *args: None)
+                compiled(module)
         _LOADED[source] = module
     return module
 
@@ -294,11 +306,13 @@ def driver():
     if not _DRIVER:
         from . import driver as package_driver
 
-        if not _jit.HAVE_NUMBA:
-            _DRIVER.append(package_driver)
-        else:
-            source = Path(package_driver.__file__).read_text()
-            _DRIVER.append(import_module(module_path(source, prefix="driver")))
+        with IMPORTING:
+            if not _DRIVER:
+                if not _jit.HAVE_NUMBA:
+                    _DRIVER.append(package_driver)
+                else:
+                    source = Path(package_driver.__file__).read_text()
+                    _DRIVER.append(import_module(module_path(source, prefix="driver")))
     return _DRIVER[0]
 
 

@@ -14,6 +14,7 @@ ever.
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
 from . import loader
@@ -106,7 +107,32 @@ def load(path: Path, entry: str) -> bool:
     from .run import empty_arguments
 
     try:
+        if not _imports_only_what_is_there(path):
+            return False
         module = import_diagram(path)
     except Exception:  # noqa: BLE001 - see above
         return False
     return loader.from_cache(getattr(module, entry), empty_arguments(entry))
+
+
+def _imports_only_what_is_there(path: Path) -> bool:
+    """Whether the module at ``path`` and the user kernels it imports import nothing but
+    modules already imported (numpy, numba, controlkit) and the engine's own: a person's
+    module that a kernel imports (a numba helper of theirs) is theirs to import, at the
+    moment and from the folder they choose, not a thread's at the session's start."""
+    files, seen = [path], set()
+    while files:
+        file = files.pop()
+        if file in seen:
+            continue
+        seen.add(file)
+        for line in file.read_text().splitlines():
+            words = line.split()
+            if len(words) < 2 or words[0] not in ("import", "from"):
+                continue
+            name = words[1]
+            if name.startswith("controlkit_"):  # written by the engine, next to it
+                files.append(file.parent / f"{name}.py")
+            elif name not in sys.modules:
+                return False
+    return True
