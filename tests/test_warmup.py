@@ -230,7 +230,8 @@ def test_the_warm_up_never_imports_a_persons_module_for_a_diagram_of_last_time(t
     (tmp_path / "controlkit_user_b.py").write_text("import numpy as _np_\n")
     for name, kernel in (("diagram_a", "a"), ("diagram_b", "b")):
         (tmp_path / f"{name}.py").write_text(
-            f"import numpy as np\nfrom controlkit_user_{kernel} import kernel as kernel_0\n")
+            f"import numpy as np\nfrom controlkit.kernels.not_imported_yet import f\n"
+            f"from controlkit_user_{kernel} import kernel as kernel_0\n")
     assert recent._imports_only_what_is_there(tmp_path / "diagram_b.py")
     assert not recent._imports_only_what_is_there(tmp_path / "diagram_a.py")
     assert recent.load(tmp_path / "diagram_a.py", "run_continuous") is False

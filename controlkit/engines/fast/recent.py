@@ -117,9 +117,9 @@ def load(path: Path, entry: str) -> bool:
 
 def _imports_only_what_is_there(path: Path) -> bool:
     """Whether the module at ``path`` and the user kernels it imports import nothing but
-    modules already imported (numpy, numba, controlkit) and the engine's own: a person's
-    module that a kernel imports (a numba helper of theirs) is theirs to import, at the
-    moment and from the folder they choose, not a thread's at the session's start."""
+    controlkit's modules, those already imported (numpy, numba) and the engine's own: a
+    person's module that a kernel imports (a numba helper of theirs) is theirs to import,
+    at the moment and from the folder they choose, not a thread's at the session's start."""
     files, seen = [path], set()
     while files:
         file = files.pop()
@@ -133,6 +133,6 @@ def _imports_only_what_is_there(path: Path) -> bool:
             name = words[1]
             if name.startswith("controlkit_"):  # written by the engine, next to it
                 files.append(file.parent / f"{name}.py")
-            elif name not in sys.modules:
+            elif name.split(".")[0] != "controlkit" and name not in sys.modules:
                 return False
     return True
