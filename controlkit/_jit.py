@@ -125,3 +125,36 @@ def python_function(function):
     'rk4_step'
     """
     return getattr(function, "py_func", function)
+
+
+def from_cache(dispatcher, args) -> bool:
+    """Give the numba ``dispatcher`` its compiled code for the types of ``args`` from
+    numba's disk cache, if it is there; never compile. True if it has that code now.
+
+    What :meth:`numba.core.dispatcher.Dispatcher.compile` does on a cache hit (numba's
+    own steps, under its compiler lock); any difference in numba's internals makes it
+    answer False, and the first call then compiles or loads as ever.
+
+    Examples
+    --------
+    >>> from_cache(lambda x: x, (1.0,))  # not a numba function
+    False
+    """
+    try:
+        from numba.core.compiler_lock import global_compiler_lock
+
+        signature = tuple(dispatcher.typeof_pyval(a) for a in args)
+        with global_compiler_lock:
+            if dispatcher.overloads.get(signature) is not None:
+                return True
+            cres = dispatcher._cache.load_overload(signature, dispatcher.targetctx)
+            if cres is None:
+                return False
+            dispatcher._cache_hits[signature] += 1
+            if not cres.objectmode:
+                dispatcher.targetctx.insert_user_function(cres.entry_point, cres.fndesc,
+                                                          [cres.library])
+            dispatcher.add_overload(cres)
+            return True
+    except Exception:  # noqa: BLE001 - not a numba dispatcher, or numba changed
+        return False

@@ -176,12 +176,12 @@ _LOOP_COMPILED = """
 import sys
 import numpy as np
 sys.path.insert(0, sys.argv[2])
-from controlkit.engines.fast import loader, run
+from controlkit.engines.fast import background, loader, run
 from user_diagrams import lti_loop
 loop, T, X0, U, _ = lti_loop(steps=10)
 job = run.prepare(loop)
 if sys.argv[1] == "compile":  # compile the diagram's module into the cache
-    run.prime(job.loop("run_discrete", policy="now")[0], "run_discrete")
+    background.prime(job.loop("run_discrete", policy="now")[0], "run_discrete")
 else:  # a new process: the compiled module, found in the cache
     print(loader.is_compiled(loader.load(job.source).run_discrete))
 """

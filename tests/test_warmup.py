@@ -254,6 +254,7 @@ def test_a_call_never_waits_on_a_background_load_that_waits_for_a_quiet_moment()
 
     import numba
 
+    from controlkit._quiet import IMPORTING
     from controlkit.engines.fast import entries, loader
 
     kernel = numba.njit(_unloaded_kernel)
@@ -270,23 +271,24 @@ def test_a_call_never_waits_on_a_background_load_that_waits_for_a_quiet_moment()
         worker.start()
         time.sleep(0.2)  # it now waits for a quiet moment
         assert not done.is_set()
-        assert loader.IMPORTING.acquire(timeout=10)  # free: the call's import goes on
-        loader.IMPORTING.release()
+        assert IMPORTING.acquire(timeout=10)  # free: the call's import goes on
+        IMPORTING.release()
     worker.join(30)
     assert done.is_set()
 
 
 def test_the_modules_the_engine_writes_run_under_its_import_lock(tmp_path):
     # another thread (the warm-up) finds them in sys.modules only once they are whole
+    from controlkit._quiet import IMPORTING
     from controlkit.engines.fast import loader
     from controlkit.engines.fast.usercode import compiling
 
-    text = ("from controlkit.engines.fast import loader as _loader\n"
-            "OWNED = _loader.IMPORTING._is_owned()\n\n\n"
+    text = ("from controlkit._quiet import IMPORTING as _lock\n"
+            "OWNED = _lock._is_owned()\n\n\n"
             "def kernel(t, x, u, p, out):\n    return out\n")
     path = loader.module_path(text + "# diagram\n")
     assert loader.import_module(path).OWNED is True
     user = tmp_path / "controlkit_user_owned.py"
     user.write_text(text)
     assert compiling.import_user_module(user).OWNED is True
-    assert not loader.IMPORTING._is_owned()
+    assert not IMPORTING._is_owned()

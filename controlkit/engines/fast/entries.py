@@ -27,7 +27,7 @@ import sys as pysys
 import numpy as np
 
 from ... import _jit
-from .loader import IMPORTING
+from ..._quiet import IMPORTING
 
 #: Entries loaded in this process, by kernel module and name.
 _LOADED: dict[tuple[str, str], object] = {}
@@ -88,8 +88,8 @@ def preload(kernels, folder) -> int:
     are loaded now (those already loaded included).
 
     Meant for a background thread: each entry is loaded while no other thread imports
-    (:func:`controlkit._warmup.alone`: numba's compiler lock, Python's import lock and
-    :data:`.loader.IMPORTING`, the last only tried), and an entry
+    (:func:`controlkit._quiet.alone`: numba's compiler lock, Python's import lock and
+    :data:`controlkit._quiet.IMPORTING`, the last only tried), and an entry
     not in the cache is left for the call that needs it (a compile here would hold numba's
     lock for seconds).
 
@@ -104,8 +104,7 @@ def preload(kernels, folder) -> int:
     """
     from numba.core.compiler_lock import global_compiler_lock
 
-    from ..._warmup import alone
-    from .loader import from_cache
+    from ..._quiet import alone
 
     empty = (0.0, *(np.zeros(0) for _ in range(4)))
     loaded = 0
@@ -118,7 +117,7 @@ def preload(kernels, folder) -> int:
             if not quiet:
                 break
             dispatcher = _imported(ref, folder)
-            if from_cache(dispatcher, empty):
+            if _jit.from_cache(dispatcher, empty):
                 _LOADED[ref] = dispatcher
                 loaded += 1
     return loaded
@@ -146,7 +145,8 @@ def _reference(kernel) -> tuple[str, str]:
 
 def _imported(ref, folder):
     """The (not yet compiled) entry dispatcher of the kernel ``ref``, its module written
-    into ``folder`` if need be and imported (call with :data:`.loader.IMPORTING` held)."""
+    into ``folder`` if need be and imported (call with ``controlkit._quiet.IMPORTING``
+    held)."""
     text = _source(*ref)
     kernel_text = inspect.getsource(pysys.modules[ref[0]])
     key = hashlib.sha256((text + kernel_text + str(_jit.CACHE_FORMAT)).encode()

@@ -24,12 +24,12 @@ import stat
 import subprocess
 import sys as pysys
 import tempfile
-import threading
 import warnings
 from pathlib import Path
 from types import FunctionType, SimpleNamespace
 
 from ... import _jit
+from ..._quiet import IMPORTING
 
 #: Where diagrams' modules and compiled user functions are written (and numba caches
 #: them). Code is imported from there, so it is used only when it is the user's own: see
@@ -49,12 +49,6 @@ ENTRY_POINTS = ("run_discrete", "run_continuous")
 #: Modules loaded in this process, by source text.
 _LOADED: dict[str, object] = {}
 
-#: Held while a module the engine wrote (a diagram's, the driver, a user kernel's, an
-#: entry) is imported or wrapped: a module is in ``sys.modules`` before its code has run,
-#: and another thread (the notebook's warm-up) must not find it half-made. The warm-up
-#: only tries it (:func:`controlkit._warmup.alone`), so a call never waits on a thread
-#: that waits for a quiet moment.
-IMPORTING = threading.RLock()
 #: Background compilations started in this process, by module path.
 _BACKGROUND: dict[str, subprocess.Popen] = {}
 
@@ -314,39 +308,6 @@ def driver():
                     source = Path(package_driver.__file__).read_text()
                     _DRIVER.append(import_module(module_path(source, prefix="driver")))
     return _DRIVER[0]
-
-
-def from_cache(dispatcher, args) -> bool:
-    """Give the numba ``dispatcher`` its compiled code for the types of ``args`` from
-    numba's disk cache, if it is there; never compile. True if it has that code now.
-
-    What :meth:`numba.core.dispatcher.Dispatcher.compile` does on a cache hit (numba's
-    own steps, under its compiler lock); any difference in numba's internals makes it
-    answer False, and the first call then compiles or loads as ever.
-
-    Examples
-    --------
-    >>> from_cache(lambda x: x, (1.0,))  # not a numba function
-    False
-    """
-    try:
-        from numba.core.compiler_lock import global_compiler_lock
-
-        signature = tuple(dispatcher.typeof_pyval(a) for a in args)
-        with global_compiler_lock:
-            if dispatcher.overloads.get(signature) is not None:
-                return True
-            cres = dispatcher._cache.load_overload(signature, dispatcher.targetctx)
-            if cres is None:
-                return False
-            dispatcher._cache_hits[signature] += 1
-            if not cres.objectmode:
-                dispatcher.targetctx.insert_user_function(cres.entry_point, cres.fndesc,
-                                                          [cres.library])
-            dispatcher.add_overload(cres)
-            return True
-    except Exception:  # noqa: BLE001 - not a numba dispatcher, or numba changed
-        return False
 
 
 def load_python(source: str, injected: dict):

@@ -17,6 +17,7 @@ import os
 import sys
 from pathlib import Path
 
+from ... import _jit
 from . import loader
 
 #: How many of the diagrams run last the warm-up loads.
@@ -103,8 +104,7 @@ def load(path: Path, entry: str) -> bool:
     >>> isinstance(load(path, "run_discrete"), bool)
     True
     """
-    from .background import import_diagram
-    from .run import empty_arguments
+    from .background import empty_arguments, import_diagram
 
     try:
         if not _imports_only_what_is_there(path):
@@ -112,7 +112,7 @@ def load(path: Path, entry: str) -> bool:
         module = import_diagram(path)
     except Exception:  # noqa: BLE001 - see above
         return False
-    return loader.from_cache(getattr(module, entry), empty_arguments(entry))
+    return _jit.from_cache(getattr(module, entry), empty_arguments(entry))
 
 
 def _imports_only_what_is_there(path: Path) -> bool:

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import control as ct
 import numpy as np
 
-from ... import _jit, _warmup
+from ... import _jit, _quiet
 from ..contract import (
     UnsupportedSystem,
     check_arguments,
@@ -28,6 +28,7 @@ from ..contract import (
 )
 from ..contract import response as base_response
 from . import loader, reuse
+from .background import empty_arguments
 from .codegen import evaluation_order, generate
 from .continuous import run_continuous
 from .diagnose import explain_divergence, explain_failure
@@ -107,7 +108,7 @@ class Job:
         recent.note(self.source, self._entry)  # for the next session's warm-up
 
         if not all(loaded(k) for k in self.plan.kernels):
-            _warmup.later(functools.partial(preload_entries, self))
+            _quiet.later(functools.partial(preload_entries, self))
 
     def loop(self, name: str, *, policy: str | None = None):
         """The entry point ``name`` (``run_discrete`` or ``run_continuous``) to call.
@@ -169,38 +170,6 @@ def prepare(sys, params=None, start=None) -> Job:
     return job
 
 
-def prime(function, name: str):
-    """Compile the entry point ``function`` (named ``name``) for the engine's argument
-    types, running nothing (empty arrays, no step).
-
-    Examples
-    --------
-    >>> prime(lambda *args: None, "run_discrete")
-    """
-    function(*empty_arguments(name))
-
-
-def empty_arguments(name: str) -> tuple:
-    """Arguments of the entry point ``name`` of the engine's types that run nothing (what
-    a module is compiled for in the background, and loaded from the cache for).
-
-    Examples
-    --------
-    >>> len(empty_arguments("run_discrete"))
-    9
-    """
-    f, i = np.zeros(0), np.zeros(0, dtype=np.int64)
-    m = np.zeros((0, 0))
-    status = np.full(4, -1, dtype=np.int64)
-    if name == "run_discrete":
-        return (f, f, m, f, m, m, status, 0, 0)
-    from . import rk
-
-    machine = rk.machine_function() if _jit.HAVE_NUMBA else rk.machine
-    return (machine, f, 0, 0, 0, 0.0, f, m, f, i, np.zeros(1, dtype=np.int64), m, m, m, f, f,
-            f, 0, 1e-3, f, np.inf, 0.0, True, status)
-
-
 def load_driver() -> bool:
     """Load the generic driver's two entry points from numba's disk cache, compiling
     nothing; False when they are not all there (the first new wiring then compiles them).
@@ -221,7 +190,7 @@ def load_driver() -> bool:
     # typed as the driver's plan argument (the kernels' addresses are only looked at when
     # it runs)
     plan = driver.plan_arguments(job.plan, np.zeros(len(job.plan.kernels), dtype=np.int64))
-    if not all(loader.from_cache(getattr(driver, name), (*empty_arguments(name), plan))
+    if not all(_jit.from_cache(getattr(driver, name), (*empty_arguments(name), plan))
                for name in ("run_continuous", "run_discrete")):
         return False
     return True

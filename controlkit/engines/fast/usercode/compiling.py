@@ -18,9 +18,9 @@ from typing import NamedTuple
 import numpy as np
 
 from .... import _jit
+from ...._quiet import IMPORTING
 from ....kernels import user_calls
 from ...source import NotCompilable, Plan, plan_function
-from ..loader import IMPORTING
 from .layout import ParamLayout
 from .writer import code_digest, kernel_source
 
