@@ -19,6 +19,7 @@ from __future__ import annotations
 import atexit
 import contextlib
 import os
+import sys
 import threading
 import time
 
@@ -65,8 +66,9 @@ def start(target, name: str) -> bool:
 def alone(compiler_lock=None, *tried):
     """Hold numba's compiler lock (if given) and Python's import lock, at a moment when no
     other thread is importing, and the locks ``tried`` (taken only if free: their holder
-    may be waiting for Python's import lock); yields False (holding nothing) if no such
-    moment came in time.
+    may be waiting for Python's import lock or the compiler lock; with the compiler lock,
+    numba's lock on the making of its target context is one of them); yields False
+    (holding nothing) if no such moment came in time.
 
     Examples
     --------
@@ -77,6 +79,8 @@ def alone(compiler_lock=None, *tried):
     import _imp
     from importlib import _bootstrap
 
+    if compiler_lock is not None:
+        tried = (*_numba_context_lock(), *tried)
     deadline = time.monotonic() + QUIET_WAIT_S
     while True:
         if compiler_lock is not None:
@@ -107,6 +111,17 @@ def alone(compiler_lock=None, *tried):
         _imp.release_lock()
         if compiler_lock is not None:
             compiler_lock.release()
+
+
+def _numba_context_lock() -> tuple:
+    """numba's lock on the making of its CPU target context, if numba's registry is
+    imported: a thread that makes the context takes it before the compiler lock (numba's
+    own order, ``CPUContext.init`` is compiled under the compiler lock), so a thread that
+    holds the compiler lock only tries it."""
+    registry = sys.modules.get("numba.core.registry")
+    making = vars(getattr(registry, "CPUTarget", object)).get("_toplevel_target_context")
+    lock = getattr(making, "_lock", None)
+    return () if lock is None else (lock,)
 
 
 def later(task) -> bool:

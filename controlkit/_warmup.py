@@ -112,13 +112,12 @@ def _warm() -> None:
         with alone(global_compiler_lock, IMPORTING) as quiet:
             if not quiet:
                 return
+            from controlkit.engines.fast import recent
             from controlkit.engines.fast.run import load_driver, preload_entries, warm_up_job
 
             load_driver()  # from the disk cache only: a new wiring's first call
             lag = warm_up_job()
         preload_entries(lag)  # an LTI block's entries, each loaded alone
-        from controlkit.engines.fast import recent
-
         for path, entry in recent.modules():  # the diagrams of the last session
             with alone(global_compiler_lock, IMPORTING) as quiet:
                 if not quiet:

@@ -234,6 +234,12 @@ def test_the_warm_up_never_imports_a_persons_module_for_a_diagram_of_last_time(t
             f"from controlkit_user_{kernel} import kernel as kernel_0\n")
     assert recent._imports_only_what_is_there(tmp_path / "diagram_b.py")
     assert not recent._imports_only_what_is_there(tmp_path / "diagram_a.py")
+    for line in ("import numpy, helper_of_theirs\n",  # the second name of an import
+                 "from json import helper_of_theirs\n"):  # a submodule of theirs, or not
+        (tmp_path / "diagram_c.py").write_text(line)
+        assert not recent._imports_only_what_is_there(tmp_path / "diagram_c.py")
+    (tmp_path / "diagram_c.py").write_text("from json import dumps\nimport numpy, sys\n")
+    assert recent._imports_only_what_is_there(tmp_path / "diagram_c.py")
     assert recent.load(tmp_path / "diagram_a.py", "run_continuous") is False
     assert "helper_of_theirs" not in sys.modules and "controlkit_user_a" not in sys.modules
 
@@ -292,3 +298,36 @@ def test_the_modules_the_engine_writes_run_under_its_import_lock(tmp_path):
     user.write_text(text)
     assert compiling.import_user_module(user).OWNED is True
     assert not IMPORTING._is_owned()
+
+
+def test_a_quiet_moment_waits_for_a_thread_making_numbas_context():
+    # numba makes its target context holding that property's lock, then takes the
+    # compiler lock; a background step holding the compiler lock must not then wait for
+    # the property's lock (a deadlock of the person's first numba call)
+    import threading
+    import time
+
+    from numba.core.compiler_lock import global_compiler_lock
+    from numba.core.registry import CPUTarget
+
+    from controlkit._quiet import alone
+
+    making = vars(CPUTarget)["_toplevel_target_context"]._lock
+    got = {}
+
+    def first_numba_call():  # numba's own order: the context's lock, then the compiler's
+        with making:
+            time.sleep(0.2)
+            got["compiler lock"] = global_compiler_lock._lock.acquire(timeout=5)
+            if got["compiler lock"]:
+                global_compiler_lock._lock.release()
+
+    person = threading.Thread(target=first_numba_call)
+    person.start()
+    time.sleep(0.05)  # the person's thread holds the context's lock
+    with alone(global_compiler_lock) as quiet:
+        got["context lock"] = making.acquire(timeout=5)  # what refresh() then asks for
+        if got["context lock"]:
+            making.release()
+    person.join()
+    assert quiet and got == {"compiler lock": True, "context lock": True}

@@ -13,6 +13,7 @@ ever.
 
 from __future__ import annotations
 
+import ast
 import os
 import sys
 from pathlib import Path
@@ -126,13 +127,19 @@ def _imports_only_what_is_there(path: Path) -> bool:
         if file in seen:
             continue
         seen.add(file)
-        for line in file.read_text().splitlines():
-            words = line.split()
-            if len(words) < 2 or words[0] not in ("import", "from"):
+        for node in ast.parse(file.read_text()).body:
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom) and not node.level:
+                module = sys.modules.get(node.module)
+                names = [node.module] if module is None or all(
+                    hasattr(module, alias.name) for alias in node.names) else [
+                    f"{node.module}.{alias.name}" for alias in node.names]
+            else:
                 continue
-            name = words[1]
-            if name.startswith("controlkit_"):  # written by the engine, next to it
-                files.append(file.parent / f"{name}.py")
-            elif name.split(".")[0] != "controlkit" and name not in sys.modules:
-                return False
+            for name in names:
+                if name.startswith("controlkit_"):  # written by the engine, next to it
+                    files.append(file.parent / f"{name}.py")
+                elif name.split(".")[0] != "controlkit" and name not in sys.modules:
+                    return False
     return True
