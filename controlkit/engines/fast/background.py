@@ -57,9 +57,6 @@ def import_diagram(path: Path):
     return compiled(import_module(path))
 
 
-if __name__ == "__main__":
-    raise SystemExit(main())
-
 
 def prime(function, name: str):
     """Compile the entry point ``function`` (named ``name``) for the engine's argument
@@ -91,3 +88,7 @@ def empty_arguments(name: str) -> tuple:
     machine = rk.machine_function() if _jit.HAVE_NUMBA else rk.machine
     return (machine, f, 0, 0, 0, 0.0, f, m, f, i, np.zeros(1, dtype=np.int64), m, m, m, f, f,
             f, 0, 1e-3, f, np.inf, 0.0, True, status)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

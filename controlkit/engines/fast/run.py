@@ -28,7 +28,6 @@ from ..contract import (
 )
 from ..contract import response as base_response
 from . import loader, reuse
-from .background import empty_arguments
 from .codegen import evaluation_order, generate
 from .continuous import run_continuous
 from .diagnose import explain_divergence, explain_failure
@@ -190,6 +189,8 @@ def load_driver() -> bool:
     # typed as the driver's plan argument (the kernels' addresses are only looked at when
     # it runs)
     plan = driver.plan_arguments(job.plan, np.zeros(len(job.plan.kernels), dtype=np.int64))
+    from .background import empty_arguments  # (not at the top: it runs as __main__ too)
+
     if not all(_jit.from_cache(getattr(driver, name), (*empty_arguments(name), plan))
                for name in ("run_continuous", "run_discrete")):
         return False
