@@ -39,10 +39,6 @@ from ._quiet import IMPORTING, alone, wait
 
 __all__ = ["interactive", "start", "wait", "wanted"]
 
-#: The warm-up thread once started (at most one per process).
-_THREAD = None
-
-
 def interactive() -> bool:
     """True in a Jupyter kernel, an IPython shell or ``python -i``.
 
@@ -138,10 +134,6 @@ def start() -> bool:
     False
     >>> del os.environ["CONTROLKIT_WARMUP"]
     """
-    global _THREAD
-    if _THREAD is not None or not wanted():
+    if _quiet._THREAD is not None or not wanted():
         return False
-    if _quiet.start(_warm, "controlkit-numba-warmup"):
-        _THREAD = _quiet._THREAD
-        return True
-    return False
+    return _quiet.start(_warm, "controlkit-numba-warmup")

@@ -25,10 +25,10 @@ def test_in_a_kernel_numba_and_the_engine_are_ready_before_the_first_call():
     result = _run(AS_IN_A_KERNEL + (
         "import control as ct\n"
         "import controlkit\n"
-        "from controlkit import _warmup\n"
-        "assert _warmup._THREAD is not None and _warmup._THREAD.daemon\n"
+        "from controlkit import _quiet, _warmup\n"
+        "assert _quiet._THREAD is not None and _quiet._THREAD.daemon\n"
         "_warmup.wait()\n"
-        "assert not _warmup._THREAD.is_alive()\n"
+        "assert not _quiet._THREAD.is_alive()\n"
         "assert 'controlkit.engines.fast.response' in sys.modules\n"
         "import numpy as np\n"
         "p = ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], inputs='u', outputs='y')\n"
@@ -41,18 +41,18 @@ def test_in_a_kernel_numba_and_the_engine_are_ready_before_the_first_call():
 
 @pytest.mark.parametrize("setting, started", [("0", False), ("1", True)])
 def test_the_setting_decides(setting, started):
-    code = "import controlkit\nprint(controlkit._warmup._THREAD is not None)\n"
+    code = "import controlkit\nprint(controlkit._quiet._THREAD is not None)\n"
     result = _run(code, CONTROLKIT_WARMUP=setting)
     assert result.returncode == 0, result.stderr
     assert result.stdout.split() == [str(started)]
 
 
 def test_outside_a_kernel_nothing_starts_and_a_bad_setting_is_named():
-    result = _run("import IPython, controlkit\nprint(controlkit._warmup._THREAD is None)\n",
+    result = _run("import IPython, controlkit\nprint(controlkit._quiet._THREAD is None)\n",
                   PYTHONWARNINGS="always")  # IPython imported, but no shell runs
     assert result.stdout.split() == ["True"], result.stderr
     result = _run(AS_IN_A_KERNEL + "import controlkit\n"
-                  "print(controlkit._warmup._THREAD is not None)\n",
+                  "print(controlkit._quiet._THREAD is not None)\n",
                   CONTROLKIT_WARMUP="yes", PYTHONWARNINGS="always")
     assert result.stdout.split() == ["True"], result.stderr
     assert "CONTROLKIT_WARMUP must be '0' or '1', not 'yes'; ignored" in result.stderr
@@ -61,13 +61,13 @@ def test_outside_a_kernel_nothing_starts_and_a_bad_setting_is_named():
 def test_a_fork_waits_for_the_warm_up_and_the_child_uses_numba():
     result = _run(
         "import os, control, controlkit\n"
-        "from controlkit import _warmup\n"
+        "from controlkit import _quiet, _warmup\n"
         "pid = os.fork()\n"
         "if pid == 0:\n"
         "    from controlkit.kernels.common import rk4_step\n"
         "    import controlkit._jit as j\n"
         "    os._exit(0 if j.HAVE_NUMBA else 3)\n"
-        "print(_warmup._THREAD.is_alive(), os.waitpid(pid, 0)[1])\n",
+        "print(_quiet._THREAD.is_alive(), os.waitpid(pid, 0)[1])\n",
         CONTROLKIT_WARMUP="1")
     assert result.returncode == 0, result.stderr
     assert result.stdout.split() == ["False", "0"]
