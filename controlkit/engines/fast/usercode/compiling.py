@@ -59,9 +59,6 @@ def load_kernel(source: str, folder: Path):
     key = hashlib.sha256((source + str(_jit.HAVE_NUMBA) + str(_jit.CACHE_FORMAT)
                           + _COMPILE_OPTIONS + _CALLS_SOURCE).encode()).hexdigest()[:20]
     name = f"{USER_MODULE_PREFIX}{key}"
-    with IMPORTING:  # (the warm-up may be importing it: never seen half-made)
-        if name in pysys.modules:
-            return pysys.modules[name].kernel, name
     path = folder / f"{name}.py"
     if not path.exists():  # keep an existing file's date: numba's cache keys on it
         tmp = path.with_suffix(f".{os.getpid()}.tmp")
