@@ -6,9 +6,11 @@ those values are unchanged. Also the two questions the ``params`` check and the 
 from __future__ import annotations
 
 import ast
+import types
 import weakref
 from dataclasses import dataclass, field
 
+from . import sharing
 from .bindings import PARAMS, RUNTIME, Frozen, _bind, _binding_key, _input_name
 from .reading import NotCompilable, _definition, call_target
 from .rewrites import walk
@@ -157,6 +159,10 @@ def plan_function(fn):
     if cached is not None and cached.valid() \
             and _same_call(cached.call, (target, bound, keywords)):
         return cached
+    shared = sharing.share(fn)  # a function made anew from a def planned before
+    if shared is not None:
+        _keep(fn, shared)
+        return shared
     build = _Build()
     call = [Frozen(v) for v in bound] + [RUNTIME, RUNTIME, RUNTIME, PARAMS]
     bindings = _bind(target, call, {k: Frozen(v) for k, v in keywords.items()})
@@ -167,11 +173,17 @@ def plan_function(fn):
     plan.input_name = _input_name(bindings)
     plan.call = (target, list(bound), dict(keywords))
     plan.finished = plan.tree()  # asked for at every run (its validity, keys, reasons)
+    _keep(fn, plan)
+    return plan
+
+
+def _keep(fn, plan):
     try:
         _PLANS[fn] = plan
     except TypeError:
-        pass
-    return plan
+        return
+    if isinstance(fn, types.FunctionType):
+        sharing.remember(plan)
 
 
 def _snapshot(kwdefaults):
