@@ -22,6 +22,7 @@ from . import loader, rk
 from .diagnose import explain_nan
 from .instants import _eval_instants, _instants
 from .loops import INTEGRATOR_FAILED
+from .switching import DriverThenModule
 
 #: The methods integrated by compiled code; the stiff ones go to scipy.
 EXPLICIT_METHODS = ("RK23", "RK45", "DOP853")
@@ -133,15 +134,17 @@ def run_continuous(job, T, U, X0, *, t_eval=None, method="RK45", generic=None,
         run, use_driver = loader.driver().run_continuous, True
     else:
         run, use_driver = job.loop("run_continuous", policy="now")
-    arguments = (instants, 0, 0, instants.size, float(T[-1]), T, U, t_eval, eval_instant,
-                 ctrl, Y, X, Uo, x, held, job.P, rk.METHOD_INDEX[method], rtol, atol,
-                 max_step, first_step, True, status)
+    rest = (float(T[-1]), T, U, t_eval, eval_instant, ctrl, Y, X, Uo, x, held, job.P,
+            rk.METHOD_INDEX[method], rtol, atol, max_step, first_step, True, status)
     if job.how == "python":
-        run(rk.machine_on_arrays, *arguments)
-    elif use_driver:
-        run(rk.machine_function(), *arguments, job.generic_plan())
-    else:
-        run(rk.machine_function(), *arguments)
+        run(rk.machine_on_arrays, instants, 0, 0, instants.size, *rest)
+    else:  # instant by instant, the module taking over from the driver once compiled
+        loop = DriverThenModule(job, "run_continuous", run, use_driver,
+                                may_switch=generic is None)
+        for k0, k1 in loop.ranges(0, instants.size):
+            loop(rk.machine_function(), instants, 0, k0, k1, *rest)
+            if status[1] != -1:  # failed: said below
+                break
     if status[1] == INTEGRATOR_FAILED:
         raise _integrator_error(job, status, t_eval, method, x)
     if status[1] >= 0:

@@ -32,6 +32,7 @@ from .codegen import evaluation_order, generate
 from .continuous import run_continuous
 from .diagnose import explain_divergence, explain_failure
 from .plan import Plan, make_plan
+from .switching import DriverThenModule
 from .tiers import blocks_of
 
 #: How a diagram's own module is compiled when not in the disk cache yet (environment
@@ -58,6 +59,9 @@ class Job:
         Kernels the module must be handed (Python functions: the python tier).
     how : str
         How the last loop picked runs: ``"module"``, ``"driver"`` or ``"python"``.
+    compiling : bool
+        Whether the last loop picked is the driver while the module is (to be) compiled
+        by a background process (:mod:`.switching` then moves a long run to the module).
 
     Examples
     --------
@@ -73,6 +77,7 @@ class Job:
     source: str
     injected: dict
     how: str = ""
+    compiling: bool = False
     _generic: tuple | None = field(default=None, repr=False)
     _entries_asked: bool = field(default=False, repr=False)
     _entry: str = field(default="", repr=False)
@@ -120,6 +125,7 @@ class Job:
         if policy not in _MODULE_POLICIES:
             raise ValueError(f"CONTROLKIT_MODULES must be one of {_MODULE_POLICIES}, "
                              f"got {policy!r}")
+        self.compiling = False
         if self.injected or not _jit.HAVE_NUMBA:
             self.how = "python"
             return getattr(loader.load_python(self.source, self.injected), name), False
@@ -132,7 +138,8 @@ class Job:
             self.how, self._entry = "module", name
             return function, False
         if policy == "background" and loader.BACKGROUND_COMPILE:
-            loader.compile_in_background(self.source, name)
+            loader.compile_in_background(self.source, name)  # (or later: one at a time)
+            self.compiling = True
         self.how = "driver"
         return getattr(loader.driver(), name), True
 
@@ -245,8 +252,10 @@ def compile_system(sys, params=None):
 STREAM_CHUNK_STEPS = 20_000
 
 
-def discrete_loop(job, steps=None):
-    """``run(T, X0, U, P, Y, X, status, k0, k1) -> state`` of a discrete job, however it runs.
+def discrete_loop(job) -> DriverThenModule:
+    """``run(T, X0, U, P, Y, X, status, k0, k1) -> state`` of a discrete job, however it
+    runs; its ``ranges(k0, k1)`` cut a long run on the driver so that the module takes
+    over once compiled (:mod:`.switching`).
 
     Examples
     --------
@@ -254,12 +263,7 @@ def discrete_loop(job, steps=None):
     >>> callable(discrete_loop(prepare(cmg_loop())))
     True
     """
-    run, generic = job.loop("run_discrete")
-    if not generic:
-        return run
-    plan = job.generic_plan()
-    return lambda T, X0, U, P, Y, X, status, k0, k1: run(T, X0, U, P, Y, X, status, k0, k1,
-                                                           plan)
+    return DriverThenModule(job, "run_discrete", *job.loop("run_discrete"))
 
 
 def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
@@ -321,7 +325,10 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
     bounds = chunk_bounds(N, chunks)
     x = np.array(X0, dtype=float)
     for k0, k1 in zip(bounds[:-1], bounds[1:], strict=True):
-        x = run(T, x, U, P, Y, X, status, k0, k1)
+        for a, b in run.ranges(k0, k1):
+            x = run(T, x, U, P, Y, X, status, a, b)
+            if status[0] >= 0 or not np.isfinite(x).all():
+                break
         if status[0] >= 0:
             explain_failure(sys, blocks, T, X, U, status, params)
         if not np.isfinite(x).all():
@@ -348,7 +355,10 @@ def _stream(sys, run, blocks, T, x, U, P, kept, on_chunk, progress, params=None)
         k1 = min(N, k0 + step)
         Tc = np.ascontiguousarray(T[k0:k1], dtype=float)
         Uc = np.require(U[:, k0:k1], dtype=float, requirements=["C", "W"])
-        x = run(Tc, x, Uc, P, Yb, Xb, status, 0, k1 - k0)
+        for a, b in run.ranges(0, k1 - k0):
+            x = run(Tc, x, Uc, P, Yb, Xb, status, a, b)
+            if status[0] >= 0 or not np.isfinite(x).all():
+                break
         if status[0] >= 0:
             explain_failure(sys, blocks, Tc, Xb, Uc, status, params)
         if not np.isfinite(x).all():
