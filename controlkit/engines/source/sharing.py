@@ -33,7 +33,18 @@ _PER_CODE = 4
 
 
 def remember(plan) -> None:
-    """Keep ``plan`` (a finished top plan of a plain function) for :func:`share`."""
+    """Keep ``plan`` (a finished top plan of a plain function) for :func:`share`.
+
+    :func:`~.plan.plan_function` calls it for each plan it makes or shares.
+
+    Examples
+    --------
+    >>> from controlkit.engines.source import plan_function
+    >>> plan = plan_function(lambda t, x, u, params: -x)
+    >>> remember(plan)
+    >>> _BY_CODE[plan.code][-1] is plan
+    True
+    """
     code = plan.code
     kept = [p for p in _BY_CODE.pop(code, []) if p is not plan][-(_PER_CODE - 1):]
     _BY_CODE[code] = [*kept, plan]
