@@ -147,13 +147,12 @@ def _new_wiring(name, horizon_label):
     import uuid
 
     import controlkit
-    from controlkit.engines.fast import loader
+    from controlkit.engines.fast import switching
 
     loop, T, X0, U = _case(name, HORIZONS[horizon_label])
     loop.syslist[0].name += f"_{uuid.uuid4().hex[:8]}"  # the block names are in the module
     took = _timed(controlkit.input_output_response, loop, T, U, X0)[0]
-    for process in loader._BACKGROUND.values():
-        process.wait()
+    switching.wait_for_compiles()
     return took
 
 

@@ -131,12 +131,48 @@ def test_a_compile_refused_while_another_ran_is_started_during_the_run(monkeypat
     module = recording(driver, calls, "module", plan=job.generic_plan())
     answers = [(recording(driver, calls, "driver"), True), (module, False)]
     monkeypatch.setattr(job, "loop", loops_handed(job, answers))
-    states = iter([None, None, False, True])
-    monkeypatch.setattr(loader, "background_done", lambda source: next(states))
+    asked = []
+
+    def done(source):  # not started (refused), then compiling a while, then compiled
+        asked.append(source)
+        return None if not started else len(asked) > 8
+
+    monkeypatch.setattr(loader, "background_done", done)
     monkeypatch.setattr(loader, "compile_in_background",
                         lambda source, entry: started.append((source, entry)))
     monkeypatch.setattr(switching, "FIRST_CHUNK", 7)
     monkeypatch.setattr(switching, "CHUNK_SECONDS", 1e-4)
     run_continuous(job, T, U, X0)
-    assert started == [(job.source, "run_continuous")] * 2
-    assert [label for label, _ in calls] == ["driver"] * 4 + ["module"]
+    switching.wait_for_compiles()
+    assert started and set(started) == {(job.source, "run_continuous")}
+    labels = [label for label, _ in calls]
+    assert labels[-1] == "module" and set(labels[:-1]) == {"driver"}
+
+
+def test_a_short_run_starts_its_modules_compile_when_it_ends(monkeypatch):
+    # not during the run (on two cores the compile's start slowed a short run twofold)
+    loop, T, X0, U = two_rate_servo()
+    U = np.atleast_2d(U)
+    job = prepare(loop)
+    started = []
+    monkeypatch.setattr(loader, "compile_in_background",
+                        lambda source, entry: started.append((source, entry)))
+    monkeypatch.setattr(switching, "COMPILE_AFTER", 60.0)
+    driver = loader.driver().run_continuous
+
+    def loop_of(name, policy=None):
+        switching.compile_soon(job.source, name)  # as Job.loop does, policy background
+        job.compiling = True
+        return driver, True
+
+    monkeypatch.setattr(job, "loop", loop_of)
+    monkeypatch.setattr(loader, "background_done", lambda source: None if not started
+                        else False)
+    seen = []
+    real = switching.DriverThenModule.__call__
+    monkeypatch.setattr(switching.DriverThenModule, "__call__", lambda self, *a: (
+        seen.append(list(started)), real(self, *a))[1])
+    run_continuous(job, T[:11], U[:, :11], X0)  # 0.2 s: one range
+    switching.wait_for_compiles()
+    assert seen == [[]]  # nothing started while it ran
+    assert started == [(job.source, "run_continuous")]  # started at its end

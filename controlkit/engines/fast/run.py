@@ -32,7 +32,7 @@ from .codegen import evaluation_order, generate
 from .continuous import run_continuous
 from .diagnose import explain_divergence, explain_failure
 from .plan import Plan, make_plan
-from .switching import DriverThenModule
+from .switching import DriverThenModule, compile_now, compile_soon
 from .tiers import blocks_of
 
 #: How a diagram's own module is compiled when not in the disk cache yet (environment
@@ -102,7 +102,10 @@ class Job:
         notebook): the entries of its kernels are loaded in the background
         (:func:`preload_entries`), so that the same blocks wired anew run on the driver
         without loading them (about 7 ms a kernel) in the person's next call. In any
-        session the run is marked for a later session's warm-up (:mod:`.recent`)."""
+        session the run is marked for a later session's warm-up (:mod:`.recent`). After a
+        run on the driver, the module's compile waiting to start starts now."""
+        if self.compiling:
+            compile_now(self.source)
         if self.how != "module" or self._entries_asked or not _jit.HAVE_NUMBA:
             return
         self._entries_asked = True
@@ -138,7 +141,7 @@ class Job:
             self.how, self._entry = "module", name
             return function, False
         if policy == "background" and loader.BACKGROUND_COMPILE:
-            loader.compile_in_background(self.source, name)  # (or later: one at a time)
+            compile_soon(self.source, name)  # (or at the run's end, if sooner)
             self.compiling = True
         self.how = "driver"
         return getattr(loader.driver(), name), True
