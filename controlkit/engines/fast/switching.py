@@ -163,9 +163,8 @@ class DriverThenModule:
 
     def _maybe_switch(self):
         done = loader.background_done(self.job.source)
-        if done is None:  # not started yet, or refused while another diagram's compile ran
+        if done is None:  # waiting for its moment, or refused while another one ran
             compile_soon(self.job.source, self.name)
-            compile_now(self.job.source)
         if not done:
             return  # still compiling
         self.waiting = False  # one look once the process has exited
