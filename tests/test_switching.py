@@ -138,6 +138,7 @@ def test_a_compile_refused_while_another_ran_is_started_during_the_run(monkeypat
         return None if not started else len(asked) > 8
 
     monkeypatch.setattr(loader, "background_done", done)
+    monkeypatch.setattr(switching, "COMPILE_AFTER", 0.0)
     monkeypatch.setattr(loader, "compile_in_background",
                         lambda source, entry: started.append((source, entry)))
     monkeypatch.setattr(switching, "FIRST_CHUNK", 7)

@@ -36,7 +36,7 @@ import time
 from . import loader
 
 #: Seconds into a run on the driver after which the diagram's module starts compiling.
-COMPILE_AFTER = 0.05
+COMPILE_AFTER = 0.5
 
 #: Compiles waiting for their moment, by module source; and the lock under which one starts.
 _SOON: dict[str, threading.Timer] = {}
@@ -85,7 +85,7 @@ def wait_for_compiles() -> None:
     """
     for timer in list(_SOON.values()):
         compile_now(timer.args[0])
-    while _SOON:
+    while _SOON:  # (a compile leaves it once its process is started)
         time.sleep(0.01)
     for process in list(loader._BACKGROUND.values()):
         process.wait()
@@ -93,8 +93,11 @@ def wait_for_compiles() -> None:
 
 def _start(source, entry):
     with _STARTING:  # the timer and compile_now may both get here: one process
-        if _SOON.pop(source, None) is not None:
-            loader.compile_in_background(source, entry)
+        if source in _SOON:
+            try:
+                loader.compile_in_background(source, entry)
+            finally:
+                del _SOON[source]
 
 #: Wall time of one range of a run on the driver while the module compiles: the longest
 #: the run goes on on the driver once the module is ready.
