@@ -177,3 +177,21 @@ def test_a_short_run_starts_its_modules_compile_when_it_ends(monkeypatch):
     switching.wait_for_compiles()
     assert seen == [[]]  # nothing started while it ran
     assert started == [(job.source, "run_continuous")]  # started at its end
+
+
+def test_a_wiring_never_run_goes_to_the_driver_without_importing_its_module(monkeypatch):
+    import uuid
+
+    loop, T, X0, U = two_rate_servo()
+    loop.syslist[0].name += f"_{uuid.uuid4().hex[:8]}"  # block names are in the module
+    job = prepare(loop)
+    started = []
+    monkeypatch.setattr(loader, "compile_in_background",
+                        lambda source, entry: started.append(entry))
+    function, generic = job.loop("run_continuous", policy="background")
+    assert generic and job.how == "driver" and job.compiling
+    assert job.source not in loader._LOADED
+    assert not loader.module_path(job.source, write=False).exists()
+    switching.compile_now(job.source)
+    switching.wait_for_compiles()
+    assert started == ["run_continuous"]

@@ -173,8 +173,9 @@ def _sources(modules) -> str:
 _KEYS: dict[str, str] = {}
 
 
-def module_path(source: str, prefix: str = "diagram") -> Path:
-    """Where the module of ``source`` is written: a name hashed from its text and code.
+def module_path(source: str, prefix: str = "diagram", *, write: bool = True) -> Path:
+    """Where the module of ``source`` is written: a name hashed from its text and code
+    (the file written there unless it exists, or ``write`` is False).
 
     numba keys its cache on the module's file alone, so the source of the kernels it
     imports and of the engine's modules it pastes in (:data:`PASTED_IN`) goes into the
@@ -196,7 +197,7 @@ def module_path(source: str, prefix: str = "diagram") -> Path:
         _KEYS[source] = key
     folder = cache_folder()
     path = folder / f"{prefix}_{key}.py"
-    if not path.exists():  # keep the file's date: numba's cache index keys on it
+    if write and not path.exists():  # keep the file's date: numba's cache index keys on it
         tmp = path.with_suffix(f".{os.getpid()}.tmp")
         tmp.write_text(source)
         os.replace(tmp, path)
