@@ -398,7 +398,8 @@ def background_done(source: str) -> bool | None:
     >>> background_done("nothing") is None
     True
     """
-    process = _BACKGROUND.get(str(module_path(source))) if source != "nothing" else None
+    process = _BACKGROUND.get(str(module_path(source, write=False))) if source != "nothing" \
+        else None
     return None if process is None else process.poll() is not None
 
 
