@@ -14,7 +14,6 @@ import re
 import shutil
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -42,59 +41,29 @@ def _fresh_clone(target: Path) -> Path:
     return target
 
 
-class DocsBuild:
-    """The README's documentation command, run in a thread over a fresh clone in ``work``
-    and a fresh virtual environment: the build (minutes, most of it executing the
-    notebooks) goes on while the rest of the suite runs on the other core. Started by
-    ``conftest.py`` once the tests that need it are collected."""
-
-    def __init__(self, work: Path):
-        self.work, self.outcome = work, None
-        self.thread = threading.Thread(target=self._build, name="docs-build", daemon=True)
-        self.thread.start()
-
-    def _build(self):
-        try:
-            clone = _fresh_clone(self.work / "controlkit")
-            venv = self.work / "venv"
-            subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
-            env = {k: v for k, v in os.environ.items()
-                   if k not in ("VIRTUAL_ENV", "PYTHONPATH", "CONTROLKIT_QUICK", "MPLBACKEND")}
-            env["PATH"] = f"{venv / 'bin'}{os.pathsep}{env.get('PATH', '')}"
-            env["VIRTUAL_ENV"] = str(venv)
-            start = time.perf_counter()
-            result = subprocess.run(["bash", "-c", README_DOCS_COMMAND], cwd=clone, env=env,
-                                    capture_output=True, text=True)
-            self.outcome = (clone, result, time.perf_counter() - start)
-        except BaseException as error:  # noqa: BLE001 - raised in the test that waits
-            self.outcome = error
-
-    def html(self) -> Path:
-        """The built pages (waits for the build; fails with its warnings and log tail)."""
-        self.thread.join()
-        if isinstance(self.outcome, BaseException):
-            raise self.outcome
-        clone, result, seconds = self.outcome
-        # the command's failure shows the failing cell and its traceback (docs/conf.py):
-        # report the warnings and the tail of the log, where sphinx summarises
-        log = result.stdout + result.stderr
-        warnings = [line for line in log.splitlines()
-                    if ("WARNING" in line and "IPKernelApp" not in line) or "ERROR" in line]
-        assert result.returncode == 0, "\n".join(warnings + ["...", log[-6000:]])
-        print(f"README docs command on a fresh clone: {seconds:.0f} s")
-        return clone / "docs" / "_build" / "html"
-
-
-#: The build started for this session (``conftest.py``), if any.
-STARTED: list[DocsBuild] = []
-
-
 @pytest.fixture(scope="module")
 def html(tmp_path_factory):
     """The pages, built by the README's command in a fresh clone and a fresh environment."""
-    if not STARTED:
-        STARTED.append(DocsBuild(tmp_path_factory.mktemp("fresh")))
-    return STARTED[0].html()
+    work = tmp_path_factory.mktemp("fresh")
+    clone = _fresh_clone(work / "controlkit")
+    venv = work / "venv"
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("VIRTUAL_ENV", "PYTHONPATH", "CONTROLKIT_QUICK", "MPLBACKEND")}
+    env["PATH"] = f"{venv / 'bin'}{os.pathsep}{env.get('PATH', '')}"
+    env["VIRTUAL_ENV"] = str(venv)
+    start = time.perf_counter()
+    result = subprocess.run(["bash", "-c", README_DOCS_COMMAND], cwd=clone, env=env,
+                            capture_output=True, text=True)
+    seconds = time.perf_counter() - start
+    # the command's failure shows the failing cell and its traceback (docs/conf.py): report
+    # the warnings and the tail of the log, where sphinx summarises
+    log = result.stdout + result.stderr
+    warnings = [line for line in log.splitlines()
+                if ("WARNING" in line and "IPKernelApp" not in line) or "ERROR" in line]
+    assert result.returncode == 0, "\n".join(warnings + ["...", log[-6000:]])
+    print(f"README docs command on a fresh clone: {seconds:.0f} s")
+    return clone / "docs" / "_build" / "html"
 
 
 def test_a_failing_notebook_cell_shows_its_error_in_the_build_output(tmp_path):
