@@ -15,7 +15,7 @@ from .bindings import PARAMS, RUNTIME, Frozen, _bind, _binding_key, _input_name
 from .reading import NotCompilable, _definition, call_target
 from .rewrites import walk
 from .translator import _Translator
-from .values import _same
+from .values import _same, _same_items, _same_sequence, _snapshot
 
 
 @dataclass(eq=False)
@@ -186,22 +186,10 @@ def _keep(fn, plan):
         sharing.remember(plan)
 
 
-def _snapshot(kwdefaults):
-    return None if kwdefaults is None else dict(kwdefaults)
-
-
-def _same_items(now, then) -> bool:
-    """Whether keyword defaults (or a partial's keywords) read now are the ones of then."""
-    if now is None or then is None:
-        return now is None and then is None
-    return now.keys() == then.keys() and all(_same(now[k], then[k]) for k in now)
-
-
 def _same_call(then, now) -> bool:
     """Whether ``call_target`` of a callable gives what it gave when its plan was made."""
     (target, bound, keywords), (target_now, bound_now, keywords_now) = then, now
-    return target is target_now and len(bound) == len(bound_now) \
-        and all(_same(a, b) for a, b in zip(bound_now, bound, strict=True)) \
+    return target is target_now and _same_sequence(bound_now, bound) \
         and _same_items(keywords_now, keywords)
 
 

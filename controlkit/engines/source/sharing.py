@@ -21,7 +21,15 @@ import functools
 import types
 from collections import OrderedDict
 
-from .values import _cell, _global, _reevaluate, _same
+from .values import (
+    _cell,
+    _global,
+    _reevaluate,
+    _same,
+    _same_items,
+    _same_sequence,
+    _snapshot,
+)
 
 #: Plans by code object, the most recently made or shared last; each code keeps a few
 #: (functions of one ``def`` that read different values). A bounded number of plans (and
@@ -129,20 +137,20 @@ class _Sharing:
         old = plan.function
         if new.__code__ is not plan.code or new.__globals__ is not old.__globals__ \
                 or not _same_sequence(new.__defaults__, plan.defaults) \
-                or not _same_mapping(new.__kwdefaults__, plan.kwdefaults):
+                or not _same_items(new.__kwdefaults__, plan.kwdefaults):
             raise _Differs
         checks = []
         for getter, value in plan.checks:
             getter = _rebound(getter, old, new)
             now = getter()
-            if not _same(now, value):
+            same = _same(now, value)
+            if not same:
                 self._twin(value, now)
-            checks.append((getter, value if _same(now, value) else now))
+            checks.append((getter, value if same else now))
         return dataclasses.replace(
             plan, function=new, defaults=new.__defaults__,
-            kwdefaults=None if new.__kwdefaults__ is None else dict(new.__kwdefaults__),
-            frozen=dict(plan.frozen), checks=checks, helpers=list(plan.helpers),
-            finished=None, call=None)
+            kwdefaults=_snapshot(new.__kwdefaults__), frozen=dict(plan.frozen),
+            checks=checks, helpers=list(plan.helpers), finished=None, call=None)
 
     def _twin(self, old, new):
         """``new`` read where ``old`` was: a function of the same code whose plan is in
@@ -170,14 +178,3 @@ def _rebound(getter, old, new):
             return getter  # the same module namespace (checked) or a dict read by identity
     return getter  # a value bound when the plan was made (an argument, an import)
 
-
-def _same_sequence(now, then) -> bool:
-    if now is None or then is None:
-        return now is None and then is None
-    return len(now) == len(then) and all(_same(a, b) for a, b in zip(now, then, strict=True))
-
-
-def _same_mapping(now, then) -> bool:
-    if now is None or then is None:
-        return now is None and then is None
-    return now.keys() == then.keys() and all(_same(now[k], then[k]) for k in now)

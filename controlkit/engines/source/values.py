@@ -117,6 +117,26 @@ def _same(a, b) -> bool:
     return False
 
 
+def _same_sequence(now, then) -> bool:
+    """Whether values read now (defaults, a partial's arguments) are the ones of then,
+    each by :func:`_same`; None only equals None."""
+    if now is None or then is None:
+        return now is None and then is None
+    return len(now) == len(then) and all(_same(a, b) for a, b in zip(now, then, strict=True))
+
+
+def _same_items(now, then) -> bool:
+    """Whether keyword defaults (or a partial's keywords) read now are the ones of then."""
+    if now is None or then is None:
+        return now is None and then is None
+    return now.keys() == then.keys() and all(_same(now[k], then[k]) for k in now)
+
+
+def _snapshot(kwdefaults):
+    """Keyword defaults as they are now (the function's own dict can change in place)."""
+    return None if kwdefaults is None else dict(kwdefaults)
+
+
 def _clip():
     return clip  # the compiled clip that takes numbers too
 
