@@ -43,14 +43,19 @@ def loops_handed(job, answers):
     return loop
 
 
+def servo():
+    """The two-rate servo's job (sampled data: 1001 instants), time points, inputs and
+    initial state."""
+    loop, T, X0, U = two_rate_servo()
+    return prepare(loop), T, np.atleast_2d(U), X0
+
+
 def ranges_of(calls, k0_index, k1_index):
     return [(label, int(a[k0_index]), int(a[k1_index])) for label, a in calls]
 
 
 def test_a_sampled_data_run_moves_to_the_module_with_the_same_bits(monkeypatch):
-    loop, T, X0, U = two_rate_servo()
-    U = np.atleast_2d(U)
-    job = prepare(loop)
+    job, T, U, X0 = servo()
     whole = run_continuous(job, T, U, X0, generic=True)
     driver, calls = loader.driver().run_continuous, []
     module = recording(driver, calls, "module", plan=job.generic_plan())
@@ -96,9 +101,7 @@ def test_a_discrete_run_moves_to_the_module_with_the_same_bits(monkeypatch):
 
 
 def test_a_run_asked_of_the_driver_stays_on_it(monkeypatch):
-    loop, T, X0, U = two_rate_servo()
-    U = np.atleast_2d(U)
-    job = prepare(loop)
+    job, T, U, X0 = servo()
     compiling_then_done(monkeypatch, after=0)
     job.compiling = True
     monkeypatch.setattr(job, "loop", lambda name, policy=None: pytest.fail("switched"))
@@ -106,9 +109,7 @@ def test_a_run_asked_of_the_driver_stays_on_it(monkeypatch):
 
 
 def test_a_failed_compile_leaves_the_run_on_the_driver(monkeypatch):
-    loop, T, X0, U = two_rate_servo()
-    U = np.atleast_2d(U)
-    job = prepare(loop)
+    job, T, U, X0 = servo()
     whole = run_continuous(job, T, U, X0, generic=True)
     driver, calls = loader.driver().run_continuous, []
     answers = [(recording(driver, calls, "driver"), True)] * 2  # no module after it either
@@ -124,9 +125,7 @@ def test_a_failed_compile_leaves_the_run_on_the_driver(monkeypatch):
 
 def test_a_compile_refused_while_another_ran_is_started_during_the_run(monkeypatch):
     # one background compile at a time: this diagram's starts once the other one is over
-    loop, T, X0, U = two_rate_servo()
-    U = np.atleast_2d(U)
-    job = prepare(loop)
+    job, T, U, X0 = servo()
     driver, calls, started = loader.driver().run_continuous, [], []
     module = recording(driver, calls, "module", plan=job.generic_plan())
     answers = [(recording(driver, calls, "driver"), True), (module, False)]
@@ -152,9 +151,7 @@ def test_a_compile_refused_while_another_ran_is_started_during_the_run(monkeypat
 
 def test_a_short_run_starts_its_modules_compile_when_it_ends(monkeypatch):
     # not during the run (on two cores the compile's start slowed a short run twofold)
-    loop, T, X0, U = two_rate_servo()
-    U = np.atleast_2d(U)
-    job = prepare(loop)
+    job, T, U, X0 = servo()
     started = []
     monkeypatch.setattr(loader, "compile_in_background",
                         lambda source, entry: started.append((source, entry)))

@@ -37,6 +37,11 @@ from . import loader
 
 #: Seconds into a run on the driver after which the diagram's module starts compiling.
 COMPILE_AFTER = 0.5
+#: Wall time of one range of a run on the driver while the module compiles: the longest
+#: the run goes on on the driver once the module is ready.
+CHUNK_SECONDS = 0.2
+#: Steps of the first range, before the pace is known.
+FIRST_CHUNK = 256
 
 #: Compiles waiting for their moment, by module source; and the lock under which one starts.
 _SOON: dict[str, threading.Timer] = {}
@@ -99,11 +104,6 @@ def _start(source, entry):
             finally:
                 del _SOON[source]
 
-#: Wall time of one range of a run on the driver while the module compiles: the longest
-#: the run goes on on the driver once the module is ready.
-CHUNK_SECONDS = 0.2
-#: Steps of the first range, before the pace is known.
-FIRST_CHUNK = 256
 
 
 class DriverThenModule:
