@@ -19,8 +19,6 @@ from __future__ import annotations
 
 import importlib
 
-from controlkit import _warmup
-
 __version__ = "0.1.0"
 
 #: Top-level name to the module that defines it.
@@ -50,6 +48,3 @@ def __getattr__(name):
 def __dir__():
     return sorted(set(globals()) | set(_LAZY))
 
-
-# In a notebook, numba's own start runs while the diagram is being built (see _warmup).
-_warmup.start()

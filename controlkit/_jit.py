@@ -1,69 +1,150 @@
-"""Optional numba compilation of the kernels.
+"""Functions that run as Python until compiled code calls them.
 
-With numba installed (``pip install controlkit[fast]``) every kernel is
-compiled once and cached on disk; without it, or with the environment
-variable ``CONTROLKIT_DISABLE_NUMBA=1``, the same functions run as plain
-Python. Both the python-control path and the fast engine call the kernels
-through this module, so both compute with the same code.
+Every kernel and every helper the simulation loops call is decorated with :func:`jit`.
+The decorated function is a :class:`Jitted`: called from Python it runs its own Python
+code (importing nothing), and when numba compiles a function that calls it, numba sees a
+numba function (:attr:`Jitted.dispatcher`, made on first need). So a diagram run as
+Python never imports numba, and the same source is what compiled code runs.
+
+numba is imported on first need, and only if it is installed (``pip install
+".[fast]"``) and not switched off by ``CONTROLKIT_DISABLE_NUMBA=1`` (then everything
+runs as Python: :func:`available` says False).
 """
 
 from __future__ import annotations
 
+import functools
 import os
-import uuid
 
-try:
+import numpy as np
+
+#: numba's module once imported (see :func:`numba_module`).
+_NUMBA: list = []
+#: Functions to call with numba's module when it is first imported (overloads, typing).
+_ON_IMPORT: list = []
+
+
+def available() -> bool:
+    """Whether numba can compile here (installed and not switched off).
+
+    Examples
+    --------
+    >>> isinstance(available(), bool)
+    True
+    """
     if os.environ.get("CONTROLKIT_DISABLE_NUMBA", "") not in ("", "0"):
-        raise ImportError("disabled by CONTROLKIT_DISABLE_NUMBA")
-    import numba
-except ImportError:
-    numba = None
+        return False
+    if _NUMBA:
+        return True
+    import importlib.util
 
-#: True when kernels are compiled with numba.
-HAVE_NUMBA = numba is not None
+    return importlib.util.find_spec("numba") is not None
 
 
-class _RandomIds:
-    """Unique ids for the functions numba compiles: random 128-bit numbers, not 1, 2, 3.
+def numba_module():
+    """numba, imported now if it was not, with controlkit's additions to it registered.
 
-    numba names the compiled code of a function (and the global that holds its
-    environment) after the function and a per-process counter. Two processes
-    compiling the same kernel, e.g. the test suite and a ``controlkit reproduce`` it
-    starts, or two figure workers, give it the same number; when one process's
-    compiled loop (which carries a copy of each kernel it calls) and the other's
-    cached kernel are later loaded into one process, the second copy is bound to the
-    first's environment. We saw a kernel then fail on return with numba's "In
-    'NRT_adapt_ndarray_to_python', 'descr' is NULL" (numba issue 10486; PyTensor draws
-    random ids for the same reason). numba only calls ``next()`` on this iterator.
+    Raises
+    ------
+    ImportError
+        When numba is not installed or switched off (see :func:`available`).
+
+    Examples
+    --------
+    >>> available() == (numba_module() is not None) if available() else True
+    True
+    """
+    if not _NUMBA:
+        if not available():
+            raise ImportError("numba is not installed (pip install \".[fast]\") or is "
+                              "switched off by CONTROLKIT_DISABLE_NUMBA")
+        import numba
+        from numba.extending import typeof_impl
+
+        from . import compat
+
+        compat.unique_function_ids(numba)
+
+        @typeof_impl.register(Jitted)
+        def _typeof_jitted(value, context):  # compiled code calling a Jitted calls numba's
+            return typeof_impl(value.dispatcher, context)
+
+        _NUMBA.append(numba)
+        _compiled_only(numba)
+        for register in _ON_IMPORT:
+            register(numba)
+    return _NUMBA[0]
+
+
+def on_numba_import(register):
+    """Call ``register(numba)`` when numba is first imported (now if it is): for overloads
+    of functions compiled code calls. Returns ``register``.
+
+    Examples
+    --------
+    >>> seen = []
+    >>> _ = on_numba_import(seen.append)
+    >>> len(seen) == (1 if _NUMBA else 0)
+    True
+    """
+    _ON_IMPORT.append(register)
+    if _NUMBA:
+        register(_NUMBA[0])
+    return register
+
+
+class Jitted:
+    """A function that runs its Python code when Python calls it, and numba's compiled
+    version when compiled code calls it (see the module's description).
+
+    Attributes
+    ----------
+    py_func : callable
+        The function itself (the name numba's dispatchers use too).
+    options : dict
+        Options for :func:`numba.njit` (``inline="always"`` for a helper that takes a
+        function as an argument, which numba must paste into its caller).
+    python : callable
+        What Python calls run: ``py_func``, or a Python version given to :func:`jit`
+        for a function whose compiled form uses what only compiled code can (addresses).
     """
 
-    def __iter__(self):
-        return self
+    def __init__(self, py_func, options, python=None):
+        self.py_func = py_func
+        self.options = options
+        self.python = python or py_func
+        self._dispatcher = None
+        functools.update_wrapper(self, py_func)
 
-    def __next__(self) -> int:
-        return uuid.uuid4().int
+    def __call__(self, *args):
+        return self.python(*args)
+
+    @property
+    def targetoptions(self) -> dict:
+        """The options numba's inliner reads of a function it meets in compiled code (the
+        name numba's dispatchers give them): an ``inline="always"`` one is pasted into
+        its caller before typing, as a numba function would be."""
+        return self.options
+
+    def __repr__(self):
+        return f"<jit function {self.__module__}.{self.__qualname__}>"
+
+    @property
+    def dispatcher(self):
+        """The numba function compiled code calls (made, not compiled, on first access)."""
+        if self._dispatcher is None:
+            self._dispatcher = numba_module().njit(**self.options)(self.py_func)
+        return self._dispatcher
 
 
-if numba is not None:
-    from numba.core.bytecode import FunctionIdentity
+def jit(function=None, *, inline=False, python=None):
+    """Mark ``function`` for compiled code (see :class:`Jitted`); Python calls run it as is.
 
-    if hasattr(FunctionIdentity, "_unique_ids"):  # numba's counter (0.59-0.68)
-        FunctionIdentity._unique_ids = _RandomIds()
-
-#: Part of the name of every compiled loop and user kernel in the disk cache: changed
-#: when code cached by earlier versions must not be loaded again (2: cached before the
-#: random ids above, whose copies of a kernel could share a name with another's).
-CACHE_FORMAT = 2
-
-
-def jit(function=None, *, inline=False):
-    """Compile ``function`` with numba (cached) when available; else return it unchanged.
-
-    Every kernel and every helper a kernel calls is decorated with ``@jit``.
-    ``@jit(inline=True)`` marks a helper that takes a kernel as an argument
-    (:func:`controlkit.kernels.common.rk4_step`): numba inlines it into its caller
-    before typing, so the kernel it is handed is a constant there and the caller's
-    compiled loop can still be cached on disk.
+    ``inline=True`` asks numba to paste the function into each compiled caller (a
+    helper that takes a kernel as an argument, such as
+    :func:`controlkit.kernels.common.rk4_step`: the kernel is then a constant there).
+    ``python`` is the function Python calls run, when the compiled form cannot run as
+    Python.
 
     Examples
     --------
@@ -73,50 +154,12 @@ def jit(function=None, *, inline=False):
     [1.5]
     """
     if function is None:
-        return lambda f: jit(f, inline=inline)
-    if numba is None:
-        return function
-    if inline:
-        return numba.njit(cache=True, inline="always")(function)
-    return numba.njit(cache=True)(function)
-
-
-if numba is not None:
-    from numba.core import cgutils
-    from numba.extending import intrinsic
-
-    @intrinsic
-    def void_pointer(typingctx, address):
-        """An integer address as a ``void*``, for ``numba.carray`` (compiled code only).
-
-        A compiled function that receives arrays by address (``array.ctypes.data``)
-        views them with ``numba.carray(void_pointer(address), shape, dtype)``: views
-        that own nothing, so numba does not update any reference count when they are
-        passed around (:mod:`controlkit.engines.fast.rk` relies on it). The caller keeps
-        the arrays alive. Defined only when numba is.
-
-        Examples
-        --------
-        >>> import numba
-        >>> import numpy as np
-        >>> @numba.njit
-        ... def second(address, size):
-        ...     return numba.carray(void_pointer(address), (size,), np.float64)[1]
-        >>> values = np.array([1.0, 2.5, 4.0])
-        >>> float(second(values.ctypes.data, values.size))
-        2.5
-        """
-        if not isinstance(address, numba.types.Integer):
-            return None
-
-        def codegen(context, builder, signature, arguments):
-            return builder.inttoptr(arguments[0], cgutils.voidptr_t)
-
-        return numba.types.voidptr(address), codegen
+        return lambda f: jit(f, inline=inline, python=python)
+    return Jitted(function, {"inline": "always"} if inline else {}, python)
 
 
 def python_function(function):
-    """The plain Python function behind a :func:`jit`-decorated one.
+    """The plain Python function behind a :func:`jit` one (or a numba dispatcher).
 
     Examples
     --------
@@ -124,37 +167,67 @@ def python_function(function):
     >>> python_function(rk4_step).__name__
     'rk4_step'
     """
+    if isinstance(function, Jitted):
+        return function.python
     return getattr(function, "py_func", function)
 
 
-def from_cache(dispatcher, args) -> bool:
-    """Give the numba ``dispatcher`` its compiled code for the types of ``args`` from
-    numba's disk cache, if it is there; never compile. True if it has that code now.
-
-    What :meth:`numba.core.dispatcher.Dispatcher.compile` does on a cache hit (numba's
-    own steps, under its compiler lock); any difference in numba's internals makes it
-    answer False, and the first call then compiles or loads as ever.
+def dispatcher(function):
+    """The numba function of a :func:`jit` one (a numba dispatcher is returned as is).
 
     Examples
     --------
-    >>> from_cache(lambda x: x, (1.0,))  # not a numba function
-    False
+    >>> from controlkit.kernels.common import state_output
+    >>> hasattr(dispatcher(state_output), "py_func") if available() else True
+    True
     """
-    try:
-        from numba.core.compiler_lock import global_compiler_lock
+    return function.dispatcher if isinstance(function, Jitted) else function
 
-        signature = tuple(dispatcher.typeof_pyval(a) for a in args)
-        with global_compiler_lock:
-            if dispatcher.overloads.get(signature) is not None:
-                return True
-            cres = dispatcher._cache.load_overload(signature, dispatcher.targetctx)
-            if cres is None:
-                return False
-            dispatcher._cache_hits[signature] += 1
-            if not cres.objectmode:
-                dispatcher.targetctx.insert_user_function(cres.entry_point, cres.fndesc,
-                                                          [cres.library])
-            dispatcher.add_overload(cres)
-            return True
-    except Exception:  # noqa: BLE001 - not a numba dispatcher, or numba changed
-        return False
+
+# ----------------------------------------------------------------------------------------
+# Arrays viewed by address, in compiled code only (the integrator's step machine)
+# ----------------------------------------------------------------------------------------
+
+#: numba's module and an integer-to-pointer cast, set when numba is imported: the views
+#: below are compiled, never run as Python.
+numba = None
+pointer = None
+
+
+def _compiled_only(module):
+    """Make :data:`pointer`, numba's documented ``inttoptr`` intrinsic (the example of
+    the "high-level extension API" page)."""
+    global numba, pointer
+    from numba import types
+    from numba.extending import intrinsic
+
+    @intrinsic
+    def address_as_pointer(typingctx, address):
+        if not isinstance(address, types.Integer):
+            return None
+
+        def codegen(context, builder, signature, args):
+            return builder.inttoptr(args[0], context.get_value_type(types.voidptr))
+
+        return types.voidptr(address), codegen
+
+    numba, pointer = module, address_as_pointer
+
+
+@jit(inline=True)
+def floats_at(address, size):
+    """The ``size`` floats at ``address`` as an array that owns nothing: numba counts no
+    references for it (compiled code only; the caller keeps the memory alive)."""
+    return numba.carray(pointer(address), (size,), np.float64)
+
+
+@jit(inline=True)
+def matrix_at(address, rows, columns):
+    """The ``rows`` x ``columns`` floats at ``address`` (as :func:`floats_at`)."""
+    return numba.carray(pointer(address), (rows, columns), np.float64)
+
+
+@jit(inline=True)
+def ints_at(address, size):
+    """The ``size`` 64-bit integers at ``address`` (as :func:`floats_at`)."""
+    return numba.carray(pointer(address), (size,), np.int64)

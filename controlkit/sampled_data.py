@@ -20,8 +20,6 @@ Workman, *Digital Control of Dynamic Systems*, ch. 4; Astrom & Wittenmark,
 
 from __future__ import annotations
 
-import contextlib
-import importlib
 import math
 
 import control as ct
@@ -131,12 +129,39 @@ def interconnect(syslist, connections=None, inplist=None, outlist=None, **kwargs
         raise ValueError(f"dt must be None or 0 for a diagram of continuous and discrete "
                          f"blocks, got dt={kwargs['dt']!r}")
     kwargs.pop("dt", None)
-    with _python_control_accepting_mixed_timebases():
-        sys = ct.interconnect(systems, connections, inplist, outlist, **kwargs)
-    sys.rates = {s.name: float(s.dt) for s in sys.syslist
+    # as python-control does: a transfer function joins a diagram as its state space
+    systems = [ct.ss(s, name=s.name) if isinstance(s, ct.TransferFunction) else s
+               for s in systems]
+    # python-control's own signal matching, on stand-ins of the blocks that share one
+    # timebase (it refuses mixed ones); the diagram is then built of the blocks themselves
+    matched = ct.interconnect([_stand_in(s) for s in systems], connections, inplist,
+                              outlist, **kwargs)
+    systems = [s if s.name == twin.name else s.copy(name=twin.name)  # a block used twice
+               for s, twin in zip(systems, matched.syslist, strict=True)]
+    sys = SampledDataSystem(matched.syslist, params=matched.params, name=matched.name,
+                            inputs=matched.input_labels, outputs=matched.output_labels,
+                            states=matched.state_labels, dt=0,
+                            connection_type=matched.connection_type)
+    sys.set_input_map(matched.input_map)
+    sys.set_output_map(matched.output_map)
+    sys.set_connect_map(matched.connect_map)
+    sys.syslist = systems
+    sys.rates = {s.name: float(s.dt) for s in systems
                  if s.isdtime(strict=True) and s.dt is not True}
     sys.base_period = min(sys.rates.values())
     return sys
+
+
+def _stand_in(block):
+    """A block of the same name, signals, states and parameters in continuous time, for
+    python-control to match signals on (it is never simulated)."""
+    return ct.nlsys(_never, _never, inputs=block.input_labels, outputs=block.output_labels,
+                    states=block.state_labels, name=block.name,
+                    params=getattr(block, "params", {}), dt=0)
+
+
+def _never(t, x, u, params):
+    raise RuntimeError("a stand-in of controlkit.interconnect is never simulated")
 
 
 def _rates(systems):
@@ -173,48 +198,6 @@ def _rates(systems):
 def _is_multiple(period, base):
     ratio = period / base
     return abs(ratio - round(ratio)) <= RATE_TOLERANCE * max(1.0, ratio)
-
-
-@contextlib.contextmanager
-def _python_control_accepting_mixed_timebases():
-    """python-control's interconnect, building a :class:`SampledDataSystem`.
-
-    Three of python-control's names are swapped for the duration of the call, so that its
-    own signal matching builds the diagram: the timebase check (which would refuse),
-    the class it builds, and the conversion of an all-LTI diagram into one state-space
-    system (which would merge continuous and discrete matrices into a wrong model).
-    """
-    nlsys = importlib.import_module("control.nlsys")
-    statesp = importlib.import_module("control.statesp")
-    names = ((nlsys, "common_timebase"), (nlsys, "InterconnectedSystem"),
-             (statesp, "LinearICSystem"))
-    missing = [f"{m.__name__}.{n}" for m, n in names if not hasattr(m, n)]
-    if missing:
-        raise RuntimeError(f"this python-control ({ct.__version__}) lacks {missing}; "
-                           f"controlkit.interconnect needs python-control 0.10")
-    saved = {(m, n): getattr(m, n) for m, n in names}
-    common_timebase, linear_ic = saved[(nlsys, "common_timebase")], saved[
-        (statesp, "LinearICSystem")]
-
-    def mixed_timebase(dt1, dt2):
-        try:
-            return common_timebase(dt1, dt2)
-        except ValueError:
-            return 0  # the diagram's signals live in continuous time
-
-    def keep_sampled_data(sys, *args, **kwargs):
-        if isinstance(sys, SampledDataSystem):
-            return sys
-        return linear_ic(sys, *args, **kwargs)
-
-    nlsys.common_timebase = mixed_timebase
-    nlsys.InterconnectedSystem = SampledDataSystem
-    statesp.LinearICSystem = keep_sampled_data
-    try:
-        yield
-    finally:
-        for (module, name), value in saved.items():
-            setattr(module, name, value)
 
 
 def sample_instants(sys, T0, Tf):

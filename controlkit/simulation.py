@@ -84,7 +84,7 @@ def initial_state(sys, **by_block) -> np.ndarray:
 def simulate(
     sys, T, *, X0, U=0.0, params=None, progress: Callable[[float], None] | None = None,
     chunks: int = 1, engine: str = "python-control", record_every: int = 1,
-    on_chunk: Callable | None = None,
+    on_chunk: Callable | None = None, compile: bool | None = None,
 ) -> ct.TimeResponseData:
     """Simulate a system, optionally in chunks with progress reports, streamed if long.
 
@@ -131,6 +131,8 @@ def simulate(
         ``on_chunk(time, outputs, states)``, called with every sample exactly once, in
         order, chunk by chunk and at full resolution: for metrics that need every step
         (a maximum, a peak) while only decimated samples are kept.
+    compile : bool or None
+        On the fast engine, as for :func:`input_output_response`.
 
     Returns
     -------
@@ -154,7 +156,7 @@ def simulate(
                    record_every=record_every, on_chunk=on_chunk)
     if engine != "python-control":
         try:
-            return backend.simulate(sys, T, X0, U, **options)
+            return backend.simulate(sys, T, X0, U, compile=compile, **options)
         except UnsupportedSystem as reason:
             warnings.warn(f"{engine} engine not used, running python-control instead: "
                           f"{reason} (controlkit.engines.fast.explain(sys) lists every "
@@ -165,7 +167,7 @@ def simulate(
 def input_output_response(sys, timepts=None, inputs=0.0, initial_state=0.0, params=None,
                           ignore_errors=False, transpose=False, return_states=False,
                           squeeze=None, solve_ivp_kwargs=None, evaluation_times="T", *,
-                          engine="fast", **kwargs):
+                          engine="fast", compile=None, **kwargs):
     """:func:`control.input_output_response`, compiled where it can be, for any diagram.
 
     Takes python-control's arguments in python-control's order, with its aliases
@@ -188,6 +190,12 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
         ``"python-control"`` always runs python-control (for a sampled-data diagram,
         controlkit's plain-Python reference, :func:`controlkit.engines.reference.
         simulate_sampled_data`).
+    compile : bool or None
+        How the fast engine runs the diagram's module (:mod:`controlkit.engines.fast.run`):
+        ``None`` (default) as Python unless the run is long enough for compiling to pay
+        (or the diagram is compiled already), ``True`` compiled (compiling it now, once:
+        later runs load it), ``False`` as Python. ``explain(sys)`` says which blocks can
+        be compiled.
 
     Returns
     -------
@@ -210,46 +218,43 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
     >>> [r.outputs.tolist() for r in runs]
     [[1.0, 0.5, 0.25], [2.0, 1.0, 0.5], [4.0, 2.0, 1.0]]
     """
-    from control.config import _process_kwargs, _process_param
-    from control.timeresp import _timeresp_aliases
+    from .compat import timeresp_arguments
 
-    _process_kwargs(kwargs, _timeresp_aliases)
-    T = _process_param("timepts", timepts, kwargs, _timeresp_aliases)
-    U = _process_param("inputs", inputs, kwargs, _timeresp_aliases, sigval=0.0)
-    X0 = _process_param("initial_state", initial_state, kwargs, _timeresp_aliases,
-                        sigval=0.0)
-    return_x = _process_param("return_states", return_states, kwargs, _timeresp_aliases,
-                              sigval=False)
-    t_eval = _process_param("evaluation_times", evaluation_times, kwargs,
-                            _timeresp_aliases, sigval="T")
+    T, U, X0, return_x, t_eval = timeresp_arguments(kwargs, timepts, inputs, initial_state,
+                                                    return_states, evaluation_times)
     options = dict(params=params, ignore_errors=ignore_errors, transpose=transpose,
                    return_states=return_x, squeeze=squeeze, evaluation_times=t_eval,
                    solve_ivp_kwargs=dict(solve_ivp_kwargs or {}), **kwargs)
     if engine not in engines.ENGINES:
         raise ValueError(f"engine must be one of {engines.ENGINES}, got {engine!r}")
+    if compile not in (None, True, False):
+        raise ValueError(f"compile must be True, False or None (decided by the run's "
+                         f"length), got {compile!r}")
     if isinstance(sys, list | tuple):
-        return TimeResponseList([input_output_response(s, T, U, X0, engine=engine, **options)
+        return TimeResponseList([input_output_response(s, T, U, X0, engine=engine,
+                                                       compile=compile, **options)
                                  for s in sys])
     runs = _runs(sys, X0, params)
     if runs is not None:
-        return _many(sys, T, U, X0, runs, engine, options)
+        return _many(sys, T, U, X0, runs, engine, options, compile)
     from .sampled_data import SampledDataSystem
 
     if isinstance(sys, SampledDataSystem):
-        return _sampled_data_response(sys, T, U, X0, engine, options)
+        return _sampled_data_response(sys, T, U, X0, engine, options, compile)
     if engine == "fast":
         fast = _fast_response(sys, T, U, X0, options, "python-control", stacklevel=3,
-                              advice=" (controlkit.explain(sys) lists every block's tier)")
+                              advice=" (controlkit.explain(sys) lists every block's tier)",
+                              compile=compile)
         if fast is not None:
             return fast
     return ct.input_output_response(sys, T, U, X0, **options)
 
 
-def _fast_response(sys, T, U, X0, options, instead, *, stacklevel, advice=""):
+def _fast_response(sys, T, U, X0, options, instead, *, stacklevel, advice="", compile=None):
     """The fast backend's response, or None after a warning that names why it cannot run
     ``sys`` and what runs ``instead`` (``stacklevel`` as seen from this function)."""
     try:
-        return engines.backend("fast").response(sys, T, U, X0, **options)
+        return engines.backend("fast").response(sys, T, U, X0, compile=compile, **options)
     except UnsupportedSystem as reason:
         warnings.warn(f"fast engine not used, running {instead} instead: {reason}{advice}",
                       stacklevel=stacklevel)
@@ -284,7 +289,7 @@ def _runs(sys, X0, params):
     return X0s, params_list
 
 
-def _many(sys, T, U, X0, runs, engine, options):
+def _many(sys, T, U, X0, runs, engine, options, compile):
     """Many runs of ``sys``: one compiled call over all cores where it can be."""
     X0s, params_list = runs
     options = dict(options, params=None)
@@ -298,7 +303,8 @@ def _many(sys, T, U, X0, runs, engine, options):
         X0s = X0s if X0s is not None else np.tile(x0, (len(params_list), 1))
         try:
             responses, errors = many.run_many(diagram, T_, U_, X0s, params_list,
-                                              t_eval=t_eval, method=method, **solver)
+                                              t_eval=t_eval, method=method,
+                                              compile=compile, **solver)
         except UnsupportedSystem as reason:
             warnings.warn(f"fast engine not used, running python-control instead: {reason}",
                           stacklevel=3)
@@ -312,17 +318,18 @@ def _many(sys, T, U, X0, runs, engine, options):
                 for r, resp in enumerate(responses)])
     return TimeResponseList([
         input_output_response(sys, T, U, X0s[r] if X0s is not None else X0, engine=engine,
-                              **dict(options, params=p)) for r, p in enumerate(params_list)])
+                              compile=compile, **dict(options, params=p))
+        for r, p in enumerate(params_list)])
 
 
-def _sampled_data_response(sys, T, U, X0, engine, options):
-    """A sampled-data diagram: compiled where it can be, else the plain-Python reference."""
+def _sampled_data_response(sys, T, U, X0, engine, options, compile):
+    """A sampled-data diagram: on the fast engine where it can be, else the reference."""
     from .engines import reference
 
     arguments = python_control_arguments(sys, T, U, X0, options)
     if engine == "fast":
         fast = _fast_response(sys, T, U, X0, options, "controlkit's Python reference",
-                              stacklevel=4)
+                              stacklevel=4, compile=compile)
         if fast is not None:
             return fast
     T, U, X0, t_eval, method, solve_ivp_kwargs = arguments

@@ -192,10 +192,9 @@ class SampledSystem(ct.NonlinearIOSystem):
 
     def _next_state(self, t, x, u, params):
         sys, Ts = self.continuous, self.dt
-        sys._update_params(params)
         if self.method == "rk4":
             def rhs(tau, xi, u, p, out):  # the kernel form rk4_step calls
-                out[:] = sys._rhs(tau, xi, u)
+                out[:] = sys.dynamics(tau, xi, u, params)
                 return out
 
             h = Ts / self.substeps
@@ -208,15 +207,15 @@ class SampledSystem(ct.NonlinearIOSystem):
                 x = x_next
             return x
         sol = scipy.integrate.solve_ivp(
-            lambda tau, xi: sys._rhs(tau, xi, u), (t, t + Ts), np.asarray(x, dtype=float),
+            lambda tau, xi: sys.dynamics(tau, xi, u, params), (t, t + Ts),
+            np.asarray(x, dtype=float),
             method="DOP853", rtol=self.rtol, atol=self.atol)
         if not sol.success:
             raise RuntimeError(f"solve_ivp failed inside a sample at t = {t:g}: {sol.message}")
         return sol.y[:, -1]
 
     def _output(self, t, x, u, params):
-        self.continuous._update_params(params)
-        return self.continuous._out(t, x, u)
+        return self.continuous.output(t, x, u, params)
 
 
 def time_grid(horizon, Ts, *, lazy=False):

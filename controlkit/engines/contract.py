@@ -199,8 +199,7 @@ def python_control_arguments(sys, T, U, X0, options):
     >>> U.tolist(), X0.tolist(), method
     ([[1.0, 1.0, 1.0], [2.0, 3.0, 4.0]], [1.0, 2.0], 'RK45')
     """
-    from control.nlsys import _process_vector_argument
-    from control.timeresp import _check_convert_array
+    from ..compat import inputs_and_state
 
     T = np.atleast_1d(np.asarray(T, dtype=float))
     kwargs = dict(options.get("solve_ivp_kwargs") or {})
@@ -224,9 +223,8 @@ def python_control_arguments(sys, T, U, X0, options):
         U = np.vstack(parts)
     n = sys.ninputs
     legal = [(T.size,), (1, T.size)] if n is None or n == 1 else [(n, T.size)]
-    U = _check_convert_array(U, legal, "Parameter `U`: ", squeeze=False)
+    U, X0 = inputs_and_state(U, legal, X0, sys.nstates)
     U = np.asarray(U, dtype=float).reshape(-1, T.size)
-    X0, _ = _process_vector_argument(X0, "X0", sys.nstates)
     return T, U, np.asarray(X0, dtype=float), t_eval, method, kwargs
 
 

@@ -57,14 +57,18 @@ def simulate_sampled_data(sys, T, X0, U, *, params=None, t_eval=None, method="RK
     """Run a :class:`~controlkit.sampled_data.SampledDataSystem` in plain Python.
 
     The reference semantics of a diagram of continuous, discrete and static blocks
-    (:mod:`controlkit.sampled_data`), written for clarity: at each instant ``t_k =
-    T[0] + k h`` (``h`` the shortest period) the signals are evaluated with the
-    discrete blocks that fire computing a fresh output (held until they fire again),
-    then the firing blocks update their state, then :func:`scipy.integrate.solve_ivp`
-    integrates the continuous blocks from ``t_k`` to ``t_{k+1}`` with the held outputs.
-    At an instant the reported state is the one before the update, as python-control
-    reports a discrete system; between instants, the updated one. Inputs are
-    interpolated linearly between the points of ``T``, as python-control does.
+    (:mod:`controlkit.sampled_data`): the instants' loop every engine runs
+    (:func:`controlkit.engines.fast.loops.continuous_run`), here as Python, with each
+    block computed by its own python-control functions (``output`` and ``dynamics``) in
+    python-control's sweep (every block's output again until the signals settle),
+    and :func:`scipy.integrate.solve_ivp` between instants. At each instant ``t_k =
+    T[0] + k h`` (``h`` the shortest period) the signals are evaluated with the discrete
+    blocks that fire computing a fresh output (held until they fire again), then the
+    firing blocks update their state, then the continuous blocks are integrated from
+    ``t_k`` to ``t_{k+1}`` with the held outputs. At an instant the reported state is
+    the one before the update, as python-control reports a discrete system; between
+    instants, the updated one. Inputs are interpolated linearly between the points of
+    ``T``, as python-control does.
 
     Parameters
     ----------
@@ -82,8 +86,8 @@ def simulate_sampled_data(sys, T, X0, U, *, params=None, t_eval=None, method="RK
     method : str
         :func:`scipy.integrate.solve_ivp`'s method between instants.
     solve_ivp_kwargs : dict, optional
-        Further arguments of :func:`scipy.integrate.solve_ivp` (``rtol``, ``atol``,
-        ``max_step``, ...).
+        ``rtol``, ``atol``, ``max_step``, ``first_step`` of
+        :func:`scipy.integrate.solve_ivp`.
 
     Returns
     -------
@@ -104,122 +108,88 @@ def simulate_sampled_data(sys, T, X0, U, *, params=None, t_eval=None, method="RK
     >>> resp.outputs.round(6).tolist()
     [[1.0, 0.75, 0.5, 0.375, 0.25]]
     """
-    import scipy.integrate
+    from .fast import loops
+    from .fast.continuous import solver_options
 
+    T = np.asarray(T, dtype=float)
     t_eval = T if t_eval is None else np.asarray(t_eval, dtype=float)
-    kwargs = dict(solve_ivp_kwargs or {})
-    sys._update_params(params)
-    blocks = _sampled_data_blocks(sys)
-    h = sys.base_period
-    instants = T[0] + np.arange(int(np.floor((T[-1] - T[0]) / h * (1 + 1e-12))) + 1) * h
-    at_instant = _instant_of(t_eval, instants, h)
-    held = {}  # discrete block index -> its held output
-    x = np.array(X0, dtype=float)
-    ninputs = sys.connect_map.shape[0]
-    Y = np.zeros((sys.noutputs, t_eval.size))
-    X = np.zeros((sys.nstates, t_eval.size))
-    Uout = np.zeros((sys.ninputs, t_eval.size))
+    evaluator = _Sweep(sys, params)
+    instants = loops.instants(sys.base_period, T[0], T[-1])
+    eval_instant = loops.instant_of(t_eval, instants, sys.base_period)
+    m, nx = t_eval.size, sys.nstates
+    Y, X, Uo = np.zeros((sys.noutputs, m)), np.zeros((nx, m)), np.zeros((sys.ninputs, m))
+    x, held = np.array(X0, dtype=float), np.zeros(evaluator.ny)
+    cidx = evaluator.continuous
+    ctrl, status, messages = np.zeros(4, dtype=np.int64), np.full(4, -1, np.int64), {}
+    ys, ui, ubuf = np.zeros(evaluator.ny), np.zeros(evaluator.nu), np.zeros((U.shape[0], 1))
+    xt, yc, y_eval = np.zeros(nx), np.zeros(cidx.size), np.zeros((m, cidx.size))
+    rtol, atol, max_step, first_step = solver_options(cidx.size,
+                                                      **(solve_ivp_kwargs or {}))
+    args = (evaluator, x, xt, cidx, T, U, ubuf, None, ys, ui, held, np.zeros(nx))
+    loops.continuous_run(
+        evaluator.evaluate, evaluator.update, evaluator.outputs, evaluator.rhs,
+        loops.scipy_interval, None, evaluator, args,
+        (instants, 0, instants.size, float(T[-1]), T, U, t_eval, eval_instant), (Y, X, Uo),
+        (x, None, held), (ys, ui, np.zeros(nx), None, xt, cidx, yc, y_eval, ubuf, messages),
+        (method, rtol, atol, max_step, first_step, True), ctrl, status)
+    if status[1] != -1:
+        raise RuntimeError(f"solve_ivp failed in {sys.name!r} after t = "
+                           f"{t_eval[max(int(status[0]) - 1, 0)]:g} s: "
+                           f"{messages.get('message', 'no reason given')}")
+    return response(sys, t_eval, Y, X, Uo)
 
-    def ufun(t):  # python-control's interpolation of the inputs
-        idx = np.clip(np.searchsorted(T, t, side="left"), 1, len(T) - 1)
-        if len(T) == 1:
-            return U[:, 0]
-        frac = (t - T[idx - 1]) / (T[idx] - T[idx - 1])
-        return U[:, idx - 1] * (1.0 - frac) + U[:, idx] * frac
 
-    def signals(t, x, fresh):
-        """Inputs and outputs of every block at ``t`` (python-control's sweep), the
-        discrete blocks not in ``fresh`` giving their held output."""
-        u = ufun(t)
+class _Sweep:
+    """The evaluator of :mod:`controlkit.engines.fast.loops` made of python-control's own
+    block functions, in python-control's sweep: every block's output, again and again,
+    until the signals settle (no order known beforehand)."""
+
+    def __init__(self, sys, params):
+        self.sys = sys
+        self.blocks, xs, us, ys = [], 0, 0, 0
+        for s in sys.syslist:
+            local = {**s.params, **sys.params, **(params or {})}
+            discrete = s.isdtime(strict=True) and s.dt is not True
+            every = round(s.dt / sys.base_period) if discrete else 0
+            self.blocks.append((s, slice(xs, xs + s.nstates), slice(us, us + s.ninputs),
+                                slice(ys, ys + s.noutputs), local, every))
+            xs, us, ys = xs + s.nstates, us + s.ninputs, ys + s.noutputs
+        self.ny, self.nu = ys, us
+        self.continuous = np.array([i for s, xi, *_ , every in self.blocks if not every
+                                    for i in range(xi.start, xi.stop)], dtype=np.int64)
+
+    def evaluate(self, t, x, U, col, P, ys, ui, held, k, plan):
+        sys, u = self.sys, U[:, col]
         ulist = sys.input_map @ u
-        ylist = np.zeros(sys.connect_map.shape[1])
-        for _ in range(len(blocks) + 1):
-            for b in blocks:
-                if b.discrete and b.index not in fresh:
-                    ylist[b.y] = held[b.index]
-                else:
-                    ylist[b.y] = np.asarray(b.system._out(t, x[b.x], ulist[b.u]),
-                                            dtype=float).reshape(-1)
-            new = sys.connect_map @ ylist + sys.input_map @ u
+        for _ in range(len(self.blocks) + 1):
+            for s, xi, ui_, yi, local, every in self.blocks:
+                fresh = not every or (k >= 0 and k % every == 0)
+                ys[yi] = (np.asarray(s.output(t, x[xi], ulist[ui_], local), dtype=float)
+                          .reshape(-1) if fresh else held[yi])
+                if every and fresh:
+                    held[yi] = ys[yi]
+            new = sys.connect_map @ ys + sys.input_map @ u
             if np.array_equal(new, ulist):
-                return u, ulist, ylist
+                ui[:] = ulist
+                return -1
             ulist = new
         raise RuntimeError(f"algebraic loop in {sys.name!r} at t = {t:g} s")
 
-    def record(j, t, x, fresh):
-        u, ulist, ylist = signals(t, x, fresh)
-        Y[:, j] = sys.output_map @ np.concatenate([ylist, ulist[:ninputs]])
-        X[:, j] = x
-        Uout[:, j] = u
+    def outputs(self, ys, ui, Y, j, plan):
+        Y[:, j] = self.sys.output_map @ np.concatenate([ys, ui])
 
-    continuous = [b for b in blocks if not b.discrete and b.system.nstates]
-    for k, t_k in enumerate(instants):
-        firing = {b.index for b in blocks if b.discrete and k % b.every == 0}
-        _, ulist, ylist = signals(t_k, x, firing)
-        for b in blocks:
-            if b.index in firing:
-                held[b.index] = ylist[b.y].copy()
-        for j in np.nonzero(at_instant == k)[0]:
-            record(j, t_k, x, firing)
-        for b in blocks:  # the firing blocks update their state
-            if b.index in firing and b.system.nstates:
-                x[b.x] = b.system._rhs(t_k, x[b.x], ulist[b.u])
-        t_next = instants[k + 1] if k + 1 < len(instants) else T[-1]
-        inside = np.nonzero((at_instant < 0) & (t_eval > t_k) & (t_eval <= t_next))[0]
-        if t_next <= t_k or not continuous:
-            for j in inside:
-                record(j, t_eval[j], x, set())
-            continue
-        index = np.concatenate([x_index for b in continuous for x_index in [b.x_index]])
+    def update(self, t, x, ui, P, xn, k, plan, scratch):
+        xn[:] = x
+        for s, xi, ui_, _, local, every in self.blocks:
+            if every and s.nstates and k >= 0 and k % every == 0:
+                xn[xi] = s.dynamics(t, x[xi], ui[ui_], local)
 
-        def rhs(t, xc, index=index):
-            xt = x.copy()
-            xt[index] = xc
-            _, ulist, _ = signals(t, xt, set())
-            dx = np.zeros(sys.nstates)
-            for b in continuous:
-                dx[b.x] = b.system._rhs(t, xt[b.x], ulist[b.u])
-            return dx[index]
+    def derivatives(self, t, x, ui, P, dx, plan):
+        for s, xi, ui_, _, local, every in self.blocks:
+            if not every and s.nstates:
+                dx[xi] = s.dynamics(t, x[xi], ui[ui_], local)
 
-        sol = scipy.integrate.solve_ivp(rhs, (t_k, t_next), x[index], method=method,
-                                        dense_output=bool(inside.size), **kwargs)
-        if not sol.success:
-            raise RuntimeError(f"solve_ivp failed between {t_k:g} s and {t_next:g} s: "
-                               f"{sol.message}")
-        for j in inside:
-            xt = x.copy()
-            xt[index] = sol.sol(t_eval[j])
-            record(j, t_eval[j], xt, set())
-        x[index] = sol.y[:, -1]
-    return response(sys, t_eval, Y, X, Uout)
+    def rhs(self, t, y, args, out):
+        from .fast.loops import rhs_template
 
-
-class _Placed:
-    """A block of a sampled-data diagram with its slices in the stacked vectors."""
-
-    def __init__(self, index, system, x0, u0, y0, base):
-        self.index, self.system = index, system
-        self.x = slice(x0, x0 + system.nstates)
-        self.x_index = np.arange(x0, x0 + system.nstates)
-        self.u = slice(u0, u0 + system.ninputs)
-        self.y = slice(y0, y0 + system.noutputs)
-        self.discrete = system.isdtime(strict=True) and system.dt is not True
-        self.every = round(system.dt / base) if self.discrete else 0
-
-
-def _sampled_data_blocks(sys):
-    blocks, x0, u0, y0 = [], 0, 0, 0
-    for i, s in enumerate(sys.syslist):
-        blocks.append(_Placed(i, s, x0, u0, y0, sys.base_period))
-        x0, u0, y0 = x0 + s.nstates, u0 + s.ninputs, y0 + s.noutputs
-    return blocks
-
-
-def _instant_of(t_eval, instants, h):
-    """For each evaluation time, the index of the instant it falls on (within a
-    billionth of the period, so that rounding never moves a point across an instant),
-    else -1."""
-    k = np.rint((t_eval - instants[0]) / h).astype(int)
-    on = (k >= 0) & (k < len(instants)) & (
-        np.abs(t_eval - instants[0] - k * h) <= 1e-9 * h)
-    return np.where(on, k, -1)
+        rhs_template(self.evaluate, self.derivatives, t, y, args, out)

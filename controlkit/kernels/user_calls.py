@@ -37,7 +37,9 @@ def clip(a, a_min, a_max):
     return np.clip(a, a_min, a_max)
 
 
-if _jit.HAVE_NUMBA:
+@_jit.on_numba_import
+def _overloads(numba):
+    """numba's implementations of :func:`store` and :func:`clip` (made when numba loads)."""
     from numba import types as _nbtypes
     from numba.extending import overload
 

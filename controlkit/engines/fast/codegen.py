@@ -227,50 +227,73 @@ def _rk4_lines(kernel, row, h, view):
     return [f"for i in range({row.SUB}):", *["    " + line for line in body]]
 
 
-def _kernel_names(plan):
-    """``(alias per kernel index, import lines, kernels to inject)`` of a plan's kernels."""
-    aliases, imports, injected = [], [], {}
-    for i, fn in enumerate(plan.kernels):
-        py = _jit.python_function(fn)
-        module, name = getattr(py, "__module__", None), getattr(py, "__name__", "<?>")
-        alias = f"kernel_{i}"
-        aliases.append(alias)
-        importable = (module not in (None, "__main__") and "<" not in name
-                      and "<" not in getattr(py, "__qualname__", "<")
-                      and hasattr(fn, "py_func"))
-        if importable:
-            imports.append((module, name, alias))
-        else:  # a Python function (python tier): handed to the module when it is run
-            injected[alias] = fn
-    return aliases, imports, injected
+def kernel_identity(fn) -> str:
+    """What a kernel is, for the module's text (and so its name in the store): a
+    controlkit kernel by its dotted name, another kernel by its name and a digest of
+    its module's source (an edit of it is then a new module), a user function by its
+    compiled module's name (:attr:`identity`).
+
+    Examples
+    --------
+    >>> from controlkit.kernels.lti import lti_output
+    >>> kernel_identity(lti_output)
+    'controlkit.kernels.lti.lti_output'
+    """
+    identity = getattr(fn, "identity", None)
+    if isinstance(identity, str):
+        return identity
+    py = _jit.python_function(fn)
+    module = str(getattr(py, "__module__", None))
+    name = f"{module}.{getattr(py, '__qualname__', getattr(py, '__name__', '?'))}"
+    if module.startswith("controlkit."):
+        return name
+    return f"{name} (source {_source_digest(py)})"
 
 
-def generate(plan, held_logic):
-    """The source of ``plan``'s module, and the kernels it must be handed (not importable).
+def _source_digest(function) -> str:
+    import hashlib
+    import inspect
 
-    The functions are plain Python: :mod:`.loader` compiles them (and pastes the
-    kernels in) or runs them as Python (a diagram with a block on the python tier).
+    try:
+        text = inspect.getsource(inspect.getmodule(function))
+    except (OSError, TypeError):
+        text = repr(getattr(function, "__code__", function))
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def generate(plan, held_logic, check_users=True):
+    """The source of ``plan``'s module (see the module's description).
+
+    The text names each kernel ``kernel_<i>`` and says in a comment which kernel it is
+    (:func:`kernel_identity`); the engine hands the module its kernels when it runs it
+    (:mod:`.store`): compiled code, or their Python versions. Names written into the
+    text are ``repr``-quoted in comments; everything else is generated identifiers and
+    numbers.
 
     ``held_logic``: whether discrete blocks hold their outputs between their instants (a
     diagram of several rates or with continuous states); without it every block fires
-    at every step, as in python-control's discrete simulation.
+    at every step, as in python-control's discrete simulation. ``check_users``: whether a
+    NaN output of a user's function stops the run (compiled, so that Python says what
+    happened there); run as Python, a user's function raises itself, or its NaN goes on
+    as in python-control.
 
     Examples
     --------
     >>> from controlkit.engines.fast.run import prepare
     >>> from controlkit.studies.cmg.diagrams import cmg_loop
-    >>> source, injected = generate(prepare(cmg_loop()).plan, held_logic=False)
-    >>> [line for line in source.splitlines() if line.startswith("def run")], injected
-    (['def run_discrete(T, X0, U, P, Y, X, status, k0, k1):'], {})
+    >>> source = generate(prepare(cmg_loop()).plan, held_logic=False)
+    >>> [line for line in source.splitlines() if line.startswith("def run")]
+    ['def run_discrete(T, X0, U, P, Y, X, status, k0, k1):']
     """
-    key = (held_logic, plan.table.tobytes(), plan.order.tobytes(), plan.h.tobytes(),
-           plan.continuous.tobytes(), *(a.tobytes() for a in (*plan.inputs, *plan.outputs)),
-           plan.ny, plan.nu, tuple(plan.kernels), plan.sys.noutputs, plan.sys.nstates,
-           tuple(s.name for s in plan.sys.syslist))
+    key = (held_logic, check_users, plan.table.tobytes(), plan.order.tobytes(),
+           plan.h.tobytes(), plan.continuous.tobytes(),
+           *(a.tobytes() for a in (*plan.inputs, *plan.outputs)),
+           plan.ny, plan.nu, tuple(map(kernel_identity, plan.kernels)), plan.sys.noutputs,
+           plan.sys.nstates, tuple(s.name for s in plan.sys.syslist))
     if key not in _GENERATED:  # a diagram called again writes the same text (0.1 ms)
         if len(_GENERATED) >= 1024:
             _GENERATED.clear()
-        _GENERATED[key] = _generate(plan, held_logic)
+        _GENERATED[key] = _generate(plan, held_logic, check_users)
     return _GENERATED[key]
 
 
@@ -278,11 +301,13 @@ def generate(plan, held_logic):
 _GENERATED: dict = {}
 
 
-def _generate(plan, held_logic):
+def _generate(plan, held_logic, check_users):
     rows, ny = plan.rows(), plan.ny
-    names, imports, injected = _kernel_names(plan)
-    trusted = {names.index(alias) for module, _, alias in imports
-               if module.startswith("controlkit.")}
+    names = [f"kernel_{i}" for i in range(len(plan.kernels))]
+    identities = [kernel_identity(fn) for fn in plan.kernels]
+    # controlkit's own kernels: NaN in, NaN out (their NaN checks can wait, see below)
+    trusted = {i for i, name in enumerate(identities)
+               if name.startswith("controlkit.kernels.")}
     ptr, cols, gain = plan.inputs
 
     # In evaluate, the signals that written-out lines compute are also kept in locals
@@ -350,7 +375,7 @@ def _generate(plan, held_logic):
         row = rows[b]
         if row.OUT not in trusted:
             evaluate += checks()
-        evaluate.append(f"# {plan.sys.syslist[b].name}")
+        evaluate.append(f"# block {plan.sys.syslist[b].name!r}")
         if row.FT:
             evaluate += gather(b)
         held = row.KIND in (DISCRETE, SAMPLED) and held_logic
@@ -358,7 +383,7 @@ def _generate(plan, held_logic):
                 or [f"{names[row.OUT]}(t, {args(b, ('ys', row.Y0), row.NY)})"])
         evaluate += loads  # the states these lines read, loaded once at the top level
         loads.clear()
-        if row.NY:
+        if row.NY and (check_users or row.OUT in trusted):
             unchecked.append((row.Y0, b))
         if held:
             fires = "k >= 0" if row.EVERY == 1 else f"k >= 0 and k % {row.EVERY} == 0"
@@ -417,43 +442,49 @@ def _generate(plan, held_logic):
     def function(signature, lines):
         return [f"def {signature}:", *["    " + line for line in lines], "", ""]
 
+    def evaluator(signature, lines):  # pasted by numba into the entry points that call it
+        return ["@jit(inline=True)", *function(signature, lines)]
+
     text = [
-        "# generated by controlkit.engines.fast.codegen: a diagram's own module; do not edit",
+        f"# generated by controlkit.engines.fast.codegen: the module of the diagram "
+        f"{plan.sys.name!r}; do not edit",
+        "# kernels, handed to the module by the engine (compiled, or as Python):",
+        *[f"#   {alias}: {identity!r}" for alias, identity in zip(names, identities,
+                                                                   strict=True)],
         "import numpy as np",
         "",
-        "from controlkit.engines.fast import loops, rk, views",
+        "from controlkit._jit import jit",
+        "from controlkit.engines.fast.loops import continuous_run, discrete_run, "
+        "rhs_template",
+        "from controlkit.engines.fast.rk import solve_interval",
         "from controlkit.kernels.common import rk4_step",
-        *[f"from {m} import {n} as {a}" for m, n, a in imports],
         "",
         "",
-        *function("evaluate(t, x, U, col, P, ys, ui, held, k, plan)", evaluate),
-        *function("outputs(ys, ui, Y, j, plan)", outputs),
-        *function("update(t, x, ui, P, xn, k, plan, scratch)", update or ["pass"]),
-        *function("derivatives(t, x, ui, P, dx, plan)", derivatives),
-        *function("rhs(t, y, args, out)",
-                  ["loops.rhs_template(evaluate, derivatives, t, y, args, out)"]),
+        *evaluator("evaluate(t, x, U, col, P, ys, ui, held, k, plan)", evaluate),
+        *evaluator("outputs(ys, ui, Y, j, plan)", outputs),
+        *evaluator("update(t, x, ui, P, xn, k, plan, scratch)", update or ["pass"]),
+        *evaluator("derivatives(t, x, ui, P, dx, plan)", derivatives),
+        *evaluator("rhs(t, y, args, out)",
+                   ["rhs_template(evaluate, derivatives, t, y, args, out)"]),
         *function("run_discrete(T, X0, U, P, Y, X, status, k0, k1)", [
             "x = X0.copy()", *buffers, f"held = np.zeros({ny})",
-            *(step or ["loops.discrete_run(evaluate, update, outputs, (), T, x, U, P, Y, X, "
+            *(step or ["discrete_run(evaluate, update, outputs, (), T, x, U, P, Y, X, "
                        "status, k0, k1, ys, ui, held, xn, scratch)"]), "return x"]),
     ]
-    if cidx or held_logic:
-        text += function(
-            "run_continuous(machine, instants, fire0, k0, k1, t_final, T, U, t_eval, "
-            "eval_instant, ctrl, Y, X, Uo, x, held, P, method, rtol, atol, max_step, "
-            "first_step, exact, status)", [
-                *buffers, f"xt = np.empty({nx})", f"dx = np.zeros({nx})",
-                f"cidx = np.array({cidx!r}, dtype=np.int64)",
-                f"yc = np.empty({len(cidx)})", f"y_eval = np.empty((t_eval.shape[0], "
-                f"{len(cidx)}))", "ubuf = np.empty((U.shape[0], 1))",
-                f"work = rk.make_workspace({len(cidx)}, 0, t_eval.shape[0])",
-                # handed to the right-hand side at every stage: unowned, not counted
-                "args = ((), " + ", ".join(f"views.unowned({a})" for a in (
-                    "x", "xt", "cidx", "T", "U", "ubuf", "P", "ys", "ui", "held", "dx"))
-                + ")",
-                "loops.continuous_run(evaluate, update, outputs, rhs, machine, (), args, "
-                "(instants, fire0, k0, k1, t_final, T, U, t_eval, eval_instant), "
-                "(Y, X, Uo), (x, P, held), (ys, ui, xn, scratch, xt, cidx, yc, y_eval, "
-                "ubuf, work), (method, rtol, atol, max_step, first_step, exact), ctrl, "
-                "status)"])
-    return "\n".join(text) + "\n", injected
+    # every diagram has both entry points: a static one, or one of several rates, runs
+    # through the instants' loop too
+    text += function(
+        "run_continuous(instants, fire0, k1, t_final, T, U, t_eval, eval_instant, ctrl, "
+        "Y, X, Uo, x, held, P, method, rtol, atol, max_step, first_step, exact, status, "
+        "work, y_eval, yc)", [
+            *buffers, f"xt = np.empty({nx})", f"dx = np.zeros({nx})",
+            (f"cidx = np.array({cidx!r}, dtype=np.int64)" if cidx
+             else "cidx = np.zeros(0, dtype=np.int64)"),
+            "ubuf = np.empty((U.shape[0], 1))",
+            "args = ((), x, xt, cidx, T, U, ubuf, P, ys, ui, held, dx)",
+            "continuous_run(evaluate, update, outputs, rhs, solve_interval, machine, (), "
+            "args, (instants, fire0, k1, t_final, T, U, t_eval, eval_instant), "
+            "(Y, X, Uo), (x, P, held), (ys, ui, xn, scratch, xt, cidx, yc, y_eval, "
+            "ubuf, work), (method, rtol, atol, max_step, first_step, exact), ctrl, "
+            "status)"])
+    return "\n".join(text) + "\n"

@@ -1,12 +1,13 @@
-"""Diagrams with continuous states on the fast engine, and the drop-in's entry point.
+"""Diagrams with continuous states (and of several rates) on the fast engine.
 
-:func:`response` is what :func:`controlkit.input_output_response` calls: a discrete
-diagram runs step by step (:func:`.run.simulate`), any other through
-:func:`run_continuous`, which integrates the continuous states with the compiled
-Runge-Kutta methods of :mod:`.rk` (``RK45``, python-control's default, ``RK23`` and
-``DOP853``: scipy's steps, so python-control's numbers) between the instants of the
-discrete blocks, or with scipy's stiff solvers (``LSODA``, ``BDF``, ``Radau``) called
-with the diagram's compiled right-hand side.
+:func:`run_continuous` runs the instants' loop of :mod:`.loops` through the diagram's
+module (as Python or compiled, :mod:`.run`): the continuous states are integrated between
+the instants of the discrete blocks by the Runge-Kutta methods of :mod:`.rk` (``RK45``,
+python-control's default, ``RK23`` and ``DOP853``: scipy's steps, so python-control's
+numbers), or by scipy's stiff solvers (``LSODA``, ``BDF``, ``Radau``), which the same loop
+calls as Python (:func:`.loops.scipy_interval`). A run goes in pieces of about a tenth
+of a second, an interval paused and resumed inside if need be: progress, Ctrl-C and
+the choice of compiling act between pieces.
 """
 
 from __future__ import annotations
@@ -14,22 +15,22 @@ from __future__ import annotations
 import control as ct
 import numpy as np
 
-from ..contract import (
-    UnsupportedSystem,
-)
+from ..contract import UnsupportedSystem, recorded_indices
 from ..contract import response as base_response
-from . import loader, rk
-from .diagnose import explain_nan
-from .instants import _eval_instants, _instants
-from .loops import INTEGRATOR_FAILED
-from .switching import DriverThenModule
+from . import loops, rk
+from .diagnose import explain_failure
+from .loops import BUDGET, INSTANT, INTEGRATOR_FAILED, NEXT_TIME, UNDER_WAY
+from .run import Pieces, Runner, interrupted, now, same_numbers
+from .tiers import NotCompiled
 
-#: The methods integrated by compiled code; the stiff ones go to scipy.
+#: The methods integrated by the engine's own code; the stiff ones go to scipy.
 EXPLICIT_METHODS = ("RK23", "RK45", "DOP853")
 STIFF_METHODS = ("LSODA", "BDF", "Radau")
 #: The ``solve_ivp`` options the engine takes; any other sends the run to python-control.
 SOLVER_OPTIONS = ("rtol", "atol", "max_step", "first_step")
-
+#: How close a compiled piece must come to the same piece run as Python (relative): the
+#: kernels' last bits (libm against Python's math) move the step sizes a little.
+CONTINUOUS_RTOL = 1e-7
 
 
 class StiffProblem(RuntimeError):
@@ -55,7 +56,8 @@ class StiffProblem(RuntimeError):
     """
 
 
-def _solver_options(n, rtol=1e-3, atol=1e-6, max_step=np.inf, first_step=None, **other):
+def solver_options(n, rtol=1e-3, atol=1e-6, max_step=np.inf, first_step=None, **other):
+    """``(rtol, atol per state, max_step, first_step)`` as the integrator takes them."""
     if other:
         raise UnsupportedSystem(f"solve_ivp options {sorted(other)} (the fast engine takes "
                                 f"{list(SOLVER_OPTIONS)})")
@@ -68,27 +70,111 @@ def _solver_options(n, rtol=1e-3, atol=1e-6, max_step=np.inf, first_step=None, *
             0.0 if first_step is None else float(first_step))
 
 
-def run_continuous(job, T, U, X0, *, t_eval=None, method="RK45", generic=None,
+class _Run:
+    """The arrays of one run, which its pieces fill (see :func:`run_continuous`)."""
+
+    def __init__(self, sys, plan, T, U, X0, t_eval, method, solver):
+        self.sys, self.T, self.U, self.t_eval = sys, T, U, t_eval
+        self.instants = loops.instants(getattr(sys, "base_period", 0.0), T[0], T[-1])
+        h = float(getattr(sys, "base_period", 0.0) or 0.0)
+        self.eval_instant = loops.instant_of(t_eval, self.instants, h)
+        m, nc = t_eval.size, plan.continuous.size
+        self.Y = np.zeros((sys.noutputs, m))
+        self.X = np.zeros((sys.nstates, m))
+        self.Uo = np.zeros((sys.ninputs, m))
+        self.x, self.held = np.array(X0, dtype=float), np.zeros(plan.ny)
+        self.ctrl = np.zeros(4, dtype=np.int64)
+        self.status = np.full(4, -1, dtype=np.int64)
+        self.work = rk.make_workspace(nc, 0, m)
+        self.y_eval, self.yc = np.zeros((m, nc)), np.zeros(nc)
+        rk.set_horizon(self.work, self.instants[0], T[-1])
+        self.method = method
+        self.solver = solver_options(nc, **solver)
+
+    def arrays(self):
+        """The state of the run between pieces (the results are written by index, and a
+        piece run again writes the same columns again)."""
+        return (self.x, self.held, self.ctrl, self.status, *self.work, self.yc)
+
+    def snapshot(self):
+        return [a.copy() for a in self.arrays()]
+
+    def restore(self, saved):
+        for array, kept in zip(self.arrays(), saved, strict=True):
+            array[...] = kept
+
+    def done(self) -> bool:
+        return (self.status[1] != -1 or self.ctrl[INSTANT] >= self.instants.size
+                and self.ctrl[UNDER_WAY] == 0)
+
+    def fraction(self) -> float:
+        """How much of the run's span is done."""
+        span = self.T[-1] - self.T[0]
+        if self.done() or span <= 0:
+            return 1.0
+        k = min(int(self.ctrl[INSTANT]), self.instants.size - 1)
+        t = self.work.floats[rk.TIME_REACHED] if self.ctrl[UNDER_WAY] else self.instants[k]
+        return float(np.clip((t - self.T[0]) / span, 0.0, 1.0))
+
+    def piece(self, job, budget):
+        """One piece of the run on ``job`` (at most ``budget`` evaluations in an interval)."""
+        self.ctrl[BUDGET] = budget
+        rtol, atol, max_step, first_step = self.solver
+        if self.method in STIFF_METHODS:  # scipy's solvers, called by the loop as Python
+            ns = job.python.functions() if hasattr(job, "python") else job.functions()
+            return self._stiff(job, ns, rtol, atol, max_step, first_step)
+        args = (self.instants, 0, self.instants.size, float(self.T[-1]), self.T, self.U,
+                self.t_eval, self.eval_instant, self.ctrl, self.Y, self.X, self.Uo, self.x,
+                self.held, job.P, rk.METHOD_INDEX[self.method], rtol, atol, max_step,
+                first_step, True, self.status, self.work, self.y_eval, self.yc)
+        if job.compiled:
+            job.entry("run_continuous", args)(*args)
+        else:
+            job.functions().run_continuous(*args)
+
+    def _stiff(self, job, ns, rtol, atol, max_step, first_step):
+        plan, nx = job.plan, self.sys.nstates
+        widest = max([1, *plan.table[:, 1].tolist()])
+        buffers = (np.zeros(plan.ny), np.zeros(plan.nu), np.empty(nx),
+                   np.empty(5 * widest), np.empty(nx), plan.continuous, self.yc,
+                   self.y_eval, np.empty((self.U.shape[0], 1)), {})
+        ys, ui, xn, scratch, xt, cidx, yc, y_eval, ubuf, messages = buffers
+        args = ((), self.x, xt, cidx, self.T, self.U, ubuf, job.P, ys, ui, self.held,
+                np.zeros(nx))
+        loops.continuous_run(
+            ns.evaluate, ns.update, ns.outputs, ns.rhs, loops.scipy_interval, None, (),
+            args, (self.instants, 0, self.instants.size, float(self.T[-1]), self.T, self.U,
+                   self.t_eval, self.eval_instant), (self.Y, self.X, self.Uo),
+            (self.x, job.P, self.held), buffers,
+            (self.method, rtol, atol, max_step, first_step, True), self.ctrl, self.status)
+        self.messages = messages
+
+
+def run_continuous(sys, T, U, X0, *, params=None, t_eval=None, method="RK45",
+                   compile=None, progress=None, record_every=1, on_chunk=None,
                    **solver) -> ct.TimeResponseData:
     """Run a diagram with continuous states (or of several rates): the whole horizon.
 
     Parameters
     ----------
-    job : Job
-        From :func:`.run.prepare`.
+    sys : control.InterconnectedSystem
+        The diagram (a :class:`controlkit.sampled_data.SampledDataSystem` included).
     T : numpy.ndarray
         Time points of ``U`` (python-control's ``timepts``).
     U : numpy.ndarray
         Inputs, ``(ninputs, len(T))``, interpolated linearly in between.
     X0 : numpy.ndarray
         Initial state.
+    params : dict, optional
+        As for :func:`control.input_output_response`.
     t_eval : numpy.ndarray, optional
         Where the response is reported (default ``T``).
     method : str
-        ``RK45``, ``RK23``, ``DOP853`` (compiled), or ``LSODA``, ``BDF``, ``Radau``.
-    generic : bool, optional
-        Force the generic driver (True) or the diagram's module (False); default: as
-        :meth:`.run.Job.loop` decides.
+        ``RK45``, ``RK23``, ``DOP853`` (the engine's), or ``LSODA``, ``BDF``, ``Radau``.
+    compile : bool or None
+        As for :func:`controlkit.input_output_response`.
+    progress, record_every, on_chunk
+        As for :func:`controlkit.simulation.simulate` (the run is held in memory).
     **solver
         ``rtol``, ``atol``, ``max_step``, ``first_step``, as for ``solve_ivp``.
 
@@ -96,17 +182,20 @@ def run_continuous(job, T, U, X0, *, t_eval=None, method="RK45", generic=None,
     -------
     control.TimeResponseData
 
+    Raises
+    ------
+    KeyboardInterrupt
+        On Ctrl-C, with the response so far on its ``response`` attribute.
+
     Examples
     --------
-    >>> from controlkit.engines.fast.run import prepare
     >>> plant = ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], name="p", inputs="u",
     ...               outputs="y")
     >>> loop = ct.interconnect([plant], inputs="u", outputs="y")
     >>> T = np.linspace(0.0, 1.0, 3)
-    >>> run_continuous(prepare(loop), T, np.ones((1, 3)), np.zeros(1)).outputs.round(5)
+    >>> run_continuous(loop, T, np.ones((1, 3)), np.zeros(1)).outputs.round(5)
     array([0.     , 0.39349, 0.63211])
     """
-    sys, plan = job.sys, job.plan
     T = np.ascontiguousarray(T, dtype=float)
     U = np.require(U, dtype=float, requirements=["C", "W"])
     t_eval = T if t_eval is None else np.ascontiguousarray(t_eval, dtype=float)
@@ -114,57 +203,131 @@ def run_continuous(job, T, U, X0, *, t_eval=None, method="RK45", generic=None,
         raise ValueError("Values in `t_eval` are not within `t_span`.")
     if np.any(np.diff(t_eval) <= 0):
         raise ValueError("Values in `t_eval` are not properly sorted.")
-    if method in STIFF_METHODS:
-        from .stiff import run_stiff
-
-        return run_stiff(job, T, U, X0, t_eval, method, solver)
-    if method not in EXPLICIT_METHODS:
+    if method not in EXPLICIT_METHODS + STIFF_METHODS:
         raise UnsupportedSystem(f"solve_ivp method {method!r}")
-    rtol, atol, max_step, first_step = _solver_options(plan.continuous.size, **solver)
-    instants, h = _instants(sys, T[0], T[-1])
-    eval_instant = _eval_instants(t_eval, instants, h)
-    m = t_eval.size
-    Y, X, Uo = (np.zeros((sys.noutputs, m)), np.zeros((sys.nstates, m)),
-                np.zeros((sys.ninputs, m)))
-    x, held = np.array(X0, dtype=float), np.zeros(plan.ny)
-    ctrl, status = np.zeros(1, dtype=np.int64), np.full(4, -1, dtype=np.int64)
-    if generic is None:
-        run, use_driver = job.loop("run_continuous")
-    elif generic:
-        run, use_driver = loader.driver().run_continuous, True
-    else:
-        run, use_driver = job.loop("run_continuous", policy="now")
-    rest = (float(T[-1]), T, U, t_eval, eval_instant, ctrl, Y, X, Uo, x, held, job.P,
-            rk.METHOD_INDEX[method], rtol, atol, max_step, first_step, True, status)
-    if job.how == "python":
-        run(rk.machine_on_arrays, instants, 0, 0, instants.size, *rest)
-    else:  # instant by instant, the module taking over from the driver once compiled
-        loop = DriverThenModule(job, "run_continuous", run, use_driver,
-                                may_switch=generic is None)
-        for k0, k1 in loop.ranges(0, instants.size):
-            loop(rk.machine_function(), instants, 0, k0, k1, *rest)
-            if status[1] != -1:  # failed: said below
-                break
+    runner = Runner(sys, params, False if method in STIFF_METHODS else compile)
+    run = _Run(sys, runner.python.plan, T, U, X0, t_eval, method, solver)
+    pieces, start = Pieces(first=256), now()
+    while not run.done():
+        began = now()
+        if runner.job.compiled:  # where Python takes over if the piece stops
+            runner.last_snapshot = run.snapshot()
+        try:
+            run.piece(runner.job, pieces.next())
+        except KeyboardInterrupt:
+            n = int(run.ctrl[NEXT_TIME])
+            raise interrupted(base_response(sys, t_eval[:n], run.Y[:, :n], run.X[:, :n],
+                                            run.Uo[:, :n])) from None
+        except NotCompiled as why:  # numba's compile failed: the run is Python's
+            run.restore(runner.last_snapshot)
+            runner.python_from_now(str(why))
+            continue
+        except Exception:
+            if not runner.job.compiled:
+                raise
+            _python_from_here(runner, run, pieces)  # Python's error, or Python's numbers
+        pieces.took(pieces.next(), now() - began)
+        if run.status[1] != -1 and runner.job.compiled:
+            _python_from_here(runner, run, pieces)
+        if not runner.decided:
+            new = runner.decide(now() - start, run.fraction())
+            if new is not None:
+                _switch(runner, new, run, pieces)
+        if progress is not None:
+            progress(run.fraction())
+    _failed(runner.job, run)
+    resp = base_response(sys, t_eval, run.Y, run.X, run.Uo)
+    resp.engine_mode = "compiled" if runner.compiled else "python"
+    if record_every != 1 or on_chunk is not None:
+        if on_chunk is not None:
+            on_chunk(t_eval, run.Y, run.X)
+        kept = recorded_indices(t_eval.size, record_every)
+        resp = base_response(sys, t_eval[kept], run.Y[:, kept], run.X[:, kept],
+                             run.Uo[:, kept])
+    return resp
+
+
+def _python_from_here(runner, run, pieces):
+    """A compiled piece stopped: run it again as Python from where it began (Python's own
+    error if there is one), and the rest of the run as Python."""
+    run.restore(runner.last_snapshot)
+    runner.compiled = None
+    runner.why_python = "compiled code stopped where Python did not"
+    run.piece(runner.python, pieces.next())
+
+
+def _switch(runner, job, run, pieces):
+    """Compile ``job`` and run the next piece both ways: compiled from then on if they
+    agree, else Python."""
+    saved = run.snapshot()
+    budget = pieces.next()
+    n0 = int(run.ctrl[NEXT_TIME])
+    run.piece(runner.python, budget)
+    python = run.snapshot()
+    n1 = int(run.ctrl[NEXT_TIME])
+    results = [a[:, n0:n1].copy() for a in (run.Y, run.X, run.Uo)]
+    if run.status[1] != -1 or run.done():  # Python stopped, or finished, in this piece
+        return
+    run.restore(saved)
+    try:
+        run.piece(job, budget)
+    except NotCompiled as why:
+        _back_to(run, python, results, n0, n1)
+        runner.python_from_now(str(why))
+        return
+    except Exception as error:  # noqa: BLE001 - the run goes on as Python
+        _back_to(run, python, results, n0, n1)
+        runner.differs(job, f"its compiled module failed ({type(error).__name__}: {error})")
+        return
+    agree = (run.status[1] == -1 and int(run.ctrl[NEXT_TIME]) == n1
+             and same_numbers(run.Y[:, n0:n1], results[0], CONTINUOUS_RTOL)
+             and same_numbers(run.x, python[0], CONTINUOUS_RTOL))
+    if not agree:
+        _back_to(run, python, results, n0, n1)
+        runner.differs(job, f"its compiled numbers differ from Python's near t = "
+                            f"{run.t_eval[min(n1, run.t_eval.size - 1)]:g} s")
+        return
+    runner.compiled = job
+    runner.last_snapshot = None
+
+
+def _back_to(run, state, results, n0, n1):
+    run.restore(state)
+    run.Y[:, n0:n1], run.X[:, n0:n1], run.Uo[:, n0:n1] = results
+
+
+def _failed(job, run):
+    """Raise what stopped the run, if something did."""
+    status, t_eval = run.status, run.t_eval
     if status[1] == INTEGRATOR_FAILED:
-        raise _integrator_error(job, status, t_eval, method, x)
+        raise _integrator_error(job, run)
     if status[1] >= 0:
-        explain_nan(sys, job.blocks, t_eval[min(status[0], m - 1)], int(status[1]))
-    if ctrl[0] < m:
-        raise RuntimeError(f"the integration of {sys.name!r} stopped at t = "
-                           f"{t_eval[ctrl[0]]:g} s without a reason; please report it")
-    job.after_run()
-    return base_response(sys, t_eval, Y, X, Uo)
+        j = min(int(status[0]), t_eval.size - 1)
+        explain_failure(job, t_eval[j], run.x, _u_at(run, t_eval[j]), status[1], -1)
+    if run.ctrl[NEXT_TIME] < t_eval.size:
+        raise RuntimeError(f"the integration of {job.sys.name!r} stopped at t = "
+                           f"{t_eval[run.ctrl[NEXT_TIME]]:g} s without a reason; please "
+                           f"report it")
 
 
-def _integrator_error(job, status, t_eval, method, x):
+def _u_at(run, t):
+    out = np.zeros((run.U.shape[0], 1))
+    loops.interpolate(run.T, run.U, t, out)
+    return out[:, 0]
+
+
+def _integrator_error(job, run):
     """The integrator stopped: say where, why, and what to do."""
-    sys = job.sys
+    sys, status, t_eval, method, x = job.sys, run.status, run.t_eval, run.method, run.x
     code, served = int(status[2]), int(status[0])
     where = t_eval[served - 1] if served > 0 else t_eval[0]
     blocks = [b.system.name for b in job.blocks if b.system.nstates
               and b.system.dt == 0]
     size = float(np.max(np.abs(x[job.plan.continuous]))) if job.plan.continuous.size else 0.0
     state = f"the continuous blocks {blocks}"
+    if method in STIFF_METHODS:
+        return RuntimeError(f"{sys.name!r}: {method} failed after t = {where:g} s: "
+                            f"{getattr(run, 'messages', {}).get('message', 'no reason')}")
     if code == rk.STEP_TOO_SMALL:
         return RuntimeError(
             f"{sys.name!r}: the step size of {method} fell below the spacing of numbers "

@@ -1,16 +1,7 @@
-"""The simulation loops, written once for every diagram and both kinds of evaluator.
+"""The simulation loops and their rules, written once for every diagram and every mode.
 
-A loop here is a template: numba pastes it into its caller (``inline="always"``), where
-the *evaluator* it is handed is a compile-time constant. There are two evaluators with
-the same four functions, and so two callers of each template:
-
-- the generic driver (:mod:`.driver`), whose evaluator reads the diagram from arrays and
-  calls the kernels through their addresses: compiled once for every diagram;
-- a diagram's own module (:mod:`.codegen`), whose evaluator is the diagram written out
-  line by line with the kernels pasted in: compiled per wiring, the fastest.
-
-The evaluator's functions (``plan`` is the driver's tuple of arrays, unused by a
-generated evaluator):
+A loop here runs a diagram through its *evaluator*, four functions that know the
+diagram (``plan`` is theirs to read; the generated ones ignore it):
 
 ``evaluate(t, x, U, col, P, ys, ui, held, k, plan) -> int``
     Every block's output into ``ys`` in evaluation order, each block's inputs into
@@ -27,24 +18,75 @@ generated evaluator):
 ``derivatives(t, x, ui, P, dx, plan)``
     The continuous blocks' right-hand sides into ``dx`` at their states' places.
 
+The same loops serve three evaluators and two ways of running: a diagram's own module
+(:mod:`.codegen`) compiled by numba or run as Python, and the reference's evaluator
+built from python-control's own block functions (:mod:`controlkit.engines.reference`).
+Compiled, numba pastes a loop into its caller (``inline="always"``) with the evaluator
+as a compile-time constant.
+
 Semantics (:mod:`controlkit.sampled_data`): at each instant the signals are evaluated
 (firing discrete blocks fresh, the others held), the evaluation times on the instant are
 recorded (the state before the update, as python-control reports a discrete system),
 the firing blocks update, and the continuous states are integrated to the next instant
-by :func:`controlkit.engines.fast.rk.solve_interval` (a fresh ``solve_ivp`` per
-interval). A diagram with no discrete block has one interval, ``[T[0], T[-1]]``: one
-``solve_ivp`` call, as python-control makes.
+by ``integrate`` (:func:`controlkit.engines.fast.rk.solve_interval`, or
+:func:`scipy_interval` for scipy's stiff methods), a fresh ``solve_ivp`` per interval. A
+diagram with no discrete block has one interval, ``[T[0], T[-1]]``: one ``solve_ivp``
+call, as python-control makes. The instants (:func:`instants`), which evaluation times
+fall on them (:func:`instant_of`) and the inputs between time points
+(:func:`interpolate`) are defined here only.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..._jit import jit
-from . import rk
+from .rk import PAUSED, PROJECTED_STEPS, SUCCESS
 
 #: ``status`` codes beyond a block index: the integrator failed (its code in status[2]).
 INTEGRATOR_FAILED = -2
+#: An evaluation time within this fraction of the base period of an instant is on it.
+INSTANT_TOLERANCE = 1e-9
+#: Slots of the ``ctrl`` array of :func:`continuous_run`: the next evaluation time to
+#: serve, the instant the run is at, whether that instant's interval is under way
+#: (paused), and the most right-hand side evaluations a call may make (0: no limit).
+NEXT_TIME, INSTANT, UNDER_WAY, BUDGET = range(4)
+
+
+def instants(base_period, T0, Tf):
+    """The discrete instants ``T0 + k h`` up to ``Tf`` (``[T0]`` when ``h`` is 0).
+
+    Examples
+    --------
+    >>> instants(0.5, 0.0, 1.2).tolist(), instants(0.0, 0.0, 5.0).tolist()
+    ([0.0, 0.5, 1.0], [0.0])
+    """
+    h = float(base_period or 0.0)
+    if not h:
+        return np.array([float(T0)])
+    count = math.floor((Tf - T0) / h * (1 + 1e-12)) + 1
+    return T0 + np.arange(count) * h
+
+
+def instant_of(t_eval, times, h):
+    """For each evaluation time, the index of the instant of ``times`` it is on, else -1
+    (within :data:`INSTANT_TOLERANCE` of the period, so that rounding never moves a
+    time across an instant).
+
+    Examples
+    --------
+    >>> instant_of(np.array([0.0, 0.25, 0.5 + 1e-13]), instants(0.5, 0.0, 1.0), 0.5).tolist()
+    [0, -1, 1]
+    """
+    t_eval = np.asarray(t_eval, dtype=float)
+    if not h:
+        return np.where(t_eval == times[0], 0, -1).astype(np.int64)
+    k = np.rint((t_eval - times[0]) / h).astype(np.int64)
+    on = (k >= 0) & (k < times.size) & (
+        np.abs(t_eval - times[0] - k * h) <= INSTANT_TOLERANCE * h)
+    return np.where(on, k, -1).astype(np.int64)
 
 
 @jit(inline=True)
@@ -52,17 +94,20 @@ def interpolate(T, U, t, out):
     """``out[:, 0] = u(t)``, linear between the points of ``T`` as python-control does.
 
     python-control's ``ufun``: the index is ``searchsorted(T, t, "left")`` clipped to
-    ``[1, len(T) - 1]``, so times outside ``T`` extrapolate the end segments.
+    ``[1, len(T) - 1]``, so times outside ``T`` extrapolate the end segments; a single
+    time point holds its input.
 
     Examples
     --------
-    >>> from controlkit._jit import python_function
     >>> out = np.zeros((1, 1))
-    >>> python_function(interpolate)(np.array([0.0, 1.0]), np.array([[0.0, 2.0]]), 0.25,
-    ...                              out).tolist()
+    >>> interpolate(np.array([0.0, 1.0]), np.array([[0.0, 2.0]]), 0.25, out).tolist()
     [[0.5]]
     """
     n = T.shape[0]
+    if n == 1:
+        for i in range(U.shape[0]):
+            out[i, 0] = U[i, 0]
+        return out
     idx = np.searchsorted(T, t)
     if idx < 1:
         idx = 1
@@ -131,23 +176,28 @@ def rhs_template(evaluate, derivatives, t, y, args, out):
 
 
 @jit(inline=True)
-def continuous_run(evaluate, update, outputs, rhs, machine, plan, rhs_args, times, results,
-                   state, buffers, solver, ctrl, status):
-    """Instants ``k0 .. k1 - 1`` of a diagram with continuous states; ``x``, ``held`` in/out.
+def continuous_run(evaluate, update, outputs, rhs, integrate, machine, plan, rhs_args,
+                   times, results, state, buffers, solver, ctrl, status):
+    """Instants up to ``k1`` of a diagram with continuous states; ``x``, ``held``, ``ctrl``
+    in/out. A call may stop early, the run to go on with the next call (see ``ctrl``).
 
     The arguments come grouped in tuples (Python passes a call of more than 30
     arguments as ``*args``, which numba cannot paste in):
-    ``times = (instants, fire0, k0, k1, t_final, T, U, t_eval, eval_instant)``,
+    ``times = (instants, fire0, k1, t_final, T, U, t_eval, eval_instant)``,
     ``results = (Y, X, Uo)``, ``state = (x, P, held)``,
     ``buffers = (ys, ui, xn, scratch, xt, cidx, yc, y_eval, ubuf, work)``,
     ``solver = (method, rtol, atol, max_step, first_step, exact)``.
     ``instants[k]`` is the ``k``-th instant (``fire0 + k`` its number for the firing
-    rule); after the last one the integration runs to ``t_final``. ``ctrl[0]`` is the
-    next evaluation time to serve (in/out). On failure ``status`` is ``[time index,
-    block, 0, 0]`` for a NaN output, or ``[time index, INTEGRATOR_FAILED, code, steps]``
-    (``steps``: the projected steps of a run stopped as :data:`.rk.STIFF`).
+    rule); after the last one the integration runs to ``t_final``. ``integrate`` has the
+    signature of :func:`controlkit.engines.fast.rk.solve_interval` (``machine`` is its
+    first argument). ``ctrl`` (:data:`NEXT_TIME`, :data:`INSTANT`, :data:`UNDER_WAY`,
+    :data:`BUDGET`) says where the run is: a call goes on from there and returns when
+    the run reaches ``k1``, fails, or has spent its budget of evaluations inside an
+    interval (``ctrl[UNDER_WAY] == 1``: call again). On failure ``status`` is ``[time
+    index, block, 0, 0]`` for a NaN output, or ``[time index, INTEGRATOR_FAILED, code,
+    steps]`` (``steps``: the projected steps of a run stopped as too stiff).
     """
-    instants, fire0, k0, k1, t_final, T, U, t_eval, eval_instant = times
+    instants, fire0, k1, t_final, T, U, t_eval, eval_instant = times
     Y, X, Uo = results
     x, P, held = state
     ys, ui, xn, scratch, xt, cidx, yc, y_eval, ubuf, work = buffers
@@ -156,41 +206,58 @@ def continuous_run(evaluate, update, outputs, rhs, machine, plan, rhs_args, time
     nx = x.shape[0]
     nc = cidx.shape[0]
     K = instants.shape[0]
-    if k0 < k1:  # the integrator projects its progress over the run (its stiffness test)
-        rk.set_horizon(work, instants[k0], t_final)
-    for k in range(k0, k1):
+    k = ctrl[INSTANT]
+    while k < k1:
         t = instants[k]
-        interpolate(T, U, t, ubuf)
-        failed = evaluate(t, x, ubuf, 0, P, ys, ui, held, fire0 + k, plan)
-        if failed >= 0:
-            status[0] = ctrl[0]
-            status[1] = failed
-            return
-        i = ctrl[0]
-        while i < m and eval_instant[i] == k:
-            outputs(ys, ui, Y, i, plan)
+        resume = ctrl[UNDER_WAY] == 1
+        if not resume:
+            interpolate(T, U, t, ubuf)
+            failed = evaluate(t, x, ubuf, 0, P, ys, ui, held, fire0 + k, plan)
+            if failed >= 0:
+                status[0] = ctrl[NEXT_TIME]
+                status[1] = failed
+                return
+            i = ctrl[NEXT_TIME]
+            while i < m and eval_instant[i] == k:
+                outputs(ys, ui, Y, i, plan)
+                for q in range(nx):
+                    X[q, i] = x[q]
+                for q in range(ubuf.shape[0]):
+                    Uo[q, i] = ubuf[q, 0]
+                i += 1
+            ctrl[NEXT_TIME] = i
+            update(t, x, ui, P, xn, fire0 + k, plan, scratch)
             for q in range(nx):
-                X[q, i] = x[q]
-            for q in range(ubuf.shape[0]):
-                Uo[q, i] = ubuf[q, 0]
-            i += 1
-        ctrl[0] = i
-        update(t, x, ui, P, xn, fire0 + k, plan, scratch)
-        for q in range(nx):
-            x[q] = xn[q]
+                x[q] = xn[q]
+        i = ctrl[NEXT_TIME]
         last = k + 1 == K
         t1 = t_final if last else instants[k + 1]
-        if nc == 0 or not t1 > t:
-            continue
         stop = i  # the evaluation times this interval serves
         while stop < m and eval_instant[stop] < 0 and (
                 t_eval[stop] < t1 or last and t_eval[stop] <= t1):
             stop += 1
-        for q in range(nc):
-            yc[q] = x[cidx[q]]
-        code, served = rk.solve_interval(machine, rhs, rhs_args, method, t, t1, yc, rtol,
-                                         atol, max_step, first_step, t_eval[:stop], i,
-                                         last, y_eval[:stop], yc, work, exact)
+        if nc == 0 or not t1 > t:  # nothing to integrate: the signals at those times
+            for j in range(i, stop):
+                failed = _record(evaluate, outputs, plan, t_eval[j], x, T, U, ubuf, P, ys,
+                                 ui, held, j, Y, X, Uo)
+                if failed >= 0:
+                    status[0] = j
+                    status[1] = failed
+                    return
+            ctrl[NEXT_TIME] = stop
+            k += 1
+            ctrl[INSTANT] = k
+            continue
+        if not resume:
+            for q in range(nc):
+                yc[q] = x[cidx[q]]
+        code, served = integrate(machine, rhs, rhs_args, method, t, t1, yc, rtol, atol,
+                                 max_step, first_step, t_eval[:stop], i, last,
+                                 y_eval[:stop], yc, work, exact, ctrl[BUDGET], resume)
+        if code == PAUSED:
+            ctrl[UNDER_WAY] = 1
+            return
+        ctrl[UNDER_WAY] = 0
         for j in range(i, served):
             for q in range(nx):
                 xt[q] = x[q]
@@ -202,14 +269,76 @@ def continuous_run(evaluate, update, outputs, rhs, machine, plan, rhs_args, time
                 status[0] = j
                 status[1] = failed
                 return
-        ctrl[0] = served
+        ctrl[NEXT_TIME] = served
         for q in range(nc):  # on failure: the state where the integrator stopped
             x[cidx[q]] = yc[q]
-        if code != rk.SUCCESS:
+        if code != SUCCESS:
             status[0] = served
             status[1] = INTEGRATOR_FAILED
             status[2] = code
-            status[3] = int(work.floats[rk.PROJECTED_STEPS])
+            status[3] = int(work.floats[PROJECTED_STEPS])
             return
-        for q in range(nc):
-            x[cidx[q]] = yc[q]
+        k += 1
+        ctrl[INSTANT] = k
+
+
+def scipy_interval(machine, rhs, args, method, t0, t1, y0, rtol, atol, max_step,
+                   first_step, t_eval, i_eval, closed_right, y_eval, y_end, work, exact,
+                   budget, resume):
+    """:func:`controlkit.engines.fast.rk.solve_interval`'s contract kept by
+    :func:`scipy.integrate.solve_ivp` (Python only): one interval, the evaluation times
+    ``t_eval[i_eval:]`` it serves into ``y_eval``, the state at ``t1`` into ``y_end``.
+
+    ``method`` is scipy's method name (the implicit ones, ``BDF``, ``LSODA``,
+    ``Radau``, or an explicit one for the reference); ``machine``, ``work``, ``exact``,
+    ``budget`` and ``resume`` are not used (scipy's call is never paused). ``rhs`` is
+    called as ``rhs(t, y, args, out)``. Returns ``(status, next index)`` with status 0,
+    or -1 and scipy's message in ``work["message"]`` when a dict is given. The last
+    interval (``closed_right``) is served as python-control's call, by ``t_eval``; the
+    state at its end is the last time served.
+
+    Examples
+    --------
+    >>> def decay(t, y, args, out):
+    ...     out[0] = -y[0]
+    >>> y_eval, y = np.zeros((2, 1)), np.ones(1)
+    >>> status, served = scipy_interval(None, decay, (), "BDF", 0.0, 1.0, y, 1e-8,
+    ...     np.full(1, 1e-10), np.inf, 0.0, np.array([0.5, 1.0]), 0, True, y_eval, y, {},
+    ...     True, 0, False)
+    >>> status, served, bool(abs(y[0] - np.exp(-1.0)) < 1e-6)
+    (0, 2, True)
+    """
+    import scipy.integrate
+
+    n = y0.shape[0]
+
+    def fun(t, y):
+        out = np.empty(n)
+        rhs(t, np.ascontiguousarray(y, dtype=float), args, out)
+        return out
+
+    stop = i_eval
+    while stop < t_eval.shape[0] and (t_eval[stop] < t1 or closed_right
+                                      and t_eval[stop] <= t1):
+        stop += 1
+    options = {"rtol": rtol, "atol": atol}
+    if math.isfinite(max_step):
+        options["max_step"] = max_step
+    if first_step > 0:
+        options["first_step"] = first_step
+    # the whole span once, as python-control calls it: the times it serves by t_eval when
+    # it is the last interval, else read from the dense output
+    sol = scipy.integrate.solve_ivp(fun, (t0, t1), np.array(y0, dtype=float), method=method,
+                                    dense_output=stop > i_eval and not closed_right,
+                                    t_eval=t_eval[i_eval:stop] if closed_right else None,
+                                    **options)
+    if not sol.success:
+        if isinstance(work, dict):
+            work["message"] = sol.message
+        y_end[:] = sol.y[:, -1] if sol.y.size else y0
+        return -1, i_eval
+    for j in range(i_eval, stop):
+        y_eval[j, :] = sol.y[:, j - i_eval] if closed_right else sol.sol(t_eval[j])
+    if sol.y.size:  # (the last interval's end is only known if it is an evaluation time)
+        y_end[:] = sol.y[:, -1]
+    return SUCCESS, stop

@@ -1,35 +1,33 @@
-"""Many runs of one diagram in one compiled call, over all cores.
+"""Many runs of one diagram in one call, compiled once, over all cores.
 
-A sweep over a diagram's parameters or initial states runs the same compiled code with
-other numbers: :func:`run_many` packs each run's parameters (users' functions are
-compiled once for the types of their parameters, so the runs share their kernels) and
-hands all runs to the driver's parallel entry points (:func:`.driver.run_discrete_many`,
-:func:`.driver.run_continuous_many`), each run with buffers of its own, spread over
-numba's threads. A run whose parameters change a kernel (a value of another type or
-shape) runs on its own; a diagram with a block on the python tier runs its runs one
-after the other.
+A sweep over a diagram's parameters or initial states runs the same module with other
+numbers: :func:`run_many` packs each run's parameters (users' functions are compiled for
+the types of their parameters, so the runs share their module), and runs the compiled
+entry points on threads (the compiled loops release Python's lock, so the runs share
+the cores). The first run goes alone, as Python, unless the module is compiled already:
+its time says whether compiling pays for the others (:mod:`.run`'s rule). A run whose
+parameters would change the module (a value of another type or shape), or a diagram
+that cannot be compiled, runs one run after the other on its own.
 """
 
 from __future__ import annotations
+
+import os
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import replace
 
 import numpy as np
 
 from ..contract import UnsupportedSystem
 from ..contract import response as base_response
-from . import loader, rk
-from .continuous import (
-    EXPLICIT_METHODS,
-    _integrator_error,
-    _solver_options,
-    run_continuous,
-)
-from .diagnose import explain_nan
-from .instants import _eval_instants, _instants
-from .loops import INTEGRATOR_FAILED
-from .run import prepare, simulate
+from .continuous import STIFF_METHODS, _failed, _Run, run_continuous
+from .discrete import simulate
+from .run import NUMBA_START_SECONDS, PAYS, compile_estimate, compiled_job, now
+from .tiers import _local_params
 
 
-def run_many(sys, T, U, X0s, params_list, *, t_eval=None, method="RK45", **solver):
+def run_many(sys, T, U, X0s, params_list, *, t_eval=None, method="RK45", compile=None,
+             **solver):
     """Runs of ``sys``, one per initial state and parameter set; their responses and errors.
 
     Parameters
@@ -45,7 +43,10 @@ def run_many(sys, T, U, X0s, params_list, *, t_eval=None, method="RK45", **solve
     t_eval : numpy.ndarray, optional
         Evaluation times (default ``T``).
     method : str
-        ``solve_ivp`` method for continuous states (compiled: RK45, RK23, DOP853).
+        ``solve_ivp`` method for continuous states.
+    compile : bool or None
+        As for :func:`controlkit.input_output_response` (None: compiled when the first
+        run's time says it pays for the others).
     **solver
         ``rtol``, ``atol``, ``max_step``, ``first_step``.
 
@@ -71,114 +72,84 @@ def run_many(sys, T, U, X0s, params_list, *, t_eval=None, method="RK45", **solve
     X0s = np.atleast_2d(np.asarray(X0s, dtype=float))
     runs = X0s.shape[0]
     t_eval = T if t_eval is None else np.ascontiguousarray(t_eval, dtype=float)
-    jobs = _jobs(sys, T, U, X0s, params_list)
+    discrete = sys.isdtime(strict=True)
     responses, errors = [None] * runs, [None] * runs
-    groups = {}
-    for r, job in enumerate(jobs):
-        if job.injected or not loader._jit.HAVE_NUMBA or (
-                not sys.isdtime(strict=True) and method not in EXPLICIT_METHODS):
-            groups.setdefault(("alone", r), []).append(r)
-        else:
-            groups.setdefault(tuple(id(k) for k in job.plan.kernels), []).append(r)
-    for key, members in groups.items():
-        if key[0] == "alone":
-            for r in members:
-                responses[r], errors[r] = _one(sys, jobs[r], T, U, X0s[r], params_list[r],
-                                               t_eval, method, solver)
-            continue
-        done = (_discrete if sys.isdtime(strict=True) else _continuous)(
-            sys, [jobs[r] for r in members], [params_list[r] for r in members], T, U,
-            X0s[members], t_eval, method, solver)
-        for r, (resp, error) in zip(members, done, strict=True):
-            responses[r], errors[r] = resp, error
+
+    def alone(r, compiled):
+        try:
+            if discrete:
+                responses[r] = simulate(sys, t_eval, X0s[r], U, params=params_list[r],
+                                        compile=compiled)
+            else:
+                responses[r] = run_continuous(sys, T, U, X0s[r], params=params_list[r],
+                                              t_eval=t_eval, method=method,
+                                              compile=compiled, **solver)
+        except (ArithmeticError, RuntimeError, ValueError, UnsupportedSystem) as error:
+            errors[r] = error
+
+    job = None if compile is False or method in STIFF_METHODS else compiled_job(
+        sys, params_list[0])
+    if isinstance(job, str) or job is None:
+        for r in range(runs):
+            alone(r, False)
+        return responses, errors
+    todo = list(range(runs))
+    if compile is None and not job.is_compiled():
+        began = now()
+        alone(0, False)
+        todo = todo[1:]
+        python = (now() - began) * len(todo)
+        if python <= PAYS * (NUMBA_START_SECONDS + compile_estimate(job)):
+            for r in todo:
+                alone(r, False)
+            return responses, errors
+    jobs = {r: _repacked(sys, job, params_list[r]) for r in todo}
+    for r in [r for r in todo if jobs[r] is None]:
+        alone(r, True)
+    todo = [r for r in todo if jobs[r] is not None]
+
+    def one(r):
+        if discrete:
+            N = t_eval.size
+            Y, X = np.zeros((sys.noutputs, N)), np.zeros((sys.nstates, N))
+            status = np.full(2, -1, dtype=np.int64)
+            args = (t_eval, X0s[r], np.require(U, dtype=float, requirements=["C", "W"]),
+                    jobs[r].P, Y, X, status, 0, N)
+            x = jobs[r].entry("run_discrete", args)(*args)
+            return (Y, X) if status[0] < 0 and np.isfinite(x).all() else None
+        run = _Run(sys, jobs[r].plan, T, U, X0s[r], t_eval, method, solver)
+        run.piece(jobs[r], 0)
+        return run
+
+    if todo:  # compiled once, by the first run; then the others on every core
+        first = one(todo[0])
+        with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+            done = [first, *pool.map(one, todo[1:])]
+        for r, result in zip(todo, done, strict=True):
+            if result is None:  # failed: run alone, to fail in its own words
+                alone(r, True)
+            elif discrete:
+                responses[r] = base_response(sys, t_eval, *result, U)
+            else:
+                try:
+                    _failed(jobs[r], result)
+                    responses[r] = base_response(sys, t_eval, result.Y, result.X,
+                                                 result.Uo)
+                except (ArithmeticError, RuntimeError, ValueError) as error:
+                    errors[r] = error
     return responses, errors
 
 
-def _jobs(sys, T, U, X0s, params_list):
-    """One job per run: the first prepared, the others sharing its kernels with their own
-    parameters packed (:attr:`~controlkit.blocks.contract.BlockKernels.repack`), or
-    prepared anew where their values would change a kernel."""
-    from dataclasses import replace
-
-    from .tiers import _local_params
-
-    first = prepare(sys, params_list[0], (T[0], X0s[0], U[:, 0]))
-    jobs = [first]
-    for r, params in enumerate(params_list[1:], start=1):
-        parts = []
-        for b in first.blocks:
-            if b.kernel.repack is None:
-                parts.append(b.kernel.params)
-                continue
-            local = _local_params(sys, b.system, params)
-            p = b.kernel.repack(local)
-            if p is None or p.shape != b.kernel.params.shape:
-                parts = None
-                break
-            parts.append(p)
-        if parts is None or first.injected:
-            jobs.append(prepare(sys, params, (T[0], X0s[r], U[:, 0])))
-        else:
-            jobs.append(replace(first, P=np.concatenate(parts + [np.zeros(0)]), how=""))
-    return jobs
-
-
-def _one(sys, job, T, U, X0, params, t_eval, method, solver):
-    try:
-        if sys.isdtime(strict=True):
-            return simulate(sys, t_eval, X0, U, params=params), None
-        return run_continuous(job, T, U, X0, t_eval=t_eval, method=method, **solver), None
-    except (ArithmeticError, RuntimeError, ValueError, UnsupportedSystem) as error:
-        return None, error
-
-
-def _discrete(sys, jobs, params, T, U, X0s, t_eval, method, solver):
-    job = jobs[0]
-    N = T.size
-    Ps = np.ascontiguousarray(np.stack([j.P for j in jobs]))
-    Ys = np.zeros((len(jobs), sys.noutputs, N))
-    Xs = np.zeros((len(jobs), sys.nstates, N))
-    statuses = np.full((len(jobs), 3), -1, dtype=np.int64)
-    U = np.require(U, dtype=float, requirements=["C", "W"])
-    loader.driver().run_discrete_many(np.ascontiguousarray(T, dtype=float),
-                                      np.ascontiguousarray(X0s), U, Ps, Ys, Xs, statuses,
-                                      job.generic_plan())
-    done = []
-    for r, j in enumerate(jobs):
-        if statuses[r, 0] >= 0 or not np.isfinite(Xs[r]).all():
-            # run it alone: its failure in its own words
-            done.append(_one(sys, j, T, U, X0s[r], params[r], t_eval, method, solver))
+def _repacked(sys, job, params):
+    """``job`` with the parameters of ``params`` packed, or None where they would change
+    its module (a value of another type or shape)."""
+    parts = []
+    for b in job.blocks:
+        if b.kernel.repack is None:
+            parts.append(b.kernel.params)
             continue
-        done.append((base_response(sys, T, Ys[r], Xs[r], U), None))
-    return done
-
-
-def _continuous(sys, jobs, params, T, U, X0s, t_eval, method, solver):
-    job = jobs[0]
-    rtol, atol, max_step, first_step = _solver_options(job.plan.continuous.size, **solver)
-    instants, h = _instants(sys, T[0], T[-1])
-    eval_instant = _eval_instants(t_eval, instants, h)
-    runs, m = len(jobs), t_eval.size
-    Ys = np.zeros((runs, sys.noutputs, m))
-    Xs = np.zeros((runs, sys.nstates, m))
-    Uos = np.zeros((runs, sys.ninputs, m))
-    statuses = np.full((runs, 4), -1, dtype=np.int64)
-    Ps = np.ascontiguousarray(np.stack([j.P for j in jobs]))
-    loader.driver().run_continuous_many(
-        rk.machine_function(), instants, float(T[-1]), np.ascontiguousarray(T, dtype=float),
-        np.require(U, dtype=float, requirements=["C", "W"]), t_eval, eval_instant, Ys, Xs, Uos,
-        np.ascontiguousarray(X0s), Ps, rk.METHOD_INDEX[method], rtol, atol, max_step,
-        first_step, statuses, job.generic_plan())
-    done = []
-    for r, j in enumerate(jobs):
-        status = statuses[r]
-        try:
-            if status[1] == INTEGRATOR_FAILED:
-                raise _integrator_error(j, status, t_eval, method, Xs[r][:, -1])
-            if status[1] >= 0:
-                explain_nan(sys, j.blocks, t_eval[min(status[0], m - 1)], int(status[1]))
-        except (ArithmeticError, RuntimeError) as error:
-            done.append((None, error))
-            continue
-        done.append((base_response(sys, t_eval, Ys[r], Xs[r], Uos[r]), None))
-    return done
+        p = b.kernel.repack(_local_params(sys, b.system, params))
+        if p is None or p.shape != b.kernel.params.shape:
+            return None
+        parts.append(p)
+    return replace(job, P=np.concatenate(parts + [np.zeros(0)]))

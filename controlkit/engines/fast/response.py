@@ -1,6 +1,6 @@
 """The fast engine behind :func:`controlkit.input_output_response`: a discrete diagram runs
-step by step (:func:`.run.simulate`), any other through :func:`.continuous.run_continuous`;
-the result is python-control's response object."""
+step by step (:func:`.discrete.simulate`), any other through
+:func:`.continuous.run_continuous`; the result is python-control's response object."""
 
 from __future__ import annotations
 
@@ -10,11 +10,12 @@ import numpy as np
 from ..contract import python_control_arguments, result_flags
 from ..contract import response as base_response
 from .continuous import run_continuous
-from .run import prepare, simulate
+from .discrete import simulate
+from .loops import interpolate
 from .tiers import as_interconnect
 
 
-def response(sys, T, U, X0, **options) -> ct.TimeResponseData:
+def response(sys, T, U, X0, *, compile=None, **options) -> ct.TimeResponseData:
     """The fast engine behind :func:`controlkit.input_output_response` (same arguments).
 
     Raises
@@ -34,11 +35,11 @@ def response(sys, T, U, X0, **options) -> ct.TimeResponseData:
     params = options.get("params")
     if sys.isdtime(strict=True):
         if not np.array_equal(t_eval, T):  # python-control interpolates U at t_eval
-            U = _interpolated(T, U, t_eval)
-        resp = simulate(sys, t_eval, X0, U, params=params)
+            U = interpolated(T, U, t_eval)
+        resp = simulate(sys, t_eval, X0, U, params=params, compile=compile)
     else:
-        resp = run_continuous(prepare(sys, params, (T[0], X0, U[:, 0])), T, U, X0,
-                              t_eval=t_eval, method=method, **solver)
+        resp = run_continuous(sys, T, U, X0, params=params, t_eval=t_eval, method=method,
+                              compile=compile, **solver)
     flags = result_flags(options)
     if given is sys and flags["squeeze"] in (None, True, False):
         # the run's own response, labelled for this system: copying its arrays into a second
@@ -49,8 +50,16 @@ def response(sys, T, U, X0, **options) -> ct.TimeResponseData:
     return base_response(given, resp.t, resp.y, resp.x, resp.u, **flags)
 
 
-def _interpolated(T, U, t):
-    """``U`` at the times ``t``, interpolated as python-control does."""
-    idx = np.clip(np.searchsorted(T, t, side="left"), 1, len(T) - 1)
-    dt = (t - T[idx - 1]) / (T[idx] - T[idx - 1])
-    return U[:, idx - 1] * (1.0 - dt) + U[:, idx] * dt
+def interpolated(T, U, times):
+    """``U`` at ``times``, interpolated as python-control does (:func:`.loops.interpolate`).
+
+    Examples
+    --------
+    >>> interpolated(np.array([0.0, 2.0]), np.array([[0.0, 4.0]]), np.array([1.0])).tolist()
+    [[2.0]]
+    """
+    out = np.zeros((U.shape[0], len(times)))
+    column = np.zeros((U.shape[0], 1))
+    for j, t in enumerate(times):
+        out[:, j] = interpolate(T, U, float(t), column)[:, 0]
+    return out

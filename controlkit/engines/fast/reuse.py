@@ -1,9 +1,8 @@
 """Using a prepared :class:`~.run.Job` again when a diagram is called again unchanged.
 
 A notebook calls the same diagram again and again. :func:`~.run.prepare` reads every
-user function's outside values afresh, writes their text, checks each compiled kernel's
-record and lays out the diagram's tables: about 0.2 ms of a 0.5 ms call of a two-block
-continuous loop over 100 s (``benchmarks/bench_continuous.py``, car_pi). The
+user function's outside values afresh, writes their text and lays out the diagram's
+tables: a good part of a short call. The
 :func:`job_key` of a call holds everything that work depends on, read now; when it is
 the key of the diagram's last job, that job is the one :func:`~.run.prepare` would make
 again.
@@ -21,10 +20,7 @@ arrays by their contents (a digest above 4 kB):
     :meth:`~controlkit.engines.source.Plan.valid`), the contents of the arrays, lists
     and tuples those plans read, and the parameters python-control hands the block;
   - a sampled block (RK4): its substeps and the key of the block it samples;
-- the run's start ``(t0, X0, U0)``, where compiled kernels are checked against Python.
-
-Only jobs whose every block is compiled are kept: a block called from Python holds its
-parameters in a closure made for the run.
+- whether the job runs compiled or as Python.
 """
 
 from __future__ import annotations
@@ -37,7 +33,7 @@ import numpy as np
 from ...blocks.contract import KernelBlock
 from ...blocks.sampling import SampledSystem
 from .. import source
-from . import loader
+from . import store
 from .tiers import _local_params
 
 
@@ -163,9 +159,10 @@ def _kernels(sys, block, params):
     return _user(block, local)
 
 
-def job_key(sys, params=None, start=None):
-    """Everything :func:`~.run.prepare` reads of ``sys``, ``params`` and ``start``, read
-    now, as a comparable tuple; None when some of it cannot be held exactly.
+def job_key(sys, params=None, compiled=False):
+    """Everything :func:`~.run.prepare` reads of ``sys`` and ``params`` for a job run
+    ``compiled`` or not, read now, as a comparable tuple; None when some of it cannot be
+    held exactly.
 
     Examples
     --------
@@ -187,15 +184,9 @@ def job_key(sys, params=None, start=None):
         wiring = (_rate(sys.dt), _rate(getattr(sys, "base_period", None)),
                   *(_value(np.asarray(m, dtype=float))
                     for m in (sys.connect_map, sys.input_map, sys.output_map)))
-        if start is None:
-            begin = None
-        else:
-            t0, X0, U0 = start
-            begin = (_value(float(t0)), _value(np.asarray(X0, dtype=float)),
-                     _value(np.asarray(U0, dtype=float)))
     except Exception:  # noqa: BLE001 - _Unknown, or anything prepare finds and says so
         return None
-    return (str(loader.CACHE_DIR), begin, wiring, blocks)
+    return (str(store.CACHE_DIR), bool(compiled), wiring, blocks)
 
 
 def reused(sys, key):
@@ -209,14 +200,16 @@ def reused(sys, key):
     if key is None:
         return None
     kept = getattr(sys, _ATTRIBUTE, None)
-    if not isinstance(kept, _Kept) or kept.job is None or kept.job.sys is not sys \
-            or kept.key != key:
+    if not isinstance(kept, _Kept):
         return None
-    return kept.job
+    key_kept, job = kept.jobs.get(key[1], (None, None))
+    if job is None or job.sys is not sys or key_kept != key:
+        return None
+    return job
 
 
 def keep(sys, key, job) -> None:
-    """Keep ``job`` for ``sys`` under ``key`` when every block of it is compiled.
+    """Keep ``job`` for ``sys`` under ``key`` (one job run as Python and one compiled).
 
     The job is kept on the diagram itself: it lives as long as the diagram does, and a
     copy or a pickle of the diagram (for a worker process) carries none.
@@ -225,12 +218,16 @@ def keep(sys, key, job) -> None:
     --------
     >>> keep(object(), None, None)
     """
-    if key is None or any(block.tier != "compiled" for block in job.blocks):
+    if key is None:
         return
-    try:
-        setattr(sys, _ATTRIBUTE, _Kept(key, job))
-    except (AttributeError, TypeError):  # an object that takes no attributes
-        pass
+    kept = getattr(sys, _ATTRIBUTE, None)
+    if not isinstance(kept, _Kept):
+        kept = _Kept()
+        try:
+            setattr(sys, _ATTRIBUTE, kept)
+        except (AttributeError, TypeError):  # an object that takes no attributes
+            return
+    kept.jobs[key[1]] = (key, job)
 
 
 #: The attribute of a diagram its kept job is held in.
@@ -238,12 +235,13 @@ _ATTRIBUTE = "_controlkit_kept_job"
 
 
 class _Kept:
-    """A diagram's last job and its key; copied or pickled as nothing kept."""
+    """A diagram's last jobs (by way of running) and their keys; copied or pickled as
+    nothing kept."""
 
-    __slots__ = ("key", "job")
+    __slots__ = ("jobs",)
 
-    def __init__(self, key=None, job=None):
-        self.key, self.job = key, job
+    def __init__(self):
+        self.jobs = {}
 
     def __reduce__(self):
         return (_Kept, ())

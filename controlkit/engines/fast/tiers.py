@@ -1,10 +1,11 @@
-"""How the fast engine runs each block: compiled, called from Python, or not at all.
+"""What each block of a diagram computes, and whether it can be compiled: its tier.
 
 Every block of a diagram gets :class:`BlockKernels` and one of :data:`TIERS`:
-controlkit blocks and LTI blocks bring compiled kernels; a user's ``nlsys`` is
-compiled from its source where it can be (:mod:`.usercode`), else its Python
-functions are called from the generated loop; a system the engine does not know
-sends the whole diagram to python-control. :func:`explain` lists the result.
+controlkit blocks and LTI blocks bring kernels that compile; a user's ``nlsys`` is
+compiled from its source where it can be (:mod:`.usercode`); anything else is called
+as Python. A diagram runs compiled only when every block can be; otherwise the whole
+diagram runs as Python, the same module (:mod:`.run`). A system the engine does not
+know sends the diagram to python-control. :func:`explain` lists the result.
 """
 
 from __future__ import annotations
@@ -24,7 +25,6 @@ from .. import source
 from ..contract import UnsupportedSystem
 from . import usercode
 from .codegen import evaluation_order
-from .loader import cache_folder
 
 
 @dataclass(frozen=True)
@@ -77,9 +77,9 @@ def _local_params(sys, block, params):
     return local
 
 
-def _probe_feedthrough(output, nx, nu, ny, on_error=True):
-    """Whether ``output(t, x, u, out)`` moves with ``u`` at random trial points
-    (``on_error`` where the output cannot be evaluated there)."""
+def _probe_feedthrough(output, nx, nu, ny):
+    """Whether ``output(t, x, u, out)`` moves with ``u`` at random trial points (True
+    where it cannot be evaluated there: the safe answer)."""
     if nu == 0 or ny == 0:
         return False
     rng = np.random.default_rng(1)
@@ -91,83 +91,69 @@ def _probe_feedthrough(output, nx, nu, ny, on_error=True):
                 warnings.simplefilter("ignore")
                 a = np.array(output(0.0, x, np.zeros(nu), np.empty(ny)), dtype=float)
                 b = np.array(output(0.0, x, u, np.empty(ny)), dtype=float)
-        except Exception:  # undefined at this point
-            return on_error
+        except Exception:  # noqa: BLE001 - undefined at this point
+            return True
         if not np.array_equal(a, b, equal_nan=True):
             return True
     return False
 
 
+class NotCompiled(Exception):
+    """A block that cannot be compiled (the message names it and says why)."""
+
+
 def _python_kernels(block, local, reason):
-    """Kernels calling ``block``'s own functions from Python, inside the engine's loop."""
-    if isinstance(block, ct.InterconnectedSystem):  # a nested diagram: its own sweeps
-        def output(t, x, u, p, out):
-            block._update_params(local)
-            out[:] = block._out(t, x, u)
-            return out
+    """A block python-control runs itself, called through its public functions."""
+    def output(t, x, u, p, out):
+        out[:] = block.output(t, x, u, local)
+        return out
 
-        def update(t, x, u, p, out):
-            block._update_params(local)
-            out[:] = block._rhs(t, x, u)
-            return out
-        feed = None
-    else:
-        output = (usercode.python_kernel(block.outfcn, local) if block.outfcn is not None
-                  else common.state_output)
-        update = usercode.python_kernel(block.updfcn, local) if block.nstates else None
-        feed = source.reads_input(block.outfcn) if block.outfcn is not None else False
-    if not feed or isinstance(block, KernelBlock):
-        # its source said no (or nothing): ask the function itself too, for the source
-        # may not be what runs (a module file edited since it was imported; then the
-        # compiled version differed from it, which is how the block came to this tier)
-        feed = _probe_feedthrough(lambda t, x, u, out: output(t, x, u, None, out),
-                                  block.nstates, block.ninputs, block.noutputs)
-    return BlockKernels(output, update, np.zeros(0), feed), "python", reason
+    def update(t, x, u, p, out):
+        out[:] = block.dynamics(t, x, u, local)
+        return out
+
+    feed = _probe_feedthrough(lambda t, x, u, out: output(t, x, u, None, out),
+                              block.nstates, block.ninputs, block.noutputs)
+    return (BlockKernels(output, update if block.nstates else None, np.zeros(0), feed),
+            "python", reason)
 
 
-def _user_kernels(block, local, trial=None):
-    """A user's ``nlsys``: compiled once for the types of its parameters, their values
-    packed into ``p`` for this run; else called from Python.
-
-    ``trial`` is ``(t, x, u)`` of the block at the start of the run, a point at which the
-    compiled functions must agree with the Python ones (as at zero and random points).
-    """
-    folder = cache_folder()
-    functions = [f for f in (block.outfcn, block.updfcn if block.nstates else None)
-                 if f is not None]
-    trials = [trial] if trial is not None else []
-    try:
-        plans = [source.plan_function(f) for f in functions]
-        layout = usercode.ParamLayout.of(plans, local)
-        output = common.state_output
-        if block.outfcn is not None:
-            output = usercode.compiled_kernel(block.outfcn, local, folder, block.noutputs,
-                                              block.nstates, block.ninputs, layout=layout,
-                                              trials=trials, plan=plans[0]).kernel
-        update = None
-        if block.nstates:
-            update = usercode.compiled_kernel(block.updfcn, local, folder, block.nstates,
-                                              block.nstates, block.ninputs, layout=layout,
-                                              trials=trials, plan=plans[-1]).kernel
-        params = layout.pack(local)
-    except source.NotCompilable as why:
-        return _python_kernels(block, local, f"user function not compiled: {why}")
-    except Exception as error:  # noqa: BLE001 - never worse than running it as Python
-        return _python_kernels(block, local, f"user function not compiled: "
-                                             f"{type(error).__name__}: {error}")
+def _user_kernels(block, local, compiled):
+    """A user's ``nlsys``: its functions as Python kernels, or compiled from their source
+    for the types of its parameters (their values packed into ``p`` at run time)."""
+    output = (usercode.UserKernel(block.outfcn, local, block.name, "output",
+                                  block.noutputs) if block.outfcn is not None else None)
+    update = (usercode.UserKernel(block.updfcn, local, block.name, "update", block.nstates)
+              if block.nstates and block.updfcn is not None else None)
     feed = source.reads_input(block.outfcn) if block.outfcn is not None else False
     if feed is None:
         feed = True
+    if block.nstates and update is None:
+        raise UnsupportedSystem(f"block {block.name!r} has states but no update function")
+    mine = [k for k in (output, update) if k is not None]
+    if not compiled:
+        return (BlockKernels(output or common.state_output, update, np.zeros(0), feed),
+                "python", "")
+    try:
+        layout = usercode.block_layout(mine, local)
+        for k in mine:
+            k.text(layout)
+        params = layout.pack(local)
+    except source.NotCompilable as why:
+        raise NotCompiled(f"block {block.name!r}: {why}") from None
+
     def repack(values):
         try:
-            if usercode.ParamLayout.of(plans, values).entries != layout.entries:
+            if usercode.block_layout(mine, values).entries != layout.entries:
                 return None
             return layout.pack(values)
         except source.NotCompilable:
             return None
 
-    return (BlockKernels(output, update, params, feed, repack=repack), "compiled",
-            "user nlsys compiled (parameters passed at run time)")
+    return (BlockKernels(output.compiled() if output else common.state_output,
+                         update.compiled() if update else None, params, feed,
+                         repack=repack),
+            "compiled", "user nlsys compiled (parameters passed at run time)")
 
 
 def _lti_kernels(block):
@@ -178,42 +164,54 @@ def _lti_kernels(block):
             "compiled", "LTI block (state space)")
 
 
-def _sampled_kernels(sys, block, local, trial=None):
+def _kernel_block(block, compiled):
+    """A block of the block contract: its own kernels (plain Python ones are numba's to
+    compile, or not)."""
+    kernels = block.kernels
+    _check_feedthrough(block, kernels)
+    functions = [f for f in (kernels.output, kernels.update) if f is not None]
+    if compiled and not all(isinstance(f, _jit.Jitted) or hasattr(f, "py_func")
+                            for f in functions):
+        raise NotCompiled(f"block {block.name!r}: its kernels are plain Python functions "
+                          f"(decorate them with controlkit._jit.jit to compile them)")
+    return kernels, "compiled", "controlkit block"
+
+
+def _sampled_kernels(sys, block, local, compiled):
     """A continuous block under ZOH: its own kernels (or its user functions) under RK4."""
     if block.method != "rk4":
+        if compiled:
+            raise NotCompiled(f"block {block.name!r} is sampled with solve_ivp")
         return _python_kernels(block, local, "sampled with solve_ivp")
     continuous = block.continuous
     if isinstance(continuous, KernelBlock) and continuous.kernels is not None:
-        kernel, tier, reason = _resolve(sys, continuous, None)
+        kernel, tier, reason = _kernel_block(continuous, compiled)
     else:
-        kernel, tier, reason = _resolve_with(continuous, {**continuous.params, **local}, trial)
+        kernel, tier, reason = _resolve(sys, continuous, {**continuous.params, **local},
+                                        compiled, local=True)
     return (kernel.sampled(block.dt, block.substeps), tier, f"{reason}, sampled by RK4")
 
 
-def _resolve_with(block, local, trial=None):
-    """A block that is not a controlkit block, given the parameters it is handed."""
-    if isinstance(block, ct.InterconnectedSystem):
-        return _python_kernels(block, local, "a nested interconnect")
-    if isinstance(block, KernelBlock):  # one whose kernels call Python objects
-        return _python_kernels(block, local, block.uncompiled_reason)
-    return _user_kernels(block, local, trial)
-
-
-def _resolve(sys, block, params, trial=None):
-    """``(BlockKernels, tier, reason)`` for one block of ``sys`` (``trial``: the block's
-    ``(t, x, u)`` at the start of the run, when known)."""
+def _resolve(sys, block, params, compiled, local=False):
+    """``(BlockKernels, tier, reason)`` for one block of ``sys`` (NotCompiled when
+    ``compiled`` and it cannot be)."""
     if isinstance(block, KernelBlock) and block.kernels is not None:
-        _check_feedthrough(block, block.kernels)
-        return block.kernels, "compiled", "controlkit block"
-    local = _local_params(sys, block, params)
+        return _kernel_block(block, compiled)
+    values = params if local else _local_params(sys, block, params)
     if isinstance(block, ct.StateSpace):
         return _lti_kernels(block)
     if isinstance(block, SampledSystem):
-        return _sampled_kernels(sys, block, local, trial)
+        return _sampled_kernels(sys, block, values, compiled)
+    if isinstance(block, ct.InterconnectedSystem) or isinstance(block, KernelBlock):
+        reason = ("a nested interconnect" if isinstance(block, ct.InterconnectedSystem)
+                  else block.uncompiled_reason)
+        if compiled:
+            raise NotCompiled(f"block {block.name!r}: {reason}")
+        return _python_kernels(block, values, reason)
     if isinstance(block, ct.NonlinearIOSystem):
-        return _resolve_with(block, local, trial)
-    raise UnsupportedSystem(f"block {block.name!r} cannot be compiled: "
-                            f"a {type(block).__name__}, not an I/O system the engine knows")
+        return _user_kernels(block, values, compiled)
+    raise UnsupportedSystem(f"block {block.name!r} cannot be run: a "
+                            f"{type(block).__name__}, not an I/O system the engine knows")
 
 
 def _check_feedthrough(block, kernel):
@@ -221,48 +219,12 @@ def _check_feedthrough(block, kernel):
     if kernel.feedthrough or not block.ninputs or not block.noutputs:
         return
     p = kernel.params
-    sizes = block.nstates, block.ninputs, block.noutputs
-    # asked of the kernel's Python function first: its compiled code would be loaded from
-    # numba's cache for it (7 ms of a first call; the diagram's module has it compiled in)
     python = _jit.python_function(kernel.output)
-    moves = _probe_feedthrough(lambda t, x, u, out: python(t, x, u, p, out), *sizes,
-                               on_error=None)
-    if moves is None:  # not evaluable as Python (numba's own features): the compiled one
-        moves = _probe_feedthrough(lambda t, x, u, out: kernel.output(t, x, u, p, out),
-                                   *sizes, on_error=False)
-    if moves:
+    if _probe_feedthrough(lambda t, x, u, out: python(t, x, u, p, out), block.nstates,
+                          block.ninputs, block.noutputs):
         raise ValueError(
             f"block {block.name!r} is declared without feedthrough (feedthrough=False) but "
             f"its output changes with its input; declare feedthrough=True")
-
-
-def _has_user_functions(block) -> bool:
-    """Whether ``block`` has user functions to compile (and check at the run's start)."""
-    if isinstance(block, KernelBlock | ct.StateSpace | ct.InterconnectedSystem):
-        return False  # controlkit's kernels, an LTI block's, or the python tier
-    if isinstance(block, SampledSystem):
-        return _has_user_functions(block.continuous)
-    return isinstance(block, ct.NonlinearIOSystem)
-
-
-def _start_points(sys, params, start):
-    """Each block's ``(t, x, u)`` at the run's start ``(t0, X0, U0)``, by python-control's
-    own evaluation of the diagram (None for every block where it cannot be evaluated)."""
-    if start is None:
-        return None
-    t0, X0, U0 = start
-    try:
-        sys._update_params(params)
-        ulist, _ = sys._compute_static_io(t0, np.asarray(X0, dtype=float),
-                                          np.asarray(U0, dtype=float))
-    except Exception:  # noqa: BLE001 - not evaluable there: the other trial points remain
-        return None
-    points, xs, us = [], 0, 0
-    for block in sys.syslist:
-        points.append((t0, X0[xs:xs + block.nstates], ulist[us:us + block.ninputs]))
-        xs += block.nstates
-        us += block.ninputs
-    return points
 
 
 def as_interconnect(sys):
@@ -279,34 +241,34 @@ def as_interconnect(sys):
         return sys
     if not isinstance(sys, ct.InputOutputSystem):
         raise UnsupportedSystem(f"a {type(sys).__name__} is not an I/O system")
+    for what, count in (("inputs", sys.ninputs), ("outputs", sys.noutputs),
+                        ("states", sys.nstates)):
+        if count is None:
+            raise UnsupportedSystem(f"system {sys.name!r} does not declare its number of "
+                                    f"{what}")
     return ct.interconnect([sys], inputs=sys.input_labels, outputs=sys.output_labels,
                            name=sys.name, check_unused=False)
 
 
-def blocks_of(sys, params=None, start=None):
-    """The blocks of ``sys`` with their kernels, tiers and offsets (or UnsupportedSystem).
+def blocks_of(sys, params=None, *, compiled=False):
+    """The blocks of ``sys`` with their kernels, tiers and offsets.
 
-    ``start`` is the run's ``(t0, X0, U0)``: user functions compiled for the run must
-    agree with their Python selves there too (see
-    :func:`~controlkit.engines.fast.usercode.compiled_kernel`).
+    ``compiled``: the kernels compiled code calls (NotCompiled naming a block that
+    cannot be compiled); else the kernels Python calls.
 
     Examples
     --------
     >>> from controlkit.studies.cmg.diagrams import cmg_loop
-    >>> [b.tier for b in blocks_of(cmg_loop())]
+    >>> [b.tier for b in blocks_of(cmg_loop(), compiled=True)]
     ['compiled', 'compiled', 'compiled', 'compiled']
     """
     if not isinstance(sys, ct.InterconnectedSystem):
         name = getattr(sys, "name", type(sys).__name__)
         raise UnsupportedSystem(
             f"{name!r} is a single block; the fast engine runs interconnects")
-    # evaluating the diagram calls every block: only where a user function is checked
-    needed = start is not None and any(_has_user_functions(b) for b in sys.syslist)
-    points = _start_points(sys, params, start) if needed else None
     blocks, xs, us, ys, ps = [], 0, 0, 0, 0
     for i, block in enumerate(sys.syslist):
-        kernel, tier, reason = _resolve(sys, block, params,
-                                        points[i] if points is not None else None)
+        kernel, tier, reason = _resolve(sys, block, params, compiled)
         blocks.append(PlacedBlock(i, block, kernel, xs, us, ys, ps, tier, reason))
         xs += block.nstates
         us += block.ninputs
@@ -318,11 +280,11 @@ def blocks_of(sys, params=None, start=None):
 def explain(sys, params=None) -> list[BlockTier]:
     """How the fast engine runs each block of ``sys``: its tier and the reason.
 
-    Tiers (:data:`TIERS`): ``"compiled"`` (numba, in the generated loop),
-    ``"python"`` (the block's own Python function called from the generated
-    loop: no python-control sweeps, but slower) and ``"python-control"``
-    (the whole diagram falls back to :func:`control.input_output_response`;
-    the reason says why).
+    Tiers (:data:`TIERS`): ``"compiled"`` (the block can be compiled: the diagram runs
+    compiled when every block can be, see :func:`controlkit.engines.fast.run.simulate`
+    for when), ``"python"`` (the block runs as Python, and with it the whole diagram:
+    the reason says why) and ``"python-control"`` (the whole diagram falls back to
+    :func:`control.input_output_response`; the reason says why).
 
     Parameters
     ----------
@@ -366,10 +328,17 @@ def explain(sys, params=None) -> list[BlockTier]:
                              sys, list | tuple) else ""))
     try:
         sys = as_interconnect(sys)  # a single block runs as a one-block diagram
-        blocks = blocks_of(sys, params)
-        evaluation_order(sys, blocks)
+        evaluation_order(sys, blocks_of(sys, params))
     except UnsupportedSystem as why:
         return [BlockTier(s.name, "python-control", str(why))
                 for s in getattr(sys, "syslist", [sys])]
-    note = "" if _jit.HAVE_NUMBA else " (numba not installed: the loop runs as Python)"
-    return [BlockTier(b.system.name, b.tier, b.reason + note) for b in blocks]
+    rows = []
+    for block in sys.syslist:
+        try:
+            _, tier, reason = _resolve(sys, block, params, compiled=True)
+        except NotCompiled as why:
+            tier, reason = "python", str(why).split(": ", 1)[-1]
+        if tier == "compiled" and not _jit.available():
+            tier, reason = "python", reason + " (numba not installed: the loop runs as Python)"
+        rows.append(BlockTier(block.name, tier, reason))
+    return rows

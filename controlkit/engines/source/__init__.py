@@ -35,8 +35,7 @@ The package's rooms: :mod:`.reading` (a function's own source, what a call runs)
 :func:`plan_function`, :func:`used_params`, :func:`reads_input`), :mod:`.translator`
 with its parts :mod:`.outside` (names and objects read from outside) and :mod:`.helpers`
 (calls to helper functions), :mod:`.rewrites` (loops over keys written out),
-:mod:`.values` (which values can be frozen, and whether they changed) and :mod:`.sharing`
-(the plan of a function made anew from a ``def`` planned before, when it reads the same).
+:mod:`.values` (which values can be frozen, and whether they changed).
 """
 
 from .bindings import PARAMS, RUNTIME, Frozen

@@ -6,11 +6,9 @@ those values are unchanged. Also the two questions the ``params`` check and the 
 from __future__ import annotations
 
 import ast
-import types
 import weakref
 from dataclasses import dataclass, field
 
-from . import sharing
 from .bindings import PARAMS, RUNTIME, Frozen, _bind, _binding_key, _input_name
 from .reading import NotCompilable, _definition, call_target
 from .rewrites import walk
@@ -159,10 +157,6 @@ def plan_function(fn):
     if cached is not None and cached.valid() \
             and _same_call(cached.call, (target, bound, keywords)):
         return cached
-    shared = sharing.share(fn)  # a function made anew from a def planned before
-    if shared is not None:
-        _keep(fn, shared)
-        return shared
     build = _Build()
     call = [Frozen(v) for v in bound] + [RUNTIME, RUNTIME, RUNTIME, PARAMS]
     bindings = _bind(target, call, {k: Frozen(v) for k, v in keywords.items()})
@@ -181,9 +175,7 @@ def _keep(fn, plan):
     try:
         _PLANS[fn] = plan
     except TypeError:
-        return
-    if isinstance(fn, types.FunctionType):
-        sharing.remember(plan)
+        pass
 
 
 def _same_call(then, now) -> bool:

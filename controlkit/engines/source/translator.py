@@ -228,6 +228,35 @@ class _Translator(_OutsideReads, _HelperCalls, ast.NodeTransformer):
         self._problem("it declares a global")
         return node
 
+    # -- what compiled code would do otherwise than Python --------------------------------
+
+    def _python_only(self, node):
+        """Calls whose compiled meaning is not Python's: the function then runs as Python."""
+        f = node.func
+        name = f.id if isinstance(f, ast.Name) and f.id not in self.local else None
+        if name in _SIDE_EFFECTS:
+            self._problem(f"it calls {name}(), {_SIDE_EFFECTS[name]} (compiled code would "
+                          f"do it at other moments, or not at all)")
+        elif name == "round" and (len(node.args) > 1 or node.keywords):
+            self._problem("it rounds to digits (round(x, n)): compiled code rounds some "
+                          "halves otherwise than Python (round(0.35, 1) gives 0.4, Python "
+                          "0.3)")
+        elif isinstance(f, ast.Attribute) and f.attr in _MUTATORS \
+                and isinstance(f.value, ast.Name) and f.value.id not in self.local:
+            self._problem(f"it changes an object from outside ({f.value.id}.{f.attr}): a "
+                          f"side effect compiled code would not have")
+        elif isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) \
+                and f.value.id == "math" and f.attr in ("factorial", "comb", "perm"):
+            self._problem(f"it calls math.{f.attr}, whose integers can outgrow the 64 bits "
+                          f"of compiled code")
+
+    def visit_BinOp(self, node):
+        if isinstance(node.op, ast.Pow | ast.LShift) and (
+                isinstance(node.op, ast.LShift) or _integer(node.left)):
+            self._problem(f"it computes {ast.unparse(node)[:40]} with integers, which can "
+                          f"outgrow the 64 bits of compiled code (Python's integers do not)")
+        return self.generic_visit(node)
+
     visit_Nonlocal = visit_Global
 
     def visit_Import(self, node):
@@ -238,6 +267,7 @@ class _Translator(_OutsideReads, _HelperCalls, ast.NodeTransformer):
 
     def visit_Call(self, node):
         f = node.func
+        self._python_only(node)
         # params.get("k", default)
         if isinstance(f, ast.Attribute) and self._is_source(f.value) and f.attr == "get" \
                 and node.args and len(node.args) <= 2 and not node.keywords:
@@ -275,3 +305,20 @@ class _Translator(_OutsideReads, _HelperCalls, ast.NodeTransformer):
                 return node
         return self.generic_visit(node)
 
+
+#: Builtins with effects outside the function (what compiled code cannot do as Python).
+_SIDE_EFFECTS = {"print": "which prints", "open": "which reads or writes files",
+                 "input": "which reads the keyboard", "exec": "which runs code",
+                 "eval": "which runs code", "breakpoint": "which stops in the debugger"}
+#: Methods that change the object they are called on.
+_MUTATORS = {"append", "extend", "insert", "pop", "remove", "clear", "update", "add",
+             "discard", "setdefault", "popitem", "write", "writelines", "sort", "reverse",
+             "fill", "put", "resize", "itemset"}
+
+
+def _integer(node) -> bool:
+    """Whether ``node`` is an integer for sure: an int literal, ``int(...)``, ``len(...)``."""
+    if isinstance(node, ast.Constant):
+        return isinstance(node.value, int) and not isinstance(node.value, bool)
+    return (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
+            and node.func.id in ("int", "len", "round") and len(node.args) == 1)

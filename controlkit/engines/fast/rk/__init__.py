@@ -28,9 +28,8 @@ compile-time constant of the caller, which is then cached on disk.
 
 **Compiled once.** The machine does not depend on the right-hand side, the type of its
 ``args`` or the method (a run-time index into :data:`TABLEAUX`): it is compiled once
-and cached. Passed as a first-class function (:func:`machine_function`), its code is
-not compiled into the caller at all: a new diagram then compiles no slower than a
-diagram with no integrator. Its state is one :class:`Workspace` of four flat arrays,
+and kept in the store; a diagram's module calls it, so a new diagram compiles no slower
+than a diagram with no integrator. Its state is one :class:`Workspace` of four flat arrays,
 which the machine views by address (numba would otherwise update the reference count
 of each array it receives, atomically, at every call).
 
@@ -79,11 +78,9 @@ compiled right-hand side that reproduces numpy's bits, not merely its formulas.
 Without numba (or with ``CONTROLKIT_DISABLE_NUMBA=1``) the same functions run as plain
 Python and take the same steps.
 
-numba's disk cache of a function is invalidated when the function's own file changes,
-not when a function it inlines from another file does: the machine (``machine.py``)
-inlines the arithmetic, the workspace accessors and the tableaux. After editing
-``arithmetic.py``, ``workspace.py``, ``tableaux.py`` or ``dop853_coefficients.py``,
-delete this package's ``__pycache__`` (or touch ``machine.py`` and ``interval.py``).
+The machine is compiled once and kept in the store, named by controlkit's own source
+(:mod:`controlkit.engines.fast.store`): editing any of these files compiles it again,
+with nothing to delete by hand.
 
 References
 ----------
@@ -105,8 +102,8 @@ import warnings
 
 import numpy as np
 
-from ...._jit import HAVE_NUMBA
-from .interval import first_class, machine_function, solve_interval
+from ...._jit import python_function
+from .interval import solve_interval
 from .machine import FINISHED, machine, machine_on_arrays
 from .tableaux import (
     DENSE_DOP853,
@@ -138,6 +135,7 @@ from .workspace import (
     NEXT_STEP,
     NFEV,
     NON_FINITE,
+    PAUSED,
     PROJECTED_STEPS,
     RUN_ACCEPTED,
     STAGE_ROWS,
@@ -161,19 +159,15 @@ from .workspace import (
     step_times,
 )
 
-if HAVE_NUMBA:
-    import numba
-
 __all__ = [
     "DENSE_DOP853", "DENSE_POWERS", "DENSE_ROWS", "DOP853", "EPS", "ERROR_DOP853",
-    "ERROR_EMBEDDED", "FINISHED", "HAVE_NUMBA", "INVALID_ARGUMENT", "MAX_FACTOR",
-    "METHODS", "METHOD_INDEX", "MIN_FACTOR", "NEXT_EVAL", "NEXT_STEP", "NFEV",
-    "NON_FINITE", "N_ACCEPTED", "N_DENSE", "N_FLOAT_SLOTS", "N_INT_SLOTS", "N_REJECTED",
+    "ERROR_EMBEDDED", "FINISHED", "INVALID_ARGUMENT", "MAX_FACTOR", "METHODS",
+    "METHOD_INDEX", "MIN_FACTOR", "NEXT_EVAL", "NEXT_STEP", "NFEV", "NON_FINITE",
+    "N_ACCEPTED", "N_DENSE", "N_FLOAT_SLOTS", "N_INT_SLOTS", "N_REJECTED", "PAUSED",
     "PROJECTED_STEPS", "RK23", "RK45", "RTOL_FLOOR", "RUN_ACCEPTED", "SAFETY", "STAGE_ROWS",
-    "STATUS", "STATUS_MESSAGES", "STEP_TOO_SMALL", "STIFF", "STIFFNESS", "STIFF_STEP_BUDGET",
-    "STIFF_STEPS_BEFORE_PROJECTING",
-    "SUCCESS", "TABLEAUX", "TIME_FAILED", "TIME_REACHED", "T_REQUEST",
-    "Tableau", "Workspace", "first_class", "load", "machine", "machine_function",
+    "STATUS", "STATUS_MESSAGES", "STEP_TOO_SMALL", "STIFF", "STIFFNESS",
+    "STIFF_STEP_BUDGET", "STIFF_STEPS_BEFORE_PROJECTING", "SUCCESS", "TABLEAUX",
+    "TIME_FAILED", "TIME_REACHED", "T_REQUEST", "Tableau", "Workspace", "load", "machine",
     "machine_on_arrays", "make_workspace", "set_horizon", "solve_interval", "solve_ivp",
     "stage_input", "state", "step_times",
 ]
@@ -265,9 +259,6 @@ def solve_ivp(rhs, t_span, y0, method="RK45", t_eval=None, args=(), rtol=1e-3, a
     >>> from controlkit.engines.fast import rk
     >>> def decay(t, y, args, out):
     ...     out[0] = -args[0][0] * y[0]
-    >>> if rk.HAVE_NUMBA:
-    ...     import numba
-    ...     decay = numba.njit(decay)
     >>> t_eval = [0.0, 0.5, 1.0, 2.0]
     >>> ours = rk.solve_ivp(decay, (0.0, 2.0), [1.0], t_eval=t_eval, args=(np.array([0.5]),))
     >>> theirs = scipy_solve_ivp(lambda t, y: -0.5 * y, (0.0, 2.0), [1.0], t_eval=t_eval)
@@ -280,16 +271,15 @@ def solve_ivp(rhs, t_span, y0, method="RK45", t_eval=None, args=(), rtol=1e-3, a
         t_span, y0, rtol, atol, max_step, first_step, t_eval
     )
     n = y0.shape[0]
-    if HAVE_NUMBA and isinstance(rhs, numba.core.registry.CPUDispatcher):
-        rhs = first_class(rhs, args)
+    rhs = python_function(rhs)  # a Python run of the machine calls Python functions
     if t_eval is None:
         t_eval = np.zeros(0)
     y_eval = np.full((t_eval.shape[0], n), np.nan)
     y_end = np.empty(n)
     work = make_workspace(n, int(log_steps), t_eval.shape[0])
-    status, served = solve_interval(machine_function(), rhs, args, METHOD_INDEX[method], t0,
+    status, served = solve_interval(None, rhs, args, METHOD_INDEX[method], t0,
                                     t1, y0, rtol, atol, max_step, first_step, t_eval, 0,
-                                    True, y_eval, y_end, work, bool(exact))
+                                    True, y_eval, y_end, work, bool(exact), 0, False)
     status = int(status)
     return {
         "t": t_eval[:served],

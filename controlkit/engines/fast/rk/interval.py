@@ -4,23 +4,24 @@
 six lines that load the interval, then evaluate the right-hand side whenever the step
 machine asks and call it again. numba pastes it into its caller (``inline="always"``),
 so a right-hand side that is a global of the caller stays a compile-time constant
-there and the caller can be cached on disk. The machine itself is passed in: either
-:func:`~controlkit.engines.fast.rk.machine.machine` (its code is then compiled into
-the caller) or the first-class function :func:`machine_function` returns (called
-through a pointer: a new diagram then compiles no more than its own loop).
+there and the caller can be cached on disk. The machine itself is passed in: compiled
+once and kept in the store (:func:`controlkit.engines.fast.store.step_machine`), it is
+called, not compiled again into each caller, so a new diagram compiles no more than its
+own loop. A call may stop after a budget of evaluations and be resumed: a long run
+returns to Python between pieces (progress, Ctrl-C).
 """
 
 from __future__ import annotations
 
-import numpy as np
-
-from ...._jit import HAVE_NUMBA, jit
-from .machine import machine
+from .... import _jit
+from ...._jit import jit
+from .machine import machine_on_arrays
 from .workspace import (
     _Y,
     _Y_STAGE,
     INVALID_ARGUMENT,
     NEXT_EVAL,
+    PAUSED,
     STAGE_ROWS,
     STATUS,
     T_REQUEST,
@@ -30,15 +31,10 @@ from .workspace import (
     state,
 )
 
-if HAVE_NUMBA:
-    import numba
 
-    from ...._jit import void_pointer
-
-
-def solve_interval(machine_function, rhs, args, method_index, t0, t1, y0, rtol, atol,
-                   max_step, first_step, t_eval, i_eval, closed_right, y_eval, y_end, work,
-                   exact):
+def _solve_interval_compiled(machine_function, rhs, args, method_index, t0, t1, y0, rtol,
+                             atol, max_step, first_step, t_eval, i_eval, closed_right, y_eval,
+                             y_end, work, exact, budget, resume):
     """Integrate ``y' = rhs(t, y)`` over ``[t0, t1]`` as one ``solve_ivp`` call would.
 
     Each step from ``(t, y)`` with derivative ``f`` and proposed size ``h`` (first one:
@@ -65,13 +61,12 @@ def solve_interval(machine_function, rhs, args, method_index, t0, t1, y0, rtol, 
     Parameters
     ----------
     machine_function : callable
-        :func:`machine` itself (compiled into the caller), or the first-class function
-        :func:`machine_function` returns (called through a pointer: nothing of the
-        machine is compiled into the caller).
+        The step machine compiled once and kept
+        (:func:`controlkit.engines.fast.store.step_machine`), which compiled callers call
+        by address; ignored by Python calls (they run :func:`machine_on_arrays`).
     rhs : callable
-        ``rhs(t, y, args, out)`` writes ``y'`` into ``out`` (a 1-D float64 array). A numba
-        function (a global of the compiled caller, a first-class function from
-        :func:`first_class`, or a dispatcher) or, without numba, any Python function.
+        ``rhs(t, y, args, out)`` writes ``y'`` into ``out`` (a 1-D float64 array): a
+        function of the compiled caller, or any Python function in a Python call.
     args : tuple
         Passed to ``rhs`` untouched (parameters, input tables, scratch arrays).
     method_index : int
@@ -106,6 +101,12 @@ def solve_interval(machine_function, rhs, args, method_index, t0, t1, y0, rtol, 
     exact : bool
         True: form the stage combinations with the BLAS calls numpy makes (bit for bit
         scipy's result); False: plain loops (faster for small systems, equal to rounding).
+    budget : int
+        At most this many evaluations of ``rhs`` in this call (0: no limit); past it the
+        call returns :data:`PAUSED`, the interval held in ``work`` to go on with.
+    resume : bool
+        Go on with the interval ``work`` holds (paused), instead of loading a new one
+        (the interval's arguments are then not read again).
 
     Returns
     -------
@@ -113,7 +114,8 @@ def solve_interval(machine_function, rhs, args, method_index, t0, t1, y0, rtol, 
         :data:`SUCCESS`, :data:`STEP_TOO_SMALL`, :data:`NON_FINITE`, :data:`STIFF` (a
         run that looks stiff and would need more than :data:`STIFF_STEP_BUDGET` steps,
         projected over :func:`set_horizon`'s span or else the interval) or
-        :data:`INVALID_ARGUMENT` (meanings in :data:`STATUS_MESSAGES`).
+        :data:`INVALID_ARGUMENT` (meanings in :data:`STATUS_MESSAGES`), or
+        :data:`PAUSED` (the budget is spent: call again with ``resume=True``).
     next_eval : int
         Index of the first evaluation time not served.
 
@@ -127,28 +129,25 @@ def solve_interval(machine_function, rhs, args, method_index, t0, t1, y0, rtol, 
     >>> from controlkit.engines.fast import rk
     >>> def decay(t, y, args, out):
     ...     out[0] = -args[0][0] * y[0]
-    >>> if rk.HAVE_NUMBA:
-    ...     import numba
-    ...     decay = numba.njit(decay)
     >>> args = (np.array([0.5]),)
     >>> t_eval = np.linspace(0.0, 2.0, 5)
     >>> y_eval = np.zeros((5, 1))
     >>> y = np.ones(1)
     >>> work = rk.make_workspace(1, 0, t_eval.size)
-    >>> machine, rhs = rk.machine_function(), rk.first_class(decay, args)
     >>> served = 0
     >>> for t0, t1 in [(0.0, 1.0), (1.0, 2.0)]:
     ...     status, served = rk.solve_interval(
-    ...         machine, rhs, args, rk.METHOD_INDEX["RK45"], t0, t1, y, 1e-8,
+    ...         None, decay, args, rk.METHOD_INDEX["RK45"], t0, t1, y, 1e-8,
     ...         np.full(1, 1e-10), np.inf, 0.0, t_eval, served, t1 == 2.0, y_eval, y, work,
-    ...         True)
+    ...         True, 0, False)
     >>> int(status) == rk.SUCCESS, int(served)
     (True, 5)
     >>> bool(np.allclose(y_eval[:, 0], np.exp(-0.5 * t_eval), rtol=1e-7))
     True
     """
-    load(method_index, t0, t1, y0, rtol, atol, max_step, first_step, i_eval, closed_right,
-         work, exact)
+    if not resume:
+        load(method_index, t0, t1, y0, rtol, atol, max_step, first_step, i_eval,
+             closed_right, work, exact)
     floats = work.floats
     ints = work.ints
     n = work.stages.shape[1]
@@ -158,17 +157,21 @@ def solve_interval(machine_function, rhs, args, method_index, t0, t1, y0, rtol, 
     floats_at = floats.ctypes.data
     stages_at = work.stages.ctypes.data
     # Views that own nothing (see machine): handing them to rhs costs no atomic updates.
-    floats_view = numba.carray(void_pointer(floats_at), (floats.shape[0],), np.float64)
+    floats_view = _jit.floats_at(floats_at, floats.shape[0])
     y_stage = floats_view[_at(_Y_STAGE, n) : _at(_Y_STAGE, n) + n]
-    stages = numba.carray(void_pointer(stages_at), (STAGE_ROWS, n), np.float64)
+    stages = _jit.matrix_at(stages_at, STAGE_ROWS, n)
     m = t_eval.shape[0]
     t_eval_at, y_eval_at, size, ints_at = (t_eval.ctypes.data, y_eval.ctypes.data,
                                            floats.shape[0], ints.ctypes.data)
     # the arguments spelled out, not *args: this loop is pasted into callers that are
     # themselves pasted into others, where numba cannot call a function value with *args
     row = machine_function(t_eval_at, m, y_eval_at, floats_at, size, stages_at, n, ints_at)
+    spent = 0
     while row >= 0:
         rhs(floats[T_REQUEST], y_stage, args, stages[row])
+        spent += 1
+        if budget > 0 and spent >= budget:
+            return PAUSED, ints[NEXT_EVAL]  # the request is answered: resume calls the machine
         row = machine_function(t_eval_at, m, y_eval_at, floats_at, size, stages_at, n,
                                ints_at)
     if ints[STATUS] != INVALID_ARGUMENT:
@@ -180,127 +183,24 @@ def solve_interval(machine_function, rhs, args, method_index, t0, t1, y0, rtol, 
 
 def _solve_interval_python(machine_function, rhs, args, method_index, t0, t1, y0, rtol,
                            atol, max_step, first_step, t_eval, i_eval, closed_right, y_eval,
-                           y_end, work, exact):
-    # solve_interval without numba: the machine runs on the arrays themselves.
-    load(method_index, t0, t1, y0, rtol, atol, max_step, first_step, i_eval, closed_right,
-         work, exact)
+                           y_end, work, exact, budget, resume):
+    # the same loop on the arrays themselves (Python cannot view memory by address)
+    if not resume:
+        load(method_index, t0, t1, y0, rtol, atol, max_step, first_step, i_eval,
+             closed_right, work, exact)
     floats, stages, stages_flat, ints = work
     y_stage = stage_input(work)
-    row = machine_function(t_eval, y_eval, floats, stages, stages_flat, ints)
+    row = machine_on_arrays(t_eval, y_eval, floats, stages, stages_flat, ints)
+    spent = 0
     while row >= 0:
         rhs(floats[T_REQUEST], y_stage, args, stages[row])
-        row = machine_function(t_eval, y_eval, floats, stages, stages_flat, ints)
+        spent += 1
+        if budget > 0 and spent >= budget:
+            return PAUSED, ints[NEXT_EVAL]
+        row = machine_on_arrays(t_eval, y_eval, floats, stages, stages_flat, ints)
     if ints[STATUS] != INVALID_ARGUMENT:
         y_end[:] = state(work)
     return ints[STATUS], ints[NEXT_EVAL]
 
 
-if HAVE_NUMBA:
-    solve_interval = jit(solve_interval, inline=True)
-else:
-    _solve_interval_python.__doc__ = solve_interval.__doc__
-    solve_interval = _solve_interval_python
-
-
-# ----------------------------------------------------------------------------------------
-# Python-level helpers
-# ----------------------------------------------------------------------------------------
-
-
-def first_class(rhs, args):
-    """``rhs`` as a numba first-class function typed for ``args`` (plain ``rhs`` without numba).
-
-    The signature is ``rhs(float64, float64[::1], typeof(args), float64[::1])``. A
-    compiled caller receiving this object as an argument is typed by that signature
-    alone (not by which function it is), so it is compiled once per type of ``args``,
-    cached on disk, and reused by every right-hand side of that type.
-
-    Parameters
-    ----------
-    rhs : numba dispatcher
-        ``rhs(t, y, args, out)``.
-    args : tuple
-        An example of the arguments (only their types are used).
-
-    Returns
-    -------
-    object
-        A ``numba`` ``CompileResultWAP`` (typed as ``FunctionType``).
-
-    Examples
-    --------
-    Two right-hand sides with the same type of ``args`` have the same numba type, so a
-    compiled caller that takes them as arguments is compiled once for both:
-
-    >>> import numpy as np
-    >>> from controlkit.engines.fast import rk
-    >>> def decay(t, y, args, out):
-    ...     out[0] = -args[0][0] * y[0]
-    >>> def growth(t, y, args, out):
-    ...     out[0] = args[0][0] * y[0]
-    >>> if rk.HAVE_NUMBA:
-    ...     import numba
-    ...     decay, growth = numba.njit(decay), numba.njit(growth)
-    >>> args = (np.array([0.5]),)
-    >>> a, b = rk.first_class(decay, args), rk.first_class(growth, args)
-    >>> not rk.HAVE_NUMBA or numba.typeof(a) == numba.typeof(b)
-    True
-    """
-    if not HAVE_NUMBA:
-        return rhs
-    from numba.core import types
-
-    vector = types.float64[::1]
-    argument_types = (types.float64, vector, numba.typeof(args), vector)
-    rhs.compile(argument_types)
-    return _typed_once()(rhs.overloads[argument_types])
-
-
-_MACHINE_FUNCTION = []
-_TYPED_ONCE = []
-
-
-def _typed_once():
-    """numba's ``CompileResultWAP`` with its type made once, not at every call it is passed
-    to (numba makes a new ``FunctionType`` each time: 15 us of every run)."""
-    if not _TYPED_ONCE:
-        from numba.core.types.function_type import CompileResultWAP
-        from numba.extending import typeof_impl
-
-        class TypedOnce(CompileResultWAP):
-            def __init__(self, cres):
-                super().__init__(cres)
-                self.numba_type = numba.types.FunctionType(self.signature())
-
-        @typeof_impl.register(TypedOnce)
-        def _typeof(value, context):
-            return value.numba_type
-
-        _TYPED_ONCE.append(TypedOnce)
-    return _TYPED_ONCE[0]
-
-
-def machine_function():
-    """:func:`machine` as a numba first-class function (plain :func:`machine` without numba).
-
-    A compiled caller that receives this object as an argument calls the machine
-    through a pointer: the machine's code (compiled once, cached on disk) is then not
-    compiled again into each caller, which keeps a new diagram's compile time to its
-    own right-hand side and loop. Built once per process.
-
-    Examples
-    --------
-    >>> from controlkit.engines.fast import rk
-    >>> rk.machine_function() is rk.machine_function()
-    True
-    """
-    if not HAVE_NUMBA:
-        return machine
-    if not _MACHINE_FUNCTION:
-        address = numba.types.uintp
-        size = numba.types.intp
-        argument_types = (address, size, address, address, size, address, size, address)
-        machine.compile(argument_types)
-        _MACHINE_FUNCTION.append(_typed_once()(machine.overloads[argument_types]))
-    return _MACHINE_FUNCTION[0]
-
+solve_interval = jit(_solve_interval_compiled, inline=True, python=_solve_interval_python)

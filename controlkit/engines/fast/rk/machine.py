@@ -22,9 +22,8 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
-from ...._jit import HAVE_NUMBA, jit, python_function
+from .... import _jit
+from ...._jit import jit, python_function
 from .arithmetic import (
     _all_finite,
     _build_interpolant,
@@ -109,11 +108,6 @@ from .workspace import (
     _evaluation_end,
     _log_at,
 )
-
-if HAVE_NUMBA:
-    import numba
-
-    from ...._jit import void_pointer
 
 #: Returned by :func:`machine` when the interval is done (or failed).
 FINISHED = -1
@@ -436,48 +430,54 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
             return FINISHED
 
 
-if HAVE_NUMBA:
-    _machine_inline = jit(python_function(machine_on_arrays), inline=True)
-    _machine_inline.__doc__ = "machine_on_arrays, pasted into machine by numba."
+def _by_address_in_python(*args):
+    raise TypeError("machine takes addresses: compiled code only (Python calls "
+                    "machine_on_arrays)")
 
-    @jit
-    def machine(t_eval_at, m, y_eval_at, floats_at, floats_size, stages_at, n, ints_at):
-        """:func:`machine_on_arrays` on arrays given by address (compiled callers).
 
-        numba updates the reference count of every array a compiled function receives,
-        with atomic instructions, at each call; for a function called once per
-        evaluation of the right-hand side that cost more than the step's arithmetic.
-        Given addresses, the machine views the memory with ``numba.carray`` (views that
-        own nothing, whose reference counting compiles to nothing). The caller keeps the
-        arrays alive: :func:`solve_interval` does. Addresses are ``uintp``, sizes
-        ``intp`` (the types :func:`machine_function` compiles it for).
+@jit(inline=True, python=_by_address_in_python)
+def machine(t_eval_at, m, y_eval_at, floats_at, floats_size, stages_at, n, ints_at):
+    """:func:`machine_on_arrays` on arrays given by address (compiled callers).
 
-        Examples
-        --------
-        The first request of an interval, ``f(t0, y0)`` into row 0:
+    numba updates the reference count of every array a compiled function receives,
+    with atomic instructions, at each call; for a function called once per
+    evaluation of the right-hand side that cost more than the step's arithmetic.
+    Given addresses, the machine views the memory with arrays that own nothing
+    (:func:`controlkit._jit.floats_at`), whose reference counting compiles to nothing.
+    The caller keeps the arrays alive: :func:`solve_interval` does. Compiled once and
+    kept in the store (:func:`controlkit.engines.fast.store.step_machine`), it is
+    called, not pasted, by every diagram's module.
 
-        >>> import numpy as np
-        >>> from controlkit.engines.fast.rk import (
-        ...     METHOD_INDEX, T_REQUEST, load, make_workspace, stage_input)
-        >>> work = make_workspace(2)
-        >>> load(METHOD_INDEX["RK45"], 0.5, 1.0, np.array([1.0, -2.0]), 1e-3,
-        ...      np.full(2, 1e-6), np.inf, 0.0, 0, True, work, True)
-        >>> t_eval, y_eval = np.zeros(0), np.zeros((0, 2))
-        >>> def at(array):
-        ...     return np.uintp(array.ctypes.data)
-        >>> row = machine(at(t_eval), 0, at(y_eval), at(work.floats), work.floats.size,
-        ...               at(work.stages), 2, at(work.ints))
-        >>> int(row), float(work.floats[T_REQUEST]), stage_input(work).tolist()
-        (0, 0.5, [1.0, -2.0])
-        """
-        t_eval = numba.carray(void_pointer(t_eval_at), (m,), np.float64)
-        y_eval = numba.carray(void_pointer(y_eval_at), (m, n), np.float64)
-        f = numba.carray(void_pointer(floats_at), (floats_size,), np.float64)
-        K = numba.carray(void_pointer(stages_at), (STAGE_ROWS, n), np.float64)
-        K_flat = numba.carray(void_pointer(stages_at), (STAGE_ROWS * n,), np.float64)
-        st = numba.carray(void_pointer(ints_at), (N_INT_SLOTS,), np.int64)
-        return _machine_inline(t_eval, y_eval, f, K, K_flat, st)
+    Examples
+    --------
+    The first request of an interval, ``f(t0, y0)`` into row 0, through the kept machine:
 
-else:
-    machine = machine_on_arrays
+    >>> import numpy as np
+    >>> from controlkit import _jit
+    >>> from controlkit.engines.fast import store
+    >>> from controlkit.engines.fast.rk import (
+    ...     METHOD_INDEX, T_REQUEST, load, make_workspace, stage_input)
+    >>> work = make_workspace(2)
+    >>> load(METHOD_INDEX["RK45"], 0.5, 1.0, np.array([1.0, -2.0]), 1e-3,
+    ...      np.full(2, 1e-6), np.inf, 0.0, 0, True, work, True)
+    >>> t_eval, y_eval = np.zeros(0), np.zeros((0, 2))
+    >>> def at(array):
+    ...     return np.uintp(array.ctypes.data)
+    >>> if _jit.available():
+    ...     row = store.step_machine()(at(t_eval), 0, at(y_eval), at(work.floats),
+    ...                                work.floats.size, at(work.stages), 2, at(work.ints))
+    ... else:
+    ...     row = machine_on_arrays(t_eval, y_eval, *work)
+    >>> int(row), float(work.floats[T_REQUEST]), stage_input(work).tolist()
+    (0, 0.5, [1.0, -2.0])
+    """
+    t_eval = _jit.floats_at(t_eval_at, m)
+    y_eval = _jit.matrix_at(y_eval_at, m, n)
+    f = _jit.floats_at(floats_at, floats_size)
+    K = _jit.matrix_at(stages_at, STAGE_ROWS, n)
+    K_flat = _jit.floats_at(stages_at, STAGE_ROWS * n)
+    st = _jit.ints_at(ints_at, N_INT_SLOTS)
+    return _machine_general_or_stage(t_eval, y_eval, f, K, K_flat, st)
 
+
+_machine_general_or_stage = jit(python_function(machine_on_arrays), inline=True)

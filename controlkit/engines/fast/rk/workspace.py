@@ -121,6 +121,8 @@ NON_FINITE = -2
 INVALID_ARGUMENT = -3
 #: The problem is stiff for the method and the run would take too many steps.
 STIFF = -4
+#: Not an end: the interval is paused after its evaluation budget, to be resumed.
+PAUSED = 1
 
 #: Accepted steps in a row that must look stiff before :data:`STIFF` may be declared
 #: (Hairer's DOPRI5 and DOP853 print their "problem seems to become stiff" after 15).
@@ -145,6 +147,7 @@ STATUS_MESSAGES = {
         "The problem is stiff: the explicit method's step is held down by stability, not "
         "accuracy, and the run would need too many steps; use an implicit method (BDF, "
         "LSODA or Radau)."),
+    PAUSED: "Paused after its evaluation budget; resume to go on.",
     INVALID_ARGUMENT: (
         "Invalid argument: max_step must be > 0, first_step in [0, |t1 - t0|], "
         "atol >= 0 of the state's size, t0 and t1 finite, the evaluation times "
@@ -204,7 +207,7 @@ Examples
 """
 
 
-@jit
+@jit(inline=True)
 def make_workspace(n, log_size=0, eval_capacity=0):
     """Allocate a :class:`Workspace` for ``n`` states.
 
@@ -236,7 +239,7 @@ def make_workspace(n, log_size=0, eval_capacity=0):
     return Workspace(floats, stages_flat.reshape((STAGE_ROWS, n)), stages_flat, ints)
 
 
-@jit
+@jit(inline=True)
 def set_horizon(work, t_start, t_end):
     """Tell the integrator the whole run's span, over which it projects its progress.
 
@@ -303,7 +306,7 @@ def stage_input(work):
     return work.floats[start : start + n]
 
 
-@jit
+@jit(inline=True)
 def state(work):
     """The state at the last time reached, ``work.floats[TIME_REACHED]`` (a view).
 
@@ -324,7 +327,7 @@ def state(work):
     return work.floats[start : start + n]
 
 
-@jit
+@jit(inline=True)
 def step_times(work):
     """The accepted step times the workspace kept (a view; see :func:`make_workspace`).
 
@@ -415,7 +418,7 @@ def _evaluation_end(t0, t1, direction, t_eval, i_eval, closed_right):
     return end
 
 
-@jit
+@jit(inline=True)
 def load(method_index, t0, t1, y0, rtol, atol, max_step, first_step, i_eval, closed_right,
          work, exact):
     """Put an interval's arguments into ``work``; :func:`machine` then starts on it.

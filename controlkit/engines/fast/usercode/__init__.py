@@ -32,9 +32,9 @@ code calls is in :mod:`controlkit.kernels.user_calls`, re-exported here.
 """
 
 from ....kernels.user_calls import clip, missing_parameter, store
-from .compiling import CompiledKernel, compiled_kernel, load_kernel, python_kernel
+from .compiling import UserKernel, block_layout, python_kernel
 from .layout import ParamEntry, ParamLayout
 from .writer import kernel_source
 
-__all__ = ["CompiledKernel", "ParamEntry", "ParamLayout", "clip", "compiled_kernel",
-           "kernel_source", "load_kernel", "missing_parameter", "python_kernel", "store"]
+__all__ = ["ParamEntry", "ParamLayout", "UserKernel", "block_layout", "clip",
+           "kernel_source", "missing_parameter", "python_kernel", "store"]

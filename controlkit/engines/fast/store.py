@@ -1,0 +1,322 @@
+"""The store: one folder of the user's where compiled code is kept, found by its content.
+
+A diagram runs compiled from its own module (:mod:`.codegen`): a text that numba
+compiles once and keeps, in its own ``__pycache__`` beside the module, so that any later
+run of the same wiring, in this process or another, loads it in milliseconds. The user
+functions compiled for it (:mod:`.usercode`) and the integrator's step machine
+(:func:`step_machine`) are modules of the store too. Each module's file name is a digest
+of its text, of controlkit's own source files (so an edit of any of them, a new version,
+makes new modules, never a stale one) and of the versions of Python and numpy: a name
+says what the module holds, files are written whole (a temporary file renamed) and never
+changed, and nothing in the store has to be deleted by hand. After its first compile a
+module gets a record (``<name>.json``: how long the compile took), by which the engine
+knows that it is compiled.
+
+Code is imported from the store, so it is used only if the folder is the user's own
+(:func:`folder`): owned by the user, written by nobody else, and reached through
+folders nobody else can rename it out of, links included. It is checked at each use;
+numba's cache folder (``NUMBA_CACHE_DIR``, if set) is checked the same way. When a check
+fails the engine compiles nothing and runs diagrams as Python, with a warning that
+says why.
+
+``CONTROLKIT_CACHE_DIR`` sets the folder (default ``~/.cache/controlkit/store``): for a
+home that is shared or read-only, or to keep a course's compiled diagrams with it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import json
+import os
+import stat
+import sys as pysys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ... import _jit
+
+#: Where compiled code is kept (see the module's description).
+CACHE_DIR = Path(os.environ.get("CONTROLKIT_CACHE_DIR",
+                                Path.home() / ".cache" / "controlkit" / "store"))
+
+
+
+class StoreRefused(RuntimeError):
+    """The store folder (or numba's cache folder) is not the user's own: nothing is
+    compiled (the message says why)."""
+
+
+def folder() -> Path:
+    """The store folder, created if need be, after checking that it is the user's own.
+
+    Raises
+    ------
+    StoreRefused
+        When the folder (or ``NUMBA_CACHE_DIR``) fails the check of :func:`not_own`.
+
+    Examples
+    --------
+    >>> folder().is_dir()
+    True
+    """
+    path = Path(os.path.abspath(CACHE_DIR))
+    try:
+        path.mkdir(mode=0o700, parents=True, exist_ok=True)
+    except OSError as error:
+        raise StoreRefused(f"the store {path} cannot be created "
+                           f"({error.strerror or error})") from None
+    why = not_own(path)
+    if why is None and os.environ.get("NUMBA_CACHE_DIR"):
+        numba_folder = Path(os.path.abspath(os.environ["NUMBA_CACHE_DIR"]))
+        if numba_folder.exists():
+            why = not_own(numba_folder)
+            if why is not None:
+                why = f"numba's cache folder NUMBA_CACHE_DIR={numba_folder}: {why}"
+    if why is not None:
+        raise StoreRefused(f"controlkit compiles nothing: {why} (set CONTROLKIT_CACHE_DIR "
+                           f"to a folder of your own)")
+    return path
+
+
+def not_own(path: Path) -> str | None:
+    """Why ``path`` is not the user's own folder (None when it is).
+
+    It must be a folder, not a link, owned by the user and writable by nobody else (the
+    user's private group allowed, as a umask of 002 leaves folders); every folder above
+    it owned by the user or root and not writable by others unless sticky (as ``/tmp``),
+    so that nobody else can rename it away; and every link on the way owned by the user
+    or root, in such a folder, so that nobody else can point it elsewhere.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> shared = Path(tempfile.mkdtemp())
+    >>> shared.chmod(0o777)
+    >>> not_own(shared).endswith("can be written by others (mode 777)")
+    True
+    """
+    if not hasattr(os, "getuid"):  # Windows: the profile folder's ACLs decide
+        return None
+    uid = os.getuid()
+    path = Path(os.path.abspath(path))
+    info = os.lstat(path)
+    if stat.S_ISLNK(info.st_mode):
+        return f"{path} is a link (give the folder itself)"
+    if not stat.S_ISDIR(info.st_mode):
+        return f"{path} is not a folder"
+    if info.st_uid != uid:
+        return f"{path} is owned by another user (uid {info.st_uid})"
+    if _writable_by_others(info):
+        return f"{path} can be written by others (mode {stat.S_IMODE(info.st_mode):o})"
+    # every link on the written path, and every folder above the folder it leads to
+    for prefix in list(path.parents)[::-1]:
+        link = os.lstat(prefix)
+        if stat.S_ISLNK(link.st_mode) and link.st_uid not in (uid, 0):
+            return f"{prefix} is a link owned by another user (uid {link.st_uid})"
+    for parent in Path(os.path.realpath(path)).parents:
+        info = os.stat(parent)
+        if info.st_uid not in (uid, 0):
+            return f"{parent} is owned by another user (uid {info.st_uid})"
+        if _writable_by_others(info) and not info.st_mode & stat.S_ISVTX:
+            return (f"{parent} can be written by others (mode "
+                    f"{stat.S_IMODE(info.st_mode):o}), who could replace the folder")
+    return None
+
+
+def _writable_by_others(info) -> bool:
+    if info.st_mode & stat.S_IWOTH:
+        return True
+    if not info.st_mode & stat.S_IWGRP:
+        return False
+    try:  # the user's private group (umask 002) is not "others"
+        import grp
+
+        group = grp.getgrgid(info.st_gid)
+        return not (info.st_gid == os.getgid() and not group.gr_mem)
+    except (ImportError, KeyError):
+        return True
+
+
+#: The source files of controlkit's whose code compiled modules can hold, by kind of
+#: module: the step machine holds the integrator's; a diagram or a user function holds
+#: the engine's, the kernels' and what they call.
+SOURCES = {"machine": ("_jit.py", "engines/fast/rk/*.py"),
+           "other": ("_jit.py", "compat.py", "engines/**/*.py", "kernels/*.py")}
+#: Digests of those files by kind, with the (name, size, date) they were made from.
+_OWN_SOURCE: dict = {}
+
+
+def _own_source(kind: str) -> str:
+    """A digest of the source files of controlkit's that a module of ``kind`` can hold,
+    by name, size and date (an edit, or another version, changes it)."""
+    root = Path(__file__).resolve().parents[2]
+    patterns = SOURCES.get(kind, SOURCES["other"])
+    stamps = sorted((str(p.relative_to(root)), p.stat().st_size, p.stat().st_mtime_ns)
+                    for pattern in patterns for p in root.glob(pattern))
+    kept = _OWN_SOURCE.get(kind)
+    if kept is None or kept[0] != stamps:
+        kept = _OWN_SOURCE[kind] = (stamps, hashlib.sha256(repr(stamps).encode()).hexdigest())
+    return kept[1]
+
+
+def name_of(text: str, kind: str) -> str:
+    """The module name of ``text`` in the store: ``<kind>_<digest>``.
+
+    Examples
+    --------
+    >>> name_of("VALUE = 1\\n", "diagram").startswith("diagram_")
+    True
+    """
+    key = "\0".join((text, _own_source(kind), pysys.version, np.__version__))
+    return f"{kind}_{hashlib.sha256(key.encode()).hexdigest()[:24]}"
+
+
+def module_file(text: str, kind: str) -> Path:
+    """The store file of ``text``, written (whole, atomically) unless it is there.
+
+    Examples
+    --------
+    >>> module_file("VALUE = 1\\n", "diagram").read_text()
+    'VALUE = 1\\n'
+    """
+    path = folder() / f"{name_of(text, kind)}.py"
+    if not path.exists():  # never rewritten: numba's cache index keys on the file's date
+        tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp")
+        with open(tmp, "x") as file:
+            file.write(text)
+        os.replace(tmp, path)
+    return path
+
+
+def import_module(path: Path, names: dict | None = None):
+    """The module at ``path`` (a store file), run once a process with ``names`` in its
+    namespace first; a module that fails to run is not kept.
+
+    It is registered in ``sys.modules`` as ``controlkit_store_<name>``: numba's cache
+    finds the module of compiled code it loads by that name.
+
+    Examples
+    --------
+    >>> import_module(module_file("VALUE = 1\\n", "diagram")).VALUE
+    1
+    """
+    name = f"controlkit_store_{Path(path).stem}"
+    module = pysys.modules.get(name)
+    if module is None:
+        folder()  # checked again at each import
+        spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(spec)
+        vars(module).update(names or {})
+        pysys.modules[name] = module
+        try:
+            spec.loader.exec_module(module)
+        except BaseException:
+            del pysys.modules[name]
+            raise
+    return module
+
+
+def record(path: Path) -> dict | None:
+    """The record of the store module at ``path``: None until it was compiled once.
+
+    Examples
+    --------
+    >>> record(Path("/nonexistent/diagram_x.py")) is None
+    True
+    """
+    try:
+        kept = json.loads(path.with_suffix(".json").read_text())
+    except (OSError, ValueError):
+        return None
+    return kept if isinstance(kept, dict) else None
+
+
+def write_record(path: Path, **values) -> None:
+    """Write the record of the store module at ``path`` (whole or not at all).
+
+    Examples
+    --------
+    >>> path = module_file("VALUE = 2\\n", "diagram")
+    >>> write_record(path, seconds=1.5)
+    >>> record(path)["seconds"]
+    1.5
+    """
+    target = path.with_suffix(".json")
+    tmp = target.with_name(f".{target.stem}.{os.getpid()}.tmp")
+    try:
+        tmp.write_text(json.dumps(values))
+        os.replace(tmp, target)
+    except OSError:
+        pass
+
+
+def compile_entry(function, args, path: Path):
+    """``function`` compiled by numba for the types of ``args`` and kept in ``path``'s
+    cache (loaded from it when it is there); the compile's record is written after a
+    compile. Returns the compiled function and the seconds it took (load or compile).
+
+    Examples
+    --------
+    >>> def double(x):
+    ...     return 2 * x
+    >>> if _jit.available():
+    ...     fn, seconds = compile_entry(double, (1.0,), Path("/dev/null"))
+    ...     float(fn(2.0))
+    ... else:
+    ...     4.0
+    4.0
+    """
+    numba = _jit.numba_module()
+    dispatcher = numba.njit(cache=True, nogil=True)(function)
+    start = time.perf_counter()
+    dispatcher.compile(tuple(numba.typeof(a) for a in args))
+    seconds = time.perf_counter() - start
+    if record(path) is None and path.suffix == ".py":
+        write_record(path, seconds=round(seconds, 3))
+    return dispatcher, seconds
+
+
+_MACHINE: list = []
+
+_MACHINE_TEXT = '''\
+# generated by controlkit.engines.fast.store: the Runge-Kutta step machine, kept compiled
+from controlkit.engines.fast.rk.machine import machine as _machine
+
+
+def machine(t_eval_at, m, y_eval_at, floats_at, floats_size, stages_at, n, ints_at):
+    return _machine(t_eval_at, m, y_eval_at, floats_at, floats_size, stages_at, n, ints_at)
+'''
+
+
+def step_machine():
+    """The integrator's step machine (:func:`controlkit.engines.fast.rk.machine.machine`),
+    compiled once and kept in the store (compiling it takes half a minute; loading, a
+    few milliseconds). Diagrams' modules call it.
+
+    Examples
+    --------
+    >>> step_machine() is step_machine() if _jit.available() else True
+    True
+    """
+    if not _MACHINE:
+        path = module_file(_MACHINE_TEXT, "machine")
+        function = import_module(path).machine
+        address, size = np.uintp(0), np.intp(0)
+        args = (address, size, address, address, size, address, size, address)
+        if record(path) is None:
+            _say(f"compiling the integrator's step machine (once after an install or an "
+                 f"upgrade: about {MACHINE_COMPILE_SECONDS:.0f} s)")
+        _MACHINE.append(compile_entry(function, args, path)[0])
+    return _MACHINE[0]
+
+
+#: About how long the step machine takes to compile (measured: 30 s on a 2-core machine).
+MACHINE_COMPILE_SECONDS = 30.0
+
+
+def _say(message: str) -> None:
+    """One line on standard error for a wait of seconds the user did not ask for."""
+    print(f"controlkit: {message}", file=pysys.stderr, flush=True)
