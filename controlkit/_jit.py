@@ -116,8 +116,8 @@ class Jitted:
         self._dispatcher = None
         functools.update_wrapper(self, py_func)
 
-    def __call__(self, *args):
-        return self.python(*args)
+    def __call__(self, *args, **kwargs):
+        return self.python(*args, **kwargs)
 
     @property
     def targetoptions(self) -> dict:

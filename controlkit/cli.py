@@ -34,6 +34,7 @@ HELP = """Reproduce the papers' results and study their robustness.
 
   controlkit reproduce [spacecraft|cmg|frit|all] [--case NAME]... [--horizon SECONDS]
   controlkit sweep spacecraft --samples N --out DIR
+  controlkit warmup          (compile ahead of a lecture: a few minutes after an install)
 
 Each study writes CSV tables, metrics.json, run.json (what the run wrote) and
 slide-ready figures into its own folder. Add --help after a command for its options.
@@ -305,8 +306,16 @@ def _main(argv) -> int:
                      help="a keyword of every case's run, e.g. --set F=0.002 (the outer "
                           "gain of the spacecraft cases)")
     _add_sweep(sub)
+    sub.add_parser(
+        "warmup", help="compile ahead of a lecture: the integrator and the papers' diagrams",
+        description="Compile, once, what the course's runs need compiled and keep it in the "
+                    "store (CONTROLKIT_CACHE_DIR): the integrator's step machine and every "
+                    "case of the papers' studies. After an install or an upgrade this takes "
+                    "a few minutes; run it before class so that no run waits for a compile.")
     args = parser.parse_args(argv)
     try:
+        if args.command == "warmup":
+            return _warmup()
         if args.command == "sweep":
             try:
                 return _sweep(args)
@@ -366,6 +375,29 @@ def _main(argv) -> int:
         print(f"controlkit: {len(failed)} case(s) failed; " + "; ".join(failed),
               file=sys.stderr)
         return 1
+    return 0
+
+
+def _warmup() -> int:
+    """``controlkit warmup``: the step machine, then each study's cases, compiled."""
+    import time
+
+    from .engines.fast import store
+
+    started = time.perf_counter()
+    print("controlkit warmup: the integrator's step machine", flush=True)
+    store.step_machine()
+    for name, study in STUDIES.items():
+        spec = study.robustness
+        if spec is None:
+            continue
+        cases = tuple(spec.cases())
+        for i, case in enumerate(cases, start=1):
+            print(f"controlkit warmup: {name} {case} ({i}/{len(cases)}, "
+                  f"{time.perf_counter() - started:.0f} s so far)", flush=True)
+            spec.warmup([case])
+    print(f"controlkit warmup: done in {time.perf_counter() - started:.0f} s; later runs "
+          f"load what was compiled from {store.folder()}", flush=True)
     return 0
 
 

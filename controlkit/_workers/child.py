@@ -58,8 +58,11 @@ def call_in_child(call, fail, function, run, timeout: float) -> dict:
     'TypeError: divmod() takes no keyword arguments'
     """
     payload = pickle.dumps(list(sys.path)) + pickle.dumps((call, fail, function, run))
+    # -P: the working folder is not searched for modules (a numpy.py planted in a shared
+    # folder would be imported instead of numpy); this process's own path is sent after
     child = subprocess.Popen(
-        [sys.executable, "-c", "from controlkit._workers import child_main; child_main()"],
+        [sys.executable, "-P", "-c",
+         "from controlkit._workers import child_main; child_main()"],
         stdin=subprocess.PIPE, stdout=subprocess.PIPE)
     received = {"bytes": b"", "started": False}
     first_read, ended = threading.Event(), threading.Event()

@@ -23,9 +23,9 @@ class UnsupportedSystem(ValueError):
     Examples
     --------
     >>> from controlkit.blocks.spacecraft import spacecraft_plant
-    >>> from controlkit.engines.fast import compile_system
+    >>> from controlkit.engines.fast import simulate
     >>> try:
-    ...     compile_system(spacecraft_plant())
+    ...     simulate(spacecraft_plant(), [0.0, 0.1], [1.0, 0.0, 0.0, 0.0])
     ... except UnsupportedSystem as reason:
     ...     print(reason)
     'plant' is a single block; the fast engine runs interconnects

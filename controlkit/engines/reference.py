@@ -148,7 +148,8 @@ class _Sweep:
         self.sys = sys
         self.blocks, xs, us, ys = [], 0, 0, 0
         for s in sys.syslist:
-            local = {**s.params, **sys.params, **(params or {})}
+            local = (None if isinstance(s, ct.StateSpace)  # (python-control's LTI takes none)
+                     else {**s.params, **sys.params, **(params or {})})
             discrete = s.isdtime(strict=True) and s.dt is not True
             every = round(s.dt / sys.base_period) if discrete else 0
             self.blocks.append((s, slice(xs, xs + s.nstates), slice(us, us + s.ninputs),

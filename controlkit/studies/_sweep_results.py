@@ -19,19 +19,20 @@ RESULT_FILES = ("sweep.csv", "summary.json")
 
 
 def warming(run, step: float):
-    """A study's ``warmup(cases)``: each case run for two steps of ``step`` s, which compiles
-    its simulation loop once (numba's disk cache) before the sweep's workers start.
+    """A study's ``warmup(cases)``: each case run compiled for two steps of ``step`` s,
+    which compiles its diagram's module once (kept in the store) before the sweep's
+    workers start, so that each of them loads it.
 
     Examples
     --------
     >>> ran = []
-    >>> warming(lambda case, horizon: ran.append((case, horizon)), 0.1)(["a", "b"])
+    >>> warming(lambda case, horizon, compile: ran.append((case, horizon)), 0.1)(["a", "b"])
     >>> ran
     [('a', 0.2), ('b', 0.2)]
     """
     def warm(cases) -> None:
         for case in cases:
-            run(case, horizon=2 * step)
+            run(case, horizon=2 * step, compile=True)
 
     return warm
 

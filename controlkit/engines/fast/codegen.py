@@ -282,8 +282,8 @@ def generate(plan, held_logic, check_users=True):
     >>> from controlkit.engines.fast.run import prepare
     >>> from controlkit.studies.cmg.diagrams import cmg_loop
     >>> source = generate(prepare(cmg_loop()).plan, held_logic=False)
-    >>> [line for line in source.splitlines() if line.startswith("def run")]
-    ['def run_discrete(T, X0, U, P, Y, X, status, k0, k1):']
+    >>> [line[:22] for line in source.splitlines() if line.startswith("def run")]
+    ['def run_discrete(T, X0', 'def run_continuous(ins']
     """
     key = (held_logic, check_users, plan.table.tobytes(), plan.order.tobytes(),
            plan.h.tobytes(), plan.continuous.tobytes(),

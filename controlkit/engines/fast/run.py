@@ -53,15 +53,13 @@ PAYS = 1.5
 #: numba's own start in a process (imports and first use), about: what a run pays before
 #: its first compiled step even when its module is kept compiled.
 NUMBA_START_SECONDS = 0.4
-#: About how long a new diagram's module takes to compile, before one was measured here:
-#: seconds, plus seconds per block (discrete; a diagram with continuous states doubles).
-COMPILE_SECONDS = (1.5, 0.15)
+#: About how long a new diagram's module takes to compile before one was measured in this
+#: store: seconds, plus seconds per block (measured on a 2-core machine: 1.5-30 s).
+COMPILE_SECONDS = (2.0, 1.0)
 #: The modules compiled in this process, by text: their compiled entry points.
 _COMPILED: dict[str, dict] = {}
 #: Modules whose compiled numbers differed from Python's, by text: why (explain says it).
 DIFFERS: dict[str, str] = {}
-#: Compile times measured in this process (seconds per block), for the next estimate.
-_MEASURED: list[float] = []
 
 
 @dataclass
@@ -139,12 +137,10 @@ class Job:
                                f"{expected:.0f} s, once: later runs load it)")
             try:
                 entries[name], seconds = store.compile_entry(getattr(module, name), args,
-                                                             path)
+                                                             path, blocks=len(self.blocks))
             except Exception as error:  # noqa: BLE001 - numba's: the diagram runs as Python
                 DIFFERS[self.source] = f"numba could not compile it ({_first_line(error)})"
                 raise NotCompiled(DIFFERS[self.source]) from error
-            if not kept:
-                _MEASURED.append(seconds / max(1, len(self.blocks)))
         return entries[name]
 
     def is_compiled(self) -> bool:
@@ -217,13 +213,18 @@ def prepare(sys, params=None, *, compiled=False) -> Job:
 
 
 def compile_estimate(job) -> float:
-    """About how long compiling ``job``'s module takes, in seconds (measured here before,
-    else :data:`COMPILE_SECONDS`)."""
-    base, per_block = COMPILE_SECONDS
-    if _MEASURED:
-        per_block, base = float(np.median(_MEASURED)), 0.0
-    seconds = base + per_block * len(job.blocks)
-    return seconds * (2.0 if job.plan.continuous.size else 1.0)
+    """About how long compiling ``job``'s module takes, in seconds: the median time per
+    block of the modules compiled in this store before (:func:`.store.compile_times`),
+    else :data:`COMPILE_SECONDS`; plus the step machine's when it is needed and not
+    compiled yet."""
+    measured = store.compile_times()
+    if measured:
+        seconds = float(np.median(measured)) * len(job.blocks)
+    else:
+        seconds = COMPILE_SECONDS[0] + COMPILE_SECONDS[1] * len(job.blocks)
+    if (job.plan.continuous.size or _held_logic(job.sys)) and not store.machine_kept():
+        seconds += store.MACHINE_COMPILE_SECONDS
+    return seconds
 
 
 def compiled_job(sys, params):

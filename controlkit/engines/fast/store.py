@@ -253,17 +253,16 @@ def write_record(path: Path, **values) -> None:
         pass
 
 
-def compile_entry(function, args, path: Path):
+def compile_entry(function, args, path: Path, blocks: int = 1):
     """``function`` compiled by numba for the types of ``args`` and kept in ``path``'s
     cache (loaded from it when it is there); the compile's record is written after a
     compile. Returns the compiled function and the seconds it took (load or compile).
 
     Examples
     --------
-    >>> def double(x):
-    ...     return 2 * x
+    >>> path = module_file("def double(x):\\n    return 2 * x\\n", "diagram")
     >>> if _jit.available():
-    ...     fn, seconds = compile_entry(double, (1.0,), Path("/dev/null"))
+    ...     fn, seconds = compile_entry(import_module(path).double, (1.0,), path)
     ...     float(fn(2.0))
     ... else:
     ...     4.0
@@ -275,8 +274,41 @@ def compile_entry(function, args, path: Path):
     dispatcher.compile(tuple(numba.typeof(a) for a in args))
     seconds = time.perf_counter() - start
     if record(path) is None and path.suffix == ".py":
-        write_record(path, seconds=round(seconds, 3))
+        write_record(path, seconds=round(seconds, 3), blocks=blocks)
+        _TIMES.clear()
     return dispatcher, seconds
+
+
+#: Compile times per block read from the store's records (once a process, and after a
+#: compile).
+_TIMES: list = []
+
+
+def compile_times() -> list[float]:
+    """Seconds per block of the diagrams' modules compiled in this store (the latest 50).
+
+    Examples
+    --------
+    >>> all(t > 0 for t in compile_times())
+    True
+    """
+    if not _TIMES:
+        try:
+            paths = sorted(folder().glob("diagram_*.json"), key=os.path.getmtime)[-50:]
+        except (StoreRefused, OSError):
+            paths = []
+        for path in paths:
+            kept = record(path.with_suffix(".py"))
+            if kept and kept.get("seconds", 0) > 0 and kept.get("blocks", 0) > 0:
+                _TIMES.append(kept["seconds"] / kept["blocks"])
+        _TIMES.append(None)  # read (an empty store included)
+    return [t for t in _TIMES if t is not None]
+
+
+def machine_kept() -> bool:
+    """Whether the step machine is compiled (in this process, or in the store)."""
+    return bool(_MACHINE) or record(folder() / f"{name_of(_MACHINE_TEXT, 'machine')}.py") \
+        is not None
 
 
 _MACHINE: list = []

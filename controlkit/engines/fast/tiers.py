@@ -241,6 +241,8 @@ def as_interconnect(sys):
         return sys
     if not isinstance(sys, ct.InputOutputSystem):
         raise UnsupportedSystem(f"a {type(sys).__name__} is not an I/O system")
+    if isinstance(sys, ct.TransferFunction):  # as python-control's interconnect takes it
+        sys = ct.ss(sys, name=sys.name)
     for what, count in (("inputs", sys.ninputs), ("outputs", sys.noutputs),
                         ("states", sys.nstates)):
         if count is None:

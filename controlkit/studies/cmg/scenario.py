@@ -125,7 +125,7 @@ def build_loop(case="thesis", *, Ts=cmg.TS_CMG, boundary_layer=0.0, plant_option
 
 
 def run(case="thesis", *, horizon=HORIZON, Ts=cmg.TS_CMG, x0=None, boundary_layer=0.0,
-        plant_options=None, progress=None, engine="fast", **gains):
+        plant_options=None, progress=None, engine="fast", compile=None, **gains):
     """Simulate one case from the thesis's initial state.
 
     Parameters
@@ -146,6 +146,8 @@ def run(case="thesis", *, horizon=HORIZON, Ts=cmg.TS_CMG, x0=None, boundary_laye
         Called with the fraction done.
     engine : {"fast", "python-control"}
         Simulator (see :func:`controlkit.simulation.simulate`).
+    compile : bool or None
+        On the fast engine, as for :func:`controlkit.input_output_response`.
     **gains : float
         Controller gains overriding eq. (47).
 
@@ -168,4 +170,4 @@ def run(case="thesis", *, horizon=HORIZON, Ts=cmg.TS_CMG, x0=None, boundary_laye
                       **gains)
     T = time_grid(horizon, Ts)
     return simulate(loop, T, X0=initial_state(loop, cmg=x0), progress=progress,
-                    chunks=10 if len(T) > 5000 else 1, engine=engine)
+                    chunks=10 if len(T) > 5000 else 1, engine=engine, compile=compile)

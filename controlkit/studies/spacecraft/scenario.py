@@ -302,7 +302,7 @@ def options_read(case) -> set[str]:
 
 def run(case="ideal", *, horizon=HORIZON, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXED,
         q_initial=None, tuner_options=None, plant_options=None, progress=None, engine="fast",
-        record_every=1, on_chunk=None):
+        record_every=1, on_chunk=None, compile=None):
     """Simulate one case from the initial attitude of Table 2.
 
     Parameters
@@ -331,6 +331,9 @@ def run(case="ideal", *, horizon=HORIZON, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXE
     record_every, on_chunk
         Decimated recording and full-resolution streaming of long runs, as in
         :func:`controlkit.simulation.simulate`.
+    compile : bool or None
+        On the fast engine, as for :func:`controlkit.input_output_response` (default:
+        compiled when the run is long enough to pay for it).
 
     Returns
     -------
@@ -355,4 +358,5 @@ def run(case="ideal", *, horizon=HORIZON, Ts=sc.TS_PAPER, F=sc.F_PAPER, K=K_FIXE
     T = time_grid(horizon, Ts, lazy=engine == "fast" and (record_every != 1 or
                                                           on_chunk is not None))
     return simulate(loop, T, X0=X0, U=0.0, progress=progress, chunks=20 if len(T) > 20_000 else 1,
-                    engine=engine, record_every=record_every, on_chunk=on_chunk)
+                    engine=engine, record_every=record_every, on_chunk=on_chunk,
+                    compile=compile)

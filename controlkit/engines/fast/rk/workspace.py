@@ -342,15 +342,12 @@ def step_times(work):
     >>> from controlkit.engines.fast import rk
     >>> def decay(t, y, args, out):
     ...     out[0] = -args[0][0] * y[0]
-    >>> if rk.HAVE_NUMBA:
-    ...     import numba
-    ...     decay = numba.njit(decay)
     >>> args = (np.array([1.0]),)
     >>> work = rk.make_workspace(1, log_size=100)
     >>> status, served = rk.solve_interval(
-    ...     rk.machine_function(), rk.first_class(decay, args), args, rk.METHOD_INDEX["RK45"],
-    ...     0.0, 1.0, np.ones(1), 1e-3, np.full(1, 1e-6), np.inf, 0.0, np.zeros(0), 0, True,
-    ...     np.zeros((0, 1)), np.empty(1), work, True)
+    ...     None, decay, args, rk.METHOD_INDEX["RK45"], 0.0, 1.0, np.ones(1), 1e-3,
+    ...     np.full(1, 1e-6), np.inf, 0.0, np.zeros(0), 0, True, np.zeros((0, 1)),
+    ...     np.empty(1), work, True, 0, False)
     >>> times = rk.step_times(work)
     >>> int(work.ints[rk.N_ACCEPTED]) == times.size, float(times[-1])
     (True, 1.0)

@@ -50,7 +50,7 @@ class UserKernel:
     >>> k(0.0, np.ones(2), np.zeros(0), None, np.empty(1))
     Traceback (most recent call last):
     ...
-    ValueError: block 'gain': its output function returned 2 values at t = 0 s, the block has 1 outputs
+    ValueError: block 'gain': its output function returned 2 values at t = 0 s, the block ...
     """
 
     def __init__(self, fn, values, block, role, size, n_x=0, n_u=0):
