@@ -129,6 +129,12 @@ class Jitted:
     def __repr__(self):
         return f"<jit function {self.__module__}.{self.__qualname__}>"
 
+    def __copy__(self):
+        return self
+
+    def __deepcopy__(self, memo):  # a function: numba's inliner copies the code that
+        return self                # names it, which must not copy the function itself
+
     @property
     def dispatcher(self):
         """The numba function compiled code calls (made, not compiled, on first access)."""

@@ -25,7 +25,7 @@ from .engines.contract import (
 from .engines.params import check_params
 
 
-def initial_state(sys, **by_block) -> np.ndarray:
+def initial_state(sys, /, **by_block) -> np.ndarray:
     """State vector of an interconnect, given per block name.
 
     Blocks not named start from their ``x0`` attribute when they have one

@@ -476,7 +476,7 @@ def _generate(plan, held_logic, check_users):
     text += function(
         "run_continuous(instants, fire0, k1, t_final, T, U, t_eval, eval_instant, ctrl, "
         "Y, X, Uo, x, held, P, method, rtol, atol, max_step, first_step, exact, status, "
-        "work, y_eval, yc)", [
+        "work, y_eval, yc, machine)", [
             *buffers, f"xt = np.empty({nx})", f"dx = np.zeros({nx})",
             (f"cidx = np.array({cidx!r}, dtype=np.int64)" if cidx
              else "cidx = np.zeros(0, dtype=np.int64)"),

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..contract import UnsupportedSystem, recorded_indices
 from ..contract import response as base_response
-from . import loops, rk
+from . import loops, rk, store
 from .diagnose import explain_failure
 from .loops import BUDGET, INSTANT, INTEGRATOR_FAILED, NEXT_TIME, UNDER_WAY
 from .run import Pieces, Runner, interrupted, now, same_numbers
@@ -83,7 +83,7 @@ class _Run:
         self.X = np.zeros((sys.nstates, m))
         self.Uo = np.zeros((sys.ninputs, m))
         self.x, self.held = np.array(X0, dtype=float), np.zeros(plan.ny)
-        self.ctrl = np.zeros(4, dtype=np.int64)
+        self.ctrl = np.zeros(5, dtype=np.int64)
         self.status = np.full(4, -1, dtype=np.int64)
         self.work = rk.make_workspace(nc, 0, m)
         self.y_eval, self.yc = np.zeros((m, nc)), np.zeros(nc)
@@ -127,18 +127,19 @@ class _Run:
                 self.t_eval, self.eval_instant, self.ctrl, self.Y, self.X, self.Uo, self.x,
                 self.held, job.P, rk.METHOD_INDEX[self.method], rtol, atol, max_step,
                 first_step, True, self.status, self.work, self.y_eval, self.yc)
-        if job.compiled:
+        if job.compiled:  # (the integrator's step machine, compiled once, is an argument)
+            args = (*args, store.step_machine())
             job.entry("run_continuous", args)(*args)
         else:
-            job.functions().run_continuous(*args)
+            job.functions().run_continuous(*args, None)
 
     def _stiff(self, job, ns, rtol, atol, max_step, first_step):
         plan, nx = job.plan, self.sys.nstates
         widest = max([1, *plan.table[:, 1].tolist()])
         buffers = (np.zeros(plan.ny), np.zeros(plan.nu), np.empty(nx),
                    np.empty(5 * widest), np.empty(nx), plan.continuous, self.yc,
-                   self.y_eval, np.empty((self.U.shape[0], 1)), {})
-        ys, ui, xn, scratch, xt, cidx, yc, y_eval, ubuf, messages = buffers
+                   self.y_eval, np.empty((self.U.shape[0], 1)), self.work)
+        ys, ui, xn, scratch, xt, cidx, yc, y_eval, ubuf, _ = buffers
         args = ((), self.x, xt, cidx, self.T, self.U, ubuf, job.P, ys, ui, self.held,
                 np.zeros(nx))
         loops.continuous_run(
@@ -147,7 +148,6 @@ class _Run:
                    self.t_eval, self.eval_instant), (self.Y, self.X, self.Uo),
             (self.x, job.P, self.held), buffers,
             (self.method, rtol, atol, max_step, first_step, True), self.ctrl, self.status)
-        self.messages = messages
 
 
 def run_continuous(sys, T, U, X0, *, params=None, t_eval=None, method="RK45",
@@ -325,9 +325,6 @@ def _integrator_error(job, run):
               and b.system.dt == 0]
     size = float(np.max(np.abs(x[job.plan.continuous]))) if job.plan.continuous.size else 0.0
     state = f"the continuous blocks {blocks}"
-    if method in STIFF_METHODS:
-        return RuntimeError(f"{sys.name!r}: {method} failed after t = {where:g} s: "
-                            f"{getattr(run, 'messages', {}).get('message', 'no reason')}")
     if code == rk.STEP_TOO_SMALL:
         return RuntimeError(
             f"{sys.name!r}: the step size of {method} fell below the spacing of numbers "

@@ -43,7 +43,7 @@ import math
 import numpy as np
 
 from ..._jit import jit
-from .rk import PAUSED, PROJECTED_STEPS, SUCCESS
+from .rk import NFEV, PAUSED, PROJECTED_STEPS, SUCCESS
 
 #: ``status`` codes beyond a block index: the integrator failed (its code in status[2]).
 INTEGRATOR_FAILED = -2
@@ -51,8 +51,9 @@ INTEGRATOR_FAILED = -2
 INSTANT_TOLERANCE = 1e-9
 #: Slots of the ``ctrl`` array of :func:`continuous_run`: the next evaluation time to
 #: serve, the instant the run is at, whether that instant's interval is under way
-#: (paused), and the most right-hand side evaluations a call may make (0: no limit).
-NEXT_TIME, INSTANT, UNDER_WAY, BUDGET = range(4)
+#: (paused), the most right-hand side evaluations a call may make (0: no limit; an
+#: instant with nothing to integrate counts as one) and how many it made.
+NEXT_TIME, INSTANT, UNDER_WAY, BUDGET, SPENT = range(5)
 
 
 def instants(base_period, T0, Tf):
@@ -207,7 +208,10 @@ def continuous_run(evaluate, update, outputs, rhs, integrate, machine, plan, rhs
     nc = cidx.shape[0]
     K = instants.shape[0]
     k = ctrl[INSTANT]
+    ctrl[SPENT] = 0
     while k < k1:
+        if ctrl[BUDGET] > 0 and ctrl[SPENT] >= ctrl[BUDGET]:
+            return
         t = instants[k]
         resume = ctrl[UNDER_WAY] == 1
         if not resume:
@@ -245,15 +249,21 @@ def continuous_run(evaluate, update, outputs, rhs, integrate, machine, plan, rhs
                     status[1] = failed
                     return
             ctrl[NEXT_TIME] = stop
+            ctrl[SPENT] += 1
             k += 1
             ctrl[INSTANT] = k
             continue
+        evaluations = 0
         if not resume:
             for q in range(nc):
                 yc[q] = x[cidx[q]]
+        else:
+            evaluations = work.ints[NFEV]
+        budget = 0 if ctrl[BUDGET] <= 0 else max(1, ctrl[BUDGET] - ctrl[SPENT])
         code, served = integrate(machine, rhs, rhs_args, method, t, t1, yc, rtol, atol,
                                  max_step, first_step, t_eval[:stop], i, last,
-                                 y_eval[:stop], yc, work, exact, ctrl[BUDGET], resume)
+                                 y_eval[:stop], yc, work, exact, budget, resume)
+        ctrl[SPENT] += work.ints[NFEV] - evaluations
         if code == PAUSED:
             ctrl[UNDER_WAY] = 1
             return
@@ -290,21 +300,26 @@ def scipy_interval(machine, rhs, args, method, t0, t1, y0, rtol, atol, max_step,
     ``t_eval[i_eval:]`` it serves into ``y_eval``, the state at ``t1`` into ``y_end``.
 
     ``method`` is scipy's method name (the implicit ones, ``BDF``, ``LSODA``,
-    ``Radau``, or an explicit one for the reference); ``machine``, ``work``, ``exact``,
-    ``budget`` and ``resume`` are not used (scipy's call is never paused). ``rhs`` is
-    called as ``rhs(t, y, args, out)``. Returns ``(status, next index)`` with status 0,
-    or -1 and scipy's message in ``work["message"]`` when a dict is given. The last
-    interval (``closed_right``) is served as python-control's call, by ``t_eval``; the
-    state at its end is the last time served.
+    ``Radau``, or an explicit one for the reference); ``work`` (a workspace of
+    :mod:`.rk`) counts the evaluations; ``machine``, ``exact``, ``budget`` and ``resume``
+    are not used (scipy's call is never paused). ``rhs`` is called as ``rhs(t, y, args,
+    out)``. The last interval (``closed_right``) is served as python-control's call, by
+    ``t_eval``; the state at its end is the last time served.
+
+    Raises
+    ------
+    RuntimeError
+        When scipy's solver fails, with its message and the interval.
 
     Examples
     --------
+    >>> from controlkit.engines.fast.rk import make_workspace
     >>> def decay(t, y, args, out):
     ...     out[0] = -y[0]
     >>> y_eval, y = np.zeros((2, 1)), np.ones(1)
     >>> status, served = scipy_interval(None, decay, (), "BDF", 0.0, 1.0, y, 1e-8,
-    ...     np.full(1, 1e-10), np.inf, 0.0, np.array([0.5, 1.0]), 0, True, y_eval, y, {},
-    ...     True, 0, False)
+    ...     np.full(1, 1e-10), np.inf, 0.0, np.array([0.5, 1.0]), 0, True, y_eval, y,
+    ...     make_workspace(1), True, 0, False)
     >>> status, served, bool(abs(y[0] - np.exp(-1.0)) < 1e-6)
     (0, 2, True)
     """
@@ -332,11 +347,10 @@ def scipy_interval(machine, rhs, args, method, t0, t1, y0, rtol, atol, max_step,
                                     dense_output=stop > i_eval and not closed_right,
                                     t_eval=t_eval[i_eval:stop] if closed_right else None,
                                     **options)
+    work.ints[NFEV] = sol.nfev
     if not sol.success:
-        if isinstance(work, dict):
-            work["message"] = sol.message
-        y_end[:] = sol.y[:, -1] if sol.y.size else y0
-        return -1, i_eval
+        raise RuntimeError(f"solve_ivp ({method}) failed between t = {t0:g} and {t1:g} s: "
+                           f"{sol.message}")
     for j in range(i_eval, stop):
         y_eval[j, :] = sol.y[:, j - i_eval] if closed_right else sol.sol(t_eval[j])
     if sol.y.size:  # (the last interval's end is only known if it is an evaluation time)

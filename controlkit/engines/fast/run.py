@@ -108,7 +108,6 @@ class Job:
                 names[f"kernel_{i}"] = _pasted(fn)
             else:  # a user's compiled kernel, or a numba function
                 names[f"kernel_{i}"] = fn
-        names["machine"] = None  # (the integrator's, given to run_continuous when compiled)
         return names
 
     def functions(self):
@@ -127,8 +126,6 @@ class Job:
         if name not in entries:
             path = store.module_file(self.source, "diagram")
             module = store.import_module(path, self.kernels())
-            if name == "run_continuous" and module.machine is None:
-                module.machine = store.step_machine()
             kept = store.record(path) is not None
             if not kept:
                 expected = compile_estimate(self)

@@ -323,10 +323,17 @@ def machine(t_eval_at, m, y_eval_at, floats_at, floats_size, stages_at, n, ints_
 '''
 
 
+#: The step machine's C signature: the row to evaluate (or FINISHED) from the addresses and
+#: sizes of its arrays (see :func:`controlkit.engines.fast.rk.machine.machine`).
+MACHINE_SIGNATURE = "intp(uintp, intp, uintp, uintp, intp, uintp, intp, uintp)"
+
+
 def step_machine():
     """The integrator's step machine (:func:`controlkit.engines.fast.rk.machine.machine`),
     compiled once and kept in the store (compiling it takes half a minute; loading, a
-    few milliseconds). Diagrams' modules call it.
+    few milliseconds), as a C function: a diagram's module receives it as an argument
+    and calls it through its address, so that compiling a module never compiles, nor
+    links, the machine again.
 
     Examples
     --------
@@ -334,14 +341,17 @@ def step_machine():
     True
     """
     if not _MACHINE:
+        numba = _jit.numba_module()
         path = module_file(_MACHINE_TEXT, "machine")
         function = import_module(path).machine
-        address, size = np.uintp(0), np.intp(0)
-        args = (address, size, address, address, size, address, size, address)
         if record(path) is None:
             _say(f"compiling the integrator's step machine (once after an install or an "
                  f"upgrade: about {MACHINE_COMPILE_SECONDS:.0f} s)")
-        _MACHINE.append(compile_entry(function, args, path)[0])
+        start = time.perf_counter()
+        compiled = numba.cfunc(MACHINE_SIGNATURE, cache=True, nogil=True)(function)
+        if record(path) is None:
+            write_record(path, seconds=round(time.perf_counter() - start, 3))
+        _MACHINE.append(compiled)
     return _MACHINE[0]
 
 

@@ -415,7 +415,7 @@ def _evaluation_end(t0, t1, direction, t_eval, i_eval, closed_right):
     return end
 
 
-@jit(inline=True)
+@jit
 def load(method_index, t0, t1, y0, rtol, atol, max_step, first_step, i_eval, closed_right,
          work, exact):
     """Put an interval's arguments into ``work``; :func:`machine` then starts on it.
