@@ -100,8 +100,11 @@ def _params(local: dict):
     return tuple((key, _value(v)) for key, v in local.items())
 
 
-def _user(block, local):
-    """The key of a user's ``nlsys`` given the parameters it is handed."""
+def _user(block, local, compiled):
+    """The key of a user's ``nlsys`` given the parameters it is handed (run as Python:
+    its functions and parameters; compiled: also what their plans read from outside)."""
+    if not compiled:  # called as they are: the same functions, the same parameters
+        return (_Same(block), _Same(block.outfcn), _Same(block.updfcn), _params(local))
     parts = []
     for fn in (block.outfcn, block.updfcn if block.nstates else None):
         if fn is None:
@@ -119,9 +122,9 @@ def _user(block, local):
     return (_Same(block), tuple(parts), _params(local))
 
 
-def _block(sys, block, params):
+def _block(sys, block, params, compiled):
     shape = (block.nstates, block.ninputs, block.noutputs, _rate(block.dt))
-    return (shape, _kernels(sys, block, params))
+    return (shape, _kernels(sys, block, params, compiled))
 
 
 def _rate(dt):
@@ -133,7 +136,7 @@ def _own(block):
     return (_Same(block), _Same(block.kernels), _value(block.kernels.params))
 
 
-def _kernels(sys, block, params):
+def _kernels(sys, block, params, compiled):
     if isinstance(block, KernelBlock):
         if block.kernels is None:
             raise _Unknown
@@ -151,12 +154,12 @@ def _kernels(sys, block, params):
         elif isinstance(inner, ct.InterconnectedSystem | KernelBlock):
             raise _Unknown
         else:
-            within = _user(inner, {**inner.params, **local})
+            within = _user(inner, {**inner.params, **local}, compiled)
         return (_Same(block), _rate(block.dt), block.substeps, within)
     if isinstance(block, ct.InterconnectedSystem) or not isinstance(
             block, ct.NonlinearIOSystem):
         raise _Unknown
-    return _user(block, local)
+    return _user(block, local, compiled)
 
 
 def job_key(sys, params=None, compiled=False):
@@ -180,7 +183,7 @@ def job_key(sys, params=None, compiled=False):
     if not isinstance(sys, ct.InterconnectedSystem):
         return None
     try:
-        blocks = tuple(_block(sys, block, params) for block in sys.syslist)
+        blocks = tuple(_block(sys, block, params, compiled) for block in sys.syslist)
         wiring = (_rate(sys.dt), _rate(getattr(sys, "base_period", None)),
                   *(_value(np.asarray(m, dtype=float))
                     for m in (sys.connect_map, sys.input_map, sys.output_map)))

@@ -58,6 +58,10 @@ NUMBA_START_SECONDS = 0.4
 COMPILE_SECONDS = (2.0, 1.0)
 #: The modules compiled in this process, by text: their compiled entry points.
 _COMPILED: dict[str, dict] = {}
+#: The compiled module's text of a diagram's module run as Python, once compiled here.
+_TWINS: dict[str, str] = {}
+#: About how long loading a module kept compiled takes, numba started.
+LOAD_SECONDS = 0.05
 #: Modules whose compiled numbers differed from Python's, by text: why (explain says it).
 DIFFERS: dict[str, str] = {}
 
@@ -256,17 +260,17 @@ class Runner:
         self.compiled = None
         self.why_python = ""
         self.decided = compile is False
-        if compile is not False:
+        if compile or compile is None and self.python.source in _TWINS:
+            # asked for, or compiled already in this process: compiled from the start
             candidate = compiled_job(sys, params)
             if isinstance(candidate, str):
                 self.why_python, self.decided = candidate, True
                 if compile:
                     warnings.warn(f"running {sys.name!r} as Python: {candidate}",
                                   stacklevel=4)
-            elif compile or candidate.is_compiled():
+            elif compile or candidate.source in _COMPILED:
                 self.compiled, self.decided = candidate, True
-            else:
-                self._candidate = candidate
+                _TWINS[self.python.source] = candidate.source
 
     @property
     def job(self) -> Job:
@@ -282,10 +286,19 @@ class Runner:
         if done >= 1.0:
             return None
         rest = elapsed * (1.0 - done) / max(done, 1e-9)
-        cost = (0.0 if _jit._NUMBA else NUMBA_START_SECONDS) + compile_estimate(
-            self._candidate)
+        if rest <= PAYS * NUMBA_START_SECONDS:  # (not even worth numba's start)
+            self.why_python = f"a short run (about {elapsed + rest:.2g} s as Python)"
+            return None
+        candidate = compiled_job(self.sys, self.params)
+        if isinstance(candidate, str):
+            self.why_python = candidate
+            return None
+        kept = candidate.source in _COMPILED or candidate.is_compiled()
+        cost = (0.0 if _jit._NUMBA else NUMBA_START_SECONDS) + (
+            LOAD_SECONDS if kept else compile_estimate(candidate))
         if rest > PAYS * cost:
-            return self._candidate
+            _TWINS[self.python.source] = candidate.source
+            return candidate
         self.why_python = (f"a short run: about {elapsed + rest:.2g} s as Python, against "
                            f"about {cost:.2g} s to compile")
         return None
