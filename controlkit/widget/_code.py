@@ -9,10 +9,11 @@ Consecutive elements of one vector wired alike are written as one range
 from __future__ import annotations
 
 import json
-import keyword
 import re
 
 from . import _palette
+from ._calls import IMPORTS, aliases, check_identifier, is_identifier
+from ._calls import source as python_source
 from ._ports import compress_range, next_element, runs
 
 
@@ -86,26 +87,27 @@ def write_code(model, variable=None):
 
     See :meth:`~controlkit.widget.DiagramModel.code`.
     """
-    variable = variable or _identifier(model.name)
-    source = model.source_name or "source"
+    variable = check_identifier(variable or _identifier(model.name), "the variable")
+    source = check_identifier(model.source_name or "source", "source_name")
     needs, lines, names = {"ct"}, [], {}
     for name, block in model.blocks.items():
         names[name] = var = _identifier(name, taken=set(names.values()) | {variable})
         recipe = block.recipe
         if recipe and recipe["kind"] in _palette.PALETTE:
-            entry = _palette.PALETTE[recipe["kind"]]
-            needs |= entry.imports(model.period())
-            lines.append(f"{var} = {entry.source(name, recipe['kwargs'], model.period())}")
+            tree = _palette.PALETTE[recipe["kind"]].tree(name, recipe["kwargs"],
+                                                         recipe.get("sampled"))
+            needs |= aliases(tree)
+            lines.append(f"{var} = {python_source(tree)}")
         elif recipe and recipe["kind"] == "variable":
-            expression = recipe["variable"]
+            expression = check_identifier(recipe["variable"], "a notebook variable's name")
             lines.append(f"{var} = {expression}" if var != expression else None)
             if block.system.name != _variable_name(recipe):
                 lines[-1] = f"{var} = {expression}.copy(name={name!r})"
         else:
             lines.append(f"{var} = {source}_blocks[{name!r}]")
     lines = [line for line in lines if line]
-    aliases = list(_palette.IMPORTS)
-    head = [_palette.IMPORTS[alias] for alias in sorted(needs, key=aliases.index)]
+    order = list(IMPORTS)
+    head = [IMPORTS[alias] for alias in sorted(needs, key=order.index)]
     if any(b.recipe is None for b in model.blocks.values()):
         head.append(f"{source}_blocks = {{s.name: s for s in {source}.syslist}}  "
                     f"# the blocks of the diagram you opened")
@@ -157,9 +159,11 @@ def _hints_literal(hints):
 
 def _identifier(name, taken=()):
     """A Python variable name for a block name (``plant$sampled`` -> ``plant_sampled``)."""
-    var = re.sub(r"\W", "_", name) or "block"
-    if var[0].isdigit() or keyword.iskeyword(var) or var in _palette.IMPORTS:
+    var = re.sub(r"[^A-Za-z0-9_]", "_", name) or "block"
+    if not is_identifier(var) or var in IMPORTS:
         var = f"{var}_block"
+    if not is_identifier(var):  # a digit first
+        var = f"block_{var}"
     base, k = var, 2
     while var in taken:
         var, k = f"{base}_{k}", k + 1

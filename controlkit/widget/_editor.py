@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import io
-import json
 import traceback
 from pathlib import Path
 
 import anywidget
 import traitlets
 
-from . import _run, _view
+from . import _run, _schema, _view
 from ._model import DiagramModel
 
 STATIC = Path(__file__).parent / "static"
@@ -118,8 +117,12 @@ class DiagramEditor(anywidget.AnyWidget):
         ``systems`` gives the blocks that were taken from an opened diagram (that
         diagram, or ``{name: system}``); ``namespace`` the notebook's variables.
         """
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
-        model = DiagramModel.from_dict(data, systems=systems, namespace=namespace)
+        path = Path(path)
+        if path.stat().st_size > _schema.LIMITS["bytes"]:
+            raise ValueError(f"{path} is not a saved diagram: larger than "
+                             f"{_schema.LIMITS['bytes']:,} bytes")
+        model = DiagramModel.from_json(path.read_text(encoding="utf-8"), systems=systems,
+                                       namespace=namespace)
         return cls(model, namespace=namespace, **kwargs)
 
     def connect(self, src_block, src_port, dst_block, dst_port):

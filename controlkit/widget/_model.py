@@ -24,10 +24,12 @@ import control as ct
 import numpy as np
 
 from . import _palette, _saving
+from ._calls import check_identifier
 from ._code import interconnect_specs, write_code
 from ._parts import FORMAT, PROBLEM_KINDS, Block, Problem, Wire, timebase
 from ._ports import port_groups
 from ._problems import find_problems, passes_input
+from ._recognise import recognise
 
 __all__ = ["FORMAT", "PROBLEM_KINDS", "Block", "DiagramModel", "Problem", "Wire",
            "passes_input"]
@@ -78,6 +80,8 @@ class DiagramModel:
         if not isinstance(sys, ct.InterconnectedSystem):
             raise ValueError(f"sys must be a control.InterconnectedSystem (built with "
                              f"control.interconnect), got {type(sys).__name__}")
+        if source_name is not None:
+            check_identifier(source_name, "source_name")
         hints = copy.deepcopy(dict(getattr(sys, "drawing_hints", None) or {}))
         labels = dict(hints.pop("labels", {}))
         for s in sys.syslist:  # a block's own junction (r - h in front of F), as drawn
@@ -90,7 +94,7 @@ class DiagramModel:
                 raise ValueError(f"two blocks are named {s.name!r}; the editor needs unique "
                                  f"block names")
             label = labels.get(s.name, getattr(s, "display_name", None))
-            model.blocks[s.name] = Block(s, _palette.recognise(s), label)
+            model.blocks[s.name] = Block(s, recognise(s), label)
             out_owner += [(s.name, label) for label in s.output_labels]
             in_owner += [(s.name, label) for label in s.input_labels]
         drivers = {}
@@ -237,14 +241,17 @@ class DiagramModel:
         if entry is None:
             raise ValueError(f"palette entry must be one of {sorted(_palette.PALETTE)}, "
                              f"got {key!r}")
-        options = {**_palette.defaults(key, self.period()), **kwargs}
+        options = entry.check_kwargs({**_palette.defaults(key, self.period()), **kwargs})
         name = self.unique_name(entry.name)
-        system = _palette.build(key, name, options, self.period())
-        return self.add_block(system, recipe={"kind": key, "kwargs": options},
-                              position=position)
+        recipe = {"kind": key, "kwargs": options}
+        if entry.follows_period and self.period():  # joins a discrete diagram under ZOH
+            recipe["sampled"] = {"Ts": float(self.period())}
+        system = _palette.build(key, name, options, recipe.get("sampled"))
+        return self.add_block(system, recipe=recipe, position=position)
 
     def add_variable(self, variable, value, *, position=None):
         """Add a system of the notebook held in ``variable`` (a copy if its name is taken)."""
+        check_identifier(variable, "a notebook variable's name")
         if not _palette.is_system(value):
             raise ValueError(f"variable {variable!r} holds a {type(value).__name__}, not a "
                              f"python-control I/O system")
@@ -264,7 +271,7 @@ class DiagramModel:
         if recipe and recipe["kind"] in _palette.PALETTE:
             return _palette.PALETTE[recipe["kind"]].parameters(recipe["kwargs"])
         params = getattr(block.system, "params", None) or {}
-        return {k: float(v) for k, v in params.items() if _palette._is_number(v)}
+        return {k: float(v) for k, v in params.items() if _palette.is_number(v)}
 
     def set_parameter(self, name, parameter, value):
         """Rebuild block ``name`` with ``parameter = value``; its wires stay where they fit."""
@@ -279,8 +286,8 @@ class DiagramModel:
         recipe = block.recipe
         if recipe and recipe["kind"] in _palette.PALETTE:
             kwargs = {**recipe["kwargs"], parameter: value}
-            system = _palette.build(recipe["kind"], name, kwargs, self.period())
-            block.recipe = {"kind": recipe["kind"], "kwargs": kwargs}
+            system = _palette.build(recipe["kind"], name, kwargs, recipe.get("sampled"))
+            block.recipe = {**recipe, "kwargs": kwargs}
         else:
             system = copy.copy(block.system)
             system.params = {**block.system.params, parameter: value}
@@ -368,8 +375,18 @@ class DiagramModel:
         return text
 
     @classmethod
+    def from_json(cls, text, *, systems=None, namespace=None):
+        """A model from the JSON text :meth:`to_json` wrote (see :meth:`from_dict`)."""
+        return cls.from_dict(_saving.parse(text), systems=systems, namespace=namespace)
+
+    @classmethod
     def from_dict(cls, data, *, systems=None, namespace=None):
-        """A model saved by :meth:`to_dict`.
+        """A model saved by :meth:`to_dict`, read by the schema (:mod:`._schema`).
+
+        Every field is checked - names, identifiers, finite numbers, sizes - and palette
+        recipes are rebuilt from the editor's fixed constructors; nothing in ``data`` is
+        evaluated. A field that breaks the format raises a ValueError naming it by its
+        JSON path and saying what is allowed there.
 
         Parameters
         ----------

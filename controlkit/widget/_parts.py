@@ -6,7 +6,9 @@ from dataclasses import dataclass
 
 import control as ct
 
-FORMAT = "controlkit.widget/1"
+from ._schema import FORMAT
+
+__all__ = ["FORMAT", "PROBLEM_KINDS", "Block", "Problem", "Wire", "timebase"]
 
 
 @dataclass
@@ -18,9 +20,10 @@ class Block:
     system : control.InputOutputSystem
         The block itself.
     recipe : dict or None
-        How to build it again: ``{"kind": palette key, "kwargs": {...}}``,
+        How to build it again: ``{"kind": palette key, "kwargs": {...}}`` (with
+        ``"sampled": {"Ts": period}`` for a block under zero-order hold),
         ``{"kind": "variable", "variable": name}`` (an object of the notebook), or None
-        for a block taken as it is from an opened interconnect.
+        for a block the editor cannot rebuild (taken as it is from an opened interconnect).
     label : str or None
         Display name (TeX, e.g. ``"$L_a$"``).
     position : tuple of float or None

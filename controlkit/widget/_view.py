@@ -266,5 +266,5 @@ def _port_order(L):
 def palette_entries():
     """The palette as the front end lists it."""
     return [{"key": e.key, "title": e.title, "group": e.group,
-             "tip": e.source(e.name, _palette.defaults(e.key, None), None)}
-            for e in _palette.ENTRIES]
+             "tip": e.source(e.name, _palette.defaults(e.key, None))}
+            for e in _palette.ENTRIES if e.shown]
