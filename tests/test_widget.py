@@ -9,18 +9,23 @@ diagrams and for three diagrams written the way a python-control user writes the
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 import warnings
+from pathlib import Path
 
 import control as ct
 import numpy as np
 import pytest
 
+import controlkit
 from controlkit.blocks import mec
 from controlkit.blocks import spacecraft as sc
 from controlkit.studies.cmg.diagrams import cmg_loop
 from controlkit.studies.spacecraft import scenario as scenario
 from controlkit.studies.spacecraft.diagrams import mec_loop, output_zeroing_loop
 from controlkit.widget import PALETTE, PROBLEM_KINDS, DiagramModel, _run, passes_input
+from controlkit.widget._code import code_parameters
 
 # ---------------------------------------------------------------------- diagrams
 
@@ -79,7 +84,7 @@ def fig4():
 Q0 = scenario.initial_attitude()
 SPACECRAFT_X0 = {"plant": Q0, "nominal": Q0[1:3]}
 DIAGRAMS = {  # builder, steps, initial states, constant inputs
-    "fig2": (output_zeroing_loop, 300, SPACECRAFT_X0, 0.0),
+    "fig2": (output_zeroing_loop, 300, {"plant": Q0}, 0.0),
     "fig3": (fig3, 300, SPACECRAFT_X0, 0.0),
     "fig4": (fig4, 300, SPACECRAFT_X0, 0.0),
     "cmg": (cmg_loop, 300, {}, 0.0),
@@ -93,8 +98,20 @@ def response(sys, steps, initial, U):
     T = _run.time_points(steps * sys.dt if sys.dt else steps * 0.01, sys.dt)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a user block runs on python-control, with a warning
-        resp = _run.simulate(sys, T, _run.stacked_state(sys, initial), U)
+        resp = _run.simulate(sys, T, controlkit.initial_state(sys, **initial), U)
     return np.asarray(resp.outputs).reshape(sys.noutputs, -1)
+
+
+def from_code(model, original=None, variable="edited", namespace=None):
+    """The interconnect that the editor's code builds: its blocks the editor cannot write
+    are taken from ``original`` (the opened diagram), its notebook variables from
+    ``namespace``."""
+    blocks = {s.name: s for s in original.syslist} if original is not None else {}
+    arguments = {p: (namespace or {})[p] if model.blocks[name].recipe else blocks[name]
+                 for p, name in code_parameters(model).items()}
+    exported = {"__name__": "exported"}
+    exec(compile(model.code(variable), "exported.py", "exec"), exported)  # noqa: S102
+    return exported[f"build_{variable}"](**arguments)
 
 
 def shown_labels(sys):
@@ -122,13 +139,13 @@ def test_code_to_model_to_interconnect_is_the_same_diagram(key, tmp_path):
     build, steps, initial, U = DIAGRAMS[key]
     original = build()
     model = DiagramModel.from_interconnect(original, source_name="original")
+    for block, x0 in initial.items():
+        model.set_initial(block, x0)
     rebuilt = model.system()
     assert_same_diagram(original, rebuilt)
     # the code the editor writes builds the same interconnect
-    namespace = {"original": original}
-    exec(model.code("edited"), namespace)
-    from_code = namespace["edited"]
-    assert_same_diagram(original, from_code)
+    written = from_code(model, original)
+    assert_same_diagram(original, written)
     # and so does the saved JSON, loaded again
     model.to_json(tmp_path / "diagram.json")
     loaded = DiagramModel.from_dict(json.loads((tmp_path / "diagram.json").read_text()),
@@ -137,20 +154,133 @@ def test_code_to_model_to_interconnect_is_the_same_diagram(key, tmp_path):
     # the display names (the builder's, and the blocks' own), frames and junction hints
     # travel along
     assert shown_labels(rebuilt) == shown_labels(original)
-    assert getattr(from_code, "drawing_hints", {}) == rebuilt.drawing_hints
+    assert getattr(written, "drawing_hints", {}) == rebuilt.drawing_hints
     expected = response(original, steps, initial, U)
     assert np.isfinite(expected).all()
-    for other in (rebuilt, from_code, loaded):
+    for other in (rebuilt, written, loaded):
         np.testing.assert_allclose(response(other, steps, initial, U), expected, rtol=0,
                                    atol=1e-12)
+
+
+def fig3_without_mec():
+    """The lecture's edit: the compensator deleted, the controller wired to the plant."""
+    model = DiagramModel.from_interconnect(fig3())
+    model.delete_block("mec")
+    model.connect("controller", "mu_n", "linearizer", "mu")
+    return model
+
+
+def my_lag():
+    return ct.tf([1.0], [0.2, 1.0], name="my_lag", inputs="a", outputs="b")
+
+
+def speed_loop_limited():
+    """Edited with a palette saturation and a notebook variable (my_lag)."""
+    model = DiagramModel.from_interconnect(speed_loop())
+    model.disconnect("pi", "v", "motor", "v")
+    model.add_from_palette("saturation", limit=0.8)
+    model.add_variable("my_lag", my_lag())
+    model.connect("pi", "v", "saturation", "u")
+    model.connect("saturation", "y", "my_lag", "a")
+    model.connect("my_lag", "b", "motor", "v")
+    return model
+
+
+#: Every diagram the tests open, with the page's setup: the model, where blocks the editor
+#: cannot write come from (a builder of this module), horizon, initial states, sources.
+PAGES = {key: (lambda build=build: DiagramModel.from_interconnect(build()), build.__name__,
+               steps * 0.1 if key in ("fig2", "fig3", "fig4", "summed_loop") else
+               steps * (0.001 if key == "cmg" else 0.5 if key == "tank_loop" else 0.01),
+               initial, {"kind": "constant", "value": U})
+         for key, (build, steps, initial, U) in DIAGRAMS.items()}
+PAGES.update({
+    "fig3 without MEC": (fig3_without_mec, "fig3", 30.0, SPACECRAFT_X0, None),
+    "speed loop limited": (speed_loop_limited, "speed_loop", 3.0, {"motor": [0.2]},
+                           {"kind": "step", "value": 1.0, "time": 0.5}),
+})
+
+
+def page(key):
+    """The model of ``PAGES[key]`` with its setup, and the page's own run of it."""
+    make, _, horizon, initial, src = PAGES[key]
+    model = make()
+    model.set_horizon(horizon)
+    for block, x0 in initial.items():
+        model.set_initial(block, x0)
+    for name, _ in model.inputs if src else []:
+        model.set_source(name, **src)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        _, resp = _run.run_diagram(model, measures=[], scopes=[])
+    return model, resp
+
+
+DRIVER = """
+import json, runpy, sys
+import numpy as np
+
+jobs = json.loads(sys.argv[1])
+for job in jobs:
+    if job["parameters"]:  # the blocks the editor cannot write: from the tests' builders
+        sys.path.insert(0, job["tests"])
+        import test_widget
+        opened = {s.name: s for s in getattr(test_widget, job["builder"])().syslist}
+        arguments = {p: getattr(test_widget, p)() if p == "my_lag" else opened[name]
+                     for p, name in job["parameters"].items()}
+        code = runpy.run_path(job["code"])
+        response = code["simulate_diagram"](code["build_diagram"](**arguments))
+    else:  # the code alone builds and runs the diagram
+        response = runpy.run_path(job["code"])["response"]
+    np.savez(job["out"], time=response.time, states=response.states,
+             outputs=response.outputs, labels=response.output_labels)
+"""
+
+
+@pytest.fixture(scope="module")
+def fresh_runs(tmp_path_factory):
+    """Each page's ``.code()`` run in one fresh interpreter (``python -I``), and the page."""
+    folder = tmp_path_factory.mktemp("exported")
+    pages, jobs = {}, []
+    for k, key in enumerate(PAGES):
+        model, resp = pages[key] = page(key)
+        (folder / f"page{k}.py").write_text(model.code("diagram"), encoding="utf-8")
+        jobs.append({"code": str(folder / f"page{k}.py"), "out": str(folder / f"page{k}.npz"),
+                     "builder": PAGES[key][1], "parameters": code_parameters(model),
+                     "tests": str(Path(__file__).parent)})
+    (folder / "driver.py").write_text(DRIVER, encoding="utf-8")
+    done = subprocess.run([sys.executable, "-I", str(folder / "driver.py"), json.dumps(jobs)],
+                          cwd=folder, capture_output=True, text=True, timeout=900)
+    assert done.returncode == 0, done.stderr[-3000:]
+    return {key: (*pages[key], np.load(job["out"])) for key, job in zip(PAGES, jobs,
+                                                                        strict=True)}
+
+
+@pytest.mark.parametrize("key", PAGES)
+def test_the_code_alone_gives_the_pages_result(fresh_runs, key):
+    """``.code()`` in a fresh interpreter: the page's time points, states and outputs."""
+    model, resp, alone = fresh_runs[key]
+    np.testing.assert_array_equal(alone["time"], resp.time)
+    assert np.isfinite(resp.states).all() and resp.states.shape[1] == resp.time.size
+    np.testing.assert_allclose(alone["states"], resp.states, rtol=0, atol=1e-12)
+    recorded = {label: k for k, label in enumerate(resp.output_labels)}
+    compared = 0
+    for row, (name, sources) in enumerate(model.outputs):
+        if len(sources) == 1 and sources[0][0] == "out" and sources[0][3] == 1.0:
+            block, signal = sources[0][1:3]
+            assert str(alone["labels"][row]) == name
+            np.testing.assert_allclose(alone["outputs"][row],
+                                       resp.outputs[recorded[f"{block}.{signal}"]],
+                                       rtol=0, atol=1e-12)
+            compared += 1
+    assert compared >= 1
 
 
 def test_an_interconnect_built_from_the_editors_code_opens_identically():
     original = fig3()
     model = DiagramModel.from_interconnect(original, source_name="original")
-    namespace = {"original": original}
-    exec(model.code("edited"), namespace)
-    again = DiagramModel.from_interconnect(namespace["edited"], source_name="original")
+    for block, x0 in SPACECRAFT_X0.items():
+        model.set_initial(block, x0)
+    again = DiagramModel.from_interconnect(from_code(model), source_name="original")
     assert again.to_dict()["wires"] == model.to_dict()["wires"]
     assert again.to_dict()["inputs"] == model.to_dict()["inputs"]
     assert again.to_dict()["outputs"] == model.to_dict()["outputs"]
@@ -240,21 +370,28 @@ def test_a_loop_through_a_block_with_state_is_no_algebraic_loop():
         assert not [p for p in model.problems() if p.kind == "algebraic loop"], build
 
 
-def test_mismatched_timebases_name_the_blocks():
+def test_timebases_are_refused_only_where_the_engine_refuses_them():
+    """Continuous, discrete and several periods together run as a sampled-data diagram
+    (controlkit.interconnect); what it refuses is reported with its reason."""
     model = without_mec()
     model.add_from_palette("pi")  # continuous design, sampled at the diagram's 0.1 s
     assert model.blocks["pi"].system.dt == 0.1
     model.add_block(ct.tf([1.0], [1.0, 1.0], name="lag", inputs="u", outputs="y"))
     model.add_block(mec.nominal_model(0.2, name="slow"))
+    assert model.is_mixed() and not [p for p in model.problems() if p.severity == "error"]
+    model.add_block(mec.nominal_model(0.25, name="odd"))
     (problem,) = [p for p in model.problems() if p.kind == "mismatched timebases"]
     assert problem.message == (
-        "mismatched timebases: 'plant', 'nominal', 'pi' run at dt = 0.1 s; 'lag' runs "
-        "continuous; 'slow' runs at dt = 0.2 s; sample the continuous blocks "
-        "(controlkit.blocks.sampling.sample_nlsys, control.sample_system)")
-    assert set(problem.blocks) == {"plant", "nominal", "pi", "lag", "slow"}
-    model.delete_block("lag")
+        "mismatched timebases: the sampling periods must be integer multiples of the "
+        "shortest (0.1 s of 'plant'); got 'odd' at 0.25 s")
+    assert problem.blocks == ["plant", "odd"]
+    model.delete_block("odd")
+    model.add_block(ct.tf([1.0], [1.0, 1.0], True, name="someday", inputs="u", outputs="y"))
     (problem,) = [p for p in model.problems() if p.kind == "mismatched timebases"]
-    assert problem.message.endswith("build all discrete blocks with one dt")
+    assert problem.message.startswith("mismatched timebases: blocks ['someday'] are "
+                                      "discrete with no sampling period (dt=True)")
+    with pytest.raises(ValueError, match="the diagram cannot be built: mismatched timebases"):
+        model.system()
 
 
 def test_unused_outputs_are_notes():
@@ -319,15 +456,17 @@ def test_fig3_without_mec_misses_the_pointing_requirement():
     """The browser test's edit, from Python: delete MEC, wire the controller to the
     linearized plant; the pointing error then misses 0.05 deg (the paper's claim)."""
     model = DiagramModel.from_interconnect(fig3())
+    model.set_horizon(20000.0)
+    for block, x0 in SPACECRAFT_X0.items():
+        model.set_initial(block, x0)
     measure = _run.Measure("pointing error", [f"plant.q[{i}]" for i in range(4)],
                            sc.pointing_error_deg, "deg", 0.05)
-    kwargs = dict(horizon=20000.0, initial=SPACECRAFT_X0, inputs={}, measures=[measure],
-                  scopes=["output.h[0]"])
-    before = _run.run_diagram(model, **kwargs)["measures"][0]
+    kwargs = dict(measures=[measure], scopes=["output.h[0]"])
+    before = _run.run_diagram(model, **kwargs)[0]["measures"][0]
     assert before["met"] and before["worst"] < 0.01
     model.delete_block("mec")
     model.connect("controller", "mu_n", "linearizer", "mu")
-    after = _run.run_diagram(model, **kwargs)
+    after, _ = _run.run_diagram(model, **kwargs)
     summary = after["measures"][0]
     assert summary["met"] is False and 0.5 < summary["worst"] < 0.8
     assert summary["text"].endswith("> 0.05 deg: requirement missed")
@@ -337,14 +476,17 @@ def test_fig3_without_mec_misses_the_pointing_requirement():
 
 def test_scoped_signals_are_the_blocks_outputs():
     model = DiagramModel.from_interconnect(speed_loop())
-    result = _run.run_diagram(model, horizon=2.0, initial={}, inputs={"w_ref": 1.0},
-                              measures=[], scopes=["motor.w", "pi.v", "nothing.x"])
+    model.set_horizon(2.0)
+    model.set_source("w_ref", "constant", value=1.0)
+    result, resp = _run.run_diagram(model, measures=[],
+                                    scopes=["motor.w", "pi.v", "nothing.x"])
     assert [t["name"] for t in result["traces"]] == ["motor.w", "pi.v"]
     w = result["traces"][0]["y"]
     assert w[0] == 0.0 and 0.5 < w[-1] < 1.1  # the PI drives w towards w_ref = 1
-    with pytest.raises(ValueError, match=r"inputs \['u'\] are not inputs of the diagram"):
-        _run.run_diagram(model, horizon=1.0, initial={}, inputs={"u": 1.0}, measures=[],
-                         scopes=[])
+    assert resp.output_labels == ["error.e", "pi.v", "motor.w"]
+    with pytest.raises(ValueError, match=r"the diagram has no external input 'u'; its "
+                                         r"inputs: \['w_ref'\]"):
+        model.set_source("u", "constant", value=1.0)
 
 
 def test_time_points_and_initial_state_checks():
@@ -353,7 +495,9 @@ def test_time_points_and_initial_state_checks():
     with pytest.raises(ValueError, match=r"horizon must be at least one sample \(0.1 s\)"):
         _run.time_points(0.01, 0.1)
     with pytest.raises(ValueError, match=r"initial state of block 'plant' must have 4 values"):
-        _run.stacked_state(output_zeroing_loop(), {"plant": [1.0]})
+        DiagramModel.from_interconnect(output_zeroing_loop()).set_initial("plant", [1.0])
+    with pytest.raises(ValueError, match=r"horizon must be at most 2,000,000 samples of 0.1 s"):
+        _run.time_points(1e9, 0.1)
 
 
 # ---------------------------------------------------------------------- palette and sliders
@@ -365,9 +509,9 @@ def test_every_palette_block_builds_and_its_code_builds_the_same(key):
     name = model.add_from_palette(key)
     block = model.blocks[name].system
     assert block.name == name
-    namespace = {"original": None}
+    namespace = {}
     source = model.code("edited")
-    line = next(line for line in source.splitlines() if f"name={name!r}" in line)
+    line = next(line for line in source.splitlines() if f"name={name!r}" in line).strip()
     for head in source.splitlines():
         if head.startswith(("import ", "from ")):
             exec(head, namespace)
@@ -421,8 +565,9 @@ def test_a_notebook_variable_joins_by_name_and_is_written_by_name():
     model.add_variable("my_filter", my_filter)  # twice: a renamed copy
     assert list(model.blocks)[-2:] == ["my_filter", "my_filter2"]
     code = model.code()
-    assert "my_filter2 = my_filter.copy(name='my_filter2')" in code
-    assert "\nmy_filter = " not in code  # the variable itself is used as it is
+    assert "    my_filter2 = my_filter.copy(name='my_filter2')" in code
+    assert "my_filter = " not in code  # the variable itself is used as it is
+    assert code_parameters(model) == {"my_filter": "my_filter"}  # the rest is rebuilt
     with pytest.raises(ValueError, match="variable 'x' holds a int, not a python-control"):
         model.add_variable("x", 3)
 
@@ -567,10 +712,9 @@ def test_code_of_a_diagram_edited_with_palette_blocks_and_variables_builds_it():
     model.connect("my_lag", "b", "motor", "v")
     assert not [p for p in model.problems() if p.severity != "note"]
     built = model.system()
-    namespace = {"original": original, "my_lag": my_lag}
-    exec(model.code("edited"), namespace)
-    assert_same_diagram(built, namespace["edited"])
-    np.testing.assert_allclose(response(namespace["edited"], 300, {}, 1.0),
+    edited = from_code(model, original, namespace={"my_lag": my_lag})
+    assert_same_diagram(built, edited)
+    np.testing.assert_allclose(response(edited, 300, {}, 1.0),
                                response(built, 300, {}, 1.0), rtol=0, atol=1e-12)
     v = response(built, 300, {}, 1.0)[1]  # the PI's output, before the limiter
     assert v.max() > 0.8  # the limiter has something to do

@@ -134,7 +134,7 @@ def test_a_block_name_with_a_newline_or_a_dot_is_refused(name):
                                   "back\\slash", "ünï cødé"])
 def test_quotes_in_names_reach_the_code_as_strings(tmp_path, name):
     """A name the schema accepts goes into the exported code only through repr."""
-    data = saved([block(name, "gain", {"k": 2.0}, ["u"], ["y"]),
+    data = saved([block(name, "pi", {"kp": 2.0, "ki": 1.0}, ["u"], ["y"]),
                   block("sum", "summing_junction", {"signs": "+-"}, ["u1", "u2"], ["y"])],
                  wires=[[name, "y", "sum", "u2", 1.0]], inputs=[["r", [["sum", "u1", 1.0]]]],
                  outputs=[["y", [["out", name, "y", 1.0]]]],

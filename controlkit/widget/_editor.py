@@ -32,12 +32,14 @@ class DiagramEditor(anywidget.AnyWidget):
     ----------
     sys : control.InterconnectedSystem or DiagramModel
         The diagram to open.
-    horizon : float
-        Simulated time of a run (s).
+    horizon : float, optional
+        Simulated time of a run (s); default the saved diagram's, else 10 s.
     initial : dict, optional
         Initial states by block name (default each block's ``x0``, else zero).
     inputs : dict, optional
-        Constant values of the diagram's external inputs by name (default 0).
+        What drives each external input, by name: a number (a constant) or a source
+        ``{"kind": "step", "value": 1.0, "time": 1.0}`` (kinds ``constant``, ``step``,
+        ``ramp``, ``sine``, ``pulse``; see :meth:`DiagramModel.set_source`). Default 0.
     scopes : list of str, optional
         Signals drawn after a run, as ``"block.signal"``.
     namespace : dict, optional
@@ -74,7 +76,7 @@ class DiagramEditor(anywidget.AnyWidget):
     height = traitlets.Int(620).tag(sync=True)
     code_text = traitlets.Unicode("").tag(sync=True)
 
-    def __init__(self, sys, *, horizon=100.0, initial=None, inputs=None, scopes=None,
+    def __init__(self, sys, *, horizon=None, initial=None, inputs=None, scopes=None,
                  namespace=None, height=620, source_name=None, **kwargs):
         super().__init__(**kwargs)
         self._namespace = namespace
@@ -85,11 +87,18 @@ class DiagramEditor(anywidget.AnyWidget):
                 source_name = next((k for k, v in self.namespace().items()
                                     if v is sys and not k.startswith("_")), None)
             self.model = DiagramModel.from_interconnect(sys, source_name=source_name)
-        self.initial = dict(initial or {})
-        self.inputs = dict(inputs or {})
+        for name, values in (initial or {}).items():
+            self.model.set_initial(name, values)
+        for name, value in (inputs or {}).items():
+            if isinstance(value, dict):
+                self.model.set_source(name, **value)
+            else:
+                self.model.set_source(name, "constant", value=float(value))
+        if horizon is not None:
+            self.model.set_horizon(horizon)
         self.measures = []
         self.last_response = None
-        self.horizon = float(horizon)
+        self.horizon = self.model.horizon
         self.height = int(height)
         self.scopes = list(scopes) if scopes is not None else self._default_scopes()
         self.on_msg(self._on_message)
@@ -195,10 +204,14 @@ class DiagramEditor(anywidget.AnyWidget):
                                           None if limit is None else float(limit), over, log))
 
     def run(self):
-        """Simulate the diagram as the *Run* button does; returns the scopes' data."""
-        results = _run.run_diagram(self.model, horizon=self.horizon, initial=self.initial,
-                                   inputs=self.inputs, measures=self.measures,
-                                   scopes=self.scopes)
+        """Simulate the diagram as the *Run* button does; returns the scopes' data.
+
+        The run itself (every sample, all block outputs as ``"block.signal"``) is kept as
+        :attr:`last_response`.
+        """
+        self.model.set_horizon(self.horizon)
+        results, self.last_response = _run.run_diagram(self.model, measures=self.measures,
+                                                       scopes=self.scopes)
         self.status = (f"ran {results['steps']:,} steps in {results['seconds']:.2f} s"
                        + ("" if not results["warnings"] else
                           " - " + "; ".join(results["warnings"])))

@@ -30,13 +30,14 @@ from ._parts import FORMAT, PROBLEM_KINDS, Block, Problem, Wire, timebase
 from ._ports import port_groups
 from ._problems import find_problems, passes_input
 from ._recognise import recognise
+from ._setup import RunSetup
 
 __all__ = ["FORMAT", "PROBLEM_KINDS", "Block", "DiagramModel", "Problem", "Wire",
            "passes_input"]
 
 
 @dataclass
-class DiagramModel:
+class DiagramModel(RunSetup):
     """A block diagram being edited; see the module docstring.
 
     Examples
@@ -63,6 +64,9 @@ class DiagramModel:
     summed: set = field(default_factory=set)     # inputs whose several drivers are meant
     hints: dict = field(default_factory=dict)    # groups, sums, beside, rows, notes, title
     source_name: str | None = None               # the variable holding the opened diagram
+    horizon: float = 10.0                        # the run: simulated time (s),
+    sources: dict = field(default_factory=dict)  # what drives each external input,
+    initial: dict = field(default_factory=dict)  # initial states by block
 
     # ------------------------------------------------------------------ reading
 
@@ -196,6 +200,8 @@ class DiagramModel:
         self.wires = [w for w in self.wires if name not in (w.src[0], w.dst[0])]
         self.inputs = [(n, [t for t in targets if t[0] != name]) for n, targets in self.inputs]
         self.inputs = [(n, targets) for n, targets in self.inputs if targets]
+        self.sources = {n: s for n, s in self.sources.items() if n in dict(self.inputs)}
+        self.initial.pop(name, None)
         self.outputs = [(n, [s for s in sources if s[1] != name]) for n, sources in self.outputs]
         self.outputs = [(n, sources) for n, sources in self.outputs if sources]
         self.summed = {dst for dst in self.summed if dst[0] != name}
@@ -303,16 +309,38 @@ class DiagramModel:
 
     # ------------------------------------------------------------------ building
 
+    def timebases(self):
+        """``{"continuous": [blocks], period: [blocks]}``: the blocks that run in time."""
+        kinds = {}
+        for name, b in self.blocks.items():
+            kind = timebase(b.system.dt)
+            if kind == "continuous":
+                kinds.setdefault("continuous", []).append(name)
+            elif kind == "discrete" and b.system.dt is not True:
+                kinds.setdefault(float(b.system.dt), []).append(name)
+        return kinds
+
+    def is_mixed(self):
+        """Continuous and discrete blocks, or several periods: a sampled-data diagram
+        (:func:`controlkit.interconnect`)."""
+        return len(self.timebases()) > 1
+
     def period(self):
-        """The diagram's sampling period: the one discrete ``dt`` of its blocks, else None."""
-        periods = {s.dt for s in self.systems() if timebase(s.dt) == "discrete"}
-        return periods.pop() if len(periods) == 1 else None
+        """The sampling period of a discrete diagram (new palette blocks join it sampled),
+        else None (continuous, static or sampled-data)."""
+        kinds = self.timebases()
+        return next(iter(kinds)) if len(kinds) == 1 and "continuous" not in kinds else None
 
     def systems(self):
         return [b.system for b in self.blocks.values()]
 
-    def system(self):
-        """The diagram as a ``control.interconnect`` (with ``drawing_hints`` attached).
+    def system(self, *, outlist=None, outputs=None, name=None):
+        """The diagram as :func:`controlkit.interconnect` builds it (``drawing_hints`` on).
+
+        One timebase: python-control's ``control.interconnect`` result; continuous and
+        discrete blocks together: a sampled-data diagram, which
+        :func:`controlkit.input_output_response` simulates. ``outlist``, ``outputs`` and
+        ``name`` replace the diagram's own (the editor records every block output).
 
         Raises
         ------
@@ -321,18 +349,22 @@ class DiagramModel:
             mismatched timebases), which python-control would not catch or would
             report without naming the blocks.
         """
+        from controlkit.sampled_data import interconnect
+
         errors = [p.message for p in self.problems() if p.severity == "error"]
         if errors:
             raise ValueError("the diagram cannot be built: " + "; ".join(errors))
         if not self.blocks:
             raise ValueError("the diagram has no blocks")
-        connections, inplist, inputs, outlist, outputs = interconnect_specs(self)
+        connections, inplist, inputs, own_outlist, own_outputs = interconnect_specs(self)
         with warnings.catch_warnings():  # unused signals are reported by problems()
             warnings.filterwarnings("ignore", message=r"Unused (input|output)",
                                     category=UserWarning)
-            sys = ct.interconnect(self.systems(), connections=connections or False,
-                                  inplist=inplist, inputs=inputs, outlist=outlist,
-                                  outputs=outputs, name=self.name)
+            sys = interconnect(self.systems(), connections=connections or False,
+                               inplist=inplist, inputs=inputs,
+                               outlist=own_outlist if outlist is None else outlist,
+                               outputs=own_outputs if outputs is None else outputs,
+                               name=name or self.name)
         sys.drawing_hints = self.drawing_hints()
         return sys
 
@@ -350,13 +382,23 @@ class DiagramModel:
     # ------------------------------------------------------------------ code
 
     def code(self, variable=None):
-        """The Python that builds this diagram with ``control.interconnect``.
+        """A module that builds this diagram and runs it as the page does, standing alone.
 
-        Blocks from the palette are written as the calls that build them, blocks of the
-        notebook by their variable, and blocks taken from the opened interconnect as
-        ``<source>_blocks["name"]`` (``<source>`` is :attr:`source_name`, else
-        ``source``); executing the code where those names exist gives an interconnect
-        equal to :meth:`system`.
+        It has its imports; a function ``build_<variable>`` that builds every block from
+        its constructor (palette blocks and the blocks of an opened diagram that the
+        editor rebuilds exactly: state-space blocks, summing junctions, controlkit's
+        factories) and returns the interconnect; a function ``simulate_<variable>`` that
+        calls :func:`controlkit.input_output_response` with the page's time points,
+        inputs (sources) and initial state; and the two calls. A block the editor
+        cannot write (a user's own ``nlsys``) or a notebook variable is a parameter of
+        ``build_<variable>``, named and described in its docstring; the calls are then
+        written as comments to fill in. Names reach the code as checked identifiers and
+        values as ``repr``.
+
+        Parameters
+        ----------
+        variable : str, optional
+            Python name of the diagram (default: from its name).
         """
         return write_code(self, variable)
 

@@ -33,6 +33,8 @@ def to_dict(model):
         "outputs": [[n, [list(s) for s in sources]] for n, sources in model.outputs],
         "summed": sorted(list(d) for d in model.summed),
         "hints": model.hints,
+        "setup": {"horizon": model.horizon, "sources": model.sources,
+                  "initial": model.initial},
     }
 
 
@@ -95,6 +97,11 @@ def from_dict(cls, data, *, systems=None, namespace=None):
     model.outputs = [(n, [tuple(s) for s in sources])
                      for n, sources in data.get("outputs", [])]
     model.summed = {tuple(d) for d in data.get("summed", [])}
+    setup = data.get("setup", {})
+    model.horizon = setup.get("horizon", model.horizon)
+    model.sources = dict(setup.get("sources", {}))
+    for name, values in setup.get("initial", {}).items():
+        model.set_initial(name, values)  # checks the number of states
     return model
 
 

@@ -17,7 +17,8 @@ it was plain JSON data too)::
      "wires": [[block, signal, block, signal, gain]],
      "inputs": [[name, [[block, signal, gain]]]],
      "outputs": [[name, [["out" | "in", block, signal, gain]]]],
-     "summed": [[block, signal]], "hints": {...}}
+     "summed": [[block, signal]], "hints": {...},
+     "setup": {"horizon": seconds, "sources": {input: source}, "initial": {block: [x0]}}}
 """
 
 from __future__ import annotations
@@ -299,6 +300,15 @@ def _block_rule():
         what="a block")
 
 
+def _setup_rule():
+    from ._sources import SOURCE
+
+    return Record({}, {"horizon": Number(positive=True, high=1e9),
+                       "sources": Mapping(NAME, SOURCE),
+                       "initial": Mapping(NAME, Items(Number(), LIMITS["signals"]))},
+                  what="the run's setup")
+
+
 def read(data):
     """The saved diagram ``data`` (parsed JSON), checked field by field.
 
@@ -338,7 +348,7 @@ def read(data):
         "outputs": Items(Row(NAME, Items(Row(Text(choices=("out", "in")), NAME, NAME, _GAIN),
                                          LIMITS["signals"])), LIMITS["signals"]),
         "summed": Items(Row(NAME, NAME), LIMITS["wires"]),
-        "hints": _HINTS,
+        "hints": _HINTS, "setup": _setup_rule(),
         "source_name": Optional(Identifier())}, what="a saved diagram")
     checked = rule.check(data, "")
     _check_references(checked)
@@ -396,3 +406,11 @@ def _check_references(data):
             needs(b, s, side, f"outputs[{i}][1][{j}]")
     for i, (b, s) in enumerate(data.get("summed", [])):
         needs(b, s, "in", f"summed[{i}]")
+    setup = data.get("setup", {})
+    inputs = {name for name, _ in data.get("inputs", [])}
+    for name in setup.get("sources", {}):
+        if name not in inputs:
+            raise ValueError(f"setup.sources[{name!r}]: names no external input of the file")
+    for name in setup.get("initial", {}):
+        if name not in signals:
+            raise ValueError(f"setup.initial[{name!r}]: names no block of the file")
