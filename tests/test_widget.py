@@ -24,7 +24,7 @@ from controlkit.blocks import spacecraft as sc
 from controlkit.studies.cmg.diagrams import cmg_loop
 from controlkit.studies.spacecraft import scenario as scenario
 from controlkit.studies.spacecraft.diagrams import mec_loop, output_zeroing_loop
-from controlkit.widget import PALETTE, PROBLEM_KINDS, DiagramModel, _run, passes_input
+from controlkit.widget import PALETTE, PROBLEM_KINDS, DiagramModel, _run, _view, passes_input
 from controlkit.widget._code import code_parameters
 
 # ---------------------------------------------------------------------- diagrams
@@ -70,6 +70,33 @@ def summed_loop():
         connections=[["ctrl.e", "-plant.y"], ["plant.u", "ctrl.c", ("ff", "f", 0.5)]],
         inplist=[["ctrl.e", "ff.r"]], inputs=["r"],
         outlist=["plant.y", "ctrl.e"], outputs=["y", "e"], name="summed_loop")
+
+
+def motor_rhs(t, x, u, params):  # notebook 0's motor: tau w' = -w + k v
+    tau, k = params["tau"], params["k"]
+    return (-x[0] + k * u[0]) / tau
+
+
+def first_loop_blocks(Ts=0.02):
+    """Notebook 0's blocks: the continuous motor, its PI sampled at ``Ts``, the junction."""
+    motor = ct.nlsys(motor_rhs, lambda t, x, u, params: x[0], inputs="v", outputs="w",
+                     states="w", params={"tau": 0.5, "k": 2.0}, name="motor")
+    pi = ct.tf2ss(ct.tf([2.5, 5.0], [1, 0]), inputs="e", outputs="v", name="pi")
+    error = ct.summing_junction(["w_ref", "-w"], "e", name="error")
+    return motor, ct.sample_system(pi, Ts, name="pi"), error
+
+
+def sampled_speed_loop():
+    """Notebook 0's sampled-data loop, built as the notebook builds it."""
+    return controlkit.interconnect(list(first_loop_blocks()), inputs="w_ref",
+                                   outputs=["w", "v"], name="sampled_loop")
+
+
+def discrete_speed_loop():
+    """Notebook 0's fully discrete loop: the motor sampled too."""
+    motor, pi, error = first_loop_blocks()
+    return ct.interconnect([controlkit.sample_nlsys(motor, 0.02), pi, error], inputs="w_ref",
+                           outputs=["w", "v"], name="discrete_loop")
 
 
 def fig3():
@@ -195,6 +222,12 @@ PAGES = {key: (lambda build=build: DiagramModel.from_interconnect(build()), buil
          for key, (build, steps, initial, U) in DIAGRAMS.items()}
 PAGES.update({
     "fig3 without MEC": (fig3_without_mec, "fig3", 30.0, SPACECRAFT_X0, None),
+    "notebook 0 sampled-data": (lambda: DiagramModel.from_interconnect(sampled_speed_loop()),
+                                "sampled_speed_loop", 1.0, {},
+                                {"kind": "step", "value": 1.0, "time": 0.2}),
+    "notebook 0 discrete": (lambda: DiagramModel.from_interconnect(discrete_speed_loop()),
+                            "discrete_speed_loop", 1.0, {"motor": [0.5]},
+                            {"kind": "sine", "amplitude": 0.5, "frequency": 2.0}),
     "speed loop limited": (speed_loop_limited, "speed_loop", 3.0, {"motor": [0.2]},
                            {"kind": "step", "value": 1.0, "time": 0.5}),
 })
@@ -392,6 +425,50 @@ def test_timebases_are_refused_only_where_the_engine_refuses_them():
                                       "discrete with no sampling period (dt=True)")
     with pytest.raises(ValueError, match="the diagram cannot be built: mismatched timebases"):
         model.system()
+
+
+def test_notebook_0s_sampled_data_loop_opens_and_runs_as_the_engine_runs_it():
+    """python-control refuses the loop (a continuous motor, a PI sampled at 20 ms);
+    controlkit.interconnect builds it, and the editor opens, shows and runs it."""
+    loop = sampled_speed_loop()
+    model = DiagramModel.from_interconnect(loop)
+    assert not [p for p in model.problems() if p.severity != "note"]
+    assert model.is_mixed() and model.period() is None and model.run_period() == 0
+    _view.place(model)
+    blocks = {b["name"]: b for b in _view.view(model)["blocks"]}
+    # each block's rate as draw_block_diagram writes it under the block
+    assert {n: b["sub"] for n, b in blocks.items()} == {
+        "motor": "continuous", "pi": "dt = 0.02", "error": "static"}
+    assert [n for n, b in blocks.items() if b["discrete"]] == ["pi"]
+    assert _view.view(model)["mixed"] is True
+    model.set_horizon(1.0)
+    model.set_source("w_ref", "step", value=1.0, time=0.0)
+    _, resp = _run.run_diagram(model, measures=[], scopes=[])
+    T = np.linspace(0.0, 1.0, 2001)
+    reference = controlkit.input_output_response(loop, T, 1.0)
+    np.testing.assert_allclose(resp.outputs[resp.output_labels.index("motor.w")],
+                               reference.outputs[0], rtol=0, atol=1e-12)
+    assert 1.0005 < reference.outputs[0].max() < 1.002  # the notebook's 0.1 % overshoot
+
+
+def test_a_discrete_block_joins_a_continuous_diagram():
+    model = DiagramModel.from_interconnect(speed_loop())
+    model.delete_block("pi")
+    pi = ct.sample_system(ct.tf2ss(ct.tf([2.0, 1.0], [1.0, 0.0])), 0.05, name="pi",
+                          inputs="e", outputs="v")
+    model.add_variable("pi_digital", pi)
+    model.connect("error", "e", "pi", "e")
+    model.connect("pi", "v", "motor", "v")
+    assert not [p for p in model.problems() if p.severity != "note"]
+    assert type(model.system()).__name__ == "SampledDataSystem"
+    model.set_source("w_ref", "constant", value=1.0)
+    model.set_horizon(4.0)
+    result, resp = _run.run_diagram(model, measures=[], scopes=["motor.w"])
+    direct = controlkit.interconnect(model.systems(), inputs="w_ref", outputs="w")
+    expected = controlkit.input_output_response(direct, resp.time, 1.0)
+    np.testing.assert_allclose(resp.outputs[resp.output_labels.index("motor.w")],
+                               expected.outputs, rtol=0, atol=1e-12)
+    assert 0.9 < result["traces"][0]["y"][-1] < 1.0  # on its way to w_ref = 1
 
 
 def test_unused_outputs_are_notes():

@@ -197,8 +197,9 @@ def write_code(model, variable=None):
     if parameters:
         source = model.source_name
         tail += ["# The blocks the editor cannot write come from your notebook; for example:"]
-        if source and any(b.recipe is None for b in model.blocks.values()):
-            tail.append(f"#   blocks = {{s.name: s for s in {source}.syslist}}")
+        if any(b.recipe is None for b in model.blocks.values()):
+            tail.append(f"#   blocks = {{s.name: s for s in {source or 'opened'}.syslist}}"
+                        f"  # the diagram you opened")
         passed = ", ".join(f"{p}={p}" if model.blocks[n].recipe else f"{p}=blocks[{n!r}]"
                            for p, n in parameters.items())
         tail += [f"#   {variable} = build_{variable}({passed})",

@@ -74,14 +74,26 @@ def states_of(system):
 
 
 def kind_of(system):
-    """``static``, ``continuous`` or ``dt = 0.1``: how the block runs in time."""
+    """How a block runs in time, written as the static drawing writes it under its name:
+    ``dt = 0.1`` (discrete, states or not: it holds its output between its instants),
+    ``discrete`` (``dt=True``), ``static``, ``continuous``, or ``n blocks``.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> kind_of(ct.tf(2.0, 1, 0.1)), kind_of(ct.tf(2.0, 1, None)), kind_of(ct.tf(1, [1, 1]))
+    ('dt = 0.1', 'static', 'continuous')
+    """
     if isinstance(system, ct.InterconnectedSystem):
         return f"{len(system.syslist)} blocks"
-    if not states_of(system):
-        return "static"
-    if system.dt is None or system.dt is True:
-        return "discrete"
-    return "continuous" if system.dt == 0 else f"dt = {system.dt:g}"
+    if is_discrete(system):
+        return "discrete" if system.dt is True else f"dt = {system.dt:g}"
+    return "continuous" if states_of(system) else "static"
+
+
+def is_discrete(system):
+    """Whether a block runs at sample instants (``dt = Ts`` or ``dt = True``)."""
+    return system.dt is True or (system.dt is not None and system.dt > 0)
 
 
 def place(model):
@@ -174,9 +186,11 @@ def view(model):
             "params": {k: float(v) for k, v in params.items()},
             "recipe": (b.recipe or {}).get("kind"), "nstates": states_of(s),
             "dt": None if s.dt is None or s.dt is True else float(s.dt),
+            "discrete": is_discrete(s) and not isinstance(s, ct.InterconnectedSystem),
             "feedthrough": passes_input(s),
         })
     return {"name": model.name, "title": model.hints.get("title") or model.name,
+            "mixed": model.is_mixed(),
             "blocks": blocks, "edges": _edges(model), "inputs": _external_inputs(model),
             "groups": [{"label": g, "members": [m for m in members if m in model.blocks]}
                        for g, members in model.hints.get("groups", {}).items()],

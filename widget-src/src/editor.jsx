@@ -37,7 +37,8 @@ function BlockNode({ data, selected }) {
   const b = data.block;
   const ins = b.inputs.filter((p) => !p.junction);
   const cls = ["ck-block", `ck-shape-${b.shape}`, selected ? "ck-selected" : "",
-    data.bad ? "ck-bad" : "", data.warn ? "ck-warn" : ""].join(" ");
+    data.bad ? "ck-bad" : "", data.warn ? "ck-warn" : "",
+    data.mixed && b.discrete ? "ck-discrete" : ""].join(" ");
   const inSide = b.flip ? Position.Right : Position.Left;
   const outSide = b.flip ? Position.Left : Position.Right;
   const frac = (i, n) => `${(100 * (i + 1)) / (n + 1)}%`;
@@ -177,7 +178,7 @@ function buildNodes(diagram, previous, badBlocks, warnBlocks) {
     const prev = old[b.name];
     nodes.push({ id: b.name, type, position: { x: b.x - b.w / 2, y: b.y - b.h / 2 },
       data: { block: b, bad: badBlocks.has(b.name), warn: warnBlocks.has(b.name),
-        loose: new Set(b.inputs.filter((p) => p.loose).map((p) => p.port)) },
+        mixed: diagram.mixed, loose: new Set(b.inputs.filter((p) => p.loose).map((p) => p.port)) },
       width: b.w, height: b.h, selected: prev ? prev.selected : false,
       ...(prev && prev.measured ? { measured: prev.measured } : {}) });
     const junctionPorts = b.inputs.filter((p) => p.junction);
@@ -610,6 +611,11 @@ function Editor({ model }) {
           onAdd={(key) => addCentre(key)} />
         <div className="ck-canvas" ref={wrapper} onDragOver={(ev) => ev.preventDefault()}
           onDrop={onDrop}>
+          {diagram.mixed && !showCode ? (
+            <div className="ck-rate-legend" data-testid="rate-legend">
+              <span className="ck-swatch ck-discrete" /> discrete: updates at its instants,
+              holds its output between them
+              <span className="ck-swatch" /> continuous or static</div>) : null}
           {showCode ? <pre className="ck-code" data-testid="code">{code}</pre> : (
             <ReactFlow nodes={nodes} edges={edges} nodeTypes={nodeTypes} edgeTypes={edgeTypes}
               onNodesChange={onNodesChange} onEdgesChange={onEdgesChange}
