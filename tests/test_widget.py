@@ -24,7 +24,15 @@ from controlkit.blocks import spacecraft as sc
 from controlkit.studies.cmg.diagrams import cmg_loop
 from controlkit.studies.spacecraft import scenario as scenario
 from controlkit.studies.spacecraft.diagrams import mec_loop, output_zeroing_loop
-from controlkit.widget import PALETTE, PROBLEM_KINDS, DiagramModel, _run, _view, passes_input
+from controlkit.widget import (
+    PALETTE,
+    PROBLEM_KINDS,
+    DiagramModel,
+    _run,
+    _sources,
+    _view,
+    passes_input,
+)
 from controlkit.widget._code import code_parameters
 
 # ---------------------------------------------------------------------- diagrams
@@ -577,6 +585,130 @@ def test_time_points_and_initial_state_checks():
         _run.time_points(1e9, 0.1)
 
 
+# ---------------------------------------------------------------------- sources and inputs
+
+
+@pytest.mark.parametrize("kind, fields", [
+    ("constant", {"value": -0.7}),
+    ("step", {"value": 2.0, "time": 0.35, "initial": -1.0}),
+    ("ramp", {"slope": 0.3, "time": 1.1, "initial": 0.2}),
+    ("sine", {"amplitude": 0.5, "frequency": 1.7, "phase": 0.3, "offset": 0.1}),
+    ("pulse", {"value": 1.5, "time": 0.4, "width": 0.25}),
+    ("pulse", {"value": 1.5, "time": 0.4, "width": 0.25, "period": 0.6, "initial": 0.1}),
+])
+def test_a_sources_values_are_its_written_expression(kind, fields):
+    """The page's U row and the exported code's numpy expression agree bit for bit."""
+    import ast as python_ast
+
+    src = _sources.source(kind, **fields)
+    T = np.linspace(0.0, 3.0, 3001)
+    written = eval(compile(python_ast.Expression(_sources.expression(src)), "source", "eval"),
+                   {"np": np, "T": T})  # our own template, numbers as constants
+    np.testing.assert_array_equal(written, _sources.values(src, T))
+    assert np.ptp(written) > 0 or kind == "constant"
+
+
+@pytest.mark.parametrize("kind, fields, message", [
+    ("square", {}, r"source of 'w_ref'\.kind: must be one of \['constant', 'step', 'ramp', "
+                   r"'sine', 'pulse'\], got 'square'"),
+    ("step", {"when": 1.0}, r"source of 'w_ref': unknown field 'when'; allowed: \['initial', "
+                            r"'kind', 'time', 'value'\]"),
+    ("step", {"time": -1.0}, r"source of 'w_ref'\.time: must be a finite number in \[0, 1e"
+                             r"\+12\], got -1\.0"),
+    ("pulse", {"width": 0.0}, r"source of 'w_ref'\.width: must be a finite number > 0"),
+    ("pulse", {"width": 2.0, "period": 1.0}, r"source of 'w_ref'\.period: must be 0 \(one "
+                                             r"pulse\) or at least the width 2"),
+    ("sine", {"amplitude": float("nan")}, r"source of 'w_ref'\.amplitude: must be a finite "
+                                          r"number"),
+])
+def test_a_bad_source_names_its_field(kind, fields, message):
+    model = DiagramModel.from_interconnect(speed_loop())
+    with pytest.raises(ValueError, match=message):
+        model.set_source("w_ref", kind, **fields)
+
+
+def test_deleting_the_junction_keeps_the_input_and_its_source():
+    """Deleting the err junction left no way to drive the loop again; now w_ref waits,
+    unattached, with its source, and is wired to a new junction."""
+    original = speed_loop()
+    model = DiagramModel.from_interconnect(original)
+    model.set_horizon(3.0)
+    model.set_source("w_ref", "step", value=1.0, time=0.5)
+    model.delete_block("error")
+    assert model.inputs[0] == ("w_ref", [])
+    assert model.source_of("w_ref")["kind"] == "step"
+    (note,) = [p.message for p in model.problems() if p.kind == "unused input"]
+    assert note == ("unused input: the external input w_ref drives nothing; it joins the "
+                    "interconnect when it is wired to a block")
+    assert model.system().ninputs == 0 and _run.run_arguments(model)["U"] == 0.0
+    model.add_from_palette("summing_junction", signs="+-")
+    model.connect_input("w_ref", "sum", "u1")
+    model.connect("motor", "w", "sum", "u2")
+    model.connect("sum", "y", "pi", "e")
+    assert not [p for p in model.problems() if p.severity != "note"]
+    _, resp = _run.run_diagram(model, measures=[], scopes=[])
+    T = resp.time
+    expected = controlkit.input_output_response(original, T, np.where(T >= 0.5, 1.0, 0.0))
+    np.testing.assert_allclose(resp.outputs[resp.output_labels.index("motor.w")],
+                               expected.outputs[0], rtol=0, atol=1e-12)
+
+
+def test_inputs_are_added_wired_unwired_and_removed():
+    model = DiagramModel.from_interconnect(fig3())
+    model.delete_block("controller")
+    assert [n for n, t in model.inputs] == ["r[0]", "r[1]"]
+    assert model.input_groups() == [("r", ["r[0]", "r[1]"])]
+    model.add_from_palette("outer_controller", output="mu_n")
+    with pytest.raises(ValueError, match=r"cannot connect the external input r \(2 signals\) "
+                                         r"to controller\.h\[0\] \(1 signal\)"):
+        model.connect_input("r", "controller", "h[0]")
+    model.connect_input("r", "controller", "r")
+    assert model.inputs == [("r[0]", [("controller", "r[0]", 1.0)]),
+                            ("r[1]", [("controller", "r[1]", 1.0)])]
+    assert model.add_input("d", "plant", "u") == ["d[0]", "d[1]"]  # a vector port
+    with pytest.raises(ValueError, match=r"the diagram already has an external input 'd\[0\]'"):
+        model.add_input("d", "plant", "u")
+    model.disconnect_input("d", "plant", "u")
+    assert dict(model.inputs)["d[0]"] == []
+    with pytest.raises(ValueError, match=r"the external input d does not drive plant\.u"):
+        model.disconnect_input("d", "plant", "u")
+    model.set_source("d[1]", "sine", amplitude=0.1)
+    model.remove_input("d")
+    assert [n for n, _ in model.inputs] == ["r[0]", "r[1]"] and "d[1]" not in model.sources
+    with pytest.raises(ValueError, match=r"the diagram has no external input 'd'; its inputs: "
+                                         r"\['r'\]"):
+        model.remove_input("d")
+    with pytest.raises(ValueError, match=r"the input's name: must be a name of 1 to 100"):
+        model.add_input("a.b")
+
+
+def test_the_page_builds_python_controls_arguments():
+    """T, U, X0 of the page given to control.input_output_response itself: the same run."""
+    model = DiagramModel.from_interconnect(speed_loop())
+    model.set_horizon(2.0)
+    model.set_source("w_ref", "pulse", value=1.0, time=0.2, width=0.5)
+    model.set_initial("motor", [0.3])
+    sys = model.system()
+    arguments = _run.run_arguments(model, sys)
+    assert set(arguments) >= {"T", "U", "X0", "params"}
+    assert arguments["U"].shape == (1, 2001) and arguments["X0"].tolist() == [0.0, 0.3]
+    reference = ct.input_output_response(sys, arguments["T"], arguments["U"], arguments["X0"],
+                                         params=arguments["params"])
+    _, page_run = _run.run_diagram(model, measures=[], scopes=[])
+    np.testing.assert_allclose(page_run.states, reference.states, rtol=0, atol=1e-9)
+
+
+def test_the_setup_is_saved_with_the_diagram():
+    model = DiagramModel.from_interconnect(speed_loop())
+    model.set_horizon(4.0)
+    model.set_source("w_ref", "ramp", slope=0.5, time=1.0)
+    model.set_initial("motor", [0.25])
+    again = DiagramModel.from_json(model.to_json())
+    assert (again.horizon, again.sources, again.initial) == (
+        4.0, {"w_ref": {"kind": "ramp", "slope": 0.5, "time": 1.0, "initial": 0.0}},
+        {"motor": [0.25]})
+
+
 # ---------------------------------------------------------------------- palette and sliders
 
 
@@ -728,6 +860,36 @@ def test_the_widget_applies_the_front_ends_messages(editor):
     assert editor.scopes == ["plant.q[1]"]
     editor._on_message(editor, {"op": "wiggle"}, [])
     assert editor.status == "ValueError: unknown operation 'wiggle'"
+
+
+def test_the_page_sets_inputs_sources_initial_states_and_the_horizon(editor):
+    send = lambda **content: editor._on_message(editor, content, [])  # noqa: E731
+    send(op="delete", blocks=["controller"])
+    assert editor.diagram["inputs"][-1] == {
+        "id": "in:free:r", "names": ["r[0]", "r[1]"], "target": None, "port": None,
+        "sign": 1.0, "groups": ["r"], "label": "r", "source": "0"}
+    send(op="add", key="outer_controller", position=[0, 0])
+    send(op="connect_input", input="r", target=["controller", "r"])
+    send(op="set_source", input="r", kind="step", fields={"value": 0.01, "time": 100})
+    assert editor.diagram["inputs"][0]["source"] == "step 0.01 at 100 s"
+    assert editor.diagram["setup"]["sources"]["r[1]"]["text"] == (
+        "step from 0 to 0.01 at t = 100 s")
+    send(op="set_source", input="r", kind="step", fields={"value": 0.01, "time": -1})
+    assert editor.status == ("ValueError: source of 'r[0]'.time: must be a finite number in "
+                             "[0, 1e+12], got -1.0")
+    send(op="add_input", name="d", target=["plant", "u"])
+    send(op="remove_input", input="d")
+    assert [g for g, _ in editor.model.input_groups()] == ["r"]
+    send(op="set_initial", block="nominal", values=[0.1, 0.2])
+    assert editor.diagram["setup"]["initial"]["nominal"] == {
+        "values": [0.1, 0.2], "set": True, "states": ["hn[0]", "hn[1]"]}
+    send(op="set_initial", block="nominal", values=[0.1])
+    assert editor.status.startswith("ValueError: initial state of block 'nominal' must have "
+                                    "2 values (hn[0], hn[1]), got 1")
+    send(op="horizon", value=200.0)
+    assert editor.model.horizon == editor.horizon == 200.0
+    assert "np.where(T >= 100.0, 0.01, 0.0),  # 'r[0]': step from 0 to 0.01 at t = 100 s" in (
+        editor.code_text)
 
 
 def test_the_run_button_reports_the_requirement(editor):

@@ -57,7 +57,7 @@ def interconnect_specs(model):
         return (len(ta) == len(tb) == 1 and ta[0][0] == tb[0][0] and ta[0][2] == tb[0][2]
                 and next_element(ta[0][1], tb[0][1]) and next_element(na, nb))
 
-    for run in runs(model.inputs, input_continues):
+    for run in runs([(n, t) for n, t in model.inputs if t], input_continues):
         names = [n for n, _ in run]
         if len(run) > 1:
             block, _, gain = run[0][1][0]

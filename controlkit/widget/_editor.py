@@ -277,52 +277,89 @@ class DiagramEditor(anywidget.AnyWidget):
             self.code_text = f"# the code cannot be written yet: {error}"
 
     def _on_message(self, _widget, content, _buffers):
+        """Apply one message of the front end (``{"op": ..., ...}``) and redraw."""
         op = content.get("op")
+        handler = getattr(self, f"_op_{op}", None) if isinstance(op, str) else None
         try:
-            if op == "move":
-                for name, (x, y) in content["positions"].items():
-                    if name in self.model.blocks:
-                        self.model.blocks[name].position = (float(x), float(y))
-                return
-            if op == "connect":
-                self.model.connect(*content["source"], *content["target"])
-            elif op == "disconnect":
-                for edge in content["edges"]:
-                    self.model.disconnect(*edge)
-            elif op == "delete":
-                for name in content["blocks"]:
-                    self.model.delete_block(name)
-            elif op == "add":  # a palette key, or "var:<name>" for a notebook variable
-                key = content["key"]
-                if key.startswith("var:"):
-                    key = key[4:]
-                    if key in _view._palette.PALETTE:  # a variable named like an entry
-                        self.model.add_variable(key, self.namespace()[key],
-                                                position=tuple(content["position"]))
-                        key = None
-                if key is not None:
-                    self.add_block(key, position=tuple(content["position"]))
-            elif op == "set_parameter":
-                self.model.set_parameter(content["block"], content["name"], content["value"])
-            elif op == "scopes":
-                self.scopes = list(content["signals"])
-                return
-            elif op == "horizon":
-                self.horizon = float(content["value"])
-                return
-            elif op == "run":
-                if "horizon" in content:
-                    self.horizon = float(content["horizon"])
-                self.status = "running..."
-                self.run()
-                return
-            elif op == "refresh":
-                pass
-            else:
+            if handler is None:
                 raise ValueError(f"unknown operation {op!r}")
+            if handler(content) is _QUIET:
+                return
             self.status = ""
         except Exception as error:  # noqa: BLE001 - every mistake is shown in the widget
             self.status = f"{type(error).__name__}: {error}"
             if not isinstance(error, ValueError):
                 self.status += "\n" + traceback.format_exc(limit=3)
         self._refresh()
+
+    # one method per operation of the front end; _QUIET: nothing to redraw
+
+    def _op_move(self, content):
+        for name, (x, y) in content["positions"].items():
+            if name in self.model.blocks:
+                self.model.blocks[name].position = (float(x), float(y))
+        return _QUIET
+
+    def _op_connect(self, content):
+        self.model.connect(*content["source"], *content["target"])
+
+    def _op_disconnect(self, content):
+        for edge in content["edges"]:
+            self.model.disconnect(*edge)
+
+    def _op_delete(self, content):
+        for name in content["blocks"]:
+            self.model.delete_block(name)
+
+    def _op_add(self, content):  # a palette key, or "var:<name>" for a notebook variable
+        key, position = content["key"], tuple(content["position"])
+        if key.startswith("var:") and key[4:] in _view._palette.PALETTE:
+            key = key[4:]  # a variable named like a palette entry
+            self.model.add_variable(key, self.namespace()[key], position=position)
+        else:
+            self.add_block(key.removeprefix("var:"), position=position)
+
+    def _op_set_parameter(self, content):
+        self.model.set_parameter(content["block"], content["name"], content["value"])
+
+    def _op_add_input(self, content):
+        target = content.get("target") or (None, None)
+        self.model.add_input(content["name"], *target)
+
+    def _op_connect_input(self, content):
+        self.model.connect_input(content["input"], *content["target"])
+
+    def _op_disconnect_input(self, content):
+        self.model.disconnect_input(content["input"], *content["target"])
+
+    def _op_remove_input(self, content):
+        self.model.remove_input(content["input"])
+
+    def _op_set_source(self, content):
+        fields = {k: float(v) for k, v in (content.get("fields") or {}).items()}
+        for name in self.model.input_names(content["input"]):
+            self.model.set_source(name, content["kind"], **fields)
+
+    def _op_set_initial(self, content):
+        self.model.set_initial(content["block"], content.get("values"))
+
+    def _op_horizon(self, content):
+        self.model.set_horizon(float(content["value"]))
+        self.horizon = self.model.horizon
+
+    def _op_scopes(self, content):
+        self.scopes = list(content["signals"])
+        return _QUIET
+
+    def _op_run(self, content):
+        if "horizon" in content:
+            self._op_horizon({"value": content["horizon"]})
+        self.status = "running..."
+        self.run()
+        return _QUIET
+
+    def _op_refresh(self, content):
+        return None
+
+
+_QUIET = object()

@@ -194,13 +194,13 @@ class DiagramModel(RunSetup):
         self._rewired()
 
     def delete_block(self, name):
-        """Remove a block with its wires, the external signals it had and its hints."""
+        """Remove a block with its wires, its outputs to the outside and its hints; the
+        external inputs it had stay, unattached, with their sources."""
         self._block(name)
         del self.blocks[name]
         self.wires = [w for w in self.wires if name not in (w.src[0], w.dst[0])]
+        # the external inputs stay (unattached, with their sources), to be wired again
         self.inputs = [(n, [t for t in targets if t[0] != name]) for n, targets in self.inputs]
-        self.inputs = [(n, targets) for n, targets in self.inputs if targets]
-        self.sources = {n: s for n, s in self.sources.items() if n in dict(self.inputs)}
         self.initial.pop(name, None)
         self.outputs = [(n, [s for s in sources if s[1] != name]) for n, sources in self.outputs]
         self.outputs = [(n, sources) for n, sources in self.outputs if sources]
@@ -455,6 +455,8 @@ class DiagramModel(RunSetup):
         - ``mismatched timebases`` (error): continuous and discrete blocks, or two
           sampling periods, in one diagram.
         - ``unused output`` (note): an output that goes nowhere.
+        - ``unused input`` (note): an external input wired to no block (it is left out
+          of the interconnect until it is).
 
         Returns
         -------

@@ -66,7 +66,7 @@ class Problem:
 #: What :meth:`DiagramModel.problems` reports; ``error`` problems stop a run.
 PROBLEM_KINDS = {"unconnected input": "warning", "two drivers": "error",
                  "algebraic loop": "error", "mismatched timebases": "error",
-                 "unused output": "note"}
+                 "unused output": "note", "unused input": "note"}
 
 
 

@@ -52,6 +52,12 @@ def find_problems(model):
             found.append(Problem(
                 "unused output", "note", [name],
                 f"unused output: {_signals(name, unused)} of block {name!r} goes nowhere"))
+    for label, names in model.input_groups():
+        if not any(dict(model.inputs)[n] for n in names):
+            found.append(Problem(
+                "unused input", "note", [],
+                f"unused input: the external input {label} drives nothing; it joins the "
+                f"interconnect when it is wired to a block"))
     found += _algebraic_loops(model)
     found += _timebases(model)
     return found

@@ -1,4 +1,5 @@
-"""The run a page sets up: the horizon, what drives each external input, initial states.
+"""The run a page sets up: the horizon, the external inputs and what drives each of them
+(sources), initial states.
 
 :class:`RunSetup` holds the methods; :class:`~controlkit.widget.DiagramModel` holds the
 data (``horizon``, ``sources``, ``initial``) and saves it with the diagram. Together they
@@ -11,6 +12,8 @@ from __future__ import annotations
 import numpy as np
 
 from . import _sources
+from ._ports import port_groups
+from ._schema import NAME
 
 
 class RunSetup:
@@ -58,3 +61,78 @@ class RunSetup:
 
         time_points(horizon, self.run_period())  # checks it
         self.horizon = float(horizon)
+
+    # ------------------------------------------------------------------ external inputs
+
+    def input_groups(self):
+        """The external inputs grouped as ports: ``[(label, [names])]`` (``r[0], r[1]`` is
+        ``r``), attached to blocks or not."""
+        return port_groups([name for name, _ in self.inputs])
+
+    def input_names(self, label):
+        """The external inputs of a group label (or a single input's name)."""
+        for group, names in self.input_groups():
+            if group == label:
+                return names
+        if label in dict(self.inputs):
+            return [label]
+        raise ValueError(f"the diagram has no external input {label!r}; its inputs: "
+                         f"{[g for g, _ in self.input_groups()]}")
+
+    def add_input(self, name, block=None, port=None):
+        """A new external input ``name``, driven by a constant 0 until a source is set.
+
+        With ``block`` and ``port`` it is wired to that input port at once, one signal
+        per element (``name[0]``, ``name[1]``... for a vector port). Without, it waits,
+        unattached, to be connected (:meth:`connect_input`).
+
+        Returns
+        -------
+        list of str
+            The new inputs' names.
+        """
+        NAME.check(name, "the input's name")
+        width = 1 if block is None else len(self.port_signals(block, "in", port))
+        names = [name] if width == 1 else [f"{name}[{i}]" for i in range(width)]
+        taken = [n for n in names if n in dict(self.inputs)]
+        if taken:
+            raise ValueError(f"the diagram already has an external input {taken[0]!r}")
+        self.inputs += [(n, []) for n in names]
+        if block is not None:
+            self.connect_input(name, block, port)
+        return names
+
+    def connect_input(self, label, block, port, gain=1.0):
+        """Wire external input ``label`` (a name, or a group such as ``r``) to an input
+        port of ``block``, element by element."""
+        names = self.input_names(label)
+        signals = self.port_signals(block, "in", port)
+        if len(names) != len(signals):
+            raise ValueError(f"cannot connect the external input {label} ({len(names)} "
+                             f"signal{'s' if len(names) != 1 else ''}) to {block}.{port} "
+                             f"({len(signals)} signal{'s' if len(signals) != 1 else ''}): "
+                             f"the widths must be equal")
+        targets = dict(self.inputs)
+        for name, signal in zip(names, signals, strict=True):
+            if not any(t[:2] == (block, signal) for t in targets[name]):
+                targets[name] = [*targets[name], (block, signal, float(gain))]
+        self.inputs = [(n, targets[n]) for n, _ in self.inputs]
+        self._rewired()
+
+    def disconnect_input(self, label, block, port):
+        """Unwire external input ``label`` from a port; the input stays, unattached."""
+        names = set(self.input_names(label))
+        signals = set(self.port_signals(block, "in", port))
+        before = sum(len(t) for _, t in self.inputs)
+        self.inputs = [(n, [t for t in targets if n not in names or t[0] != block
+                            or t[1] not in signals]) for n, targets in self.inputs]
+        if sum(len(t) for _, t in self.inputs) == before:
+            raise ValueError(f"the external input {label} does not drive {block}.{port}")
+        self._rewired()
+
+    def remove_input(self, label):
+        """Remove an external input (or group) with its source."""
+        names = set(self.input_names(label))
+        self.inputs = [(n, t) for n, t in self.inputs if n not in names]
+        self.sources = {n: s for n, s in self.sources.items() if n not in names}
+        self._rewired()

@@ -172,3 +172,27 @@ def describe(src):
     train = f", every {src['period']:g} s" if src["period"] > 0 else ""
     return (f"pulse of {src['value']:g} from t = {src['time']:g} s for {src['width']:g} s"
             f"{train} (else {src['initial']:g})")
+
+
+def short(src):
+    """A few characters for a source, written beside its input in the diagram.
+
+    Examples
+    --------
+    >>> short(source("step", value=1.0, time=1.0)), short(source("constant", value=2.5))
+    ('step 1 at 1 s', '2.5')
+    """
+    kind = src["kind"]
+    if kind == "constant":
+        return f"{src['value']:g}"
+    start = f" at {src['time']:g} s" if src.get("time") else ""
+    if kind == "step":
+        base = f"{src['initial']:g} \u2192 " if src["initial"] else ""
+        return f"step {base}{src['value']:g}{start}"
+    if kind == "ramp":
+        return f"ramp {src['slope']:g}/s{start}"
+    if kind == "sine":
+        offset = f"{src['offset']:g} + " if src["offset"] else ""
+        return f"{offset}{src['amplitude']:g} sin {src['frequency']:g} Hz"
+    every = f" every {src['period']:g} s" if src["period"] > 0 else ""
+    return f"pulse {src['value']:g}{start}, {src['width']:g} s{every}"

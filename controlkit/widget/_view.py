@@ -12,7 +12,7 @@ import warnings
 import control as ct
 import numpy as np
 
-from . import _palette
+from . import _palette, _sources
 from ._ports import port_groups
 from ._problems import passes_input
 
@@ -192,6 +192,7 @@ def view(model):
     return {"name": model.name, "title": model.hints.get("title") or model.name,
             "mixed": model.is_mixed(),
             "blocks": blocks, "edges": _edges(model), "inputs": _external_inputs(model),
+            "setup": _setup(model),
             "groups": [{"label": g, "members": [m for m in members if m in model.blocks]}
                        for g, members in model.hints.get("groups", {}).items()],
             "signals": [f"{n}.{label}" for n, b in model.blocks.items()
@@ -241,22 +242,52 @@ def _edges(model):
 
 
 def _external_inputs(model):
-    """External inputs grouped per target port: ``{label, names, target, port}``."""
+    """External inputs as the diagram draws them: one terminal per target port
+    (``{id, label, groups, names, target, port, sign, source}``), and one per input that
+    drives nothing yet (``target`` None)."""
     out = {}
     for name, targets in model.inputs:
         for block, signal, gain in targets:
-            port, signals = _port_of(model, block, "in", signal)
+            port, _ = _port_of(model, block, "in", signal)
             entry = out.setdefault((block, port), {"names": [], "target": block, "port": port,
                                                    "sign": float(np.sign(gain))})
             entry["names"].append(name)
     result = []
     for (block, port), entry in out.items():
-        names = entry["names"]
-        groups = port_groups(names)
-        entry["label"] = ", ".join(g for g, _ in groups)
         entry["id"] = f"in:{block}:{port}"
         result.append(entry)
+    attached = dict(model.inputs)
+    for label, names in model.input_groups():
+        if not any(attached[n] for n in names):
+            result.append({"id": f"in:free:{label}", "names": names, "target": None,
+                           "port": None, "sign": 1.0})
+    for entry in result:
+        groups = port_groups(entry["names"])
+        entry["groups"] = [g for g, _ in groups]
+        entry["label"] = ", ".join(entry["groups"])
+        texts = {_sources.short(model.source_of(n)) for n in entry["names"]}
+        entry["source"] = texts.pop() if len(texts) == 1 else "sources"
     return result
+
+
+def _setup(model):
+    """The run's setup as the page edits it: sources by input, initial states by block."""
+    sources = {}
+    for name, _ in model.inputs:
+        src = model.source_of(name)
+        sources[name] = {**src, "text": _sources.describe(src)}
+    initial = {}
+    for name, b in model.blocks.items():
+        n = b.system.nstates
+        if n:
+            given = model.initial.get(name)
+            own = getattr(b.system, "x0", None)
+            shown = given if given is not None else (
+                np.zeros(n) if own is None else np.asarray(own, dtype=float).reshape(-1))
+            initial[name] = {"values": [float(v) for v in shown], "set": given is not None,
+                             "states": list(b.system.state_labels)}
+    return {"horizon": model.horizon, "sources": sources, "kinds": _sources.KINDS,
+            "initial": initial}
 
 
 def _port_order(L):

@@ -113,12 +113,17 @@ function JunctionNode({ data }) {
   );
 }
 
-function TerminalNode({ data }) {
+// an external input: its source (what drives it) and its name; drag from its dot to a port
+function TerminalNode({ data, selected }) {
   return (
-    <div className="ck-terminal" style={{ width: data.w }}>
-      <Tex text={data.label} />
-      <Handle id="out" type="source" position={Position.Right} className="ck-port ck-hidden"
-        isConnectable={false} />
+    <div className={`ck-terminal ${selected ? "ck-terminal-selected" : ""}
+      ${data.target ? "" : "ck-terminal-free"}`} style={{ width: data.w }}
+      data-input={data.label} title={`external input ${data.label}: ${data.source}${
+        data.target ? "" : " (drag from its dot to an input port)"}`}>
+      <span className="ck-source">{data.source}</span> <Tex text={data.label} />
+      <Handle id="out" type="source" position={Position.Right}
+        className={`ck-port ck-out ${data.target ? "ck-hidden" : ""}`}
+        data-port={`input.${data.label}`} />
     </div>
   );
 }
@@ -189,10 +194,12 @@ function buildNodes(diagram, previous, badBlocks, warnBlocks) {
     }
   }
   for (const t of diagram.inputs) {
-    const w = Math.max(24, 8 * t.label.length + 8);
+    const w = Math.max(24, 7.5 * t.label.length + 6.2 * t.source.length + 22);
+    const prev = old[t.id];
     nodes.push({ id: t.id, type: "terminal", position: { x: 0, y: 0 },
-      data: { label: t.label, target: t.target, port: t.port, w }, draggable: false,
-      selectable: false, width: w, height: 20 });
+      data: { label: t.label, target: t.target, port: t.port, w, source: t.source,
+        groups: t.groups, names: t.names }, draggable: false,
+      selectable: true, selected: prev ? prev.selected : false, width: w, height: 20 });
   }
   return follow(nodes);
 }
@@ -211,7 +218,16 @@ function follow(nodes) {
     return n;
   });
   const byId2 = Object.fromEntries(out.map((n) => [n.id, n]));
+  // inputs that drive nothing wait in a column left of the diagram
+  const blocks = out.filter((n) => n.type === "block" || n.type === "sum");
+  const left = blocks.length ? Math.min(...blocks.map((n) => n.position.x)) : 0;
+  const top = blocks.length ? Math.min(...blocks.map((n) => n.position.y)) : 0;
+  let free = 0;
   return out.map((n) => {
+    if (n.type === "terminal" && !n.data.target) {
+      const position = { x: left - 150 - n.data.w, y: top + 34 * free++ };
+      return { ...n, position };
+    }
     if (n.type === "terminal") {
       const o = byId2[n.data.target];
       if (!o) return n;
@@ -253,8 +269,9 @@ function buildEdges(diagram, nodes, selectedEdges) {
     return p && p.junction;
   };
   for (const t of diagram.inputs) {
+    if (!t.target) continue;
     wires.push({ id: `${t.id}|wire`, source: t.id, sourcePort: "out", target: t.target,
-      targetPort: t.port, label: "", sign: t.sign, external: true });
+      targetPort: t.port, label: "", sign: t.sign, external: true, groups: t.groups });
   }
   const routes = routeAll(nodes, wires);
   const labelled = new Set();
@@ -267,8 +284,8 @@ function buildEdges(diagram, nodes, selectedEdges) {
     return {
       id: w.id, source: w.source, sourceHandle: w.sourcePort,
       target: inJunction ? `${w.target}::sum` : w.target, targetHandle: w.targetPort,
-      type: "wire", selected: selectedEdges.has(w.id), selectable: !w.external,
-      reconnectable: !w.external, deletable: !w.external,
+      type: "wire", selected: selectedEdges.has(w.id), selectable: true,
+      reconnectable: !w.external, deletable: true,
       markerEnd: { type: "arrowclosed", width: 14, height: 14, color: "#1f3b6e" },
       data: { points: (routes[w.id] || {}).points, label: w.label, sign: w.sign, showLabel,
         flip: src && src.flip, junctionSign: inJunction, wire: w },
@@ -296,6 +313,26 @@ function junctionEdges(diagram, nodes) {
 }
 
 // ------------------------------------------------------------------------------ panels
+
+// "+ input": a new external input, wired afterwards by dragging from its dot
+function NewInput({ send }) {
+  const [open, setOpen] = useState(false);
+  const [name, setName] = useState("");
+  if (!open) {
+    return <button type="button" data-testid="add-input" title="a new external input"
+      onClick={() => setOpen(true)}>+ input</button>;
+  }
+  const add = () => { if (name) send({ op: "add_input", name }); setOpen(false); setName(""); };
+  return (
+    <span className="ck-row">
+      <input autoFocus className="ck-number" placeholder="name" value={name}
+        data-testid="new-input" onChange={(ev) => setName(ev.target.value)}
+        onKeyDown={(ev) => { if (ev.key === "Enter") add(); if (ev.key === "Escape")
+          setOpen(false); }} />
+      <button type="button" onClick={add}>add</button>
+    </span>
+  );
+}
 
 function Palette({ palette, variables, onAdd }) {
   const groups = {};
@@ -362,6 +399,9 @@ function Inspector({ diagram, selectedBlock, selectedEdge, send, scopes }) {
           ? "input reaches the output at once" : "no direct feedthrough"}</div>
         <div className="ck-ports">in: {b.inputs.map((p) => p.port).join(", ") || "none"}
           <br />out: {b.outputs.map((p) => p.port).join(", ") || "none"}</div>
+        {diagram.setup && diagram.setup.initial[b.name] ? (
+          <InitialState block={b.name} state={diagram.setup.initial[b.name]} send={send} />
+        ) : null}
         {params.length ? <div className="ck-heading">parameters</div> : null}
         {params.map(([k, v]) => (
           <ParamSlider key={`${b.name}.${k}`} block={b.name} name={k} value={v} send={send} />
@@ -398,6 +438,81 @@ function Inspector({ diagram, selectedBlock, selectedEdge, send, scopes }) {
       Select a block to see its parameters, a wire to scope or disconnect it. Drag from an
       output port (right) to an input port (left) to connect; press Delete to remove what is
       selected.
+    </div>
+  );
+}
+
+// what drives an external input: a kind and its numbers, applied with Enter or "apply"
+function SourceEditor({ name, source, kinds, send }) {
+  const [kind, setKind] = useState(source.kind);
+  const [fields, setFields] = useState(() => ({ ...source }));
+  useEffect(() => { setKind(source.kind); setFields({ ...source }); }, [source]);
+  const shown = kinds[kind];
+  const value = (k) => (k in fields ? fields[k] : shown[k]);
+  const apply = () => send({ op: "set_source", input: name, kind, fields: Object.fromEntries(
+    Object.keys(shown).map((k) => [k, Number(value(k))])) });
+  return (
+    <div className="ck-source-editor" data-source={name}>
+      <div className="ck-row"><b><Tex text={name} /></b>
+        <select value={kind} data-testid="source-kind" onChange={(ev) => {
+          setKind(ev.target.value); setFields({ ...kinds[ev.target.value] }); }}>
+          {Object.keys(kinds).map((k) => <option key={k}>{k}</option>)}
+        </select></div>
+      <div className="ck-fields">
+        {Object.keys(shown).map((k) => (
+          <label key={k}>{k}{k === "time" || k === "width" || k === "period" ? " [s]"
+            : k === "frequency" ? " [Hz]" : k === "phase" ? " [rad]" : ""}
+            <input className="ck-number" data-field={k} value={value(k)}
+              onChange={(ev) => setFields({ ...fields, [k]: ev.target.value })}
+              onKeyDown={(ev) => { if (ev.key === "Enter") apply(); }} /></label>
+        ))}
+      </div>
+      <div className="ck-row"><button type="button" data-testid="apply-source"
+        onClick={apply}>apply</button>
+        <span className="ck-muted">{kind === source.kind ? source.text : ""}</span></div>
+    </div>
+  );
+}
+
+function InputInspector({ diagram, terminal, send }) {
+  const { sources, kinds } = diagram.setup;
+  return (
+    <div className="ck-inspector" data-testid="input-inspector">
+      <div className="ck-heading">external input <Tex text={terminal.label} /></div>
+      <div className="ck-muted">{terminal.target ? `drives ${terminal.target}.${terminal.port}`
+        : "drives nothing yet: drag from its dot to an input port"}</div>
+      {terminal.names.map((n) => sources[n] ? (
+        <SourceEditor key={n} name={n} source={sources[n]} kinds={kinds} send={send} />
+      ) : null)}
+      <div className="ck-row">
+        {terminal.target ? terminal.groups.map((g) => (
+          <button key={g} type="button" onClick={() => send({ op: "disconnect_input", input: g,
+            target: [terminal.target, terminal.port] })}>disconnect {g}</button>)) : null}
+        {terminal.groups.map((g) => (
+          <button key={`rm${g}`} type="button" className="ck-danger" data-testid="remove-input"
+            onClick={() => send({ op: "remove_input", input: g })}>remove input {g}</button>))}
+      </div>
+    </div>
+  );
+}
+
+function InitialState({ block, state, send }) {
+  const text = state.values.map((v) => Number(v.toPrecision(6))).join(", ");
+  const [shown, setShown] = useState(text);
+  useEffect(() => setShown(text), [text]);
+  const apply = () => send({ op: "set_initial", block,
+    values: shown.split(/[,\s]+/).filter(Boolean).map(Number) });
+  return (
+    <div className="ck-initial">
+      <div className="ck-heading">initial state</div>
+      <div className="ck-muted">{state.states.join(", ")}{state.set ? "" : " (the block's own)"}</div>
+      <div className="ck-row">
+        <input value={shown} data-testid="initial-state" onChange={(ev) => setShown(ev.target.value)}
+          onKeyDown={(ev) => { if (ev.key === "Enter") apply(); }} />
+        <button type="button" onClick={apply}>set</button>
+        {state.set ? <button type="button" onClick={() => send({ op: "set_initial", block,
+          values: null })}>reset</button> : null}
+      </div>
     </div>
   );
 }
@@ -542,17 +657,27 @@ function Editor({ model }) {
   }, [send]);
   const owner = (id) => id.replace(/::sum$/, "");
   const onConnect = useCallback((c) => {
-    if (c.source.startsWith("in:")) return;
+    if (c.source.startsWith("in:")) {  // an external input dragged onto a port
+      const t = diagram.inputs.find((x) => x.id === c.source);
+      if (t) send({ op: "connect_input", input: t.groups[0],
+        target: [owner(c.target), c.targetHandle] });
+      return;
+    }
     send({ op: "connect", source: [c.source, c.sourceHandle],
       target: [owner(c.target), c.targetHandle] });
-  }, [send]);
+  }, [send, diagram]);
   const wireOf = (edge) => (edge.data && edge.data.wire) || null;
   const onDelete = useCallback(({ nodes: gone, edges: cut }) => {
     const blocks = gone.filter((n) => n.type === "block" || n.type === "sum").map((n) => n.id);
-    const wires = cut.map(wireOf).filter((w) => w && !w.external)
-      .filter((w) => !blocks.includes(w.source) && !blocks.includes(w.target))
+    const kept = cut.map(wireOf).filter((w) => w && !blocks.includes(w.target)
+      && !blocks.includes(w.source));
+    const wires = kept.filter((w) => !w.external)
       .map((w) => [w.source, w.sourcePort, w.target, w.targetPort]);
     if (wires.length) send({ op: "disconnect", edges: wires });
+    for (const w of kept.filter((x) => x.external)) {
+      for (const g of w.groups) send({ op: "disconnect_input", input: g,
+        target: [w.target, w.targetPort] });
+    }
     if (blocks.length) send({ op: "delete", blocks });
   }, [send]);
   const reconnected = useRef(false);
@@ -584,6 +709,7 @@ function Editor({ model }) {
     if (key) addAt(key, { x: ev.clientX, y: ev.clientY });
   }, [addAt]);
   const selectedNode = nodes.find((n) => n.selected && (n.type === "block" || n.type === "sum"));
+  const selectedInput = nodes.find((n) => n.selected && n.type === "terminal");
   const selectedEdge = [...selectedEdges][0];
   const errors = problems.filter((p) => p.severity === "error").length;
   const run = () => {
@@ -597,8 +723,13 @@ function Editor({ model }) {
       <div className="ck-toolbar">
         <Tex text={diagram.title} className="ck-title" />
         <span className="ck-spacer" />
+        <NewInput send={send} />
         <label>horizon [s] <input className="ck-number" value={horizonText}
-          onChange={(ev) => setHorizonText(ev.target.value)} data-testid="horizon" /></label>
+          onChange={(ev) => setHorizonText(ev.target.value)} data-testid="horizon"
+          onKeyDown={(ev) => { if (ev.key === "Enter") send({ op: "horizon",
+            value: Number(horizonText) }); }}
+          onBlur={() => { if (Number(horizonText) !== horizon) send({ op: "horizon",
+            value: Number(horizonText) }); }} /></label>
         <button type="button" className="ck-run" onClick={run} disabled={errors > 0 || running}
           data-testid="run" title={errors ? "fix the wiring errors first" : "simulate"}>
           {running ? "running…" : "▶ Run"}</button>
@@ -631,8 +762,12 @@ function Editor({ model }) {
           )}
         </div>
         <div className="ck-side">
-          <Inspector diagram={diagram} selectedBlock={selectedNode && selectedNode.id}
-            selectedEdge={selectedNode ? null : selectedEdge} send={send} scopes={scopes} />
+          {selectedInput && !selectedNode && diagram.setup ? (
+            <InputInspector diagram={diagram} terminal={selectedInput.data} send={send} />
+          ) : (
+            <Inspector diagram={diagram} selectedBlock={selectedNode && selectedNode.id}
+              selectedEdge={selectedNode ? null : selectedEdge} send={send} scopes={scopes} />
+          )}
           <Problems problems={problems} />
         </div>
       </div>
