@@ -892,6 +892,109 @@ def test_the_page_sets_inputs_sources_initial_states_and_the_horizon(editor):
         editor.code_text)
 
 
+def state(editor):
+    """What an edit changes, as the saved file has it (positions included)."""
+    return json.loads(editor.model.to_json())
+
+
+@pytest.mark.parametrize("op", [
+    {"op": "move", "positions": {"plant": [10, 20]}},
+    {"op": "delete", "blocks": ["mec"]},
+    {"op": "disconnect", "edges": [["mec", "mu", "linearizer", "mu"]]},
+    {"op": "connect", "source": ["nominal", "hn"], "target": ["controller", "r"]},
+    {"op": "add", "key": "pi", "position": [0, 400]},
+    {"op": "add", "key": "var:lag", "position": [0, 400]},
+    {"op": "set_parameter", "block": "gain", "name": "K", "value": 0.02},
+    {"op": "add_input", "name": "d", "target": ["plant", "u"]},
+    {"op": "disconnect_input", "input": "r", "target": ["controller", "r"]},
+    {"op": "remove_input", "input": "r"},
+    {"op": "set_source", "input": "r", "kind": "sine", "fields": {"amplitude": 0.01}},
+    {"op": "set_initial", "block": "nominal", "values": [0.1, 0.2]},
+    {"op": "horizon", "value": 500.0},
+    {"op": "paste", "blocks": ["controller", "mec"]},
+    {"op": "relayout"},
+], ids=lambda op: op["op"])
+def test_every_edit_of_the_page_is_undone_and_redone(editor, op):
+    editor._on_message(editor, {"op": "move", "positions": {"gain": [5, 5]}}, [])
+    before = state(editor)
+    editor._on_message(editor, op, [])
+    assert editor.status == "" and editor.can_undo
+    after = state(editor)
+    assert after != before
+    editor._on_message(editor, {"op": "undo"}, [])
+    assert state(editor) == before and editor.can_redo
+    editor._on_message(editor, {"op": "redo"}, [])
+    assert state(editor) == after and not editor.can_redo
+    assert editor.horizon == editor.model.horizon
+
+
+def test_a_refused_edit_leaves_nothing_to_undo(editor):
+    before = state(editor)
+    editor._on_message(editor, {"op": "connect", "source": ["controller", "mu_n"],
+                                "target": ["linearizer", "q"]}, [])
+    assert editor.status.startswith("ValueError: cannot connect controller.mu_n (2 signals)")
+    assert state(editor) == before and not editor.can_undo
+    editor._on_message(editor, {"op": "undo"}, [])
+    assert editor.status == "nothing to undo" and state(editor) == before
+
+
+def rectangles(editor):
+    return {b["name"]: (b["x"] - b["w"] / 2, b["y"] - b["h"] / 2, b["x"] + b["w"] / 2,
+                        b["y"] + b["h"] / 2) for b in editor.diagram["blocks"]}
+
+
+def overlapping(editor, name):
+    mine = rectangles(editor)[name]
+    return [n for n, r in rectangles(editor).items() if n != name and mine[0] < r[2]
+            and r[0] < mine[2] and mine[1] < r[3] and r[1] < mine[3]]
+
+
+def test_new_and_pasted_blocks_overlap_no_block(editor):
+    plant = next(b for b in editor.diagram["blocks"] if b["name"] == "plant")
+    dropped = editor.add_block("pid", position=(plant["x"], plant["y"]))  # onto the plant
+    placed = editor.add_block("pi")  # no position: where the drawing would put it
+    assert overlapping(editor, dropped) == [] and overlapping(editor, placed) == []
+    assert editor.paste(["controller", "mec"]) == ["controller2", "mec2"]
+    assert overlapping(editor, "controller2") == [] and overlapping(editor, "mec2") == []
+    wires = [(w.src, w.dst) for w in editor.model.wires if w.src[0] == "controller2"]
+    assert wires == [(("controller2", f"mu_n[{i}]"), ("mec2", f"mu_n[{i}]")) for i in (0, 1)]
+    assert editor.model.blocks["controller2"].recipe == editor.model.blocks["controller"].recipe
+
+
+def test_relayout_places_the_blocks_as_on_opening(editor):
+    opened = {n: b.position for n, b in editor.model.blocks.items()}
+    editor._on_message(editor, {"op": "move", "positions": {"plant": [900, 900],
+                                                            "mec": [-500, 0]}}, [])
+    editor.relayout()
+    assert {n: b.position for n, b in editor.model.blocks.items()} == opened
+    editor.add_block("pi")  # wired to nothing: under the diagram
+    editor.relayout()
+    lowest = max(b.position[1] for n, b in editor.model.blocks.items() if n != "pi")
+    assert editor.model.blocks["pi"].position[1] > lowest + 100 and overlapping(editor, "pi") == []
+
+
+def test_save_and_load_in_the_page(editor):
+    editor._on_message(editor, {"op": "set_source", "input": "r", "kind": "step",
+                                "fields": {"value": 0.01, "time": 50.0}}, [])
+    editor._on_message(editor, {"op": "save"}, [])
+    saved = editor.download
+    assert saved["name"] == "fig3.json" and saved["serial"] == 1
+    assert editor.status == "saved fig3.json"
+    editor.delete_block("mec")
+    edited = state(editor)
+    editor._on_message(editor, {"op": "load", "text": saved["text"]}, [])
+    assert editor.status == "" and state(editor) == json.loads(saved["text"])
+    assert editor.model.source_of("r[0]")["time"] == 50.0
+    editor._on_message(editor, {"op": "undo"}, [])
+    assert state(editor) == edited
+    hostile = json.loads(saved["text"])
+    hostile["blocks"][0]["recipe"]["kwargs"]["__import__('os')"] = 1
+    editor._on_message(editor, {"op": "load", "text": json.dumps(hostile)}, [])
+    assert editor.status.startswith("ValueError: blocks[0].recipe.kwargs: 'true_plant' takes "
+                                    "no keyword argument")
+    assert state(editor) == edited
+
+
 def test_the_run_button_reports_the_requirement(editor):
     editor.delete_block("mec")
     editor.connect("controller", "mu_n", "linearizer", "mu")

@@ -10,6 +10,7 @@ import anywidget
 import traitlets
 
 from . import _run, _schema, _view
+from ._history import History
 from ._model import DiagramModel
 
 STATIC = Path(__file__).parent / "static"
@@ -23,10 +24,14 @@ class DiagramEditor(anywidget.AnyWidget):
     junction signs, frames, rates). Blocks are moved, deleted and added (from a
     palette of python-control and controlkit blocks, or any system the notebook
     holds, by variable name); signals are connected and disconnected by
-    dragging between ports. Wrong wiring (an unconnected input, two drivers on
-    one signal, an algebraic loop, mismatched timebases) is listed at once,
-    naming the blocks. *Run* simulates the diagram and draws the chosen
-    signals and measures; a selected block's parameters are on sliders.
+    dragging between ports; external inputs are driven by sources (step, ramp,
+    sine, pulse, constant) set in the page, as are initial states and the horizon.
+    Every edit can be undone (Ctrl+Z) and redone (Ctrl+Shift+Z); blocks are copied
+    and pasted (Ctrl+C, Ctrl+V); the diagram is saved and loaded as a file (the
+    schema of :mod:`controlkit.widget._schema`). Wrong wiring (an unconnected input,
+    two drivers on one signal, an algebraic loop, timebases the engine refuses) is
+    listed at once, naming the blocks. *Run* simulates the diagram and draws the
+    chosen signals and measures; a selected block's parameters are on sliders.
 
     Parameters
     ----------
@@ -75,14 +80,20 @@ class DiagramEditor(anywidget.AnyWidget):
     scopes = traitlets.List().tag(sync=True)
     height = traitlets.Int(620).tag(sync=True)
     code_text = traitlets.Unicode("").tag(sync=True)
+    download = traitlets.Dict().tag(sync=True)  # a saved file for the page to hand over
+    can_undo = traitlets.Bool(False).tag(sync=True)
+    can_redo = traitlets.Bool(False).tag(sync=True)
 
     def __init__(self, sys, *, horizon=None, initial=None, inputs=None, scopes=None,
                  namespace=None, height=620, source_name=None, **kwargs):
         super().__init__(**kwargs)
         self._namespace = namespace
+        self.history = History()
+        self._opened = {}  # blocks of the opened diagram: what a loaded file may refer to
         if isinstance(sys, DiagramModel):
             self.model = sys
         else:
+            self._opened = {s.name: s for s in sys.syslist}
             if source_name is None:
                 source_name = next((k for k, v in self.namespace().items()
                                     if v is sys and not k.startswith("_")), None)
@@ -116,8 +127,32 @@ class DiagramEditor(anywidget.AnyWidget):
         return self.model.code(variable)
 
     def save(self, path):
-        """Write the diagram (with block positions) as JSON to ``path``."""
-        self.model.to_json(path)
+        """Write the diagram (with block positions and the run's setup) as JSON to ``path``.
+
+        The file is written whole or not at all (a temporary file, then renamed).
+        """
+        path = Path(path)
+        partial = path.with_name(f".{path.name}.partial")
+        try:
+            partial.write_text(self.model.to_json(), encoding="utf-8")
+            partial.replace(path)
+        finally:
+            partial.unlink(missing_ok=True)
+
+    def open_text(self, text):
+        """Replace the diagram by the saved one in ``text`` (what *load* in the page does).
+
+        The file is read by the schema; a block it cannot rebuild is taken from the
+        diagram the editor was opened on, or the notebook's variables. Undoable.
+        """
+        model = DiagramModel.from_json(text, systems=self._opened, namespace=self.namespace())
+        self._edit(lambda: self._replace_model(model))
+
+    def _replace_model(self, model):
+        for name in ("name", "blocks", "wires", "inputs", "outputs", "summed", "hints",
+                     "horizon", "sources", "initial", "source_name"):
+            setattr(self.model, name, getattr(model, name))
+        self.horizon = self.model.horizon
 
     @classmethod
     def load(cls, path, *, systems=None, namespace=None, **kwargs):
@@ -134,26 +169,77 @@ class DiagramEditor(anywidget.AnyWidget):
                                        namespace=namespace)
         return cls(model, namespace=namespace, **kwargs)
 
+    def _edit(self, change):
+        """``change()`` as one edit that can be undone; the page is redrawn after it."""
+        self.history.record(self.model)
+        try:
+            result = change()
+        except Exception:
+            self.history.forget(self.model)
+            raise
+        self._refresh()
+        return result
+
+    def undo(self):
+        """Undo the last edit (Ctrl+Z in the page); False when there is none."""
+        done = self.history.undo(self.model)
+        self.horizon = self.model.horizon
+        self._refresh()
+        return done
+
+    def redo(self):
+        """Redo the edit undone last (Ctrl+Shift+Z in the page); False when there is none."""
+        done = self.history.redo(self.model)
+        self.horizon = self.model.horizon
+        self._refresh()
+        return done
+
     def connect(self, src_block, src_port, dst_block, dst_port):
         """Wire an output port to an input port (as dragging between them does)."""
-        self.model.connect(src_block, src_port, dst_block, dst_port)
-        self._refresh()
+        self._edit(lambda: self.model.connect(src_block, src_port, dst_block, dst_port))
 
     def disconnect(self, src_block, src_port, dst_block, dst_port):
         """Remove the wires between two ports."""
-        self.model.disconnect(src_block, src_port, dst_block, dst_port)
-        self._refresh()
+        self._edit(lambda: self.model.disconnect(src_block, src_port, dst_block, dst_port))
 
     def delete_block(self, name):
-        """Remove a block and its wires."""
-        self.model.delete_block(name)
-        self._refresh()
+        """Remove a block and its wires (its external inputs stay, unattached)."""
+        self._edit(lambda: self.model.delete_block(name))
+
+    def paste(self, names):
+        """Copies of blocks ``names`` (Ctrl+C, Ctrl+V in the page), beside the originals
+        where they overlap nothing; returns the new names."""
+        return self._edit(lambda: self._paste(names))
+
+    def _paste(self, names):
+        new = self.model.paste(names)
+        _view.place(self.model)
+        for name in new:
+            block = self.model.blocks[name]
+            block.position = _view.free_spot(self.model, name, block.position)
+        return new
+
+    def relayout(self):
+        """Place every block again as the static drawing places it."""
+        self._edit(lambda: _view.relayout(self.model))
+
+    def set_source(self, name, kind="constant", **fields):
+        """Drive external input ``name`` by a source (see :meth:`DiagramModel.set_source`)."""
+        self._edit(lambda: self.model.set_source(name, kind, **fields))
+
+    def set_initial(self, block, values):
+        """The initial state of ``block`` (None: its own)."""
+        self._edit(lambda: self.model.set_initial(block, values))
 
     def add_block(self, key_or_variable, *, position=None, **kwargs):
         """Add a palette block (a key of ``controlkit.widget.PALETTE``) or a notebook variable.
 
-        Returns the new block's name.
+        It goes at ``position`` (pixels), or where the drawing would put it, moved to
+        the nearest spot that overlaps no other block. Returns the new block's name.
         """
+        return self._edit(lambda: self._add(key_or_variable, position, kwargs))
+
+    def _add(self, key_or_variable, position, kwargs):
         if key_or_variable in _view._palette.PALETTE:
             name = self.model.add_from_palette(key_or_variable, position=position, **kwargs)
         else:
@@ -163,18 +249,15 @@ class DiagramEditor(anywidget.AnyWidget):
                                  f"variable of the notebook")
             name = self.model.add_variable(key_or_variable, namespace[key_or_variable],
                                            position=position)
-        if position is None:
-            xs = [b.position for b in self.model.blocks.values() if b.position]
-            low = max((p[1] for p in xs), default=0.0)
-            self.model.blocks[name].position = (min((p[0] for p in xs), default=0.0),
-                                                low + 140.0)
-        self._refresh()
+        _view.place(self.model)
+        if position is not None:
+            block = self.model.blocks[name]
+            block.position = _view.free_spot(self.model, name, block.position)
         return name
 
     def set_parameter(self, block, parameter, value):
         """Change a block's parameter (rebuilds the block; its wires stay)."""
-        self.model.set_parameter(block, parameter, value)
-        self._refresh()
+        self._edit(lambda: self.model.set_parameter(block, parameter, value))
 
     def add_measure(self, name, signals, function, *, unit="", limit=None, over="last half",
                     log=False):
@@ -267,6 +350,7 @@ class DiagramEditor(anywidget.AnyWidget):
 
     def _refresh(self, layout=False):
         _view.place(self.model)
+        self.can_undo, self.can_redo = bool(self.history.done), bool(self.history.undone)
         self.diagram = _view.view(self.model)
         self.problems = [p.as_dict() for p in self.model.problems()]
         self.variables = sorted(k for k, v in self.namespace().items()
@@ -280,10 +364,20 @@ class DiagramEditor(anywidget.AnyWidget):
         """Apply one message of the front end (``{"op": ..., ...}``) and redraw."""
         op = content.get("op")
         handler = getattr(self, f"_op_{op}", None) if isinstance(op, str) else None
+        undoable = op not in _NOT_EDITS and handler is not None
         try:
             if handler is None:
                 raise ValueError(f"unknown operation {op!r}")
-            if handler(content) is _QUIET:
+            if undoable:
+                self.history.record(self.model)
+            try:
+                quiet = handler(content) is _QUIET
+            except Exception:
+                if undoable:
+                    self.history.forget(self.model)
+                raise
+            if quiet:
+                self.can_undo = bool(self.history.done)
                 return
             self.status = ""
         except Exception as error:  # noqa: BLE001 - every mistake is shown in the widget
@@ -317,7 +411,37 @@ class DiagramEditor(anywidget.AnyWidget):
             key = key[4:]  # a variable named like a palette entry
             self.model.add_variable(key, self.namespace()[key], position=position)
         else:
-            self.add_block(key.removeprefix("var:"), position=position)
+            self._add(key.removeprefix("var:"), position, {})
+
+    def _op_paste(self, content):
+        self._paste([n for n in content["blocks"] if n in self.model.blocks])
+
+    def _op_relayout(self, content):
+        _view.relayout(self.model)
+
+    def _op_undo(self, content):
+        if not self.history.undo(self.model):
+            self.status = "nothing to undo"
+            return _QUIET
+        self.horizon = self.model.horizon
+
+    def _op_redo(self, content):
+        if not self.history.redo(self.model):
+            self.status = "nothing to redo"
+            return _QUIET
+        self.horizon = self.model.horizon
+
+    def _op_save(self, content):
+        name = "".join(c if c.isalnum() or c in "-_" else "_" for c in self.model.name)
+        self.download = {"name": f"{name or 'diagram'}.json", "text": self.model.to_json(),
+                         "serial": self.download.get("serial", 0) + 1}
+        self.status = f"saved {name or 'diagram'}.json"
+        return _QUIET
+
+    def _op_load(self, content):
+        model = DiagramModel.from_json(content["text"], systems=self._opened,
+                                       namespace=self.namespace())
+        self._replace_model(model)
 
     def _op_set_parameter(self, content):
         self.model.set_parameter(content["block"], content["name"], content["value"])
@@ -363,3 +487,5 @@ class DiagramEditor(anywidget.AnyWidget):
 
 
 _QUIET = object()
+#: Operations that change no diagram (no entry in the undo history).
+_NOT_EDITS = {"scopes", "run", "refresh", "undo", "redo", "save"}

@@ -20,7 +20,6 @@ import json
 import warnings
 from dataclasses import dataclass, field
 
-import control as ct
 import numpy as np
 
 from . import _palette, _saving
@@ -29,7 +28,6 @@ from ._code import interconnect_specs, write_code
 from ._parts import FORMAT, PROBLEM_KINDS, Block, Problem, Wire, timebase
 from ._ports import port_groups
 from ._problems import find_problems, passes_input
-from ._recognise import recognise
 from ._setup import RunSetup
 
 __all__ = ["FORMAT", "PROBLEM_KINDS", "Block", "DiagramModel", "Problem", "Wire",
@@ -81,47 +79,7 @@ class DiagramModel(RunSetup):
         source_name : str, optional
             The variable that holds ``sys``, used by :meth:`code`.
         """
-        if not isinstance(sys, ct.InterconnectedSystem):
-            raise ValueError(f"sys must be a control.InterconnectedSystem (built with "
-                             f"control.interconnect), got {type(sys).__name__}")
-        if source_name is not None:
-            check_identifier(source_name, "source_name")
-        hints = copy.deepcopy(dict(getattr(sys, "drawing_hints", None) or {}))
-        labels = dict(hints.pop("labels", {}))
-        for s in sys.syslist:  # a block's own junction (r - h in front of F), as drawn
-            if getattr(s, "junction", None):
-                hints.setdefault("sums", {}).setdefault(s.name, dict(s.junction))
-        model = cls(name=sys.name, hints=hints, source_name=source_name)
-        out_owner, in_owner = [], []
-        for s in sys.syslist:
-            if s.name in model.blocks:
-                raise ValueError(f"two blocks are named {s.name!r}; the editor needs unique "
-                                 f"block names")
-            label = labels.get(s.name, getattr(s, "display_name", None))
-            model.blocks[s.name] = Block(s, recognise(s), label)
-            out_owner += [(s.name, label) for label in s.output_labels]
-            in_owner += [(s.name, label) for label in s.input_labels]
-        drivers = {}
-        for i, dst in enumerate(in_owner):
-            for j in np.nonzero(sys.connect_map[i])[0]:
-                model.wires.append(Wire(out_owner[j], dst, float(sys.connect_map[i, j])))
-                drivers[dst] = drivers.get(dst, 0) + 1
-        for e, name in enumerate(sys.input_labels):
-            targets = [(*in_owner[i], float(sys.input_map[i, e]))
-                       for i in np.nonzero(sys.input_map[:, e])[0]]
-            for block, signal, _ in targets:
-                drivers[(block, signal)] = drivers.get((block, signal), 0) + 1
-            model.inputs.append((name, targets))
-        n_out = len(out_owner)
-        for r, name in enumerate(sys.output_labels):
-            sources = []
-            for j in np.nonzero(sys.output_map[r])[0]:
-                side, (block, signal) = ("out", out_owner[j]) if j < n_out else (
-                    "in", in_owner[j - n_out])
-                sources.append((side, block, signal, float(sys.output_map[r, j])))
-            model.outputs.append((name, sources))
-        model.summed = {dst for dst, n in drivers.items() if n > 1}  # sums written in code
-        return model
+        return _saving.from_interconnect(cls, sys, source_name=source_name)
 
     # ------------------------------------------------------------------ ports
 
@@ -265,6 +223,36 @@ class DiagramModel(RunSetup):
         if value.name in self.blocks:
             value = value.copy(name=self.unique_name(value.name))
         return self.add_block(value, recipe=recipe, position=position)
+
+    def paste(self, names, offset=(40.0, 60.0)):
+        """Copies of blocks ``names`` (new names), with the wires between them.
+
+        A block with a recipe is built again under its new name; any other block is
+        copied (``system.copy(name=...)``). Returns the new names, in order.
+        """
+        renamed = {}
+        for name in names:
+            block = self._block(name)
+            new = self.unique_name(name)
+            recipe = block.recipe
+            if recipe and recipe["kind"] in _palette.PALETTE:
+                system = _palette.build(recipe["kind"], new, recipe["kwargs"],
+                                        recipe.get("sampled"))
+            else:
+                system = block.system.copy(name=new)
+            position = None if block.position is None else (
+                block.position[0] + offset[0], block.position[1] + offset[1])
+            self.add_block(system, recipe=copy.deepcopy(recipe), label=block.label,
+                           position=position)
+            self.blocks[new].look = copy.deepcopy(block.look)
+            renamed[name] = new
+        self.wires += [Wire((renamed[w.src[0]], w.src[1]), (renamed[w.dst[0]], w.dst[1]), w.gain)
+                       for w in list(self.wires)
+                       if w.src[0] in renamed and w.dst[0] in renamed]
+        for name, new in renamed.items():
+            if name in self.initial:
+                self.initial[new] = list(self.initial[name])
+        return list(renamed.values())
 
     def parameters(self, name):
         """The numeric parameters of a block that the editor can change: ``{name: value}``.

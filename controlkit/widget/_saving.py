@@ -1,4 +1,5 @@
-"""The editor's diagram saved as JSON-ready data and read back through the schema.
+"""The editor's diagram read from an interconnect, saved as JSON-ready data and read back
+through the schema.
 
 Blocks are saved by recipe (a palette entry with its checked keyword arguments, or the
 notebook's variable that held them); a block the editor cannot rebuild is saved by name
@@ -8,12 +9,16 @@ goes through :func:`._schema.read` first: a file is data, and nothing in it is r
 
 from __future__ import annotations
 
+import copy
 import json
 
 import control as ct
+import numpy as np
 
 from . import _palette, _schema
+from ._calls import check_identifier
 from ._parts import Block, Wire
+from ._recognise import recognise
 
 
 def to_dict(model):
@@ -36,6 +41,54 @@ def to_dict(model):
         "setup": {"horizon": model.horizon, "sources": model.sources,
                   "initial": model.initial},
     }
+
+
+def from_interconnect(cls, sys, *, source_name=None):
+    """A ``cls`` (a :class:`~controlkit.widget.DiagramModel`) of the interconnect ``sys``.
+
+    See :meth:`~controlkit.widget.DiagramModel.from_interconnect`.
+    """
+    if not isinstance(sys, ct.InterconnectedSystem):
+        raise ValueError(f"sys must be a control.InterconnectedSystem (built with "
+                         f"control.interconnect), got {type(sys).__name__}")
+    if source_name is not None:
+        check_identifier(source_name, "source_name")
+    hints = copy.deepcopy(dict(getattr(sys, "drawing_hints", None) or {}))
+    labels = dict(hints.pop("labels", {}))
+    for s in sys.syslist:  # a block's own junction (r - h in front of F), as drawn
+        if getattr(s, "junction", None):
+            hints.setdefault("sums", {}).setdefault(s.name, dict(s.junction))
+    model = cls(name=sys.name, hints=hints, source_name=source_name)
+    out_owner, in_owner = [], []
+    for s in sys.syslist:
+        if s.name in model.blocks:
+            raise ValueError(f"two blocks are named {s.name!r}; the editor needs unique "
+                             f"block names")
+        label = labels.get(s.name, getattr(s, "display_name", None))
+        model.blocks[s.name] = Block(s, recognise(s), label)
+        out_owner += [(s.name, label) for label in s.output_labels]
+        in_owner += [(s.name, label) for label in s.input_labels]
+    drivers = {}
+    for i, dst in enumerate(in_owner):
+        for j in np.nonzero(sys.connect_map[i])[0]:
+            model.wires.append(Wire(out_owner[j], dst, float(sys.connect_map[i, j])))
+            drivers[dst] = drivers.get(dst, 0) + 1
+    for e, name in enumerate(sys.input_labels):
+        targets = [(*in_owner[i], float(sys.input_map[i, e]))
+                   for i in np.nonzero(sys.input_map[:, e])[0]]
+        for block, signal, _ in targets:
+            drivers[(block, signal)] = drivers.get((block, signal), 0) + 1
+        model.inputs.append((name, targets))
+    n_out = len(out_owner)
+    for r, name in enumerate(sys.output_labels):
+        sources = []
+        for j in np.nonzero(sys.output_map[r])[0]:
+            side, (block, signal) = ("out", out_owner[j]) if j < n_out else (
+                "in", in_owner[j - n_out])
+            sources.append((side, block, signal, float(sys.output_map[r, j])))
+        model.outputs.append((name, sources))
+    model.summed = {dst for dst, n in drivers.items() if n > 1}  # sums written in code
+    return model
 
 
 def parse(text):

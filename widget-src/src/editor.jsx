@@ -5,12 +5,12 @@ import React, { useCallback, useEffect, useMemo, useRef, useState } from "react"
 import { createRoot } from "react-dom/client";
 import {
   ReactFlow, ReactFlowProvider, Handle, Position, Controls, Background, applyNodeChanges,
-  useReactFlow, BaseEdge, EdgeLabelRenderer,
+  useReactFlow, useStore, BaseEdge, EdgeLabelRenderer,
 } from "@xyflow/react";
 import "@xyflow/react/dist/style.css";
 import "./editor.css";
 import { texToHtml } from "./tex.js";
-import { JUNCTION_GAP, JUNCTION_R, pathOf, routeAll } from "./route.js";
+import { JUNCTION_GAP, JUNCTION_R, freeSpot, pathOf, routeAll } from "./route.js";
 import { Chart } from "./chart.jsx";
 
 function useTrait(model, name) {
@@ -585,7 +585,15 @@ function Editor({ model }) {
   const scopes = useTrait(model, "scopes");
   const height = useTrait(model, "height");
   const code = useTrait(model, "code_text");
+  const download = useTrait(model, "download");
+  const canUndo = useTrait(model, "can_undo");
+  const canRedo = useTrait(model, "can_redo");
   const send = useCallback((msg) => model.send(msg), [model]);
+  const zoom = useStore((st) => st.transform[2]);
+  const clipboard = useRef([]);
+  const refit = useRef(null);  // the diagram a re-layout or a load replaces
+  const upload = useRef(null);
+  const root = useRef(null);
   const flow = useReactFlow();
   const wrapper = useRef(null);
   const [nodes, setNodes] = useState([]);
@@ -624,13 +632,36 @@ function Editor({ model }) {
       height: Math.max(...ys) - y0 + 30 }, { padding: 0.02 });
   }, [nodes, edges, flow]);
   const fitted = useRef(false);
-  useEffect(() => {
-    if (!fitted.current && nodes.length && nodes.every((n) => n.measured || n.width)) {
+  useEffect(() => {  // on opening, and once a re-layout or a loaded file has arrived
+    const again = refit.current && refit.current !== diagram;
+    if ((!fitted.current || again) && nodes.length
+        && nodes.every((n) => n.measured || n.width)) {
       fitted.current = true;
-      const zoom = () => { fit(); if (flow.getZoom() > 1.25) flow.zoomTo(1.25); };
-      requestAnimationFrame(zoom);
+      refit.current = null;
+      const fitAll = () => { fit(); if (flow.getZoom() > 1.25) flow.zoomTo(1.25); };
+      requestAnimationFrame(fitAll);
     }
-  }, [nodes, fit, flow]);
+  }, [nodes, fit, flow, diagram]);
+  // a saved file handed to the browser as a download
+  const lastDownload = useRef(download && download.serial);
+  useEffect(() => {
+    if (!download || !download.text || download.serial === lastDownload.current) return;
+    lastDownload.current = download.serial;
+    const url = URL.createObjectURL(new Blob([download.text], { type: "application/json" }));
+    const link = document.createElement("a");
+    link.href = url;
+    link.download = download.name;
+    document.body.appendChild(link);
+    link.click();
+    link.remove();
+    setTimeout(() => URL.revokeObjectURL(url), 1000);
+  }, [download]);
+  const load = useCallback((ev) => {
+    const file = ev.target.files && ev.target.files[0];
+    if (!file) return;
+    file.text().then((text) => { refit.current = diagram; send({ op: "load", text }); });
+    ev.target.value = "";
+  }, [send]);
 
   const onNodesChange = useCallback((changes) => {
     setNodes((nds) => follow(applyNodeChanges(changes, nds)));
@@ -694,15 +725,51 @@ function Editor({ model }) {
     if (reconnected.current) return;
     const w = wireOf(old);  // dropped on nothing: the wire is removed
     if (w) send({ op: "disconnect", edges: [[w.source, w.sourcePort, w.target, w.targetPort]] });
-  }, [send]);
+  }, [send, diagram]);
+  // a new block goes where it overlaps no block and no wire, nearest the point asked for
   const addAt = useCallback((key, point) => {
-    const position = flow.screenToFlowPosition(point);
+    const wanted = flow.screenToFlowPosition(point);
+    const entry = (diagram.palette || []).find((e) => e.key === key);
+    const [w, h] = entry && entry.key === "summing_junction" ? [40, 40]
+      : entry && entry.key === "gain" ? [60, 50] : [130, 60];
+    const position = freeSpot(nodes, edges, wanted, w, h);
     send({ op: "add", key, position: [position.x, position.y] });
-  }, [flow, send]);
+  }, [flow, send, nodes, edges, diagram]);
   const addCentre = useCallback((key) => {
     const r = wrapper.current.getBoundingClientRect();
-    addAt(key, { x: r.left + r.width / 2, y: r.top + r.height * 0.8 });
+    addAt(key, { x: r.left + r.width / 2, y: r.top + r.height / 2 });
   }, [addAt]);
+  // Ctrl+Z undo, Ctrl+Shift+Z (or Ctrl+Y) redo, Ctrl+C / Ctrl+V copy and paste blocks
+  const onKeyDown = useCallback((ev) => {
+    const tag = (ev.target && ev.target.tagName) || "";
+    if (["INPUT", "TEXTAREA", "SELECT"].includes(tag) || !(ev.ctrlKey || ev.metaKey)) return;
+    const key = ev.key.toLowerCase();
+    let msg = null;
+    if (key === "z") msg = { op: ev.shiftKey ? "redo" : "undo" };
+    else if (key === "y") msg = { op: "redo" };
+    else if (key === "c") {
+      clipboard.current = nodes.filter((n) => n.selected && (n.type === "block"
+        || n.type === "sum")).map((n) => n.id);
+    } else if (key === "v" && clipboard.current.length) {
+      msg = { op: "paste", blocks: clipboard.current };
+    } else return;
+    ev.preventDefault();
+    ev.stopPropagation();
+    if (msg) send(msg);
+  }, [nodes, send]);
+  // the keys reach the editor the user last clicked in (a deleted node takes the focus
+  // with it, so the document listens, not the node)
+  const active = useRef(false);
+  useEffect(() => {
+    const down = (ev) => { active.current = !!(root.current && root.current.contains(ev.target)); };
+    const key = (ev) => { if (active.current) onKeyDown(ev); };
+    document.addEventListener("mousedown", down, true);
+    document.addEventListener("keydown", key, true);
+    return () => {
+      document.removeEventListener("mousedown", down, true);
+      document.removeEventListener("keydown", key, true);
+    };
+  }, [onKeyDown]);
   const onDrop = useCallback((ev) => {
     ev.preventDefault();
     const key = ev.dataTransfer.getData("application/x-controlkit");
@@ -719,10 +786,22 @@ function Editor({ model }) {
   };
 
   return (
-    <div className="ck-editor" data-lm-suppress-shortcuts="true">
+    <div className="ck-editor" data-lm-suppress-shortcuts="true" ref={root}>
       <div className="ck-toolbar">
         <Tex text={diagram.title} className="ck-title" />
         <span className="ck-spacer" />
+        <button type="button" data-testid="undo" disabled={!canUndo} title="undo (Ctrl+Z)"
+          onClick={() => send({ op: "undo" })}>↶ undo</button>
+        <button type="button" data-testid="redo" disabled={!canRedo}
+          title="redo (Ctrl+Shift+Z)" onClick={() => send({ op: "redo" })}>↷ redo</button>
+        <button type="button" data-testid="save" title="download the diagram as a file"
+          onClick={() => send({ op: "save" })}>save</button>
+        <button type="button" data-testid="load" title="open a saved diagram file"
+          onClick={() => upload.current.click()}>load</button>
+        <input type="file" accept=".json,application/json" ref={upload} onChange={load}
+          style={{ display: "none" }} data-testid="load-file" />
+        <button type="button" data-testid="relayout" title="place the blocks as the static drawing does"
+          onClick={() => { refit.current = diagram; send({ op: "relayout" }); }}>re-layout</button>
         <NewInput send={send} />
         <label>horizon [s] <input className="ck-number" value={horizonText}
           onChange={(ev) => setHorizonText(ev.target.value)} data-testid="horizon"
@@ -740,14 +819,15 @@ function Editor({ model }) {
       <div className="ck-main" style={{ height }}>
         <Palette palette={diagram.palette || []} variables={variables}
           onAdd={(key) => addCentre(key)} />
-        <div className="ck-canvas" ref={wrapper} onDragOver={(ev) => ev.preventDefault()}
-          onDrop={onDrop}>
+        <div className={`ck-canvas ${zoom >= 1.3 ? "ck-zoomed" : ""}`} ref={wrapper}
+          onDragOver={(ev) => ev.preventDefault()} onDrop={onDrop}>
           {diagram.mixed && !showCode ? (
             <div className="ck-rate-legend" data-testid="rate-legend">
               <span className="ck-swatch ck-discrete" /> discrete: updates at its instants,
               holds its output between them
               <span className="ck-swatch" /> continuous or static</div>) : null}
-          {showCode ? <pre className="ck-code" data-testid="code">{code}</pre> : (
+          {showCode ? <pre className="ck-code" data-testid="code">{code}</pre> : null}
+          {(
             <ReactFlow nodes={nodes} edges={edges} nodeTypes={nodeTypes} edgeTypes={edgeTypes}
               onNodesChange={onNodesChange} onEdgesChange={onEdgesChange}
               onNodeDragStop={onNodeDragStop} onConnect={onConnect} onDelete={onDelete}
