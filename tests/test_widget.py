@@ -593,6 +593,10 @@ def test_time_points_and_initial_state_checks():
     ("step", {"value": 2.0, "time": 0.35, "initial": -1.0}),
     ("ramp", {"slope": 0.3, "time": 1.1, "initial": 0.2}),
     ("sine", {"amplitude": 0.5, "frequency": 1.7, "phase": 0.3, "offset": 0.1}),
+    ("sine", {"amplitude": 0.5, "frequency": 1.7}),
+    ("sine", {"amplitude": 0.5, "frequency": 1.7, "offset": -0.2}),
+    ("sine", {"amplitude": 0.5, "frequency": 1.7, "phase": 1.0}),
+    ("ramp", {"slope": -2.0, "time": 0.5}),
     ("pulse", {"value": 1.5, "time": 0.4, "width": 0.25}),
     ("pulse", {"value": 1.5, "time": 0.4, "width": 0.25, "period": 0.6, "initial": 0.1}),
 ])

@@ -195,7 +195,7 @@ def run_diagram(model, *, measures, scopes, points=1500):
     index = {label: i for i, label in enumerate(recorded)}
     outputs = np.asarray(resp.outputs).reshape(len(recorded), -1)
     keep = _buckets(resp.time.size, points)
-    traces = [{"name": name, "y": _rounded(outputs[index[name]][keep])}
+    traces = [_trace(name, resp.time, outputs[index[name]], keep)
               for name in scopes if name in index]
     summaries = []
     for m in measures:
@@ -229,6 +229,18 @@ def recording_system(model):
     recording = model.system(outlist=specs, outputs=[f"y[{k}]" for k in range(len(specs))],
                              name=f"{model.name}_recorded")
     return recording, names
+
+
+def _trace(name, time, y, keep):
+    """A scoped signal: its points for the chart and, from every sample, its final value and
+    its largest excursion (the value farthest from zero, and when)."""
+    finite = np.isfinite(y)
+    summary = {"final": None, "peak": None, "peak_time": None}
+    if finite.any():
+        k = int(np.nanargmax(np.where(finite, np.abs(y), -np.inf)))
+        summary = {"final": _rounded(y[-1:])[0], "peak": _rounded(y[k:k + 1])[0],
+                   "peak_time": _rounded(time[k:k + 1])[0]}
+    return {"name": name, "y": _rounded(y[keep]), **summary}
 
 
 def _buckets(n, points):

@@ -112,12 +112,17 @@ def values(src, T):
     return np.where(on, src["value"], src["initial"])
 
 
-#: The same formulas as written in the exported code (names are the source's fields).
+#: The same formulas as written in the exported code (names are the source's fields); a
+#: term that adds zero is left out (adding 0.0 changes no number).
 _TEMPLATES = {
     "constant": "np.full_like(T, value)",
     "step": "np.where(T >= time, value, initial)",
     "ramp": "initial + slope * np.maximum(T - time, 0.0)",
+    "ramp from 0": "slope * np.maximum(T - time, 0.0)",
     "sine": "offset + amplitude * np.sin(2 * np.pi * frequency * T + phase)",
+    "sine without offset": "amplitude * np.sin(2 * np.pi * frequency * T + phase)",
+    "sine without phase": "offset + amplitude * np.sin(2 * np.pi * frequency * T)",
+    "plain sine": "amplitude * np.sin(2 * np.pi * frequency * T)",
     "pulse": "np.where((T >= time) & (T < time + width), value, initial)",
     "pulse train": "np.where((T >= time) & ((T - time) % period < width), value, initial)",
 }
@@ -144,7 +149,15 @@ def expression(src):
     'np.where(T >= 1.0, 2.0, 0.0)'
     """
     src = SOURCE.check(src, "source")
-    kind = "pulse train" if src["kind"] == "pulse" and src["period"] > 0 else src["kind"]
+    kind = src["kind"]
+    if kind == "pulse" and src["period"] > 0:
+        kind = "pulse train"
+    elif kind == "ramp" and src["initial"] == 0:
+        kind = "ramp from 0"
+    elif kind == "sine":
+        kind = {(True, True): "plain sine", (True, False): "sine without offset",
+                (False, True): "sine without phase"}.get(
+            (src["offset"] == 0, src["phase"] == 0), "sine")
     tree = ast.parse(_TEMPLATES[kind], mode="eval").body
     numbers = {k: v for k, v in src.items() if k != "kind"}
     return ast.fix_missing_locations(_Fill(numbers).visit(tree))

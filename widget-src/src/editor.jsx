@@ -534,6 +534,8 @@ function Problems({ problems }) {
   );
 }
 
+const fmtValue = (v) => (v === null || v === undefined ? "–" : String(Number(v.toPrecision(6))));
+
 function Scopes({ results, scopes, signals, send }) {
   const [pick, setPick] = useState("");
   const time = results.time || [];
@@ -566,8 +568,16 @@ function Scopes({ results, scopes, signals, send }) {
             testid="measure-chart" /> : null}
         </div>
       ))}
-      {(results.traces || []).length ? <Chart title="signals" time={time}
-        traces={results.traces} testid="scope-chart" /> : null}
+      {(results.traces || []).length ? (
+        <div>
+          <Chart title="signals" time={time} traces={results.traces} testid="scope-chart" />
+          <div className="ck-readout" data-testid="readout">
+            {results.traces.map((tr) => (
+              <div key={tr.name} data-trace={tr.name}>{tr.name}: final {fmtValue(tr.final)},
+                largest {fmtValue(tr.peak)} at t = {fmtValue(tr.peak_time)} s</div>
+            ))}
+          </div>
+        </div>) : null}
       </div>
     </div>
   );
