@@ -24,11 +24,12 @@ import numpy as np
 
 from . import _palette, _saving
 from ._calls import check_identifier
-from ._code import interconnect_specs, write_code
+from ._code import write_code
 from ._parts import FORMAT, PROBLEM_KINDS, Block, Problem, Wire, timebase
 from ._ports import port_groups
 from ._problems import find_problems, passes_input
 from ._setup import RunSetup
+from ._specs import interconnect_specs
 
 __all__ = ["FORMAT", "PROBLEM_KINDS", "Block", "DiagramModel", "Problem", "Wire",
            "passes_input"]

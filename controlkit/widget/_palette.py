@@ -19,7 +19,7 @@ import control as ct
 import numpy as np
 
 from ._calls import IMPORTS, Clip, Op, call, evaluate, source
-from ._schema import LIMITS, NAME, Flag, Identifier, Items, Number, Rule, Text, Timebase, matrix
+from ._rules import LIMITS, NAME, Flag, Identifier, Items, Number, Rule, Text, Timebase, matrix
 
 __all__ = ["ENTRIES", "IMPORTS", "PALETTE", "PaletteEntry", "build", "defaults", "is_system"]
 
@@ -62,7 +62,7 @@ class PaletteEntry:
     defaults : dict
         Keyword arguments of a new block; ``Ts`` is filled with the diagram's period.
     rules : dict
-        The rule (:class:`~controlkit.widget._schema.Rule`) of each keyword argument; no
+        The rule (:class:`~controlkit.widget._rules.Rule`) of each keyword argument; no
         other keyword is accepted.
     make : callable
         ``make(name, kwargs)``: the call tree of the block (continuous for an LTI entry:

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import control as ct
 
-from ._schema import FORMAT
+from ._rules import FORMAT
 
 __all__ = ["FORMAT", "PROBLEM_KINDS", "Block", "Problem", "Wire", "timebase"]
 

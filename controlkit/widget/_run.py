@@ -9,8 +9,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._code import interconnect_specs
 from ._sources import values
+from ._specs import interconnect_specs
 
 #: Time points of a continuous (or sampled-data) run.
 CONTINUOUS_POINTS = 2001

@@ -13,7 +13,7 @@ import numpy as np
 
 from . import _sources
 from ._ports import port_groups
-from ._schema import NAME
+from ._rules import NAME
 
 
 class RunSetup:

@@ -28,7 +28,7 @@ import ast
 
 import numpy as np
 
-from ._schema import Number, Record, Text
+from ._rules import Number, Record, Text
 
 #: Every kind's fields and their defaults.
 KINDS = {

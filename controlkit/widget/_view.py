@@ -163,7 +163,7 @@ def _layout_of(model):
         try:
             from controlkit.sampled_data import interconnect
 
-            from ._code import interconnect_specs
+            from ._specs import interconnect_specs
 
             connections, inplist, inputs, outlist, outputs = interconnect_specs(model)
             sys = interconnect(model.systems(), connections=connections or False,
