@@ -20,21 +20,23 @@ import json
 import warnings
 from dataclasses import dataclass, field
 
-import control as ct
 import numpy as np
 
 from . import _palette, _saving
-from ._code import interconnect_specs, write_code
+from ._calls import check_identifier
+from ._code import write_code
 from ._parts import FORMAT, PROBLEM_KINDS, Block, Problem, Wire, timebase
 from ._ports import port_groups
 from ._problems import find_problems, passes_input
+from ._setup import RunSetup
+from ._specs import interconnect_specs
 
 __all__ = ["FORMAT", "PROBLEM_KINDS", "Block", "DiagramModel", "Problem", "Wire",
            "passes_input"]
 
 
 @dataclass
-class DiagramModel:
+class DiagramModel(RunSetup):
     """A block diagram being edited; see the module docstring.
 
     Examples
@@ -61,6 +63,9 @@ class DiagramModel:
     summed: set = field(default_factory=set)     # inputs whose several drivers are meant
     hints: dict = field(default_factory=dict)    # groups, sums, beside, rows, notes, title
     source_name: str | None = None               # the variable holding the opened diagram
+    horizon: float = 10.0                        # the run: simulated time (s),
+    sources: dict = field(default_factory=dict)  # what drives each external input,
+    initial: dict = field(default_factory=dict)  # initial states by block
 
     # ------------------------------------------------------------------ reading
 
@@ -75,45 +80,7 @@ class DiagramModel:
         source_name : str, optional
             The variable that holds ``sys``, used by :meth:`code`.
         """
-        if not isinstance(sys, ct.InterconnectedSystem):
-            raise ValueError(f"sys must be a control.InterconnectedSystem (built with "
-                             f"control.interconnect), got {type(sys).__name__}")
-        hints = copy.deepcopy(dict(getattr(sys, "drawing_hints", None) or {}))
-        labels = dict(hints.pop("labels", {}))
-        for s in sys.syslist:  # a block's own junction (r - h in front of F), as drawn
-            if getattr(s, "junction", None):
-                hints.setdefault("sums", {}).setdefault(s.name, dict(s.junction))
-        model = cls(name=sys.name, hints=hints, source_name=source_name)
-        out_owner, in_owner = [], []
-        for s in sys.syslist:
-            if s.name in model.blocks:
-                raise ValueError(f"two blocks are named {s.name!r}; the editor needs unique "
-                                 f"block names")
-            label = labels.get(s.name, getattr(s, "display_name", None))
-            model.blocks[s.name] = Block(s, _palette.recognise(s), label)
-            out_owner += [(s.name, label) for label in s.output_labels]
-            in_owner += [(s.name, label) for label in s.input_labels]
-        drivers = {}
-        for i, dst in enumerate(in_owner):
-            for j in np.nonzero(sys.connect_map[i])[0]:
-                model.wires.append(Wire(out_owner[j], dst, float(sys.connect_map[i, j])))
-                drivers[dst] = drivers.get(dst, 0) + 1
-        for e, name in enumerate(sys.input_labels):
-            targets = [(*in_owner[i], float(sys.input_map[i, e]))
-                       for i in np.nonzero(sys.input_map[:, e])[0]]
-            for block, signal, _ in targets:
-                drivers[(block, signal)] = drivers.get((block, signal), 0) + 1
-            model.inputs.append((name, targets))
-        n_out = len(out_owner)
-        for r, name in enumerate(sys.output_labels):
-            sources = []
-            for j in np.nonzero(sys.output_map[r])[0]:
-                side, (block, signal) = ("out", out_owner[j]) if j < n_out else (
-                    "in", in_owner[j - n_out])
-                sources.append((side, block, signal, float(sys.output_map[r, j])))
-            model.outputs.append((name, sources))
-        model.summed = {dst for dst, n in drivers.items() if n > 1}  # sums written in code
-        return model
+        return _saving.from_interconnect(cls, sys, source_name=source_name)
 
     # ------------------------------------------------------------------ ports
 
@@ -186,12 +153,14 @@ class DiagramModel:
         self._rewired()
 
     def delete_block(self, name):
-        """Remove a block with its wires, the external signals it had and its hints."""
+        """Remove a block with its wires, its outputs to the outside and its hints; the
+        external inputs it had stay, unattached, with their sources."""
         self._block(name)
         del self.blocks[name]
         self.wires = [w for w in self.wires if name not in (w.src[0], w.dst[0])]
+        # the external inputs stay (unattached, with their sources), to be wired again
         self.inputs = [(n, [t for t in targets if t[0] != name]) for n, targets in self.inputs]
-        self.inputs = [(n, targets) for n, targets in self.inputs if targets]
+        self.initial.pop(name, None)
         self.outputs = [(n, [s for s in sources if s[1] != name]) for n, sources in self.outputs]
         self.outputs = [(n, sources) for n, sources in self.outputs if sources]
         self.summed = {dst for dst in self.summed if dst[0] != name}
@@ -237,14 +206,17 @@ class DiagramModel:
         if entry is None:
             raise ValueError(f"palette entry must be one of {sorted(_palette.PALETTE)}, "
                              f"got {key!r}")
-        options = {**_palette.defaults(key, self.period()), **kwargs}
+        options = entry.check_kwargs({**_palette.defaults(key, self.period()), **kwargs})
         name = self.unique_name(entry.name)
-        system = _palette.build(key, name, options, self.period())
-        return self.add_block(system, recipe={"kind": key, "kwargs": options},
-                              position=position)
+        recipe = {"kind": key, "kwargs": options}
+        if entry.follows_period and self.period():  # joins a discrete diagram under ZOH
+            recipe["sampled"] = {"Ts": float(self.period())}
+        system = _palette.build(key, name, options, recipe.get("sampled"))
+        return self.add_block(system, recipe=recipe, position=position)
 
     def add_variable(self, variable, value, *, position=None):
         """Add a system of the notebook held in ``variable`` (a copy if its name is taken)."""
+        check_identifier(variable, "a notebook variable's name")
         if not _palette.is_system(value):
             raise ValueError(f"variable {variable!r} holds a {type(value).__name__}, not a "
                              f"python-control I/O system")
@@ -252,6 +224,36 @@ class DiagramModel:
         if value.name in self.blocks:
             value = value.copy(name=self.unique_name(value.name))
         return self.add_block(value, recipe=recipe, position=position)
+
+    def paste(self, names, offset=(40.0, 60.0)):
+        """Copies of blocks ``names`` (new names), with the wires between them.
+
+        A block with a recipe is built again under its new name; any other block is
+        copied (``system.copy(name=...)``). Returns the new names, in order.
+        """
+        renamed = {}
+        for name in names:
+            block = self._block(name)
+            new = self.unique_name(name)
+            recipe = block.recipe
+            if recipe and recipe["kind"] in _palette.PALETTE:
+                system = _palette.build(recipe["kind"], new, recipe["kwargs"],
+                                        recipe.get("sampled"))
+            else:
+                system = block.system.copy(name=new)
+            position = None if block.position is None else (
+                block.position[0] + offset[0], block.position[1] + offset[1])
+            self.add_block(system, recipe=copy.deepcopy(recipe), label=block.label,
+                           position=position)
+            self.blocks[new].look = copy.deepcopy(block.look)
+            renamed[name] = new
+        self.wires += [Wire((renamed[w.src[0]], w.src[1]), (renamed[w.dst[0]], w.dst[1]), w.gain)
+                       for w in list(self.wires)
+                       if w.src[0] in renamed and w.dst[0] in renamed]
+        for name, new in renamed.items():
+            if name in self.initial:
+                self.initial[new] = list(self.initial[name])
+        return list(renamed.values())
 
     def parameters(self, name):
         """The numeric parameters of a block that the editor can change: ``{name: value}``.
@@ -264,7 +266,7 @@ class DiagramModel:
         if recipe and recipe["kind"] in _palette.PALETTE:
             return _palette.PALETTE[recipe["kind"]].parameters(recipe["kwargs"])
         params = getattr(block.system, "params", None) or {}
-        return {k: float(v) for k, v in params.items() if _palette._is_number(v)}
+        return {k: float(v) for k, v in params.items() if _palette.is_number(v)}
 
     def set_parameter(self, name, parameter, value):
         """Rebuild block ``name`` with ``parameter = value``; its wires stay where they fit."""
@@ -279,8 +281,8 @@ class DiagramModel:
         recipe = block.recipe
         if recipe and recipe["kind"] in _palette.PALETTE:
             kwargs = {**recipe["kwargs"], parameter: value}
-            system = _palette.build(recipe["kind"], name, kwargs, self.period())
-            block.recipe = {"kind": recipe["kind"], "kwargs": kwargs}
+            system = _palette.build(recipe["kind"], name, kwargs, recipe.get("sampled"))
+            block.recipe = {**recipe, "kwargs": kwargs}
         else:
             system = copy.copy(block.system)
             system.params = {**block.system.params, parameter: value}
@@ -296,16 +298,38 @@ class DiagramModel:
 
     # ------------------------------------------------------------------ building
 
+    def timebases(self):
+        """``{"continuous": [blocks], period: [blocks]}``: the blocks that run in time."""
+        kinds = {}
+        for name, b in self.blocks.items():
+            kind = timebase(b.system.dt)
+            if kind == "continuous":
+                kinds.setdefault("continuous", []).append(name)
+            elif kind == "discrete" and b.system.dt is not True:
+                kinds.setdefault(float(b.system.dt), []).append(name)
+        return kinds
+
+    def is_mixed(self):
+        """Continuous and discrete blocks, or several periods: a sampled-data diagram
+        (:func:`controlkit.interconnect`)."""
+        return len(self.timebases()) > 1
+
     def period(self):
-        """The diagram's sampling period: the one discrete ``dt`` of its blocks, else None."""
-        periods = {s.dt for s in self.systems() if timebase(s.dt) == "discrete"}
-        return periods.pop() if len(periods) == 1 else None
+        """The sampling period of a discrete diagram (new palette blocks join it sampled),
+        else None (continuous, static or sampled-data)."""
+        kinds = self.timebases()
+        return next(iter(kinds)) if len(kinds) == 1 and "continuous" not in kinds else None
 
     def systems(self):
         return [b.system for b in self.blocks.values()]
 
-    def system(self):
-        """The diagram as a ``control.interconnect`` (with ``drawing_hints`` attached).
+    def system(self, *, outlist=None, outputs=None, name=None):
+        """The diagram as :func:`controlkit.interconnect` builds it (``drawing_hints`` on).
+
+        One timebase: python-control's ``control.interconnect`` result; continuous and
+        discrete blocks together: a sampled-data diagram, which
+        :func:`controlkit.input_output_response` simulates. ``outlist``, ``outputs`` and
+        ``name`` replace the diagram's own (the editor records every block output).
 
         Raises
         ------
@@ -314,18 +338,22 @@ class DiagramModel:
             mismatched timebases), which python-control would not catch or would
             report without naming the blocks.
         """
+        from controlkit.sampled_data import interconnect
+
         errors = [p.message for p in self.problems() if p.severity == "error"]
         if errors:
             raise ValueError("the diagram cannot be built: " + "; ".join(errors))
         if not self.blocks:
             raise ValueError("the diagram has no blocks")
-        connections, inplist, inputs, outlist, outputs = interconnect_specs(self)
+        connections, inplist, inputs, own_outlist, own_outputs = interconnect_specs(self)
         with warnings.catch_warnings():  # unused signals are reported by problems()
             warnings.filterwarnings("ignore", message=r"Unused (input|output)",
                                     category=UserWarning)
-            sys = ct.interconnect(self.systems(), connections=connections or False,
-                                  inplist=inplist, inputs=inputs, outlist=outlist,
-                                  outputs=outputs, name=self.name)
+            sys = interconnect(self.systems(), connections=connections or False,
+                               inplist=inplist, inputs=inputs,
+                               outlist=own_outlist if outlist is None else outlist,
+                               outputs=own_outputs if outputs is None else outputs,
+                               name=name or self.name)
         sys.drawing_hints = self.drawing_hints()
         return sys
 
@@ -343,13 +371,23 @@ class DiagramModel:
     # ------------------------------------------------------------------ code
 
     def code(self, variable=None):
-        """The Python that builds this diagram with ``control.interconnect``.
+        """A module that builds this diagram and runs it as the page does, standing alone.
 
-        Blocks from the palette are written as the calls that build them, blocks of the
-        notebook by their variable, and blocks taken from the opened interconnect as
-        ``<source>_blocks["name"]`` (``<source>`` is :attr:`source_name`, else
-        ``source``); executing the code where those names exist gives an interconnect
-        equal to :meth:`system`.
+        It has its imports; a function ``build_<variable>`` that builds every block from
+        its constructor (palette blocks and the blocks of an opened diagram that the
+        editor rebuilds exactly: state-space blocks, summing junctions, controlkit's
+        factories) and returns the interconnect; a function ``simulate_<variable>`` that
+        calls :func:`controlkit.input_output_response` with the page's time points,
+        inputs (sources) and initial state; and the two calls. A block the editor
+        cannot write (a user's own ``nlsys``) or a notebook variable is a parameter of
+        ``build_<variable>``, named and described in its docstring; the calls are then
+        written as comments to fill in. Names reach the code as checked identifiers and
+        values as ``repr``.
+
+        Parameters
+        ----------
+        variable : str, optional
+            Python name of the diagram (default: from its name).
         """
         return write_code(self, variable)
 
@@ -368,8 +406,18 @@ class DiagramModel:
         return text
 
     @classmethod
+    def from_json(cls, text, *, systems=None, namespace=None):
+        """A model from the JSON text :meth:`to_json` wrote (see :meth:`from_dict`)."""
+        return cls.from_dict(_saving.parse(text), systems=systems, namespace=namespace)
+
+    @classmethod
     def from_dict(cls, data, *, systems=None, namespace=None):
-        """A model saved by :meth:`to_dict`.
+        """A model saved by :meth:`to_dict`, read by the schema (:mod:`._schema`).
+
+        Every field is checked - names, identifiers, finite numbers, sizes - and palette
+        recipes are rebuilt from the editor's fixed constructors; nothing in ``data`` is
+        evaluated. A field that breaks the format raises a ValueError naming it by its
+        JSON path and saying what is allowed there.
 
         Parameters
         ----------
@@ -396,6 +444,8 @@ class DiagramModel:
         - ``mismatched timebases`` (error): continuous and discrete blocks, or two
           sampling periods, in one diagram.
         - ``unused output`` (note): an output that goes nowhere.
+        - ``unused input`` (note): an external input wired to no block (it is left out
+          of the interconnect until it is).
 
         Returns
         -------

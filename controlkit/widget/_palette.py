@@ -1,10 +1,14 @@
-"""The blocks the editor can add, each with the Python that builds it.
+"""The blocks the editor can build: a fixed registry of constructors with checked arguments.
 
-Every entry builds its block from keyword arguments (``kwargs``) and writes
-the same call as source code, so that :meth:`DiagramModel.code` shows what a
-student would type and a saved diagram can be rebuilt. Numbers among the
-keyword arguments are the block's parameters (sliders in the editor); the
-sampling period ``Ts`` is the diagram's and is not offered as a slider.
+Every entry turns a recipe - its key and keyword arguments (``kwargs``) - into a call
+tree (:mod:`._calls`), which is both evaluated to build the block and written as the
+Python that builds it (:meth:`DiagramModel.code`): the block in the editor and the
+written code are one description. Every keyword argument has a rule
+(:mod:`._schema`): a recipe read from a file is checked before anything is built.
+
+Entries with ``shown=False`` are not in the palette: they are how the editor rebuilds
+the blocks of an opened diagram that it recognises (state-space blocks, summing
+junctions, controlkit's factories; see :mod:`._recognise`).
 """
 
 from __future__ import annotations
@@ -14,43 +18,36 @@ from dataclasses import dataclass, field
 import control as ct
 import numpy as np
 
-#: Import lines that the written code needs, by the alias it uses.
-IMPORTS = {
-    "ct": "import control as ct",
-    "np": "import numpy as np",
-    "sc": "from controlkit.blocks import spacecraft as sc",
-    "mec": "from controlkit.blocks import mec",
-    "frit": "from controlkit.blocks import frit",
-    "cmg": "from controlkit.blocks import cmg",
-    "common": "from controlkit.blocks import common",
-    "sample_nlsys": "from controlkit.blocks.sampling import sample_nlsys",
-}
+from ._calls import IMPORTS, Clip, Op, call, evaluate, source
+from ._rules import LIMITS, NAME, Flag, Identifier, Items, Number, Rule, Text, Timebase, matrix
+
+__all__ = ["ENTRIES", "IMPORTS", "PALETTE", "PaletteEntry", "build", "defaults", "is_system"]
+
+_SIGNALS = Items(NAME, LIMITS["signals"])
 
 
-def _literal(value):
-    """Python source for a keyword value (numbers as they print, lists as lists).
+class _Signs(Rule):
+    allowed = "a string of 2 to 16 characters '+' or '-'"
 
-    Examples
-    --------
-    >>> _literal(0.1), _literal([1.0, 2.0]), _literal("mu_n"), _literal(np.float64(2.0))
-    ('0.1', '[1.0, 2.0]', "'mu_n'", '2.0')
-    """
-    if isinstance(value, np.ndarray):
-        value = value.tolist()
-    if isinstance(value, (np.floating, np.integer)):
-        value = value.item()
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_literal(v) for v in value) + "]"
-    return repr(value)
+    def check(self, value, path):
+        if not isinstance(value, str) or not 2 <= len(value) <= 16 or set(value) - {"+", "-"}:
+            self.refuse(value, path)
+        return value
 
 
-def _args(kwargs):
-    return ", ".join(f"{k}={_literal(v)}" for k, v in kwargs.items())
+class _JunctionInputs(Rule):
+    allowed = "a list of 1 to 50 signal names, each optionally preceded by '-'"
+
+    def check(self, value, path):
+        names = Items(Text(LIMITS["name"] + 1), 50, least=1).check(value, path)
+        for i, n in enumerate(names):
+            NAME.check(n[1:] if n.startswith("-") else n, f"{path}[{i}]")
+        return names
 
 
 @dataclass(frozen=True)
 class PaletteEntry:
-    """One block the editor can add.
+    """One kind of block the editor can build.
 
     Attributes
     ----------
@@ -64,13 +61,19 @@ class PaletteEntry:
         Default block name (made unique with a number when taken).
     defaults : dict
         Keyword arguments of a new block; ``Ts`` is filled with the diagram's period.
-    expression : str
-        The call, as a format string over ``{args}`` (the keyword arguments written out)
-        and the keywords themselves.
-    needs : tuple of str
-        Aliases of :data:`IMPORTS` that the expression uses.
-    sampled : bool
-        A continuous block that joins a discrete diagram under zero-order hold.
+    rules : dict
+        The rule (:class:`~controlkit.widget._rules.Rule`) of each keyword argument; no
+        other keyword is accepted.
+    make : callable
+        ``make(name, kwargs)``: the call tree of the block (continuous for an LTI entry:
+        ``(num, den)`` or an expression of transfer functions).
+    lti : bool
+        A linear block, sampled with ``control.sample_system`` in a discrete diagram.
+    follows_period : bool
+        A continuous block (a plant, an LTI design) that joins a discrete diagram
+        sampled at its period under zero-order hold.
+    shown : bool
+        Listed in the palette (else used to rebuild recognised blocks only).
     """
 
     key: str
@@ -78,99 +81,166 @@ class PaletteEntry:
     group: str
     name: str
     defaults: dict = field(default_factory=dict)
-    expression: str = ""
-    needs: tuple = ("ct",)
-    sampled: bool = False
+    rules: dict = field(default_factory=dict)
+    make: object = None
     lti: bool = False
+    follows_period: bool = False
+    shown: bool = True
+    required: tuple = ()
+
+    def check_kwargs(self, kwargs, path="kwargs"):
+        """``kwargs`` checked against :attr:`rules` (a ValueError names the bad one)."""
+        if not isinstance(kwargs, dict):
+            raise ValueError(f"{path}: must be an object of keyword arguments, got "
+                             f"{type(kwargs).__name__}")
+        for key in kwargs:
+            if key not in self.rules:
+                shown = repr(key) if len(repr(key)) <= 80 else repr(key)[:77] + "..."
+                raise ValueError(f"{path}: {self.key!r} takes no keyword argument {shown}; "
+                                 f"allowed: {sorted(self.rules) or 'none'}")
+        for key in self.required:
+            if key not in kwargs:
+                raise ValueError(f"{path}: {self.key!r} needs the keyword argument {key!r}")
+        return {k: self.rules[k].check(v, f"{path}.{k}") for k, v in kwargs.items()}
 
     def parameters(self, kwargs):
         """The numeric keyword arguments, which the editor shows as sliders."""
-        return {k: v for k, v in kwargs.items() if k != "Ts" and _is_number(v)}
+        return {k: v for k, v in kwargs.items() if k != "Ts" and isinstance(
+            self.rules.get(k), Number) and not self.rules[k].integer}
 
-    def source(self, name, kwargs, Ts):
-        """Python source of the call that builds this block named ``name``."""
-        if self.key == "summing_junction":
-            signs = kwargs.get("signs", "+-")
-            inputs = [f"{'-' if s == '-' else ''}u{i + 1}" for i, s in enumerate(signs)]
-            return f"ct.summing_junction(inputs={inputs!r}, output='y', name={name!r})"
-        if self.key == "saturation":
-            limit = _literal(kwargs["limit"])
-            return (f"ct.nlsys(None, lambda t, x, u, params: np.clip(u, -{limit}, {limit}), "
-                    f"inputs='u', outputs='y', dt=None, name={name!r})")
-        literal = {k: _literal(v) for k, v in kwargs.items()}
+    def tree(self, name, kwargs, sampled=None):
+        """The call tree that builds this block named ``name``; ``sampled`` ``{"Ts": ...}``
+        samples it under zero-order hold."""
+        kwargs = self.check_kwargs(kwargs)
+        core = self.make(name, kwargs)
         if self.lti:
-            core = self.expression.format(**literal)
-            if Ts:  # a discrete diagram: the continuous design under zero-order hold
-                return (f"ct.sample_system({core}, {_literal(Ts)}, inputs='u', outputs='y', "
-                        f"name={name!r})")
-            return f"ct.tf({core}, inputs='u', outputs='y', name={name!r})"
-        call = self.expression.format(args=_args({**kwargs, "name": name}), name=repr(name),
-                                      **literal)
-        if self.sampled and Ts:  # a continuous plant joins a discrete diagram under ZOH
-            return f"sample_nlsys({call}, {_literal(Ts)})"
-        return call
+            labels = {"inputs": "u", "outputs": "y", "name": name}
+            tf = call("ct.tf", *core) if isinstance(core, tuple) else core
+            if sampled:
+                return call("ct.sample_system", tf, float(sampled["Ts"]), **labels)
+            if isinstance(core, tuple):
+                return call("ct.tf", *core, **labels)
+            return call("ct.tf", core, **labels)
+        if sampled:
+            options = {k: sampled[k] for k in ("method", "substeps") if k in sampled}
+            return call("controlkit.sample_nlsys", core, float(sampled["Ts"]), **options)
+        return core
 
-    def imports(self, Ts):
-        needs = set(self.needs)
-        if self.sampled and Ts:
-            needs.add("sample_nlsys")
-        return needs
-
-
-def _is_number(value):
-    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value,
-                                                                                      bool)
+    def source(self, name, kwargs, sampled=None):
+        """Python source of the call that builds this block named ``name``."""
+        return source(self.tree(name, kwargs, sampled))
 
 
-_S = "ct.tf('s')"
+def _factory(function):
+    """``make`` for a controlkit factory: its keyword arguments and ``name``."""
+    def make(name, kwargs):
+        return call(function, **kwargs, name=name)
+    return make
+
+
+def _pid(name, kw):
+    s = call("ct.tf", "s")
+    integral = Op(kw["ki"], "/", s)
+    derivative = Op(Op(kw["kd"], "*", s), "/", Op(Op(kw["tf"], "*", s), "+", 1))
+    return Op(Op(kw["kp"], "+", integral), "+", derivative)
+
+
+def _junction(name, kw):
+    signs = kw["signs"]
+    return call("ct.summing_junction",
+                inputs=[f"{'-' if s == '-' else ''}u{i + 1}" for i, s in enumerate(signs)],
+                output="y", name=name)
+
+
+def _state_space(name, kw):
+    extra = {k: kw[k] for k in ("dt", "inputs", "outputs", "states") if k in kw}
+    return call("ct.ss", kw["A"], kw["B"], kw["C"], kw["D"], **extra, name=name)
+
+
+def _transfer(name, kw):
+    extra = {k: kw[k] for k in ("dt", "inputs", "outputs") if k in kw}
+    return call("ct.tf", kw["num"], kw["den"], **extra, name=name)
+
+
+_REAL = Number()
+_POSITIVE = Number(positive=True)
+_POLY = Items(Number(), 30, least=1)
+_PERIOD = Number(positive=True, high=1e6)
+
 ENTRIES = [
-    PaletteEntry("gain", "gain", "python-control", "gain", {"k": 2.0},
-                 "ct.tf({k}, 1, dt=None, inputs='u', outputs='y', name={name})"),
+    PaletteEntry("gain", "gain", "python-control", "gain", {"k": 2.0}, {"k": _REAL},
+                 lambda n, kw: call("ct.tf", kw["k"], 1, dt=None, inputs="u", outputs="y",
+                                    name=n)),
     PaletteEntry("transfer_function", "transfer function", "python-control", "tf",
-                 {"num": [1.0], "den": [1.0, 1.0]}, "ct.tf({num}, {den})", lti=True),
-    PaletteEntry("pi", "PI controller", "python-control", "pi",
-                 {"kp": 1.0, "ki": 0.1}, "ct.tf([{kp}, {ki}], [1, 0])", lti=True),
+                 {"num": [1.0], "den": [1.0, 1.0]}, {"num": _POLY, "den": _POLY},
+                 lambda n, kw: (kw["num"], kw["den"]), lti=True, follows_period=True),
+    PaletteEntry("pi", "PI controller", "python-control", "pi", {"kp": 1.0, "ki": 0.1},
+                 {"kp": _REAL, "ki": _REAL},
+                 lambda n, kw: ([kw["kp"], kw["ki"]], [1.0, 0.0]), lti=True,
+                 follows_period=True),
     PaletteEntry("pid", "PID controller", "python-control", "pid",
                  {"kp": 1.0, "ki": 0.1, "kd": 0.1, "tf": 0.01},
-                 "{kp} + {ki} / " + _S + " + {kd} * " + _S + " / ({tf} * " + _S + " + 1)",
-                 lti=True),
+                 {"kp": _REAL, "ki": _REAL, "kd": _REAL, "tf": _POSITIVE}, _pid, lti=True,
+                 follows_period=True),
     PaletteEntry("summing_junction", "summing junction", "python-control", "sum",
-                 {"signs": "+-"}),
-    PaletteEntry("saturation", "saturation", "python-control", "saturation",
-                 {"limit": 1.0}, needs=("ct", "np")),
-    PaletteEntry("spacecraft_plant", "spacecraft plant", "controlkit", "plant", {},
-                 "sc.spacecraft_plant({args})", ("sc",), sampled=True),
-    PaletteEntry("io_linearizer", "IO linearizer", "controlkit",
-                 "linearizer", {}, "sc.io_linearizer({args})", ("sc",)),
-    PaletteEntry("attitude_output", "attitude output h(q)", "controlkit", "output", {},
-                 "sc.attitude_output({args})", ("sc",)),
-    PaletteEntry("outer_controller", "outer controller F", "controlkit",
-                 "controller", {"F": 0.0009, "output": "mu"},
-                 "sc.outer_controller({args})", ("sc",)),
+                 {"signs": "+-"}, {"signs": _Signs()}, _junction),
+    PaletteEntry("saturation", "saturation", "python-control", "saturation", {"limit": 1.0},
+                 {"limit": _POSITIVE},
+                 lambda n, kw: call("ct.nlsys", None, Clip(-kw["limit"], kw["limit"]),
+                                    inputs="u", outputs="y", dt=None, name=n)),
+    PaletteEntry("spacecraft_plant", "spacecraft plant", "controlkit", "plant", {}, {},
+                 _factory("sc.spacecraft_plant"), follows_period=True),
+    PaletteEntry("io_linearizer", "IO linearizer", "controlkit", "linearizer", {}, {},
+                 _factory("sc.io_linearizer")),
+    PaletteEntry("attitude_output", "attitude output h(q)", "controlkit", "output", {}, {},
+                 _factory("sc.attitude_output")),
+    PaletteEntry("outer_controller", "outer controller F", "controlkit", "controller",
+                 {"F": 0.0009, "output": "mu"}, {"F": _POSITIVE, "output": Identifier()},
+                 _factory("sc.outer_controller")),
     PaletteEntry("nominal_model", "nominal model L_n", "controlkit", "nominal", {"Ts": 0.1},
-                 "mec.nominal_model({args})", ("mec",)),
-    PaletteEntry("mec_compensator", "MEC compensator", "controlkit", "mec",
-                 {}, "mec.mec_compensator({args})", ("mec",)),
+                 {"Ts": _PERIOD, "h0": Items(Number(), 2, least=2)},
+                 _factory("mec.nominal_model")),
+    PaletteEntry("mec_compensator", "MEC compensator", "controlkit", "mec", {}, {},
+                 _factory("mec.mec_compensator")),
     PaletteEntry("constant_gain", "constant gain K", "controlkit", "gain", {"K": 0.1},
-                 "mec.constant_gain({args})", ("mec",)),
-    PaletteEntry("frit_tuner", "FRIT tuner", "controlkit", "tuner",
-                 {"F": 0.0009, "Ts": 0.1}, "frit.frit_tuner({args})", ("frit",)),
+                 {"K": _REAL}, _factory("mec.constant_gain")),
+    PaletteEntry("frit_tuner", "FRIT tuner", "controlkit", "tuner", {"F": 0.0009, "Ts": 0.1},
+                 {"F": _POSITIVE, "Ts": _PERIOD}, _factory("frit.frit_tuner")),
     PaletteEntry("lowpass_filter", "low-pass filter", "controlkit", "lowpass",
-                 {"tau": 10.0, "Ts": 0.1}, "common.lowpass_filter({args})", ("common",)),
-    PaletteEntry("cmg_plant", "CMG plant", "controlkit", "cmg", {}, "cmg.cmg_plant({args})",
-                 ("cmg",), sampled=True),
+                 {"tau": 10.0, "Ts": 0.1}, {"tau": _POSITIVE, "Ts": _PERIOD},
+                 _factory("common.lowpass_filter")),
+    PaletteEntry("cmg_plant", "CMG plant", "controlkit", "cmg", {}, {},
+                 _factory("cmg.cmg_plant"), follows_period=True),
     PaletteEntry("adaptive_smc", "adaptive SMC", "controlkit", "smc", {"Ts": 0.001},
-                 "cmg.adaptive_smc({args})", ("cmg",)),
-    PaletteEntry("reference_generator", "CMG references", "controlkit", "reference", {},
-                 "cmg.reference_generator({args})", ("cmg",)),
+                 {"Ts": _PERIOD}, _factory("cmg.adaptive_smc")),
+    PaletteEntry("reference_generator", "CMG references", "controlkit", "reference", {}, {},
+                 _factory("cmg.reference_generator")),
     PaletteEntry("torque_saturation", "CMG torque limits", "controlkit", "saturation",
-                 {"T1_max": 0.6, "T2_max": 2.4}, "cmg.torque_saturation({args})", ("cmg",)),
+                 {"T1_max": 0.6, "T2_max": 2.4}, {"T1_max": _POSITIVE, "T2_max": _POSITIVE},
+                 _factory("cmg.torque_saturation")),
+    # rebuilding recognised blocks of an opened diagram (not in the palette)
+    PaletteEntry("state_space", "state space", "python-control", "sys", {}, {
+        "A": matrix(), "B": matrix(), "C": matrix(), "D": matrix(), "dt": Timebase(),
+        "inputs": _SIGNALS, "outputs": _SIGNALS, "states": _SIGNALS}, _state_space,
+        shown=False, required=("A", "B", "C", "D")),
+    PaletteEntry("transfer_function_data", "transfer function", "python-control", "sys", {},
+                 {"num": _POLY, "den": _POLY, "dt": Timebase(), "inputs": _SIGNALS,
+                  "outputs": _SIGNALS}, _transfer, shown=False, required=("num", "den")),
+    PaletteEntry("junction", "summing junction", "python-control", "sum", {},
+                 {"inputs": _JunctionInputs(), "output": NAME},
+                 lambda n, kw: call("ct.summing_junction", inputs=kw["inputs"],
+                                    output=kw["output"], name=n), shown=False,
+                 required=("inputs", "output")),
+    PaletteEntry("true_plant", "spacecraft plant (paper)", "controlkit", "plant",
+                 {"model_error": True},
+                 {"model_error": Flag()}, _factory("scenario.true_plant"),
+                 follows_period=True, shown=False),
 ]
 PALETTE = {entry.key: entry for entry in ENTRIES}
 
 
-def build(key, name, kwargs, Ts):
-    """The block of palette entry ``key``, named ``name``, as its source code builds it.
+def build(key, name, kwargs, sampled=None):
+    """The block of palette entry ``key``, named ``name``, built from its call tree.
 
     Parameters
     ----------
@@ -179,9 +249,10 @@ def build(key, name, kwargs, Ts):
     name : str
         Block name.
     kwargs : dict
-        Keyword arguments (see the entry's ``defaults``).
-    Ts : float or None
-        The diagram's sampling period (None or 0: continuous).
+        Keyword arguments, checked by the entry's rules.
+    sampled : dict, optional
+        ``{"Ts": period}`` (and ``method``, ``substeps``): the block sampled under
+        zero-order hold.
 
     Returns
     -------
@@ -189,17 +260,16 @@ def build(key, name, kwargs, Ts):
 
     Examples
     --------
-    >>> build("pi", "pi", {"kp": 2.0, "ki": 1.0}, None).num[0][0].tolist()
+    >>> build("pi", "pi", {"kp": 2.0, "ki": 1.0}).num[0][0].tolist()
     [2.0, 1.0]
+    >>> build("gain", "g", {"k": "__import__('os')"})
+    Traceback (most recent call last):
+    ValueError: kwargs.k: must be a finite number, got "__import__('os')"
     """
     if key not in PALETTE:
         raise ValueError(f"palette entry must be one of {sorted(PALETTE)}, got {key!r}")
-    entry = PALETTE[key]
-    source = entry.source(name, kwargs, Ts)
-    namespace = {}
-    for alias in entry.imports(Ts):
-        exec(IMPORTS[alias], namespace)  # noqa: S102 - our own import lines
-    return eval(source, namespace)  # noqa: S307 - source written by PaletteEntry.source
+    NAME.check(name, "name")
+    return evaluate(PALETTE[key].tree(name, kwargs, sampled))
 
 
 def defaults(key, Ts):
@@ -210,34 +280,10 @@ def defaults(key, Ts):
     return kwargs
 
 
-def recognise(block):
-    """A recipe for a block of an opened diagram whose factory arguments can be read back.
-
-    ``outer_controller`` keeps ``F`` and ``constant_gain`` keeps ``K`` as attributes; a
-    block recognised here gets sliders and is written in :meth:`DiagramModel.code` as
-    the factory call. Others return None.
-
-    Examples
-    --------
-    >>> from controlkit.blocks import spacecraft as sc
-    >>> recognise(sc.outer_controller(0.002, output="mu_n"))["kwargs"]
-    {'F': 0.002, 'output': 'mu_n'}
-    """
-    labels = list(block.input_labels)
-    F = getattr(block, "F", None)
-    if (F is not None and getattr(block, "kernels", None) is not None
-            and labels == ["r[0]", "r[1]", "h[0]", "h[1]"]):
-        F = np.asarray(F, dtype=float).reshape(-1)
-        outputs = block.output_labels
-        base = outputs[0][:-3] if outputs[0].endswith("[0]") else None
-        if F.size == 2 and F[0] == F[1] and base and outputs == [f"{base}[0]", f"{base}[1]"]:
-            return {"kind": "outer_controller", "kwargs": {"F": float(F[0]), "output": base}}
-    K = getattr(block, "K", None)
-    if K is not None and getattr(block, "kernels", None) is not None and not labels:
-        K = np.asarray(K, dtype=float)
-        if K.shape == (2, 2) and np.array_equal(K, K[0, 0] * np.eye(2)):
-            return {"kind": "constant_gain", "kwargs": {"K": float(K[0, 0])}}
-    return None
+def is_number(value):
+    """A real number that is not a bool (a parameter a slider can show)."""
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
+        value, (bool, np.bool_))
 
 
 def is_system(value):

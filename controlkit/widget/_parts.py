@@ -6,7 +6,9 @@ from dataclasses import dataclass
 
 import control as ct
 
-FORMAT = "controlkit.widget/1"
+from ._rules import FORMAT
+
+__all__ = ["FORMAT", "PROBLEM_KINDS", "Block", "Problem", "Wire", "timebase"]
 
 
 @dataclass
@@ -18,9 +20,10 @@ class Block:
     system : control.InputOutputSystem
         The block itself.
     recipe : dict or None
-        How to build it again: ``{"kind": palette key, "kwargs": {...}}``,
+        How to build it again: ``{"kind": palette key, "kwargs": {...}}`` (with
+        ``"sampled": {"Ts": period}`` for a block under zero-order hold),
         ``{"kind": "variable", "variable": name}`` (an object of the notebook), or None
-        for a block taken as it is from an opened interconnect.
+        for a block the editor cannot rebuild (taken as it is from an opened interconnect).
     label : str or None
         Display name (TeX, e.g. ``"$L_a$"``).
     position : tuple of float or None
@@ -63,7 +66,7 @@ class Problem:
 #: What :meth:`DiagramModel.problems` reports; ``error`` problems stop a run.
 PROBLEM_KINDS = {"unconnected input": "warning", "two drivers": "error",
                  "algebraic loop": "error", "mismatched timebases": "error",
-                 "unused output": "note"}
+                 "unused output": "note", "unused input": "note"}
 
 
 

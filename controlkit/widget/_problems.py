@@ -14,7 +14,7 @@ import control as ct
 import numpy as np
 
 from ..blocks.sampling import SampledSystem
-from ._parts import Problem, timebase
+from ._parts import Problem
 from ._ports import port_groups
 
 
@@ -52,6 +52,12 @@ def find_problems(model):
             found.append(Problem(
                 "unused output", "note", [name],
                 f"unused output: {_signals(name, unused)} of block {name!r} goes nowhere"))
+    for label, names in model.input_groups():
+        if not any(dict(model.inputs)[n] for n in names):
+            found.append(Problem(
+                "unused input", "note", [],
+                f"unused input: the external input {label} drives nothing; it joins the "
+                f"interconnect when it is wired to a block"))
     found += _algebraic_loops(model)
     found += _timebases(model)
     return found
@@ -79,26 +85,27 @@ def _algebraic_loops(model):
 
 
 def _timebases(model):
-    """Continuous and discrete blocks, or two sampling periods, in one diagram."""
-    kinds = {}
-    for name, b in model.blocks.items():
-        kind = timebase(b.system.dt)
-        if kind == "continuous":
-            kinds.setdefault("continuous (dt = 0)", []).append(name)
-        elif kind == "discrete":
-            kinds.setdefault(f"dt = {b.system.dt:g} s", []).append(name)
-    if len(kinds) < 2:
-        return []
-    parts = [f"{', '.join(repr(n) for n in names)} "
-             f"{'runs' if len(names) == 1 else 'run'} {'at ' if k.startswith('dt') else ''}"
-             f"{k.replace(' (dt = 0)', '')}" for k, names in kinds.items()]
-    advice = ("sample the continuous blocks (controlkit.blocks.sampling.sample_nlsys, "
-              "control.sample_system)" if "continuous (dt = 0)" in kinds
-              else "build all discrete blocks with one dt")
-    blocks = [n for names in kinds.values() for n in names]
-    return [Problem("mismatched timebases", "error", blocks,
-                    f"mismatched timebases: {'; '.join(parts)}; {advice}")]
+    """The timebases :func:`controlkit.interconnect` refuses, with its reason.
 
+    Continuous and discrete blocks together make a sampled-data diagram, which runs; what
+    is refused is what the engine refuses: periods that are not integer multiples of
+    the shortest, a discrete block of unspecified period (``dt=True``) beside others.
+    """
+    from controlkit.sampled_data import interconnect
+
+    if not model.is_mixed() and not any(b.system.dt is True for b in model.blocks.values()):
+        return []
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            interconnect(model.systems(), connections=False, inplist=[], outlist=[])
+    except ValueError as error:
+        message = str(error)
+        blocks = [n for n in model.blocks if repr(n) in message] or [
+            n for names in model.timebases().values() for n in names]
+        return [Problem("mismatched timebases", "error", blocks,
+                        f"mismatched timebases: {message}")]
+    return []
 
 
 def passes_input(system):

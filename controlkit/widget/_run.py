@@ -1,4 +1,5 @@
-"""Running an edited diagram: the one simulation call, initial states, scopes and measures."""
+"""Running an edited diagram: python-control's arguments, the one simulation call, scopes
+and measures."""
 
 from __future__ import annotations
 
@@ -6,18 +7,23 @@ import time
 import warnings
 from dataclasses import dataclass
 
-import control as ct
 import numpy as np
 
-from ._code import interconnect_specs
+from ._sources import values
+from ._specs import interconnect_specs
+
+#: Time points of a continuous (or sampled-data) run.
+CONTINUOUS_POINTS = 2001
+#: The most samples a page's run may ask for (memory: every block output is recorded).
+MAX_SAMPLES = 2_000_000
 
 
 def simulate(sys, T, X0, U=0.0):
     """Simulate ``sys``: the one place where the editor calls a simulator.
 
     :func:`controlkit.input_output_response`: compiled where it can be (a diagram it
-    cannot compile runs on python-control, with a warning that the editor shows), and a
-    continuous plant under a discrete controller runs too.
+    cannot compile runs on python-control, with a warning that the editor shows);
+    continuous, discrete and sampled-data diagrams (:func:`controlkit.interconnect`).
 
     Parameters
     ----------
@@ -35,9 +41,6 @@ def simulate(sys, T, X0, U=0.0):
     """
     from controlkit.simulation import input_output_response
 
-    U = np.asarray(U, dtype=float)
-    if U.ndim == 1 and U.size == sys.ninputs:  # one value per input, held over the run
-        U = np.repeat(U.reshape(-1, 1), len(T), axis=1)
     return input_output_response(sys, T, U, X0)
 
 
@@ -49,40 +52,87 @@ def time_points(horizon, dt):
     >>> time_points(1.0, 0.25).tolist()
     [0.0, 0.25, 0.5, 0.75, 1.0]
     """
+    steps, dt = _steps(horizon, dt)
+    if steps is None:
+        return np.linspace(0.0, float(horizon), CONTINUOUS_POINTS)
+    return np.arange(steps + 1) * dt
+
+
+def time_expression(horizon, dt):
+    """:func:`time_points` as the exported code writes it.
+
+    Examples
+    --------
+    >>> time_expression(20.0, 0.1), time_expression(5.0, 0)
+    ('np.arange(201) * 0.1', 'np.linspace(0.0, 5.0, 2001)')
+    """
+    steps, dt = _steps(horizon, dt)
+    if steps is None:
+        return f"np.linspace(0.0, {float(horizon)!r}, {CONTINUOUS_POINTS})"
+    return f"np.arange({steps + 1}) * {dt!r}"
+
+
+def _steps(horizon, dt):
+    """``(steps, period)`` of a discrete run, ``(None, None)`` of a continuous one."""
     horizon = float(horizon)
     if not np.isfinite(horizon) or horizon <= 0:
         raise ValueError(f"horizon must be a positive number of seconds, got {horizon}")
-    if dt is not None and dt is not True and dt > 0:
-        steps = int(round(horizon / dt))
-        if steps < 1:
-            raise ValueError(f"horizon must be at least one sample ({dt} s), got {horizon}")
-        return np.arange(steps + 1) * float(dt)
-    return np.linspace(0.0, horizon, 2001)
+    if dt is None or dt is True or dt <= 0:
+        return None, None
+    dt = float(dt)
+    steps = int(round(horizon / dt))
+    if steps < 1:
+        raise ValueError(f"horizon must be at least one sample ({dt} s), got {horizon}")
+    if steps > MAX_SAMPLES:
+        raise ValueError(f"horizon must be at most {MAX_SAMPLES:,} samples of {dt:g} s "
+                         f"({MAX_SAMPLES * dt:g} s), got {horizon:g} s")
+    return steps, dt
 
 
-def stacked_state(sys, initial):
-    """The initial state of ``sys`` from ``{block: values}``, else each block's ``x0``, else 0.
+def run_arguments(model, sys=None):
+    """python-control's ``input_output_response`` arguments that the page builds.
+
+    Parameters
+    ----------
+    model : DiagramModel
+        The diagram, with its run's setup (``horizon``, ``sources``, ``initial``).
+    sys : control.InterconnectedSystem, optional
+        The built diagram (:meth:`~DiagramModel.system`); needed for ``X0``.
+
+    Returns
+    -------
+    dict
+        ``T`` (time points), ``U`` (one row per input of the interconnect, in its
+        order, or ``0.0`` without inputs), ``X0`` (when ``sys`` is given: the states set
+        in the page, else each block's ``x0``, else zero; see
+        :func:`controlkit.initial_state`), ``params`` (none is given at run time: each
+        block keeps its own), and for the code writer ``dt`` and ``sources``
+        (``[(input, source)]``).
 
     Examples
     --------
     >>> import control as ct
-    >>> a = ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], name="a", inputs="u", outputs="y")
-    >>> b = ct.ss([[-2.0]], [[1.0]], [[1.0]], [[0.0]], name="b", inputs="y", outputs="z")
-    >>> stacked_state(ct.interconnect([a, b], inputs="u", outputs="z"), {"b": [3.0]}).tolist()
-    [0.0, 3.0]
+    >>> from controlkit.widget import DiagramModel
+    >>> lag = ct.ss(-1.0, 1.0, 1.0, 0.0, name="lag", inputs="u", outputs="y")
+    >>> model = DiagramModel.from_interconnect(ct.interconnect([lag], inputs="u",
+    ...                                                        outputs="y"))
+    >>> model.horizon = 2.0
+    >>> model.set_source("u", "step", value=1.0, time=1.0)
+    >>> args = run_arguments(model, model.system())
+    >>> args["T"].size, args["U"][0, [0, 1000, 2000]].tolist(), args["X0"].tolist()
+    (2001, [0.0, 1.0, 1.0], [0.0])
     """
-    parts = []
-    for s in sys.syslist:
-        if not s.nstates:
-            continue
-        value = initial.get(s.name, getattr(s, "x0", None))
-        value = np.zeros(s.nstates) if value is None else np.asarray(value, dtype=float)
-        value = value.reshape(-1)
-        if value.size != s.nstates:
-            raise ValueError(f"initial state of block {s.name!r} must have {s.nstates} values "
-                             f"({', '.join(s.state_labels)}), got {value.size}")
-        parts.append(value)
-    return np.concatenate(parts) if parts else np.zeros(0)
+    dt = model.run_period()
+    T = time_points(model.horizon, dt)
+    labels = interconnect_specs(model)[2]
+    sources = [(label, model.source_of(label)) for label in labels]
+    U = np.array([values(src, T) for _, src in sources]) if sources else 0.0
+    arguments = {"T": T, "U": U, "params": {}, "dt": dt, "sources": sources}
+    if sys is not None:
+        from controlkit.simulation import initial_state
+
+        arguments["X0"] = initial_state(sys, **model.initial)
+    return arguments
 
 
 @dataclass
@@ -119,39 +169,34 @@ class Measure:
                    "unit": self.unit, "text": text, "log": self.log}
 
 
-def run_diagram(model, *, horizon, initial, inputs, measures, scopes, points=1500):
-    """Run the edited diagram; what the editor's scopes draw.
+def run_diagram(model, *, measures, scopes, points=1500):
+    """Run the edited diagram with its setup; what the editor's scopes draw.
 
     Every output of every block is recorded (so any signal can be scoped without
     running again); scopes and measures take theirs from the result.
 
     Returns
     -------
-    dict
+    results : dict
         ``time``, ``traces`` ``[{name, y}]`` (at most ``points`` evenly spaced time
         points; the measures' summaries use every sample), ``measures``, ``steps``,
         ``seconds``, ``warnings``.
+    response : control.TimeResponseData
+        The run itself, every sample; its outputs are the block outputs, in the order
+        of ``response.output_labels`` (``"block.signal"``).
     """
     sys, recorded = recording_system(model)
-    T = time_points(horizon, sys.dt)
-    X0 = stacked_state(sys, initial)
-    unknown = sorted(set(inputs) - set(sys.input_labels))
-    if unknown:
-        raise ValueError(f"inputs {unknown} are not inputs of the diagram; its inputs: "
-                         f"{sys.input_labels}")
-    U = np.array([float(inputs.get(name, 0.0)) for name in sys.input_labels])
+    arguments = run_arguments(model, sys)
     started = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        resp = simulate(sys, T, X0=X0, U=U if U.size else 0.0)
+        resp = simulate(sys, arguments["T"], arguments["X0"], arguments["U"])
     seconds = time.perf_counter() - started
     index = {label: i for i, label in enumerate(recorded)}
     outputs = np.asarray(resp.outputs).reshape(len(recorded), -1)
     keep = _buckets(resp.time.size, points)
-    traces = []
-    for name in scopes:
-        if name in index:
-            traces.append({"name": name, "y": _rounded(outputs[index[name]][keep])})
+    traces = [_trace(name, resp.time, outputs[index[name]], keep)
+              for name in scopes if name in index]
     summaries = []
     for m in measures:
         missing = [s for s in m.signals if s not in index]
@@ -160,13 +205,14 @@ def run_diagram(model, *, horizon, initial, inputs, measures, scopes, points=150
                               f"has no signal {', '.join(missing)}", "met": None,
                               "worst": None, "limit": m.limit, "unit": m.unit, "log": m.log})
             continue
-        values = outputs[[index[s] for s in m.signals]]
-        y, summary = m.evaluate(resp.time, values)
+        y, summary = m.evaluate(resp.time, outputs[[index[s] for s in m.signals]])
         summary["y"] = _rounded(y[keep])
         summaries.append(summary)
     notes = sorted({str(w.message) for w in caught if "Unused" not in str(w.message)})
-    return {"time": _rounded(resp.time[keep]), "traces": traces, "measures": summaries,
-            "steps": int(resp.time.size - 1), "seconds": seconds, "warnings": notes}
+    resp.output_labels = recorded
+    results = {"time": _rounded(resp.time[keep]), "traces": traces, "measures": summaries,
+               "steps": int(resp.time.size - 1), "seconds": seconds, "warnings": notes}
+    return results, resp
 
 
 def recording_system(model):
@@ -180,14 +226,21 @@ def recording_system(model):
         for label in s.output_labels:
             names.append(f"{s.name}.{label}")
             specs.append((s.name, label, 1.0))
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message=r"Unused (input|output)", category=UserWarning)
-        connections, inplist, inputs, _, _ = interconnect_specs(model)
-        recording = ct.interconnect(
-            sys.syslist, connections=connections or False, inplist=inplist, inputs=inputs,
-            outlist=specs, outputs=[f"y[{k}]" for k in range(len(specs))],
-            name=f"{model.name}_recorded")
+    recording = model.system(outlist=specs, outputs=[f"y[{k}]" for k in range(len(specs))],
+                             name=f"{model.name}_recorded")
     return recording, names
+
+
+def _trace(name, time, y, keep):
+    """A scoped signal: its points for the chart and, from every sample, its final value and
+    its largest excursion (the value farthest from zero, and when)."""
+    finite = np.isfinite(y)
+    summary = {"final": None, "peak": None, "peak_time": None}
+    if finite.any():
+        k = int(np.nanargmax(np.where(finite, np.abs(y), -np.inf)))
+        summary = {"final": _rounded(y[-1:])[0], "peak": _rounded(y[k:k + 1])[0],
+                   "peak_time": _rounded(time[k:k + 1])[0]}
+    return {"name": name, "y": _rounded(y[keep]), **summary}
 
 
 def _buckets(n, points):

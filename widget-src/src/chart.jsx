@@ -23,8 +23,24 @@ function fmt(v) {
   return String(Number(v.toPrecision(3)));
 }
 
+// the legend's entries in rows above the plot, each in its curve's colour (never on a curve)
+function legendRows(traces, width) {
+  const rows = [];
+  let x = 0, row = 0;
+  traces.forEach((tr, k) => {
+    const w = 26 + 6.4 * tr.name.length;
+    if (x > 0 && x + w > width) { row++; x = 0; }
+    rows.push({ name: tr.name, x, row, color: COLORS[k % COLORS.length] });
+    x += w + 10;
+  });
+  return rows;
+}
+
 export function Chart({ title, time, traces, log = false, limit = null, unit = "", testid }) {
-  const W = 560, H = 190, L = 58, R = 24, T = 22, B = 30;
+  const W = 560, H0 = 190, L = 58, R = 24, B = 30;
+  const legend = traces.length > 1 ? legendRows(traces, W - L - R) : [];
+  const rows = legend.length ? legend[legend.length - 1].row + 1 : 0;
+  const T = 22 + 14 * rows, H = H0 + 14 * rows;
   const values = [];
   for (const tr of traces) for (const v of tr.y) if (v !== null && (!log || v > 0)) values.push(v);
   if (limit !== null && (!log || limit > 0)) values.push(limit);
@@ -88,9 +104,13 @@ export function Chart({ title, time, traces, log = false, limit = null, unit = "
         </g>
       )}
       {lines}
-      {traces.length > 1 && traces.map((tr, k) => (
-        <text key={`l${tr.name}`} x={L + 8 + 120 * (k % 4)} y={T + 14 + 13 * Math.floor(k / 4)}
-          fill={COLORS[k % COLORS.length]} className="ck-legend">{tr.name}</text>
+      {legend.map((e) => (
+        <g key={`l${e.name}`} className="ck-legend-entry" data-legend={e.name}>
+          <line x1={L + e.x} x2={L + e.x + 18} y1={30 + 14 * e.row - 4}
+            y2={30 + 14 * e.row - 4} stroke={e.color} strokeWidth="2" />
+          <text x={L + e.x + 22} y={30 + 14 * e.row} className="ck-legend"
+            style={{ fill: e.color }}>{e.name}</text>
+        </g>
       ))}
     </svg>
   );

@@ -5,12 +5,12 @@ import React, { useCallback, useEffect, useMemo, useRef, useState } from "react"
 import { createRoot } from "react-dom/client";
 import {
   ReactFlow, ReactFlowProvider, Handle, Position, Controls, Background, applyNodeChanges,
-  useReactFlow, BaseEdge, EdgeLabelRenderer,
+  useReactFlow, useStore, BaseEdge, EdgeLabelRenderer,
 } from "@xyflow/react";
 import "@xyflow/react/dist/style.css";
 import "./editor.css";
 import { texToHtml } from "./tex.js";
-import { JUNCTION_GAP, JUNCTION_R, pathOf, routeAll } from "./route.js";
+import { JUNCTION_GAP, JUNCTION_R, freeSpot, pathOf, routeAll } from "./route.js";
 import { Chart } from "./chart.jsx";
 
 function useTrait(model, name) {
@@ -37,7 +37,8 @@ function BlockNode({ data, selected }) {
   const b = data.block;
   const ins = b.inputs.filter((p) => !p.junction);
   const cls = ["ck-block", `ck-shape-${b.shape}`, selected ? "ck-selected" : "",
-    data.bad ? "ck-bad" : "", data.warn ? "ck-warn" : ""].join(" ");
+    data.bad ? "ck-bad" : "", data.warn ? "ck-warn" : "",
+    data.mixed && b.discrete ? "ck-discrete" : ""].join(" ");
   const inSide = b.flip ? Position.Right : Position.Left;
   const outSide = b.flip ? Position.Left : Position.Right;
   const frac = (i, n) => `${(100 * (i + 1)) / (n + 1)}%`;
@@ -112,12 +113,17 @@ function JunctionNode({ data }) {
   );
 }
 
-function TerminalNode({ data }) {
+// an external input: its source (what drives it) and its name; drag from its dot to a port
+function TerminalNode({ data, selected }) {
   return (
-    <div className="ck-terminal" style={{ width: data.w }}>
-      <Tex text={data.label} />
-      <Handle id="out" type="source" position={Position.Right} className="ck-port ck-hidden"
-        isConnectable={false} />
+    <div className={`ck-terminal ${selected ? "ck-terminal-selected" : ""}
+      ${data.target ? "" : "ck-terminal-free"}`} style={{ width: data.w }}
+      data-input={data.label} title={`external input ${data.label}: ${data.source}${
+        data.target ? "" : " (drag from its dot to an input port)"}`}>
+      <span className="ck-source">{data.source}</span> <Tex text={data.label} />
+      <Handle id="out" type="source" position={Position.Right}
+        className={`ck-port ck-out ${data.target ? "ck-hidden" : ""}`}
+        data-port={`input.${data.label}`} />
     </div>
   );
 }
@@ -177,7 +183,7 @@ function buildNodes(diagram, previous, badBlocks, warnBlocks) {
     const prev = old[b.name];
     nodes.push({ id: b.name, type, position: { x: b.x - b.w / 2, y: b.y - b.h / 2 },
       data: { block: b, bad: badBlocks.has(b.name), warn: warnBlocks.has(b.name),
-        loose: new Set(b.inputs.filter((p) => p.loose).map((p) => p.port)) },
+        mixed: diagram.mixed, loose: new Set(b.inputs.filter((p) => p.loose).map((p) => p.port)) },
       width: b.w, height: b.h, selected: prev ? prev.selected : false,
       ...(prev && prev.measured ? { measured: prev.measured } : {}) });
     const junctionPorts = b.inputs.filter((p) => p.junction);
@@ -188,10 +194,12 @@ function buildNodes(diagram, previous, badBlocks, warnBlocks) {
     }
   }
   for (const t of diagram.inputs) {
-    const w = Math.max(24, 8 * t.label.length + 8);
+    const w = Math.max(24, 7.5 * t.label.length + 6.2 * t.source.length + 22);
+    const prev = old[t.id];
     nodes.push({ id: t.id, type: "terminal", position: { x: 0, y: 0 },
-      data: { label: t.label, target: t.target, port: t.port, w }, draggable: false,
-      selectable: false, width: w, height: 20 });
+      data: { label: t.label, target: t.target, port: t.port, w, source: t.source,
+        groups: t.groups, names: t.names }, draggable: false,
+      selectable: true, selected: prev ? prev.selected : false, width: w, height: 20 });
   }
   return follow(nodes);
 }
@@ -210,7 +218,16 @@ function follow(nodes) {
     return n;
   });
   const byId2 = Object.fromEntries(out.map((n) => [n.id, n]));
+  // inputs that drive nothing wait in a column left of the diagram
+  const blocks = out.filter((n) => n.type === "block" || n.type === "sum");
+  const left = blocks.length ? Math.min(...blocks.map((n) => n.position.x)) : 0;
+  const top = blocks.length ? Math.min(...blocks.map((n) => n.position.y)) : 0;
+  let free = 0;
   return out.map((n) => {
+    if (n.type === "terminal" && !n.data.target) {
+      const position = { x: left - 150 - n.data.w, y: top + 34 * free++ };
+      return { ...n, position };
+    }
     if (n.type === "terminal") {
       const o = byId2[n.data.target];
       if (!o) return n;
@@ -252,8 +269,9 @@ function buildEdges(diagram, nodes, selectedEdges) {
     return p && p.junction;
   };
   for (const t of diagram.inputs) {
+    if (!t.target) continue;
     wires.push({ id: `${t.id}|wire`, source: t.id, sourcePort: "out", target: t.target,
-      targetPort: t.port, label: "", sign: t.sign, external: true });
+      targetPort: t.port, label: "", sign: t.sign, external: true, groups: t.groups });
   }
   const routes = routeAll(nodes, wires);
   const labelled = new Set();
@@ -266,8 +284,8 @@ function buildEdges(diagram, nodes, selectedEdges) {
     return {
       id: w.id, source: w.source, sourceHandle: w.sourcePort,
       target: inJunction ? `${w.target}::sum` : w.target, targetHandle: w.targetPort,
-      type: "wire", selected: selectedEdges.has(w.id), selectable: !w.external,
-      reconnectable: !w.external, deletable: !w.external,
+      type: "wire", selected: selectedEdges.has(w.id), selectable: true,
+      reconnectable: !w.external, deletable: true,
       markerEnd: { type: "arrowclosed", width: 14, height: 14, color: "#1f3b6e" },
       data: { points: (routes[w.id] || {}).points, label: w.label, sign: w.sign, showLabel,
         flip: src && src.flip, junctionSign: inJunction, wire: w },
@@ -295,6 +313,26 @@ function junctionEdges(diagram, nodes) {
 }
 
 // ------------------------------------------------------------------------------ panels
+
+// "+ input": a new external input, wired afterwards by dragging from its dot
+function NewInput({ send }) {
+  const [open, setOpen] = useState(false);
+  const [name, setName] = useState("");
+  if (!open) {
+    return <button type="button" data-testid="add-input" title="a new external input"
+      onClick={() => setOpen(true)}>+ input</button>;
+  }
+  const add = () => { if (name) send({ op: "add_input", name }); setOpen(false); setName(""); };
+  return (
+    <span className="ck-row">
+      <input autoFocus className="ck-number" placeholder="name" value={name}
+        data-testid="new-input" onChange={(ev) => setName(ev.target.value)}
+        onKeyDown={(ev) => { if (ev.key === "Enter") add(); if (ev.key === "Escape")
+          setOpen(false); }} />
+      <button type="button" onClick={add}>add</button>
+    </span>
+  );
+}
 
 function Palette({ palette, variables, onAdd }) {
   const groups = {};
@@ -361,6 +399,9 @@ function Inspector({ diagram, selectedBlock, selectedEdge, send, scopes }) {
           ? "input reaches the output at once" : "no direct feedthrough"}</div>
         <div className="ck-ports">in: {b.inputs.map((p) => p.port).join(", ") || "none"}
           <br />out: {b.outputs.map((p) => p.port).join(", ") || "none"}</div>
+        {diagram.setup && diagram.setup.initial[b.name] ? (
+          <InitialState block={b.name} state={diagram.setup.initial[b.name]} send={send} />
+        ) : null}
         {params.length ? <div className="ck-heading">parameters</div> : null}
         {params.map(([k, v]) => (
           <ParamSlider key={`${b.name}.${k}`} block={b.name} name={k} value={v} send={send} />
@@ -401,6 +442,81 @@ function Inspector({ diagram, selectedBlock, selectedEdge, send, scopes }) {
   );
 }
 
+// what drives an external input: a kind and its numbers, applied with Enter or "apply"
+function SourceEditor({ name, source, kinds, send }) {
+  const [kind, setKind] = useState(source.kind);
+  const [fields, setFields] = useState(() => ({ ...source }));
+  useEffect(() => { setKind(source.kind); setFields({ ...source }); }, [source]);
+  const shown = kinds[kind];
+  const value = (k) => (k in fields ? fields[k] : shown[k]);
+  const apply = () => send({ op: "set_source", input: name, kind, fields: Object.fromEntries(
+    Object.keys(shown).map((k) => [k, Number(value(k))])) });
+  return (
+    <div className="ck-source-editor" data-source={name}>
+      <div className="ck-row"><b><Tex text={name} /></b>
+        <select value={kind} data-testid="source-kind" onChange={(ev) => {
+          setKind(ev.target.value); setFields({ ...kinds[ev.target.value] }); }}>
+          {Object.keys(kinds).map((k) => <option key={k}>{k}</option>)}
+        </select></div>
+      <div className="ck-fields">
+        {Object.keys(shown).map((k) => (
+          <label key={k}>{k}{k === "time" || k === "width" || k === "period" ? " [s]"
+            : k === "frequency" ? " [Hz]" : k === "phase" ? " [rad]" : ""}
+            <input className="ck-number" data-field={k} value={value(k)}
+              onChange={(ev) => setFields({ ...fields, [k]: ev.target.value })}
+              onKeyDown={(ev) => { if (ev.key === "Enter") apply(); }} /></label>
+        ))}
+      </div>
+      <div className="ck-row"><button type="button" data-testid="apply-source"
+        onClick={apply}>apply</button>
+        <span className="ck-muted">{kind === source.kind ? source.text : ""}</span></div>
+    </div>
+  );
+}
+
+function InputInspector({ diagram, terminal, send }) {
+  const { sources, kinds } = diagram.setup;
+  return (
+    <div className="ck-inspector" data-testid="input-inspector">
+      <div className="ck-heading">external input <Tex text={terminal.label} /></div>
+      <div className="ck-muted">{terminal.target ? `drives ${terminal.target}.${terminal.port}`
+        : "drives nothing yet: drag from its dot to an input port"}</div>
+      {terminal.names.map((n) => sources[n] ? (
+        <SourceEditor key={n} name={n} source={sources[n]} kinds={kinds} send={send} />
+      ) : null)}
+      <div className="ck-row">
+        {terminal.target ? terminal.groups.map((g) => (
+          <button key={g} type="button" onClick={() => send({ op: "disconnect_input", input: g,
+            target: [terminal.target, terminal.port] })}>disconnect {g}</button>)) : null}
+        {terminal.groups.map((g) => (
+          <button key={`rm${g}`} type="button" className="ck-danger" data-testid="remove-input"
+            onClick={() => send({ op: "remove_input", input: g })}>remove input {g}</button>))}
+      </div>
+    </div>
+  );
+}
+
+function InitialState({ block, state, send }) {
+  const text = state.values.map((v) => Number(v.toPrecision(6))).join(", ");
+  const [shown, setShown] = useState(text);
+  useEffect(() => setShown(text), [text]);
+  const apply = () => send({ op: "set_initial", block,
+    values: shown.split(/[,\s]+/).filter(Boolean).map(Number) });
+  return (
+    <div className="ck-initial">
+      <div className="ck-heading">initial state</div>
+      <div className="ck-muted">{state.states.join(", ")}{state.set ? "" : " (the block's own)"}</div>
+      <div className="ck-row">
+        <input value={shown} data-testid="initial-state" onChange={(ev) => setShown(ev.target.value)}
+          onKeyDown={(ev) => { if (ev.key === "Enter") apply(); }} />
+        <button type="button" onClick={apply}>set</button>
+        {state.set ? <button type="button" onClick={() => send({ op: "set_initial", block,
+          values: null })}>reset</button> : null}
+      </div>
+    </div>
+  );
+}
+
 function Problems({ problems }) {
   const shown = problems.filter((p) => p.severity !== "note");
   const notes = problems.filter((p) => p.severity === "note");
@@ -417,6 +533,8 @@ function Problems({ problems }) {
     </div>
   );
 }
+
+const fmtValue = (v) => (v === null || v === undefined ? "–" : String(Number(v.toPrecision(6))));
 
 function Scopes({ results, scopes, signals, send }) {
   const [pick, setPick] = useState("");
@@ -450,8 +568,16 @@ function Scopes({ results, scopes, signals, send }) {
             testid="measure-chart" /> : null}
         </div>
       ))}
-      {(results.traces || []).length ? <Chart title="signals" time={time}
-        traces={results.traces} testid="scope-chart" /> : null}
+      {(results.traces || []).length ? (
+        <div>
+          <Chart title="signals" time={time} traces={results.traces} testid="scope-chart" />
+          <div className="ck-readout" data-testid="readout">
+            {results.traces.map((tr) => (
+              <div key={tr.name} data-trace={tr.name}>{tr.name}: final {fmtValue(tr.final)},
+                largest {fmtValue(tr.peak)} at t = {fmtValue(tr.peak_time)} s</div>
+            ))}
+          </div>
+        </div>) : null}
       </div>
     </div>
   );
@@ -469,7 +595,15 @@ function Editor({ model }) {
   const scopes = useTrait(model, "scopes");
   const height = useTrait(model, "height");
   const code = useTrait(model, "code_text");
+  const download = useTrait(model, "download");
+  const canUndo = useTrait(model, "can_undo");
+  const canRedo = useTrait(model, "can_redo");
   const send = useCallback((msg) => model.send(msg), [model]);
+  const zoom = useStore((st) => st.transform[2]);
+  const clipboard = useRef([]);
+  const refit = useRef(null);  // the diagram a re-layout or a load replaces
+  const upload = useRef(null);
+  const root = useRef(null);
   const flow = useReactFlow();
   const wrapper = useRef(null);
   const [nodes, setNodes] = useState([]);
@@ -508,13 +642,36 @@ function Editor({ model }) {
       height: Math.max(...ys) - y0 + 30 }, { padding: 0.02 });
   }, [nodes, edges, flow]);
   const fitted = useRef(false);
-  useEffect(() => {
-    if (!fitted.current && nodes.length && nodes.every((n) => n.measured || n.width)) {
+  useEffect(() => {  // on opening, and once a re-layout or a loaded file has arrived
+    const again = refit.current && refit.current !== diagram;
+    if ((!fitted.current || again) && nodes.length
+        && nodes.every((n) => n.measured || n.width)) {
       fitted.current = true;
-      const zoom = () => { fit(); if (flow.getZoom() > 1.25) flow.zoomTo(1.25); };
-      requestAnimationFrame(zoom);
+      refit.current = null;
+      const fitAll = () => { fit(); if (flow.getZoom() > 1.25) flow.zoomTo(1.25); };
+      requestAnimationFrame(fitAll);
     }
-  }, [nodes, fit, flow]);
+  }, [nodes, fit, flow, diagram]);
+  // a saved file handed to the browser as a download
+  const lastDownload = useRef(download && download.serial);
+  useEffect(() => {
+    if (!download || !download.text || download.serial === lastDownload.current) return;
+    lastDownload.current = download.serial;
+    const url = URL.createObjectURL(new Blob([download.text], { type: "application/json" }));
+    const link = document.createElement("a");
+    link.href = url;
+    link.download = download.name;
+    document.body.appendChild(link);
+    link.click();
+    link.remove();
+    setTimeout(() => URL.revokeObjectURL(url), 1000);
+  }, [download]);
+  const load = useCallback((ev) => {
+    const file = ev.target.files && ev.target.files[0];
+    if (!file) return;
+    file.text().then((text) => { refit.current = diagram; send({ op: "load", text }); });
+    ev.target.value = "";
+  }, [send]);
 
   const onNodesChange = useCallback((changes) => {
     setNodes((nds) => follow(applyNodeChanges(changes, nds)));
@@ -541,17 +698,27 @@ function Editor({ model }) {
   }, [send]);
   const owner = (id) => id.replace(/::sum$/, "");
   const onConnect = useCallback((c) => {
-    if (c.source.startsWith("in:")) return;
+    if (c.source.startsWith("in:")) {  // an external input dragged onto a port
+      const t = diagram.inputs.find((x) => x.id === c.source);
+      if (t) send({ op: "connect_input", input: t.groups[0],
+        target: [owner(c.target), c.targetHandle] });
+      return;
+    }
     send({ op: "connect", source: [c.source, c.sourceHandle],
       target: [owner(c.target), c.targetHandle] });
-  }, [send]);
+  }, [send, diagram]);
   const wireOf = (edge) => (edge.data && edge.data.wire) || null;
   const onDelete = useCallback(({ nodes: gone, edges: cut }) => {
     const blocks = gone.filter((n) => n.type === "block" || n.type === "sum").map((n) => n.id);
-    const wires = cut.map(wireOf).filter((w) => w && !w.external)
-      .filter((w) => !blocks.includes(w.source) && !blocks.includes(w.target))
+    const kept = cut.map(wireOf).filter((w) => w && !blocks.includes(w.target)
+      && !blocks.includes(w.source));
+    const wires = kept.filter((w) => !w.external)
       .map((w) => [w.source, w.sourcePort, w.target, w.targetPort]);
     if (wires.length) send({ op: "disconnect", edges: wires });
+    for (const w of kept.filter((x) => x.external)) {
+      for (const g of w.groups) send({ op: "disconnect_input", input: g,
+        target: [w.target, w.targetPort] });
+    }
     if (blocks.length) send({ op: "delete", blocks });
   }, [send]);
   const reconnected = useRef(false);
@@ -568,21 +735,58 @@ function Editor({ model }) {
     if (reconnected.current) return;
     const w = wireOf(old);  // dropped on nothing: the wire is removed
     if (w) send({ op: "disconnect", edges: [[w.source, w.sourcePort, w.target, w.targetPort]] });
-  }, [send]);
+  }, [send, diagram]);
+  // a new block goes where it overlaps no block and no wire, nearest the point asked for
   const addAt = useCallback((key, point) => {
-    const position = flow.screenToFlowPosition(point);
+    const wanted = flow.screenToFlowPosition(point);
+    const entry = (diagram.palette || []).find((e) => e.key === key);
+    const [w, h] = entry && entry.key === "summing_junction" ? [40, 40]
+      : entry && entry.key === "gain" ? [60, 50] : [130, 60];
+    const position = freeSpot(nodes, edges, wanted, w, h);
     send({ op: "add", key, position: [position.x, position.y] });
-  }, [flow, send]);
+  }, [flow, send, nodes, edges, diagram]);
   const addCentre = useCallback((key) => {
     const r = wrapper.current.getBoundingClientRect();
-    addAt(key, { x: r.left + r.width / 2, y: r.top + r.height * 0.8 });
+    addAt(key, { x: r.left + r.width / 2, y: r.top + r.height / 2 });
   }, [addAt]);
+  // Ctrl+Z undo, Ctrl+Shift+Z (or Ctrl+Y) redo, Ctrl+C / Ctrl+V copy and paste blocks
+  const onKeyDown = useCallback((ev) => {
+    const tag = (ev.target && ev.target.tagName) || "";
+    if (["INPUT", "TEXTAREA", "SELECT"].includes(tag) || !(ev.ctrlKey || ev.metaKey)) return;
+    const key = ev.key.toLowerCase();
+    let msg = null;
+    if (key === "z") msg = { op: ev.shiftKey ? "redo" : "undo" };
+    else if (key === "y") msg = { op: "redo" };
+    else if (key === "c") {
+      clipboard.current = nodes.filter((n) => n.selected && (n.type === "block"
+        || n.type === "sum")).map((n) => n.id);
+    } else if (key === "v" && clipboard.current.length) {
+      msg = { op: "paste", blocks: clipboard.current };
+    } else return;
+    ev.preventDefault();
+    ev.stopPropagation();
+    if (msg) send(msg);
+  }, [nodes, send]);
+  // the keys reach the editor the user last clicked in (a deleted node takes the focus
+  // with it, so the document listens, not the node)
+  const active = useRef(false);
+  useEffect(() => {
+    const down = (ev) => { active.current = !!(root.current && root.current.contains(ev.target)); };
+    const key = (ev) => { if (active.current) onKeyDown(ev); };
+    document.addEventListener("mousedown", down, true);
+    document.addEventListener("keydown", key, true);
+    return () => {
+      document.removeEventListener("mousedown", down, true);
+      document.removeEventListener("keydown", key, true);
+    };
+  }, [onKeyDown]);
   const onDrop = useCallback((ev) => {
     ev.preventDefault();
     const key = ev.dataTransfer.getData("application/x-controlkit");
     if (key) addAt(key, { x: ev.clientX, y: ev.clientY });
   }, [addAt]);
   const selectedNode = nodes.find((n) => n.selected && (n.type === "block" || n.type === "sum"));
+  const selectedInput = nodes.find((n) => n.selected && n.type === "terminal");
   const selectedEdge = [...selectedEdges][0];
   const errors = problems.filter((p) => p.severity === "error").length;
   const run = () => {
@@ -592,12 +796,29 @@ function Editor({ model }) {
   };
 
   return (
-    <div className="ck-editor" data-lm-suppress-shortcuts="true">
+    <div className="ck-editor" data-lm-suppress-shortcuts="true" ref={root}>
       <div className="ck-toolbar">
         <Tex text={diagram.title} className="ck-title" />
         <span className="ck-spacer" />
+        <button type="button" data-testid="undo" disabled={!canUndo} title="undo (Ctrl+Z)"
+          onClick={() => send({ op: "undo" })}>↶ undo</button>
+        <button type="button" data-testid="redo" disabled={!canRedo}
+          title="redo (Ctrl+Shift+Z)" onClick={() => send({ op: "redo" })}>↷ redo</button>
+        <button type="button" data-testid="save" title="download the diagram as a file"
+          onClick={() => send({ op: "save" })}>save</button>
+        <button type="button" data-testid="load" title="open a saved diagram file"
+          onClick={() => upload.current.click()}>load</button>
+        <input type="file" accept=".json,application/json" ref={upload} onChange={load}
+          style={{ display: "none" }} data-testid="load-file" />
+        <button type="button" data-testid="relayout" title="place the blocks as the static drawing does"
+          onClick={() => { refit.current = diagram; send({ op: "relayout" }); }}>re-layout</button>
+        <NewInput send={send} />
         <label>horizon [s] <input className="ck-number" value={horizonText}
-          onChange={(ev) => setHorizonText(ev.target.value)} data-testid="horizon" /></label>
+          onChange={(ev) => setHorizonText(ev.target.value)} data-testid="horizon"
+          onKeyDown={(ev) => { if (ev.key === "Enter") send({ op: "horizon",
+            value: Number(horizonText) }); }}
+          onBlur={() => { if (Number(horizonText) !== horizon) send({ op: "horizon",
+            value: Number(horizonText) }); }} /></label>
         <button type="button" className="ck-run" onClick={run} disabled={errors > 0 || running}
           data-testid="run" title={errors ? "fix the wiring errors first" : "simulate"}>
           {running ? "running…" : "▶ Run"}</button>
@@ -608,9 +829,15 @@ function Editor({ model }) {
       <div className="ck-main" style={{ height }}>
         <Palette palette={diagram.palette || []} variables={variables}
           onAdd={(key) => addCentre(key)} />
-        <div className="ck-canvas" ref={wrapper} onDragOver={(ev) => ev.preventDefault()}
-          onDrop={onDrop}>
-          {showCode ? <pre className="ck-code" data-testid="code">{code}</pre> : (
+        <div className={`ck-canvas ${zoom >= 1.3 ? "ck-zoomed" : ""}`} ref={wrapper}
+          onDragOver={(ev) => ev.preventDefault()} onDrop={onDrop}>
+          {diagram.mixed && !showCode ? (
+            <div className="ck-rate-legend" data-testid="rate-legend">
+              <span className="ck-swatch ck-discrete" /> discrete: updates at its instants,
+              holds its output between them
+              <span className="ck-swatch" /> continuous or static</div>) : null}
+          {showCode ? <pre className="ck-code" data-testid="code">{code}</pre> : null}
+          {(
             <ReactFlow nodes={nodes} edges={edges} nodeTypes={nodeTypes} edgeTypes={edgeTypes}
               onNodesChange={onNodesChange} onEdgesChange={onEdgesChange}
               onNodeDragStop={onNodeDragStop} onConnect={onConnect} onDelete={onDelete}
@@ -625,8 +852,12 @@ function Editor({ model }) {
           )}
         </div>
         <div className="ck-side">
-          <Inspector diagram={diagram} selectedBlock={selectedNode && selectedNode.id}
-            selectedEdge={selectedNode ? null : selectedEdge} send={send} scopes={scopes} />
+          {selectedInput && !selectedNode && diagram.setup ? (
+            <InputInspector diagram={diagram} terminal={selectedInput.data} send={send} />
+          ) : (
+            <Inspector diagram={diagram} selectedBlock={selectedNode && selectedNode.id}
+              selectedEdge={selectedNode ? null : selectedEdge} send={send} scopes={scopes} />
+          )}
           <Problems problems={problems} />
         </div>
       </div>

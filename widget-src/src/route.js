@@ -189,3 +189,37 @@ function simplify(points) {
 export function pathOf(points) {
   return points.map((p, i) => `${i ? "L" : "M"}${p[0].toFixed(1)},${p[1].toFixed(1)}`).join(" ");
 }
+
+// the point nearest `point` where a w x h block overlaps no block, terminal, frame or wire
+export function freeSpot(nodes, edges, point, w, h, margin = 24) {
+  const boxes = nodes.filter((n) => !n.hidden).map((n) => {
+    const nw = n.width || (n.data && n.data.block ? n.data.block.w : 20);
+    const nh = n.height || (n.data && n.data.block ? n.data.block.h : 20);
+    return { x0: n.position.x - margin, y0: n.position.y - margin,
+      x1: n.position.x + nw + margin, y1: n.position.y + nh + margin };
+  });
+  for (const e of edges) {
+    const pts = (e.data && e.data.points) || [];
+    for (let i = 0; i + 1 < pts.length; i++) {
+      const [a, b] = [pts[i], pts[i + 1]];
+      boxes.push({ x0: Math.min(a[0], b[0]) - 10, y0: Math.min(a[1], b[1]) - 10,
+        x1: Math.max(a[0], b[0]) + 10, y1: Math.max(a[1], b[1]) + 10 });
+    }
+  }
+  const free = (cx, cy) => boxes.every((r) => cx + w / 2 <= r.x0 || cx - w / 2 >= r.x1
+    || cy + h / 2 <= r.y0 || cy - h / 2 >= r.y1);
+  for (let ring = 0; ring < 80; ring++) {
+    const candidates = [];
+    for (let dx = -ring; dx <= ring; dx++) {
+      for (let dy = -ring; dy <= ring; dy++) {
+        if (Math.max(Math.abs(dx), Math.abs(dy)) !== ring) continue;
+        candidates.push([point.x + 20 * dx, point.y + 20 * dy]);
+      }
+    }
+    candidates.sort((a, b) => Math.hypot(a[0] - point.x, a[1] - point.y)
+      - Math.hypot(b[0] - point.x, b[1] - point.y));
+    const found = candidates.find(([x, y]) => free(x, y));
+    if (found) return { x: found[0], y: found[1] };
+  }
+  return point;
+}

@@ -32,6 +32,7 @@ function argument(src, i) {
   }
   if (src[i] === "\\") {
     const m = /^\\([A-Za-z]+|.)/.exec(src.slice(i));
+    if (!m) return [escape(src[i]), i + 1];  // a lone backslash at the end
     return [math(m[0]), i + m[0].length];
   }
   return [escape(src[i] || ""), i + 1];
@@ -43,6 +44,7 @@ function math(src) {
     const c = src[i];
     if (c === "\\") {
       const m = /^\\([A-Za-z]+|.)/.exec(src.slice(i));
+      if (!m) { out += escape(c); i++; continue; }  // a lone backslash at the end
       const name = m[1];
       i += m[0].length;
       if (name in GREEK) out += GREEK[name];
