@@ -25,7 +25,6 @@ from __future__ import annotations
 from collections import namedtuple
 from dataclasses import dataclass
 
-import control as ct
 import numpy as np
 
 #: Block kinds, by number in the plan's table.
@@ -200,14 +199,3 @@ def make_plan(sys, blocks, order) -> Plan:
         outputs=_sparse_rows(sys.output_map), kernels=kernels,
         continuous=np.array(continuous, dtype=np.int64), base_period=base, ny=ny,
         nu=sys.connect_map.shape[0])
-
-
-def is_interconnect(sys) -> bool:
-    """Whether ``sys`` is a diagram of blocks (python-control's interconnect).
-
-    Examples
-    --------
-    >>> is_interconnect(ct.tf([1], [1, 1]))
-    False
-    """
-    return isinstance(sys, ct.InterconnectedSystem)

@@ -126,22 +126,4 @@ def block_layout(kernels, values) -> ParamLayout:
     return ParamLayout.of([k.plan() for k in kernels], values)
 
 
-def python_kernel(fn, values: dict):
-    """A kernel ``(t, x, u, p, out)`` calling ``fn`` from Python (sizes unchecked).
-
-    Examples
-    --------
-    >>> k = python_kernel(lambda t, x, u, params: params["a"] * x, {"a": 2.0})
-    >>> k(0.0, np.ones(1), np.zeros(0), None, np.empty(1)).tolist()
-    [2.0]
-    """
-    params = dict(values)
-
-    def kernel(t, x, u, p, out):
-        out[:] = np.asarray(fn(t, x, u, params), dtype=float).reshape(-1)
-        return out
-
-    return kernel
-
-
-__all__ = ["UserKernel", "block_layout", "python_kernel"]
+__all__ = ["UserKernel", "block_layout"]
