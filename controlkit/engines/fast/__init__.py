@@ -16,9 +16,9 @@ from __future__ import annotations
 from .continuous import StiffProblem, run_continuous
 from .discrete import STREAM_CHUNK_STEPS, simulate
 from .response import response
-from .run import RULE, compiled_job, prepare
+from .run import RULE, compiled_job, explain, prepare
 from .store import CACHE_DIR
-from .tiers import TIERS, BlockTier, explain
+from .tiers import TIERS, BlockTier
 
 __all__ = ["CACHE_DIR", "RULE", "STREAM_CHUNK_STEPS", "TIERS", "BlockTier", "StiffProblem",
            "compiled_job", "explain", "prepare", "response", "run_continuous", "simulate"]

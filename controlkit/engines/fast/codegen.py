@@ -261,7 +261,7 @@ def _source_digest(function) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-def generate(plan, held_logic, check_users=True):
+def generate(plan, held_logic):
     """The source of ``plan``'s module (see the module's description).
 
     The text names each kernel ``kernel_<i>`` and says in a comment which kernel it is
@@ -272,10 +272,9 @@ def generate(plan, held_logic, check_users=True):
 
     ``held_logic``: whether discrete blocks hold their outputs between their instants (a
     diagram of several rates or with continuous states); without it every block fires
-    at every step, as in python-control's discrete simulation. ``check_users``: whether a
-    NaN output of a user's function stops the run (compiled, so that Python says what
-    happened there); run as Python, a user's function raises itself, or its NaN goes on
-    as in python-control.
+    at every step, as in python-control's discrete simulation. A NaN output stops the run
+    (a kernel's failure signal, block contract rule 6; a user's function that returns NaN
+    is named at its block, before any later user function sees the NaN).
 
     Examples
     --------
@@ -285,7 +284,7 @@ def generate(plan, held_logic, check_users=True):
     >>> [line[:22] for line in source.splitlines() if line.startswith("def run")]
     ['def run_discrete(T, X0', 'def run_continuous(ins']
     """
-    key = (held_logic, check_users, plan.table.tobytes(), plan.order.tobytes(),
+    key = (held_logic, plan.table.tobytes(), plan.order.tobytes(),
            plan.h.tobytes(), plan.continuous.tobytes(),
            *(a.tobytes() for a in (*plan.inputs, *plan.outputs)),
            plan.ny, plan.nu, tuple(map(kernel_identity, plan.kernels)), plan.sys.noutputs,
@@ -293,7 +292,7 @@ def generate(plan, held_logic, check_users=True):
     if key not in _GENERATED:  # a diagram called again writes the same text (0.1 ms)
         if len(_GENERATED) >= 1024:
             _GENERATED.clear()
-        _GENERATED[key] = _generate(plan, held_logic, check_users)
+        _GENERATED[key] = _generate(plan, held_logic)
     return _GENERATED[key]
 
 
@@ -301,7 +300,7 @@ def generate(plan, held_logic, check_users=True):
 _GENERATED: dict = {}
 
 
-def _generate(plan, held_logic, check_users):
+def _generate(plan, held_logic):
     rows, ny = plan.rows(), plan.ny
     names = [f"kernel_{i}" for i in range(len(plan.kernels))]
     identities = [kernel_identity(fn) for fn in plan.kernels]
@@ -383,7 +382,7 @@ def _generate(plan, held_logic, check_users):
                 or [f"{names[row.OUT]}(t, {args(b, ('ys', row.Y0), row.NY)})"])
         evaluate += loads  # the states these lines read, loaded once at the top level
         loads.clear()
-        if row.NY and (check_users or row.OUT in trusted):
+        if row.NY:
             unchecked.append((row.Y0, b))
         if held:
             fires = "k >= 0" if row.EVERY == 1 else f"k >= 0 and k % {row.EVERY} == 0"

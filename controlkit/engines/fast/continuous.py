@@ -20,7 +20,7 @@ from ..contract import response as base_response
 from . import loops, rk, store
 from .diagnose import explain_failure
 from .loops import BUDGET, INSTANT, INTEGRATOR_FAILED, NEXT_TIME, UNDER_WAY
-from .run import Pieces, Runner, interrupted, now, same_numbers
+from .run import CHECKED, Pieces, Runner, interrupted, now, quiet_numbers, same_numbers
 from .tiers import NotCompiled
 
 #: The methods integrated by the engine's own code; the stiff ones go to scipy.
@@ -131,7 +131,8 @@ class _Run:
             args = (*args, store.step_machine())
             job.entry("run_continuous", args)(*args)
         else:
-            job.functions().run_continuous(*args, None)
+            with quiet_numbers():
+                job.functions().run_continuous(*args, None)
 
     def _stiff(self, job, ns, rtol, atol, max_step, first_step):
         plan, nx = job.plan, self.sys.nstates
@@ -142,12 +143,14 @@ class _Run:
         ys, ui, xn, scratch, xt, cidx, yc, y_eval, ubuf, _ = buffers
         args = ((), self.x, xt, cidx, self.T, self.U, ubuf, job.P, ys, ui, self.held,
                 np.zeros(nx))
-        loops.continuous_run(
-            ns.evaluate, ns.update, ns.outputs, ns.rhs, loops.scipy_interval, None, (),
-            args, (self.instants, 0, self.instants.size, float(self.T[-1]), self.T, self.U,
-                   self.t_eval, self.eval_instant), (self.Y, self.X, self.Uo),
-            (self.x, job.P, self.held), buffers,
-            (self.method, rtol, atol, max_step, first_step, True), self.ctrl, self.status)
+        with quiet_numbers():
+            loops.continuous_run(
+                ns.evaluate, ns.update, ns.outputs, ns.rhs, loops.scipy_interval, None, (),
+                args, (self.instants, 0, self.instants.size, float(self.T[-1]), self.T,
+                       self.U, self.t_eval, self.eval_instant), (self.Y, self.X, self.Uo),
+                (self.x, job.P, self.held), buffers,
+                (self.method, rtol, atol, max_step, first_step, True), self.ctrl,
+                self.status)
 
 
 def run_continuous(sys, T, U, X0, *, params=None, t_eval=None, method="RK45",
@@ -208,6 +211,9 @@ def run_continuous(sys, T, U, X0, *, params=None, t_eval=None, method="RK45",
     runner = Runner(sys, params, False if method in STIFF_METHODS else compile)
     run = _Run(sys, runner.python.plan, T, U, X0, t_eval, method, solver)
     pieces, start = Pieces(first=256), now()
+    first = runner.check_first()  # a compiled module new here: compared on the first piece
+    if first is not None:
+        _switch(runner, first, run, pieces)
     while not run.done():
         began = now()
         if runner.job.compiled:  # where Python takes over if the piece stops
@@ -289,6 +295,7 @@ def _switch(runner, job, run, pieces):
         return
     runner.compiled = job
     runner.last_snapshot = None
+    CHECKED.add(job.source)
 
 
 def _back_to(run, state, results, n0, n1):

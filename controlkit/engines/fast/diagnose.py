@@ -61,11 +61,22 @@ def explain_failure(job, t, x, u, block_index, k=0):
     block = b.system
     if not np.isfinite(x).all():  # the loop diverged before the block's output did
         raise diverged(job, t, x)
-    ui, _ = signals_at(job, t, x, u, k)
-    if np.isfinite(ui).all():
-        with np.errstate(all="ignore"):
-            block.output(t, x[b.x0:b.x0 + block.nstates], ui[b.u0:b.u0 + block.ninputs])
+    with np.errstate(all="ignore"):
+        if not _held_outputs(job):  # python-control's own evaluation, as its path would
+            job.sys.output(t, x, u)
+        ui, _ = signals_at(job, t, x, u, k)
+        inputs = ui[b.u0:b.u0 + block.ninputs]
+        if np.isfinite(inputs).all():  # the block's own words
+            block.output(t, x[b.x0:b.x0 + block.nstates], inputs)
     raise FloatingPointError(f"block {block.name!r} returned NaN at t = {t:g} s")
+
+
+def _held_outputs(job) -> bool:
+    """Whether the diagram holds discrete outputs between instants (python-control cannot
+    evaluate it: a sampled-data diagram)."""
+    from ...sampled_data import SampledDataSystem
+
+    return isinstance(job.sys, SampledDataSystem)
 
 
 def diverged(job, t, x) -> FloatingPointError:

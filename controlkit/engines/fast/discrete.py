@@ -14,7 +14,7 @@ import numpy as np
 from ..contract import UnsupportedSystem, check_arguments, chunk_bounds, recorded_indices
 from ..contract import response as base_response
 from .diagnose import diverged, explain_failure, sampled_block_blew_up
-from .run import Pieces, Runner, interrupted, now, same_numbers
+from .run import CHECKED, Pieces, Runner, interrupted, now, quiet_numbers, same_numbers
 from .tiers import NotCompiled
 
 #: Steps simulated per chunk when a run is streamed (bounds the memory of long runs).
@@ -77,6 +77,7 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
     reports = set(chunk_bounds(N - 1, chunks)[1:].tolist()) if progress else set()
     x = X0.astype(float)
     pieces, start, done_steps = Pieces(), now(), 0
+    first = runner.check_first()  # a compiled module new here: compared on the first piece
     for c0 in range(0, N, step):
         c1 = min(c0 + step, N)
         Tc = np.ascontiguousarray(T[c0:c1], dtype=float)
@@ -84,6 +85,9 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
         if not streamed:
             Yb, Xb = Y, X
         k = 0
+        if first is not None:
+            k, x = _switch(runner, first, Tc, x, Uc, Yb, Xb, 0, c1 - c0, pieces)
+            first = None
         while k < c1 - c0:
             k1 = min(k + pieces.next(), c1 - c0)
             began = now()
@@ -127,7 +131,8 @@ def _run(job, args):
     """``job``'s ``run_discrete`` on ``args``: its compiled entry or its Python one."""
     if job.compiled:
         return job.entry("run_discrete", args)(*args)
-    return job.functions().run_discrete(*args)
+    with quiet_numbers():
+        return job.functions().run_discrete(*args)
 
 
 def _piece(runner, T, x, U, Y, X, k0, k1):
@@ -156,7 +161,7 @@ def _piece(runner, T, x, U, Y, X, k0, k1):
     if not np.isfinite(x1).all():
         bad = np.nonzero(~np.isfinite(np.column_stack([X[:, k0:k1], x1])).all(axis=0))[0]
         k = k0 + int(bad[0]) if bad.size else k1
-        if k - 1 >= k0:
+        if k >= 1 and np.isfinite(X[:, k - 1]).all():  # a sampled block says so itself
             sampled_block_blew_up(job, T[k - 1], X[:, k - 1], U[:, k - 1], k - 1)
         raise diverged(job, T[min(k, T.size - 1)], x1)
     return x1
@@ -207,4 +212,5 @@ def _switch(runner, job, T, x, U, Y, X, k, n, pieces):
         Y[:, k:k1], X[:, k:k1] = Yp, Xp
         return k1, x_python
     runner.compiled = job
+    CHECKED.add(job.source)
     return k1, x_compiled

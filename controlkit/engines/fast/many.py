@@ -22,7 +22,7 @@ from ..contract import UnsupportedSystem
 from ..contract import response as base_response
 from .continuous import STIFF_METHODS, _failed, _Run, run_continuous
 from .discrete import simulate
-from .run import NUMBA_START_SECONDS, PAYS, compile_estimate, compiled_job, now
+from .run import CHECKED, NUMBA_START_SECONDS, PAYS, compile_estimate, compiled_job, now
 from .tiers import _local_params
 
 
@@ -121,10 +121,13 @@ def run_many(sys, T, U, X0s, params_list, *, t_eval=None, method="RK45", compile
         run.piece(jobs[r], 0)
         return run
 
-    if todo:  # compiled once, by the first run; then the others on every core
-        first = one(todo[0])
+    if todo and job.source not in CHECKED:  # the first run alone: compiled, and compared
+        alone(todo[0], True)                  # with Python on its first piece
+        todo = todo[1:]
+    if todo:  # then the others on every core
+        one(todo[0])  # (compiled before the threads start)
         with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
-            done = [first, *pool.map(one, todo[1:])]
+            done = list(pool.map(one, todo))
         for r, result in zip(todo, done, strict=True):
             if result is None:  # failed: run alone, to fail in its own words
                 alone(r, True)
@@ -137,6 +140,11 @@ def run_many(sys, T, U, X0s, params_list, *, t_eval=None, method="RK45", compile
                                                  result.Uo)
                 except (ArithmeticError, RuntimeError, ValueError) as error:
                     errors[r] = error
+            if responses[r] is not None and jobs[r] is not None:
+                responses[r].engine_mode = "compiled"
+    for resp in responses:
+        if resp is not None and not hasattr(resp, "engine_mode"):
+            resp.engine_mode = "python"
     return responses, errors
 
 

@@ -32,13 +32,15 @@ import time
 import warnings
 from dataclasses import dataclass, field
 
+import control as ct
 import numpy as np
 
 from ... import _jit
+from ..contract import UnsupportedSystem
 from . import codegen, reuse, store
 from .codegen import evaluation_order, generate
 from .plan import Plan, make_plan
-from .tiers import NotCompiled, blocks_of
+from .tiers import BlockTier, NotCompiled, _resolve, as_interconnect, blocks_of
 
 #: How the engine chooses between running a diagram as Python and compiled (see
 #: the module's description); ``explain`` and the docs quote it.
@@ -60,6 +62,8 @@ COMPILE_SECONDS = (2.0, 1.0)
 _COMPILED: dict[str, dict] = {}
 #: The compiled module's text of a diagram's module run as Python, once compiled here.
 _TWINS: dict[str, str] = {}
+#: Compiled modules whose numbers were compared with Python's on a piece in this process.
+CHECKED: set[str] = set()
 #: About how long loading a module kept compiled takes, numba started.
 LOAD_SECONDS = 0.05
 #: Modules whose compiled numbers differed from Python's, by text: why (explain says it).
@@ -207,7 +211,7 @@ def prepare(sys, params=None, *, compiled=False) -> Job:
         return job
     blocks = blocks_of(sys, params, compiled=compiled)
     plan = make_plan(sys, blocks, evaluation_order(sys, blocks))
-    source = generate(plan, held_logic=_held_logic(sys), check_users=compiled)
+    source = generate(plan, held_logic=_held_logic(sys))
     job = Job(sys, plan, plan.parameters(), source, compiled)
     reuse.keep(sys, key, job)
     return job
@@ -271,6 +275,15 @@ class Runner:
             elif compile or candidate.source in _COMPILED:
                 self.compiled, self.decided = candidate, True
                 _TWINS[self.python.source] = candidate.source
+
+    def check_first(self) -> Job | None:
+        """The compiled job, taken back, when it runs first in this process and must be
+        compared with Python on the run's first piece (the caller switches to it then)."""
+        job = self.compiled
+        if job is None or job.source in CHECKED:
+            return None
+        self.compiled = None
+        return job
 
     @property
     def job(self) -> Job:
@@ -363,5 +376,86 @@ def now() -> float:
     return time.perf_counter()
 
 
+def quiet_numbers():
+    """numpy's warnings of overflow and invalid results off while a module runs as Python:
+    compiled code gives none, and the engine says itself where a state or an output went
+    non-finite (a division by zero still warns, as in python-control)."""
+    return np.errstate(over="ignore", under="ignore", invalid="ignore")
+
+
 __all__ = ["DIFFERS", "PIECE_SECONDS", "RULE", "Job", "Pieces", "Runner", "codegen",
-           "compiled_job", "interrupted", "prepare", "same_numbers"]
+           "compiled_job", "explain", "interrupted", "prepare", "same_numbers"]
+
+
+def explain(sys, params=None) -> list[BlockTier]:
+    """How the fast engine runs each block of ``sys``: its tier and the reason.
+
+    Tiers (:data:`.tiers.TIERS`): ``"compiled"`` (the block can be compiled: the diagram
+    runs compiled when every block can be, and :data:`RULE` says when), ``"python"`` (the
+    block runs as Python, and with it the whole diagram: the reason says why; also every
+    block of a diagram whose compiled module gave other numbers than Python, or did not
+    compile) and ``"python-control"`` (the whole diagram falls back to
+    :func:`control.input_output_response`; the reason says why).
+
+    Parameters
+    ----------
+    sys : control.InterconnectedSystem
+        The diagram.
+    params : dict, optional
+        Parameters as for :func:`controlkit.simulation.simulate` (their types and
+        shapes decide the code compiled for user functions; a value that compiled
+        code cannot take, such as a string, sends its block to the ``python`` tier).
+
+    Returns
+    -------
+    list of BlockTier
+        ``(name, tier, reason)`` per block, in ``sys.syslist`` order.
+
+    Raises
+    ------
+    ValueError
+        ``sys`` is not a python-control system.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> pi = ct.sample_system(ct.tf([1.0, 0.5], [1.0, 0.0]), 0.1, name="pi",
+    ...                       inputs="e", outputs="u")
+    >>> plant = ct.nlsys(lambda t, x, u, p: x + 0.1 * (u - p.get("a", 1.0) * x ** 3),
+    ...                  lambda t, x, u, p: x, inputs="u", outputs="y", states=1,
+    ...                  dt=0.1, name="plant")
+    >>> error = ct.summing_junction(["r", "-y"], "e", name="error")
+    >>> loop = ct.interconnect([plant, pi, error], inputs="r", outputs="y")
+    >>> for row in explain(loop):
+    ...     print(row.name, "|", row.tier, "|", row.reason)
+    plant | compiled | user nlsys compiled (parameters passed at run time)
+    pi | compiled | LTI block (state space)
+    error | compiled | LTI block (state space)
+    """
+    if not isinstance(sys, ct.InputOutputSystem):
+        raise ValueError(f"sys must be a python-control system (a block or an interconnect), "
+                         f"got {type(sys).__name__} {sys!r:.60}"
+                         + ("; call explain on each system of the list" if isinstance(
+                             sys, list | tuple) else ""))
+    try:
+        sys = as_interconnect(sys)  # a single block runs as a one-block diagram
+        evaluation_order(sys, blocks_of(sys, params))
+    except UnsupportedSystem as why:
+        return [BlockTier(s.name, "python-control", str(why))
+                for s in getattr(sys, "syslist", [sys])]
+    rows = []
+    for block in sys.syslist:
+        try:
+            _, tier, reason = _resolve(sys, block, params, compiled=True)
+        except NotCompiled as why:
+            tier, reason = "python", str(why).split(": ", 1)[-1]
+        except store.StoreRefused as why:
+            tier, reason = "python", str(why)
+        if tier == "compiled" and not _jit.available():
+            tier, reason = "python", reason + " (numba not installed: the loop runs as Python)"
+        rows.append(BlockTier(block.name, tier, reason))
+    job = compiled_job(sys, params) if all(r.tier == "compiled" for r in rows) else None
+    if isinstance(job, str):  # its compiled module differed from Python, or failed
+        rows = [BlockTier(r.name, "python", f"{r.reason}; but the diagram runs as Python: "
+                                            f"{job}") for r in rows]
+    return rows

@@ -24,7 +24,6 @@ from ...kernels import common, lti
 from .. import source
 from ..contract import UnsupportedSystem
 from . import usercode
-from .codegen import evaluation_order
 
 
 @dataclass(frozen=True)
@@ -126,8 +125,9 @@ def _user_kernels(block, local, compiled):
     update = (usercode.UserKernel(block.updfcn, local, block.name, "update", block.nstates)
               if block.nstates and block.updfcn is not None else None)
     feed = source.reads_input(block.outfcn) if block.outfcn is not None else False
-    if feed is None:
-        feed = True
+    if feed is None:  # its source does not say: ask the function itself
+        feed = _probe_feedthrough(lambda t, x, u, out: output(t, x, u, None, out),
+                                  block.nstates, block.ninputs, block.noutputs)
     if block.nstates and update is None:
         raise UnsupportedSystem(f"block {block.name!r} has states but no update function")
     mine = [k for k in (output, update) if k is not None]
@@ -277,70 +277,3 @@ def blocks_of(sys, params=None, *, compiled=False):
         ys += block.noutputs
         ps += kernel.params.size
     return blocks
-
-
-def explain(sys, params=None) -> list[BlockTier]:
-    """How the fast engine runs each block of ``sys``: its tier and the reason.
-
-    Tiers (:data:`TIERS`): ``"compiled"`` (the block can be compiled: the diagram runs
-    compiled when every block can be, see :func:`controlkit.engines.fast.run.simulate`
-    for when), ``"python"`` (the block runs as Python, and with it the whole diagram:
-    the reason says why) and ``"python-control"`` (the whole diagram falls back to
-    :func:`control.input_output_response`; the reason says why).
-
-    Parameters
-    ----------
-    sys : control.InterconnectedSystem
-        The diagram.
-    params : dict, optional
-        Parameters as for :func:`controlkit.simulation.simulate` (their types and
-        shapes decide the code compiled for user functions; a value that compiled
-        code cannot take, such as a string, sends its block to the ``python`` tier).
-
-    Returns
-    -------
-    list of BlockTier
-        ``(name, tier, reason)`` per block, in ``sys.syslist`` order.
-
-    Raises
-    ------
-    ValueError
-        ``sys`` is not a python-control system.
-
-    Examples
-    --------
-    >>> import control as ct
-    >>> pi = ct.sample_system(ct.tf([1.0, 0.5], [1.0, 0.0]), 0.1, name="pi",
-    ...                       inputs="e", outputs="u")
-    >>> plant = ct.nlsys(lambda t, x, u, p: x + 0.1 * (u - p.get("a", 1.0) * x ** 3),
-    ...                  lambda t, x, u, p: x, inputs="u", outputs="y", states=1,
-    ...                  dt=0.1, name="plant")
-    >>> error = ct.summing_junction(["r", "-y"], "e", name="error")
-    >>> loop = ct.interconnect([plant, pi, error], inputs="r", outputs="y")
-    >>> for row in explain(loop):
-    ...     print(row.name, "|", row.tier, "|", row.reason)
-    plant | compiled | user nlsys compiled (parameters passed at run time)
-    pi | compiled | LTI block (state space)
-    error | compiled | LTI block (state space)
-    """
-    if not isinstance(sys, ct.InputOutputSystem):
-        raise ValueError(f"sys must be a python-control system (a block or an interconnect), "
-                         f"got {type(sys).__name__} {sys!r:.60}"
-                         + ("; call explain on each system of the list" if isinstance(
-                             sys, list | tuple) else ""))
-    try:
-        sys = as_interconnect(sys)  # a single block runs as a one-block diagram
-        evaluation_order(sys, blocks_of(sys, params))
-    except UnsupportedSystem as why:
-        return [BlockTier(s.name, "python-control", str(why))
-                for s in getattr(sys, "syslist", [sys])]
-    rows = []
-    for block in sys.syslist:
-        try:
-            _, tier, reason = _resolve(sys, block, params, compiled=True)
-        except NotCompiled as why:
-            tier, reason = "python", str(why).split(": ", 1)[-1]
-        if tier == "compiled" and not _jit.available():
-            tier, reason = "python", reason + " (numba not installed: the loop runs as Python)"
-        rows.append(BlockTier(block.name, tier, reason))
-    return rows

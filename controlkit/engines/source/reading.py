@@ -10,6 +10,7 @@ import functools
 import inspect
 import linecache
 import re
+import textwrap
 import types
 
 from ... import _jit
@@ -102,10 +103,61 @@ def _parse_definition(code):
         raise NotCompilable("its source could not be parsed") from None
     for node in walk(tree):
         if isinstance(node, ast.FunctionDef) and node.name == code.co_name:
+            if not _runs_this_text(text, code):
+                raise NotCompilable("its source file was changed after it was imported: "
+                                    "the text is not the code that runs")
             return node.args, node.body
     if any(isinstance(node, ast.AsyncFunctionDef) for node in walk(tree)):
         raise NotCompilable("it is a coroutine")
     raise NotCompilable("its definition was not found in its source")
+
+
+def _runs_this_text(text, code) -> bool:
+    """Whether compiling ``text`` (a def, its decorators first) gives the code ``code``
+    runs: a module file edited after its import holds a text that is not what runs.
+
+    The def is compiled inside a function that defines its free variables (as its own
+    enclosing function did), and the two codes are compared by their instructions, names
+    and constants (nested code too); line numbers do not count.
+    """
+    body = textwrap.dedent(text[len("if 1:\n"):] if text.startswith("if 1:\n") else text)
+    outer = ("def __controlkit_outer__():\n"
+             + "".join(f"    {name} = None\n" for name in code.co_freevars)
+             + textwrap.indent(body, "    ") + "\n")
+    try:
+        compiled = compile(outer, code.co_filename, "exec", dont_inherit=True)
+    except SyntaxError:
+        return False
+    wanted = _fingerprint(code)
+    stack = list(compiled.co_consts)
+    while stack:
+        item = stack.pop()
+        if isinstance(item, types.CodeType):
+            if item.co_name == code.co_name and _fingerprint(item) == wanted:
+                return True
+            stack.extend(item.co_consts)
+    return False
+
+
+def _fingerprint(code):
+    """What ``code`` runs, for :func:`_runs_this_text`: its instructions with their names
+    and constants, nested code too. What a compile of the same text may choose otherwise
+    does not count: the lines a docstring is indented by, a method call made as an
+    attribute load and a call, and the byte offsets of jumps that follow from it."""
+    import dis
+
+    steps = []
+    for step in dis.get_instructions(code):
+        if step.opcode in dis.hasjrel or step.opcode in dis.hasjabs:
+            steps.append(step.opname)
+        elif isinstance(step.argval, types.CodeType):
+            steps.append(_fingerprint(step.argval))
+        elif isinstance(step.argval, str):
+            name = "LOAD_ATTR" if step.opname == "LOAD_METHOD" else step.opname
+            steps.append((name, re.sub(r"\n[ \t]*", "\n", step.argval)))
+        else:
+            steps.append((step.opname, repr(step.argval)))
+    return tuple(steps), code.co_freevars
 
 
 def _source_lines(code):

@@ -58,6 +58,7 @@ class _Translator(_OutsideReads, _HelperCalls, ast.NodeTransformer):
         self._find_aliases(body, counts)
         self._find_strings(body, counts)
         self.local = _stored_names(body) | kept | set(plan.arguments)
+        self.ints = _integer_names(body)
         self.local -= set(self.sources)
         for name in self.sources:
             if counts.get(name, 0) > (1 if name not in self.bindings else 0):
@@ -251,8 +252,9 @@ class _Translator(_OutsideReads, _HelperCalls, ast.NodeTransformer):
                           f"of compiled code")
 
     def visit_BinOp(self, node):
-        if isinstance(node.op, ast.Pow | ast.LShift) and (
-                isinstance(node.op, ast.LShift) or _integer(node.left)):
+        ints = getattr(self, "ints", set())
+        if isinstance(node.op, ast.LShift) or isinstance(node.op, ast.Pow | ast.Mult) and (
+                _integer(node.left, ints) and _integer(node.right, ints)):
             self._problem(f"it computes {ast.unparse(node)[:40]} with integers, which can "
                           f"outgrow the 64 bits of compiled code (Python's integers do not)")
         return self.generic_visit(node)
@@ -316,9 +318,45 @@ _MUTATORS = {"append", "extend", "insert", "pop", "remove", "clear", "update", "
              "fill", "put", "resize", "itemset"}
 
 
-def _integer(node) -> bool:
-    """Whether ``node`` is an integer for sure: an int literal, ``int(...)``, ``len(...)``."""
+def _integer(node, ints=frozenset()) -> bool:
+    """Whether ``node`` is an integer for sure: an int literal, ``int(...)``, ``len(...)``,
+    ``round(x)``, a name in ``ints`` (assigned one of these), or arithmetic of them.
+
+    Examples
+    --------
+    >>> _integer(ast.parse("n * n * 3", mode="eval").body, {"n"})
+    True
+    >>> _integer(ast.parse("n * x", mode="eval").body, {"n"})
+    False
+    """
     if isinstance(node, ast.Constant):
         return isinstance(node.value, int) and not isinstance(node.value, bool)
+    if isinstance(node, ast.Name):
+        return node.id in ints
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub | ast.UAdd):
+        return _integer(node.operand, ints)
+    if isinstance(node, ast.BinOp) and isinstance(
+            node.op, ast.Add | ast.Sub | ast.Mult | ast.FloorDiv | ast.Mod | ast.Pow):
+        return _integer(node.left, ints) and _integer(node.right, ints)
     return (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
             and node.func.id in ("int", "len", "round") and len(node.args) == 1)
+
+
+def _integer_names(body) -> set:
+    """The names a function assigns integers to, only integers (``n = int(u[0])``)."""
+    assigned, ints = {}, set()
+    for node in walk(ast.Module(body, [])):
+        if isinstance(node, ast.Assign) and len(node.targets) == 1 \
+                and isinstance(node.targets[0], ast.Name):
+            assigned.setdefault(node.targets[0].id, []).append(node.value)
+        elif isinstance(node, ast.AugAssign | ast.For) and isinstance(
+                getattr(node, "target", None), ast.Name):
+            assigned.setdefault(node.target.id, []).append(None)
+    changed = True
+    while changed:  # (a name assigned from another integer name)
+        changed = False
+        for name, values in assigned.items():
+            if name not in ints and all(v is not None and _integer(v, ints) for v in values):
+                ints.add(name)
+                changed = True
+    return ints
