@@ -57,7 +57,14 @@ class StiffProblem(RuntimeError):
 
 
 def solver_options(n, rtol=1e-3, atol=1e-6, max_step=np.inf, first_step=None, **other):
-    """``(rtol, atol per state, max_step, first_step)`` as the integrator takes them."""
+    """``(rtol, atol per state, max_step, first_step)`` as the integrator takes them.
+
+    Examples
+    --------
+    >>> rtol, atol, max_step, first_step = solver_options(2, rtol=1e-6)
+    >>> rtol, atol.tolist(), first_step
+    (1e-06, [1e-06, 1e-06], 0.0)
+    """
     if other:
         raise UnsupportedSystem(f"solve_ivp options {sorted(other)} (the fast engine takes "
                                 f"{list(SOLVER_OPTIONS)})")

@@ -63,7 +63,10 @@ def explain_failure(job, t, x, u, block_index, k=0):
         raise diverged(job, t, x)
     with np.errstate(all="ignore"):
         if not _held_outputs(job):  # python-control's own evaluation, as its path would
-            job.sys.output(t, x, u)
+            try:
+                job.sys.output(t, x, u)
+            except RuntimeError:  # its sweep cannot settle on non-finite signals
+                pass
         ui, _ = signals_at(job, t, x, u, k)
         inputs = ui[b.u0:b.u0 + block.ninputs]
         if np.isfinite(inputs).all():  # the block's own words
@@ -104,7 +107,17 @@ def diverged(job, t, x) -> FloatingPointError:
 def sampled_block_blew_up(job, t, x, u, k):
     """A sampled block (RK4 inside a sample) whose state became non-finite says so in
     its own words (:class:`controlkit.blocks.sampling.SamplingError`), from the finite
-    state ``x`` at the step before; nothing when none did."""
+    state ``x`` at the step before; nothing when none did.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from controlkit.engines.fast.run import prepare
+    >>> gain = ct.ss([], [], [], [[2.0]], name="k", inputs="e", outputs="y")
+    >>> job = prepare(ct.interconnect([gain], inputs="e", outputs="y"))
+    >>> sampled_block_blew_up(job, 0.0, np.zeros(0), np.ones(1), 0) is None
+    True
+    """
     ui, _ = signals_at(job, t, x, u, k)
     if not np.isfinite(ui).all():
         return

@@ -221,7 +221,14 @@ def compile_estimate(job) -> float:
     """About how long compiling ``job``'s module takes, in seconds: the median time per
     block of the modules compiled in this store before (:func:`.store.compile_times`),
     else :data:`COMPILE_SECONDS`; plus the step machine's when it is needed and not
-    compiled yet."""
+    compiled yet.
+
+    Examples
+    --------
+    >>> from controlkit.studies.cmg.diagrams import cmg_loop
+    >>> compile_estimate(prepare(cmg_loop())) > 0
+    True
+    """
     measured = store.compile_times()
     if measured:
         seconds = float(np.median(measured)) * len(job.blocks)
@@ -233,7 +240,16 @@ def compile_estimate(job) -> float:
 
 
 def compiled_job(sys, params):
-    """The compiled job of ``sys``, or the reason it cannot be had (a str)."""
+    """The compiled job of ``sys``, or the reason it cannot be had (a str).
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> gain = ct.ss([], [], [], [[2.0]], name="k", inputs="e", outputs="y")
+    >>> job = compiled_job(ct.interconnect([gain], inputs="e", outputs="y"), None)
+    >>> isinstance(job, str) or job.compiled
+    True
+    """
     if not _jit.available():
         return "numba is not installed (pip install \".[fast]\")"
     try:
@@ -253,6 +269,13 @@ class Runner:
     """How one call runs: its mode now and the rule that may change it between pieces.
 
     ``compile`` is the call's argument: True (compiled), False (Python), None (the rule).
+
+    Examples
+    --------
+    >>> from controlkit.studies.cmg.diagrams import cmg_loop
+    >>> runner = Runner(cmg_loop(), None, False)
+    >>> runner.job.compiled, runner.decided
+    (False, True)
     """
 
     def __init__(self, sys, params, compile):
@@ -332,7 +355,13 @@ class Runner:
 
 
 def same_numbers(a, b, rtol) -> bool:
-    """Whether two pieces of a run agree to ``rtol`` (relative to their size)."""
+    """Whether two pieces of a run agree to ``rtol`` (relative to their size).
+
+    Examples
+    --------
+    >>> same_numbers([1.0, 2.0], [1.0, 2.0 + 1e-13], 1e-12), same_numbers([1.0], [1.1], 1e-9)
+    (True, False)
+    """
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     scale = max(1.0, float(np.nanmax(np.abs(a), initial=0.0)))
     return bool(np.allclose(a, b, rtol=rtol, atol=rtol * scale, equal_nan=True))
@@ -365,7 +394,13 @@ class Pieces:
 
 def interrupted(response_so_far):
     """The ``KeyboardInterrupt`` raised when Ctrl-C stops a run, carrying what was
-    computed (``.response``)."""
+    computed (``.response``).
+
+    Examples
+    --------
+    >>> interrupted("so far").response
+    'so far'
+    """
     error = KeyboardInterrupt("the run was stopped; what was computed is on this "
                               "exception's `response`")
     error.response = response_so_far
@@ -373,13 +408,27 @@ def interrupted(response_so_far):
 
 
 def now() -> float:
+    """The clock the pieces and the rule are timed by (seconds, monotonic).
+
+    Examples
+    --------
+    >>> now() <= now()
+    True
+    """
     return time.perf_counter()
 
 
 def quiet_numbers():
     """numpy's warnings of overflow and invalid results off while a module runs as Python:
     compiled code gives none, and the engine says itself where a state or an output went
-    non-finite (a division by zero still warns, as in python-control)."""
+    non-finite (a division by zero still warns, as in python-control).
+
+    Examples
+    --------
+    >>> with quiet_numbers():
+    ...     float(np.float64(1e308) * 10)
+    inf
+    """
     return np.errstate(over="ignore", under="ignore", invalid="ignore")
 
 

@@ -46,7 +46,13 @@ CACHE_DIR = Path(os.environ.get("CONTROLKIT_CACHE_DIR",
 
 class StoreRefused(RuntimeError):
     """The store folder (or numba's cache folder) is not the user's own: nothing is
-    compiled (the message says why)."""
+    compiled (the message says why).
+
+    Examples
+    --------
+    >>> str(StoreRefused("the store /x is a link"))
+    'the store /x is a link'
+    """
 
 
 def folder() -> Path:
@@ -306,7 +312,13 @@ def compile_times() -> list[float]:
 
 
 def machine_kept() -> bool:
-    """Whether the step machine is compiled (in this process, or in the store)."""
+    """Whether the step machine is compiled (in this process, or in the store).
+
+    Examples
+    --------
+    >>> isinstance(machine_kept(), bool)
+    True
+    """
     return bool(_MACHINE) or record(folder() / f"{name_of(_MACHINE_TEXT, 'machine')}.py") \
         is not None
 

@@ -98,7 +98,13 @@ def _probe_feedthrough(output, nx, nu, ny):
 
 
 class NotCompiled(Exception):
-    """A block that cannot be compiled (the message names it and says why)."""
+    """A block that cannot be compiled (the message names it and says why).
+
+    Examples
+    --------
+    >>> str(NotCompiled("block 'plant': it calls print()"))
+    "block 'plant': it calls print()"
+    """
 
 
 def _python_kernels(block, local, reason):

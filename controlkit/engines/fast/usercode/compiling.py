@@ -122,7 +122,15 @@ class UserKernel:
 
 def block_layout(kernels, values) -> ParamLayout:
     """The packed parameters shared by a block's user functions (NotCompilable if a
-    value cannot be packed)."""
+    value cannot be packed).
+
+    Examples
+    --------
+    >>> def f(t, x, u, params):
+    ...     return [params["k"] * x[0]]
+    >>> block_layout([UserKernel(f, {"k": 2.0}, "b", "output", 1)], {"k": 2.0}).size
+    1
+    """
     return ParamLayout.of([k.plan() for k in kernels], values)
 
 
