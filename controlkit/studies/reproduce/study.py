@@ -115,6 +115,8 @@ def _run_study(s, cases, folder, horizon, stride, engine, log, pool, options, un
         else:
             write_json(folder / "metrics.json", study_metrics)
             manifest["files"] = sorted(set(manifest["files"]) | {"metrics.json"})
+            if s.extra is not None and tables:
+                _extra(s, study_metrics, folder, engine, log, pool, manifest)
             if tables:
                 names = _figure_files(s, tables)
                 manifest["files"] = sorted(set(manifest["files"]) | set(names))
@@ -138,6 +140,23 @@ def _run_study(s, cases, folder, horizon, stride, engine, log, pool, options, un
         with contextlib.suppress(OSError):
             write_json(folder / MANIFEST, manifest)
     return study_metrics
+
+
+def _extra(s, study_metrics, folder, engine, log, pool, manifest) -> None:
+    """The study's files written from all its cases (:attr:`Study.extra`), listed in the
+    manifest; their figures go to the workers."""
+    started = time.perf_counter()
+    paths, drawing = s.extra(study_metrics, folder, engine)
+    log.writelines(f"  wrote {path}\n" for path in paths)
+    names = {path.name for path in paths}
+    if drawing is not None:
+        from ...outputs.style import VECTOR_FORMATS
+
+        figures, tables, stems = drawing
+        pool.submit(figures, tables, folder, stems)
+        names |= {f"{stem}.{ext}" for stem in stems for ext in ("png", *VECTOR_FORMATS)}
+    manifest["files"] = sorted(set(manifest["files"]) | names)
+    manifest["extra_wall_time_s"] = round(time.perf_counter() - started, 3)
 
 
 def _streamed(s, case, horizon, stride, csv_path, progress, options):

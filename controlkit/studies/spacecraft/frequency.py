@@ -1,0 +1,389 @@
+"""What the MEC does to the spacecraft's loop, as numbers: its linearization at the target.
+
+At the target attitude ``q = [1, 0, 0, 0]`` with the wheels at rest and no momentum
+(``H0 = 0``: the paper's momentum is a disturbance, not part of the loop), every loop of
+the paper is at equilibrium. :func:`controlkit.analysis.linearize` gives its discrete
+model at ``Ts``, :func:`~controlkit.analysis.loops.loop_transfers` its loop gain and
+sensitivities at the plant input ``u``, and the eigenvalues decide how large an inertia
+error it tolerates:
+
+- :func:`tolerated` bisects the scale ``s`` of the inertia error ``J_t = J_m + s Delta J``
+  (Table 2's ``Delta J`` at ``s = 1``; one axis at a time, or all three along ``Delta J``)
+  for the largest spectral radius of the closed loop crossing 1, in both directions from
+  ``s = 1``, down to the physical limit (the body's inertia ``J_b`` positive definite);
+- :func:`confirm` simulates the nonlinear loop just inside and just outside a bound;
+- :func:`sensitivity_band` finds where the MEC's input sensitivity lies below the loop's
+  without it.
+
+Stability is judged on the modes the reference reaches and ``h`` shows
+(:func:`~controlkit.analysis.loops.reduced`): the rotation about the antenna axis and the
+quaternion's norm, two eigenvalues at exactly 1, are neither (the loop does not control
+them and they do not move the antenna).
+"""
+
+from __future__ import annotations
+
+import control as ct
+import numpy as np
+
+from ...analysis import linearize
+from ...analysis.diagram import compose
+from ...analysis.jacobians import block_jacobians
+from ...analysis.linearize import jacobians_at
+from ...analysis.loops import LoopTransfers, loop_transfers, reduced
+from ...analysis.plots import gain
+from ...blocks import spacecraft as sc
+from ...blocks.sampling import sample_nlsys
+from ...simulation import initial_state, simulate
+from . import diagrams, scenario
+
+#: The target attitude, the operating point of every linearization here.
+TARGET = np.array([1.0, 0.0, 0.0, 0.0])
+#: The directions of the inertia error: which diagonal entries of ``Delta J`` the scale
+#: multiplies (the others stay at Table 2's).
+DIRECTIONS = {"delta_J": (True, True, True), "x": (True, False, False),
+              "y": (False, True, False), "z": (False, False, True)}
+#: Heaviest error searched: ``s`` up to this (``J_t`` about 50 times ``J_m``).
+SCALE_CAP = 1e4
+#: Relative distance (on ``J_t / J_m`` of the reference axis) of the simulations that
+#: confirm a bound, inside and outside it.
+CONFIRM_MARGIN = 0.02
+#: Frequencies of the figures and of the band, rad/s: from far below the outer loop's
+#: ``F`` to the Nyquist frequency ``pi / Ts``.
+OMEGA = np.logspace(-6, np.log10(np.pi / sc.TS_PAPER), 600)
+
+
+def _reference_axis(direction) -> int:
+    """The axis whose ``J_t / J_m`` stands for the direction (x along ``Delta J``)."""
+    return int(np.flatnonzero(_mask(direction))[0])
+
+
+def _mask(direction) -> np.ndarray:
+    if direction not in DIRECTIONS:
+        raise ValueError(f"direction must be one of {list(DIRECTIONS)}, got {direction!r}")
+    return np.array(DIRECTIONS[direction])
+
+
+def inertia_scales(scale, direction="delta_J") -> np.ndarray:
+    """The factors on ``Delta J``'s diagonal: ``scale`` on the direction's axes, 1 elsewhere.
+
+    Examples
+    --------
+    >>> inertia_scales(3.0, "y").tolist()
+    [1.0, 3.0, 1.0]
+    """
+    return np.where(_mask(direction), float(scale), 1.0)
+
+
+def physical_limit(direction="delta_J") -> float:
+    """The lowest scale with a positive-definite body inertia ``J_bn + s Delta J``.
+
+    Examples
+    --------
+    >>> round(physical_limit("x"), 3)
+    -199.97
+    """
+    axes = _mask(direction)
+    return float(np.max(-np.diag(sc.J_BN)[axes] / np.diag(sc.DELTA_J)[axes]))
+
+
+def loop_at_target(K=None, scale=1.0, direction="delta_J", *, model_scale=1.0):
+    """``(loop, xeq)``: the paper's loop around the plant with ``J_t = J_m + s Delta J``.
+
+    Parameters
+    ----------
+    K : None, float or array_like
+        None: the loop without MEC (Fig. 2); else the MEC with this constant gain (Fig. 3).
+    scale : float
+        ``s``, on the direction's axes of ``Delta J``.
+    direction : str
+        A key of :data:`DIRECTIONS`.
+    model_scale : float
+        Factor on the controller's model ``J_m`` (1: the paper's): a controller that
+        believes the spacecraft heavier than it is, the same loop gain as a lighter plant.
+
+    Examples
+    --------
+    >>> loop, x = loop_at_target(0.1)
+    >>> x.tolist()
+    [1.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+    """
+    J_b = sc.J_BN + sc.DELTA_J * inertia_scales(scale, direction)
+    plant = sc.spacecraft_plant(J_b=J_b)
+    linearizer = sc.io_linearizer(J_m=sc.J_M * model_scale)
+    if K is None:
+        loop = diagrams.output_zeroing_loop(plant, linearizer)
+        return loop, initial_state(loop, plant=TARGET)
+    loop = diagrams.mec_loop(plant, linearizer, K=K)
+    return loop, initial_state(loop, plant=TARGET, nominal=np.zeros(2))
+
+
+def spectral_radius(K=None, scale=1.0, direction="delta_J", *, model_scale=1.0) -> float:
+    """The largest ``|eigenvalue|`` of the loop's modes from ``r`` to ``h`` (< 1: stable).
+
+    Examples
+    --------
+    >>> round(spectral_radius(None), 6)  # 1 - F Ts J_m / J_t
+    0.99991
+    """
+    loop, x = loop_at_target(K, scale, direction, model_scale=model_scale)
+    lin = reduced(linearize(loop, x, 0.0, copy_names=True), outputs=["h[0]", "h[1]"])
+    return float(np.abs(np.linalg.eigvals(lin.A)).max())
+
+
+class LoopFamily:
+    """One loop's linearization at the target for any inertia error, without rebuilding it.
+
+    At the target every block's operating point is the same whatever the inertia (the
+    plant's output is its state, the wheels are at rest), so only the plant's Jacobians
+    change with ``s``: they are computed for the new plant and put in place of the old,
+    and the diagram's linearization is composed again (about ten times quicker than
+    building and linearizing the loop anew, to the same numbers).
+
+    Examples
+    --------
+    >>> family = LoopFamily(0.1)
+    >>> abs(family.radius(-50.0) - spectral_radius(0.1, -50.0)) < 1e-12
+    True
+    """
+
+    def __init__(self, K=None, direction="delta_J", *, model_scale=1.0):
+        loop, x = loop_at_target(K, 1.0, direction, model_scale=model_scale)
+        self.direction = direction
+        self.flat, self.jac = jacobians_at(loop, x, np.zeros(loop.ninputs), 0.0, None, None)
+        self.plant = next(leaf for leaf in self.flat.leaves if leaf.name == "plant")
+        self.x = x[self.plant.x]
+        self.inputs = list(loop.input_labels)
+        self.outputs = [loop.output_labels.index(s) for s in ("h[0]", "h[1]")]
+        self.states = list(loop.state_labels)
+        self.dt = loop.dt
+
+    def radius(self, scale) -> float:
+        """:func:`spectral_radius` at ``scale``."""
+        J_b = sc.J_BN + sc.DELTA_J * inertia_scales(scale, self.direction)
+        plant = sample_nlsys(sc.spacecraft_plant(J_b=J_b), self.dt)
+        A, B, _, _, _ = block_jacobians(plant, 0.0, self.x, np.zeros(2), {})
+        leaf, jac = self.plant, self.jac
+        jac.A[leaf.x, leaf.x], jac.B[leaf.x, leaf.u] = A, B
+        A, B, C, D = compose(self.flat, jac)
+        lin = ct.StateSpace(A, B, C[self.outputs], D[self.outputs], self.dt,
+                            states=self.states, remove_useless_states=False)
+        return float(np.abs(np.linalg.eigvals(reduced(lin).A)).max())
+
+
+def _ratio(scale, direction) -> float:
+    """``J_t / J_m`` of the direction's reference axis at ``scale``."""
+    a = _reference_axis(direction)
+    return 1.0 + scale * sc.DELTA_J[a, a] / sc.J_M[a, a]
+
+
+def _scale(ratio, direction) -> float:
+    a = _reference_axis(direction)
+    return (ratio - 1.0) * sc.J_M[a, a] / sc.DELTA_J[a, a]
+
+
+def tolerated(K=None, direction="delta_J", *, points=12, rtol=1e-5, radius=None) -> dict:
+    """The range of inertia-error scales around Table 2's (``s = 1``) the loop tolerates.
+
+    On each side of ``s = 1`` the ratio ``J_t / J_m`` of the reference axis is stepped
+    geometrically (``points`` steps, to the physical limit below and to
+    :data:`SCALE_CAP` above) until the spectral radius reaches 1, and the crossing is then
+    bisected to ``rtol`` in that ratio.
+
+    Returns
+    -------
+    dict
+        ``low`` and ``high``: the bounds on ``s`` (None where the loop stays stable to the
+        end of the search), ``low_ratio`` and ``high_ratio`` (``J_t / J_m`` of the
+        reference axis there), ``physical_limit``, ``searched_to`` (the cap) and
+        ``stable_at_table2``.
+
+    Examples
+    --------
+    >>> bounds = tolerated(0.1, "x", points=6, rtol=1e-3)
+    >>> round(bounds["low"]), bounds["high"]
+    (-199, None)
+    """
+    radius = radius or LoopFamily(K, direction).radius
+    limit = physical_limit(direction)
+    out = {"physical_limit": limit, "searched_to": SCALE_CAP,
+           "stable_at_table2": bool(radius(1.0) < 1.0)}
+    ends = {"low": _ratio(limit, direction) * (1 + 1e-9), "high": _ratio(SCALE_CAP, direction)}
+    for side, end in ends.items():
+        out[side] = out[f"{side}_ratio"] = None
+        if not out["stable_at_table2"]:
+            continue
+        inside = _ratio(1.0, direction)
+        for ratio in np.geomspace(inside, end, points + 1)[1:]:
+            if radius(_scale(ratio, direction)) >= 1.0:
+                break
+            inside = ratio
+        else:
+            continue
+        outside = ratio
+        while abs(np.log(outside / inside)) > rtol:
+            middle = np.sqrt(inside * outside)
+            if radius(_scale(middle, direction)) < 1.0:
+                inside = middle
+            else:
+                outside = middle
+        out[f"{side}_ratio"] = float(np.sqrt(inside * outside))
+        out[side] = float(_scale(out[f"{side}_ratio"], direction))
+    return out
+
+
+def confirm(K, ratio, direction="delta_J", *, engine="fast", tilt_deg=0.05,
+            decades=3.0) -> dict:
+    """Simulate the nonlinear loop at ``J_t / J_m = ratio`` from a small tilt, no momentum.
+
+    The horizon is long enough for the linearization's slowest mode to change the tilt
+    ``10^decades`` times (at most 1 000 s). The loop is called stable when the largest
+    ``|h|`` over the last tenth of the run is below the initial one, unstable when it grows
+    past it or the run diverges.
+
+    Returns
+    -------
+    dict
+        ``scale``, ``ratio``, ``stable`` (from the simulation), ``predicted_stable``
+        (from the eigenvalues), ``growth`` (last-tenth ``|h|`` over the initial; None when
+        the run diverged), ``diverged`` and ``horizon_s``.
+    """
+    scale = _scale(ratio, direction)
+    rho = spectral_radius(K, scale, direction)
+    steps = int(np.clip(decades * np.log(10) / max(abs(np.log(rho)), 1e-12), 200, 10_000))
+    loop, _ = loop_at_target(K, scale, direction)
+    q0 = sc.quaternion_from_axis_angle([1.0, 1.0, 0.0], tilt_deg)
+    X0 = initial_state(loop, plant=q0) if K is None else initial_state(
+        loop, plant=q0, nominal=q0[1:3])
+    T = np.arange(steps + 1) * sc.TS_PAPER
+    start = float(np.hypot(*q0[1:3]))
+    try:
+        with np.errstate(all="ignore"):
+            resp = simulate(loop, T, X0=X0, U=0.0, engine=engine)
+        h = np.hypot(*(resp.outputs[list(resp.output_labels).index(s)] for s in ("h[0]",
+                                                                                  "h[1]")))
+        growth = float(np.max(h[-max(1, steps // 10):]) / start)
+    except (ArithmeticError, ValueError):  # diverged: the blocks refuse what they get
+        growth = np.inf
+    diverged = not np.isfinite(growth)
+    return {"scale": float(scale), "ratio": float(ratio), "stable": bool(growth < 1.0),
+            "predicted_stable": bool(rho < 1.0), "growth": None if diverged else growth,
+            "diverged": diverged, "horizon_s": float(T[-1])}
+
+
+def confirmations(K, bounds, direction="delta_J", *, engine="fast") -> dict:
+    """:func:`confirm` just inside and just outside each bound of :func:`tolerated`
+    (:data:`CONFIRM_MARGIN` apart in ``J_t / J_m``); outside points beyond the physical
+    limit are not simulated."""
+    out = {}
+    floor = _ratio(physical_limit(direction), direction)
+    for side, toward in (("low", 1.0), ("high", -1.0)):
+        ratio = bounds.get(f"{side}_ratio")
+        if ratio is None:
+            continue
+        inside = ratio * (1 + toward * CONFIRM_MARGIN)
+        outside = ratio * (1 - toward * CONFIRM_MARGIN)
+        out[side] = {"inside": confirm(K, inside, direction, engine=engine)}
+        if outside > floor:
+            out[side]["outside"] = confirm(K, outside, direction, engine=engine)
+    return out
+
+
+def loops(K_frit=None) -> dict:
+    """The compared loops: label -> gain (None: without MEC)."""
+    out = {"without MEC": None, f"MEC, K = {scenario.K_FIXED:g} I": scenario.K_FIXED}
+    if K_frit is not None:
+        out["MEC, K from FRIT"] = np.asarray(K_frit, dtype=float).reshape(2, 2)
+    return out
+
+
+def transfers(K=None, scale=1.0, at="u"):
+    """:class:`~controlkit.analysis.loops.LoopTransfers` at the plant input, state-reduced."""
+    loop, x = loop_at_target(K, scale)
+    return LoopTransfers(*(reduced(G) for G in loop_transfers(loop, at, x)))
+
+
+def sensitivity_band(K, K_reference=None, *, scale=1.0, omega=OMEGA) -> list:
+    """The frequency intervals (rad/s) where the loop with gain ``K`` has a smaller input
+    sensitivity ``sigma_max(S)`` than the loop with ``K_reference`` (None: without MEC),
+    each edge refined by bisection; ``sigma_max`` is the largest singular value at the
+    plant input ``u`` (both wheels).
+
+    Examples
+    --------
+    >>> [round(w, 2) for w in sensitivity_band(0.1)[0]]  # cos(w Ts) = 1 - K Ts / 2
+    [0.0, 1.0]
+    """
+    S, S_ref = transfers(K, scale).S, transfers(K_reference, scale).S
+
+    def below(w):
+        return bool(gain(S, w) < gain(S_ref, w))
+
+    flags = gain(S, omega) < gain(S_ref, omega)
+    intervals, start = [], 0.0 if flags[0] else None
+    for i in range(1, len(omega)):
+        if flags[i] != flags[i - 1]:
+            lo, hi = omega[i - 1], omega[i]
+            for _ in range(30):
+                mid = np.sqrt(lo * hi)
+                lo, hi = (mid, hi) if below(mid) == flags[i - 1] else (lo, mid)
+            edge = float(np.sqrt(lo * hi))
+            if flags[i]:
+                start = edge
+            else:
+                intervals.append((start, edge))
+    if flags[-1]:
+        intervals.append((start, float(omega[-1])))
+    return intervals
+
+
+def margins(L, omega=OMEGA) -> dict:
+    """python-control's :func:`~control.stability_margins` of a SISO loop gain, computed
+    on its frequency response over ``omega`` (a :func:`control.frd`).
+
+    Handed the state-space model itself, python-control searches ``w < pi / Ts`` only,
+    and the loops here cross the negative real axis exactly at the Nyquist frequency
+    (``L(-1) < 0``): their gain margins would read infinite. ``omega`` ends at ``pi / Ts``.
+    """
+    gm, pm, _, wpc, wgc, _ = ct.stability_margins(ct.frd(L, omega))
+    return {"gain_margin": _finite_or_none(gm), "phase_margin_deg": _finite_or_none(pm),
+            "phase_crossover_rad_s": _finite_or_none(wpc),
+            "gain_crossover_rad_s": _finite_or_none(wgc)}
+
+
+def _finite_or_none(value):
+    value = float(value)
+    return value if np.isfinite(value) else None
+
+
+def report(K_frit=None, *, engine="fast", directions=tuple(DIRECTIONS),
+           confirm_bounds=True) -> dict:
+    """Every number of this module for the loops of :func:`loops`, JSON-ready.
+
+    Examples
+    --------
+    >>> r = report(directions=("x",), confirm_bounds=False)
+    >>> r["loops"]["MEC, K = 0.1 I"]["tolerated"]["x"]["low"] < -198
+    True
+    """
+    out = {"operating_point": "target attitude q = [1, 0, 0, 0], wheels at rest, no "
+                              "momentum (H0 = 0); r = 0",
+           "Ts_s": sc.TS_PAPER, "F_per_s": sc.F_PAPER,
+           "scale": "J_t = J_m + s Delta J on the direction's axes (Table 2: s = 1); ratio "
+                    "= J_t / J_m of the reference axis (x along Delta J)",
+           "loops": {}, "sensitivity_band_rad_s": {}}
+    for label, K in loops(K_frit).items():
+        entry = {"K": None if K is None else np.asarray(K, float).reshape(-1).tolist()
+                 if np.ndim(K) else [K, 0.0, 0.0, K], "tolerated": {}, "confirmed": {}}
+        for direction in directions:
+            bounds = tolerated(K, direction)
+            entry["tolerated"][direction] = bounds
+            if confirm_bounds:
+                entry["confirmed"][direction] = confirmations(K, bounds, direction,
+                                                              engine=engine)
+        # each wheel's loop cut alone, the other closed
+        entry["margins_at_u"] = {s: margins(transfers(K, at=s).L) for s in ("u[0]", "u[1]")}
+        out["loops"][label] = entry
+        if K is not None:
+            out["sensitivity_band_rad_s"][label] = [list(b) for b in sensitivity_band(K)]
+    return out

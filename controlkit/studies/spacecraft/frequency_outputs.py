@@ -1,0 +1,153 @@
+"""The spacecraft study's frequency-domain files: the bounds (``mec_frequency.json``) and
+the figures of the loops with and without MEC, written by ``controlkit reproduce``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ...analysis.plots import compare_frequency_responses
+from ...outputs.common import select_stems
+from . import frequency
+
+#: File of the bounds and margins.
+REPORT = "mec_frequency.json"
+# (file stem, title)
+FIGURES = (
+    ("freq01_loop_gain", "Loop gain at the plant input (wheel 1), at the target"),
+    ("freq02_sensitivity", "Input sensitivity S at the target, both wheels"),
+    ("freq03_complementary", "Complementary sensitivity T at the target, both wheels"),
+    ("freq04_tolerance", "Inertia errors the loop tolerates (eigenvalues at the target)"),
+)
+#: The directions of ``freq04_tolerance``, bottom to top within a loop, and their colours.
+BAR_DIRECTIONS = {"x": ("x axis only", "#0072B2"), "y": ("y axis only", "#E69F00"),
+                  "delta_J": ("all axes, along ΔJ", "#009E73")}
+
+
+def frit_gain(metrics) -> np.ndarray | None:
+    """The gain the ``proposed`` case ended with (its ``final_K``), or None without it."""
+    entry = metrics.get("proposed") or {}
+    K = entry.get("final_K")
+    return None if K is None or "error" in entry else np.asarray(K, dtype=float)
+
+
+def write(metrics, folder, engine="fast"):
+    """Write :data:`REPORT` into ``folder``; return its path and the figures to draw.
+
+    The gain FRIT converged to is the ``proposed`` case's final ``K`` when the run has
+    it; without it the FRIT loop is left out.
+
+    Returns
+    -------
+    tuple
+        ``([path of the report], (figures, tables, stems))``: :func:`figures` and its
+        arguments, for the figure workers.
+    """
+    from ...outputs.export import write_json
+
+    K_frit = frit_gain(metrics)
+    result = frequency.report(K_frit, engine=engine)
+    result["K_frit_source"] = ("final K of the proposed case of this run" if K_frit is not None
+                               else "no proposed case in this run: the FRIT loop is left out")
+    path = Path(folder) / REPORT
+    write_json(path, result)
+    columns = {"K_frit": np.zeros(0) if K_frit is None else K_frit.ravel()}
+    for direction in BAR_DIRECTIONS:
+        for side in ("low", "high"):
+            ratios = [entry["tolerated"][direction][f"{side}_ratio"]
+                      for entry in result["loops"].values()]
+            columns[f"{direction}_{side}"] = np.array([np.nan if r is None else r
+                                                       for r in ratios])
+    tables = {"frequency": columns}
+    return [path], (figures, tables, tuple(spec[0] for spec in FIGURES))
+
+
+def figures(tables, outdir, *, stems=None) -> list[Path]:
+    """Draw the figures of :data:`FIGURES` (PNG and SVG) from ``write``'s tables."""
+    from ...outputs.style import save
+
+    written = []
+    for stem in select_stems(FIGURES, stems):
+        written += save(figure(tables, stem), Path(outdir) / f"{stem}.png")
+    return written
+
+
+def figure(tables, stem):
+    """One figure of :data:`FIGURES` as a :class:`matplotlib.figure.Figure`.
+
+    Examples
+    --------
+    >>> fig = figure({"frequency": {"K_frit": np.zeros(0)}}, "freq02_sensitivity")
+    >>> fig.axes[0].get_ylabel()
+    'largest singular value of S [dB]'
+    """
+    columns = tables["frequency"]
+    K_frit = np.asarray(columns["K_frit"])
+    gains = frequency.loops(K_frit.reshape(2, 2) if K_frit.size else None)
+    title = dict(FIGURES)[stem]
+    if stem == "freq04_tolerance":
+        return _tolerance(gains, columns, title)
+    if stem == "freq01_loop_gain":
+        systems = {}
+        for label, K in gains.items():
+            L = frequency.transfers(K, at="u[0]").L
+            m = frequency.margins(L)
+            systems[f"{label}: GM {m['gain_margin']:.3g}, PM "
+                     f"{m['phase_margin_deg']:.0f} deg"] = L
+        return compare_frequency_responses(systems, frequency.OMEGA, title=title,
+                                           lines=[(1.0, "|L| = 1 (0 dB)")])
+    which = "S" if stem == "freq02_sensitivity" else "T"
+    systems = {label: getattr(frequency.transfers(K), which) for label, K in gains.items()}
+    bands = []
+    if which == "S":
+        for label, K in gains.items():
+            if K is not None and np.ndim(K) == 0:
+                bands = [(low, high, f"{label}: S below the loop without MEC")
+                         for low, high in frequency.sensitivity_band(K)]
+    return compare_frequency_responses(systems, frequency.OMEGA, title=title, phase=False,
+                                       bands=bands[:1],
+                                       ylabel=f"largest singular value of {which} [dB]")
+
+
+def _tolerance(gains, columns, title):
+    """Horizontal bars: the range of ``J_t / J_m`` each loop tolerates, per direction."""
+    from ...outputs.style import legend_outside, log_scale, new_figure, slide_style
+
+    floor = frequency._ratio(frequency.physical_limit("delta_J"), "delta_J")
+    cap = frequency._ratio(frequency.SCALE_CAP, "delta_J")
+    table2 = frequency._ratio(1.0, "delta_J")
+    with slide_style():
+        fig, (ax,) = new_figure()
+        ticks = []
+        for i, label in enumerate(gains):
+            ticks.append((i, label))
+            for j, (direction, (name, color)) in enumerate(BAR_DIRECTIONS.items()):
+                y = i + (j - 1) * 0.25
+                low = columns[f"{direction}_low"][i] if f"{direction}_low" in columns else np.nan
+                high = columns[f"{direction}_high"][i] if f"{direction}_high" in columns \
+                    else np.nan
+                left = low if np.isfinite(low) else floor
+                right = high if np.isfinite(high) else cap
+                ax.barh(y, right - left, left=left, height=0.22, color=color,
+                        label=name if i == 0 else None)
+                for end, bound in ((left, low), (right, high)):
+                    if np.isfinite(bound):  # a stability bound: its value, at the bar's end
+                        ax.annotate(f"{bound:.3g}", (end, y), xytext=(3 if end == right
+                                                                      else -3, 0),
+                                    textcoords="offset points", va="center", fontsize=10,
+                                    ha="left" if end == right else "right")
+        ax.axvspan(floor / 3, floor, color="0.85", zorder=0,
+                   label="J_b ≤ 0: no such body")
+        ax.axvline(table2, color="k", linestyle="--", linewidth=1.2, label="Table 2's error")
+        log_scale(ax, "x")
+        ax.set_xlim(floor / 3, cap * 3)
+        ax.set_yticks([t for t, _ in ticks], [name for _, name in ticks])
+        ax.invert_yaxis()
+        ax.grid(axis="y", visible=False)
+        ax.axvline(cap, color="0.4", linestyle=":", linewidth=1.4,
+                   label=f"search ends ({cap:.0f})")
+        ax.set_xlabel("true / modelled inertia of the axis, J_t / J_m [-]")
+        ax.set_title(title)
+        legend_outside(fig, ncols=3)
+    return fig
