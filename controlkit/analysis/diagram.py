@@ -88,7 +88,7 @@ def flatten(sys, params) -> Flat:
 
 
 def _flatten(sys, params, leaves, offsets):
-    if not isinstance(sys, ct.InterconnectedSystem) or isinstance(sys, ct.StateSpace):
+    if not isinstance(sys, ct.InterconnectedSystem):  # an all-LTI diagram too is read wire by wire
         nx, nu, ny = offsets
         period = None
         if sys.isdtime(strict=True):

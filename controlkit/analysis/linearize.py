@@ -13,6 +13,8 @@ gives the discrete-time model that is exact at its sampling instants.
 
 from __future__ import annotations
 
+import warnings
+
 import control as ct
 import numpy as np
 
@@ -84,19 +86,24 @@ def linearize(sys, xeq, ueq=None, t=0, params=None, **kw):
     TypeError
         ``sys`` is not a python-control system.
     ValueError
-        ``xeq``, ``ueq`` of the wrong size or not finite, ``t`` or ``eps`` not finite (the
-        message names the argument); a block that has no derivative at the operating point.
+        ``xeq``, ``ueq`` longer than the state or input, or not finite; ``t`` or ``eps``
+        not finite (the message names the argument); a block that has no derivative at
+        the operating point. A vector shorter than the state or input is padded with
+        zeros, as python-control pads it (and warns when its last value is not zero).
 
     Examples
     --------
-    A continuous integrator under a discrete gain at 0.5 s: ``x[k+1] = x[k] - 0.5 k x[k]``.
+    A continuous integrator under a discrete gain of 0.8 at 0.5 s:
+    ``x[k+1] = x[k] + 0.5 * 0.8 (r[k] - x[k])``.
 
     >>> import controlkit
     >>> plant = ct.ss(0, 1, 1, 0, name="plant", inputs="u", outputs="y")
-    >>> gain = ct.ss([], [], [], [[-0.8]], dt=0.5, name="k", inputs="y", outputs="u")
-    >>> lin = linearize(controlkit.interconnect([plant, gain], outputs="y"), 0.0)
-    >>> lin.A.tolist(), lin.dt
-    ([[0.6]], 0.5)
+    >>> gain = ct.ss([], [], [], [[0.8]], dt=0.5, name="k", inputs="e", outputs="u")
+    >>> error = ct.summing_junction(["r", "-y"], "e", name="error")
+    >>> lin = linearize(controlkit.interconnect([plant, gain, error], inputs="r",
+    ...                                         outputs="y"), 0.0)
+    >>> lin.A.tolist(), lin.B.tolist(), lin.dt
+    ([[0.6]], [[0.4]], 0.5)
     """
     if not isinstance(sys, ct.InputOutputSystem):
         raise TypeError(f"Can only linearize InputOutputSystem types, got "
@@ -155,24 +162,30 @@ def _finite(name, value) -> float:
     return value
 
 
-def _vector(name, value, size, labels) -> np.ndarray:
-    """A state or input vector: a scalar for every entry, or exactly ``size`` values."""
+def _vector(name, legacy, value, size, labels) -> np.ndarray:
+    """A state or input vector read as python-control reads it: a scalar for every entry,
+    a list of numbers and arrays concatenated, a short vector padded with zeros (with
+    python-control's warning when its last value is not zero); too long or not finite
+    is refused."""
     if isinstance(value, (list, tuple)):
         try:
-            value = np.concatenate([np.asarray(v, dtype=float).reshape(-1) for v in value]) \
-                if len(value) else np.zeros(0)
+            parts = [np.asarray(v, dtype=float).reshape(-1) for v in value]
         except (TypeError, ValueError):
             raise ValueError(f"{name} must be numbers, got {value!r}") from None
+        value = np.concatenate(parts) if parts else np.zeros(0)
     try:
         value = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be numbers, got {value!r}") from None
-    if value.ndim == 0:
-        value = np.full(size, float(value))
-    value = value.reshape(-1)
-    if value.size != size:
-        shown = ", ".join(labels[:6]) + (", ..." if len(labels) > 6 else "")
+    value = np.full(size, float(value)) if value.ndim == 0 else value.reshape(-1)
+    shown = ", ".join(labels[:6]) + (", ..." if len(labels) > 6 else "")
+    if value.size > size:
         raise ValueError(f"{name} must have {size} values ({shown}), got {value.size}")
+    if value.size < size:
+        if value.size and value[-1] != 0:
+            warnings.warn(f"{legacy} too short; padding with zeros ({name} has {value.size} "
+                          f"values for {size}: {shown})", UserWarning, stacklevel=4)
+        value = np.concatenate([value, np.zeros(size - value.size)])
     if not np.all(np.isfinite(value)):
         bad = [labels[i] for i in np.flatnonzero(~np.isfinite(value))]
         raise ValueError(f"{name} must be finite; not finite at {bad}")
@@ -184,8 +197,8 @@ def _operating_point(sys, xeq, ueq):
         ueq = xeq.inputs if ueq is None else ueq
         xeq = xeq.states
     ueq = 0.0 if ueq is None else ueq
-    return (_vector("xeq", xeq, sys.nstates, sys.state_labels),
-            _vector("ueq", ueq, sys.ninputs, sys.input_labels))
+    return (_vector("xeq", "x0", xeq, sys.nstates, sys.state_labels),
+            _vector("ueq", "u0", ueq, sys.ninputs, sys.input_labels))
 
 
 def find_eqpt(sys, initial_state=0.0, inputs=None, outputs=None, t=0, params=None,

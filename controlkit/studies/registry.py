@@ -144,8 +144,8 @@ class Study:
         ``horizon_note(seconds) -> str or None``: what a run that short cannot show of
         the study's claim (the command line prints it after the results).
     extra : callable, optional
-        ``extra(metrics, folder, engine) -> (paths, (figures, tables, stems) or None)``:
-        files a study writes from its cases' metrics once they are all run (the
+        ``extra(metrics, folder, engine, options) -> (paths, (figures, tables, stems) or
+        None)``: files a study writes from its cases' metrics once they are all run (the
         spacecraft's frequency-domain bounds), and figures for the workers to draw.
 
     Examples

@@ -116,7 +116,7 @@ def _run_study(s, cases, folder, horizon, stride, engine, log, pool, options, un
             write_json(folder / "metrics.json", study_metrics)
             manifest["files"] = sorted(set(manifest["files"]) | {"metrics.json"})
             if s.extra is not None and tables:
-                _extra(s, study_metrics, folder, engine, log, pool, manifest)
+                _extra(s, study_metrics, folder, engine, options, log, pool, manifest)
             if tables:
                 names = _figure_files(s, tables)
                 manifest["files"] = sorted(set(manifest["files"]) | set(names))
@@ -142,11 +142,11 @@ def _run_study(s, cases, folder, horizon, stride, engine, log, pool, options, un
     return study_metrics
 
 
-def _extra(s, study_metrics, folder, engine, log, pool, manifest) -> None:
+def _extra(s, study_metrics, folder, engine, options, log, pool, manifest) -> None:
     """The study's files written from all its cases (:attr:`Study.extra`), listed in the
     manifest; their figures go to the workers."""
     started = time.perf_counter()
-    paths, drawing = s.extra(study_metrics, folder, engine)
+    paths, drawing = s.extra(study_metrics, folder, engine, options)
     log.writelines(f"  wrote {path}\n" for path in paths)
     names = {path.name for path in paths}
     if drawing is not None:

@@ -23,6 +23,8 @@ them and they do not move the antenna).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import control as ct
 import numpy as np
 
@@ -31,7 +33,8 @@ from ...analysis.diagram import compose
 from ...analysis.jacobians import block_jacobians
 from ...analysis.linearize import jacobians_at
 from ...analysis.loops import LoopTransfers, loop_transfers, reduced
-from ...analysis.plots import gain
+from ...analysis.plots import frequency_response, gain
+from ...blocks import mec
 from ...blocks import spacecraft as sc
 from ...blocks.sampling import sample_nlsys
 from ...simulation import initial_state, simulate
@@ -48,9 +51,33 @@ SCALE_CAP = 1e4
 #: Relative distance (on ``J_t / J_m`` of the reference axis) of the simulations that
 #: confirm a bound, inside and outside it.
 CONFIRM_MARGIN = 0.02
-#: Frequencies of the figures and of the band, rad/s: from far below the outer loop's
-#: ``F`` to the Nyquist frequency ``pi / Ts``.
-OMEGA = np.logspace(-6, np.log10(np.pi / sc.TS_PAPER), 600)
+
+
+@dataclass(frozen=True)
+class Setting:
+    """The loop's design: outer gain ``F`` (1/s), period ``Ts`` (s), the fixed MEC gain.
+
+    Examples
+    --------
+    >>> bool(Setting().omega[-1] == np.pi / 0.1)
+    True
+    """
+
+    F: float = sc.F_PAPER
+    Ts: float = sc.TS_PAPER
+    K_fixed: float = scenario.K_FIXED
+
+    @property
+    def omega(self) -> np.ndarray:
+        """Frequencies of the figures and of the band, rad/s: from far below ``F`` to the
+        Nyquist frequency ``pi / Ts``."""
+        omega = np.logspace(-6, np.log10(np.pi / self.Ts), 600)
+        omega[-1] = np.pi / self.Ts  # exactly: the end of a sampled loop's Nyquist plot
+        return omega
+
+
+#: The paper's: F = 0.0009 1/s, Ts = 0.1 s, K = 0.1 I.
+PAPER = Setting()
 
 
 def _reference_axis(direction) -> int:
@@ -87,7 +114,7 @@ def physical_limit(direction="delta_J") -> float:
     return float(np.max(-np.diag(sc.J_BN)[axes] / np.diag(sc.DELTA_J)[axes]))
 
 
-def loop_at_target(K=None, scale=1.0, direction="delta_J", *, model_scale=1.0):
+def loop_at_target(K=None, scale=1.0, direction="delta_J", *, setting=PAPER):
     """``(loop, xeq)``: the paper's loop around the plant with ``J_t = J_m + s Delta J``.
 
     Parameters
@@ -98,9 +125,8 @@ def loop_at_target(K=None, scale=1.0, direction="delta_J", *, model_scale=1.0):
         ``s``, on the direction's axes of ``Delta J``.
     direction : str
         A key of :data:`DIRECTIONS`.
-    model_scale : float
-        Factor on the controller's model ``J_m`` (1: the paper's): a controller that
-        believes the spacecraft heavier than it is, the same loop gain as a lighter plant.
+    setting : Setting
+        ``F`` and ``Ts`` of the loop.
 
     Examples
     --------
@@ -109,16 +135,17 @@ def loop_at_target(K=None, scale=1.0, direction="delta_J", *, model_scale=1.0):
     [1.0, 0.0, 0.0, 0.0, 0.0, 0.0]
     """
     J_b = sc.J_BN + sc.DELTA_J * inertia_scales(scale, direction)
-    plant = sc.spacecraft_plant(J_b=J_b)
-    linearizer = sc.io_linearizer(J_m=sc.J_M * model_scale)
+    plant, Ts = sc.spacecraft_plant(J_b=J_b), setting.Ts
     if K is None:
-        loop = diagrams.output_zeroing_loop(plant, linearizer)
+        loop = diagrams.output_zeroing_loop(plant, controller=sc.outer_controller(setting.F),
+                                            Ts=Ts)
         return loop, initial_state(loop, plant=TARGET)
-    loop = diagrams.mec_loop(plant, linearizer, K=K)
+    loop = diagrams.mec_loop(plant, controller=sc.outer_controller(setting.F, output="mu_n"),
+                             K=K, nominal=mec.nominal_model(Ts), Ts=Ts)
     return loop, initial_state(loop, plant=TARGET, nominal=np.zeros(2))
 
 
-def spectral_radius(K=None, scale=1.0, direction="delta_J", *, model_scale=1.0) -> float:
+def spectral_radius(K=None, scale=1.0, direction="delta_J", *, setting=PAPER) -> float:
     """The largest ``|eigenvalue|`` of the loop's modes from ``r`` to ``h`` (< 1: stable).
 
     Examples
@@ -126,7 +153,7 @@ def spectral_radius(K=None, scale=1.0, direction="delta_J", *, model_scale=1.0) 
     >>> round(spectral_radius(None), 6)  # 1 - F Ts J_m / J_t
     0.99991
     """
-    loop, x = loop_at_target(K, scale, direction, model_scale=model_scale)
+    loop, x = loop_at_target(K, scale, direction, setting=setting)
     lin = reduced(linearize(loop, x, 0.0, copy_names=True), outputs=["h[0]", "h[1]"])
     return float(np.abs(np.linalg.eigvals(lin.A)).max())
 
@@ -147,8 +174,8 @@ class LoopFamily:
     True
     """
 
-    def __init__(self, K=None, direction="delta_J", *, model_scale=1.0):
-        loop, x = loop_at_target(K, 1.0, direction, model_scale=model_scale)
+    def __init__(self, K=None, direction="delta_J", *, setting=PAPER):
+        loop, x = loop_at_target(K, 1.0, direction, setting=setting)
         self.direction = direction
         self.flat, self.jac = jacobians_at(loop, x, np.zeros(loop.ninputs), 0.0, None, None)
         self.plant = next(leaf for leaf in self.flat.leaves if leaf.name == "plant")
@@ -182,7 +209,7 @@ def _scale(ratio, direction) -> float:
     return (ratio - 1.0) * sc.J_M[a, a] / sc.DELTA_J[a, a]
 
 
-def tolerated(K=None, direction="delta_J", *, points=12, rtol=1e-5, radius=None) -> dict:
+def tolerated(K=None, direction="delta_J", *, setting=PAPER, points=12, rtol=1e-5) -> dict:
     """The range of inertia-error scales around Table 2's (``s = 1``) the loop tolerates.
 
     On each side of ``s = 1`` the ratio ``J_t / J_m`` of the reference axis is stepped
@@ -204,7 +231,7 @@ def tolerated(K=None, direction="delta_J", *, points=12, rtol=1e-5, radius=None)
     >>> round(bounds["low"]), bounds["high"]
     (-199, None)
     """
-    radius = radius or LoopFamily(K, direction).radius
+    radius = LoopFamily(K, direction, setting=setting).radius
     limit = physical_limit(direction)
     out = {"physical_limit": limit, "searched_to": SCALE_CAP,
            "stable_at_table2": bool(radius(1.0) < 1.0)}
@@ -232,7 +259,7 @@ def tolerated(K=None, direction="delta_J", *, points=12, rtol=1e-5, radius=None)
     return out
 
 
-def confirm(K, ratio, direction="delta_J", *, engine="fast", tilt_deg=0.05,
+def confirm(K, ratio, direction="delta_J", *, setting=PAPER, engine="fast", tilt_deg=0.05,
             decades=3.0) -> dict:
     """Simulate the nonlinear loop at ``J_t / J_m = ratio`` from a small tilt, no momentum.
 
@@ -249,13 +276,13 @@ def confirm(K, ratio, direction="delta_J", *, engine="fast", tilt_deg=0.05,
         the run diverged), ``diverged`` and ``horizon_s``.
     """
     scale = _scale(ratio, direction)
-    rho = spectral_radius(K, scale, direction)
+    rho = spectral_radius(K, scale, direction, setting=setting)
     steps = int(np.clip(decades * np.log(10) / max(abs(np.log(rho)), 1e-12), 200, 10_000))
-    loop, _ = loop_at_target(K, scale, direction)
+    loop, _ = loop_at_target(K, scale, direction, setting=setting)
     q0 = sc.quaternion_from_axis_angle([1.0, 1.0, 0.0], tilt_deg)
     X0 = initial_state(loop, plant=q0) if K is None else initial_state(
         loop, plant=q0, nominal=q0[1:3])
-    T = np.arange(steps + 1) * sc.TS_PAPER
+    T = np.arange(steps + 1) * setting.Ts
     start = float(np.hypot(*q0[1:3]))
     try:
         with np.errstate(all="ignore"):
@@ -271,7 +298,7 @@ def confirm(K, ratio, direction="delta_J", *, engine="fast", tilt_deg=0.05,
             "diverged": diverged, "horizon_s": float(T[-1])}
 
 
-def confirmations(K, bounds, direction="delta_J", *, engine="fast") -> dict:
+def confirmations(K, bounds, direction="delta_J", *, setting=PAPER, engine="fast") -> dict:
     """:func:`confirm` just inside and just outside each bound of :func:`tolerated`
     (:data:`CONFIRM_MARGIN` apart in ``J_t / J_m``); outside points beyond the physical
     limit are not simulated."""
@@ -283,27 +310,34 @@ def confirmations(K, bounds, direction="delta_J", *, engine="fast") -> dict:
             continue
         inside = ratio * (1 + toward * CONFIRM_MARGIN)
         outside = ratio * (1 - toward * CONFIRM_MARGIN)
-        out[side] = {"inside": confirm(K, inside, direction, engine=engine)}
+        out[side] = {"inside": confirm(K, inside, direction, setting=setting, engine=engine)}
         if outside > floor:
-            out[side]["outside"] = confirm(K, outside, direction, engine=engine)
+            out[side]["outside"] = confirm(K, outside, direction, setting=setting,
+                                           engine=engine)
     return out
 
 
-def loops(K_frit=None) -> dict:
-    """The compared loops: label -> gain (None: without MEC)."""
-    out = {"without MEC": None, f"MEC, K = {scenario.K_FIXED:g} I": scenario.K_FIXED}
+def loops(K_frit=None, *, setting=PAPER) -> dict:
+    """The compared loops: label -> gain (None: without MEC).
+
+    Examples
+    --------
+    >>> list(loops())
+    ['without MEC', 'MEC, K = 0.1 I']
+    """
+    out = {"without MEC": None, f"MEC, K = {setting.K_fixed:g} I": setting.K_fixed}
     if K_frit is not None:
         out["MEC, K from FRIT"] = np.asarray(K_frit, dtype=float).reshape(2, 2)
     return out
 
 
-def transfers(K=None, scale=1.0, at="u"):
+def transfers(K=None, scale=1.0, at="u", *, setting=PAPER):
     """:class:`~controlkit.analysis.loops.LoopTransfers` at the plant input, state-reduced."""
-    loop, x = loop_at_target(K, scale)
+    loop, x = loop_at_target(K, scale, setting=setting)
     return LoopTransfers(*(reduced(G) for G in loop_transfers(loop, at, x)))
 
 
-def sensitivity_band(K, K_reference=None, *, scale=1.0, omega=OMEGA) -> list:
+def sensitivity_band(K, K_reference=None, *, scale=1.0, setting=PAPER) -> list:
     """The frequency intervals (rad/s) where the loop with gain ``K`` has a smaller input
     sensitivity ``sigma_max(S)`` than the loop with ``K_reference`` (None: without MEC),
     each edge refined by bisection; ``sigma_max`` is the largest singular value at the
@@ -314,7 +348,9 @@ def sensitivity_band(K, K_reference=None, *, scale=1.0, omega=OMEGA) -> list:
     >>> [round(w, 2) for w in sensitivity_band(0.1)[0]]  # cos(w Ts) = 1 - K Ts / 2
     [0.0, 1.0]
     """
-    S, S_ref = transfers(K, scale).S, transfers(K_reference, scale).S
+    S = transfers(K, scale, setting=setting).S
+    S_ref = transfers(K_reference, scale, setting=setting).S
+    omega = setting.omega
 
     def below(w):
         return bool(gain(S, w) < gain(S_ref, w))
@@ -337,15 +373,23 @@ def sensitivity_band(K, K_reference=None, *, scale=1.0, omega=OMEGA) -> list:
     return intervals
 
 
-def margins(L, omega=OMEGA) -> dict:
-    """python-control's :func:`~control.stability_margins` of a SISO loop gain, computed
-    on its frequency response over ``omega`` (a :func:`control.frd`).
+def margins(L, omega=None) -> dict:
+    """The gain and phase margins of a discrete SISO loop gain: python-control's
+    :func:`~control.stability_margins` on its frequency response below the Nyquist
+    frequency (a :func:`control.frd` on ``omega``), and the Nyquist frequency itself.
 
-    Handed the state-space model itself, python-control searches ``w < pi / Ts`` only,
-    and the loops here cross the negative real axis exactly at the Nyquist frequency
-    (``L(-1) < 0``): their gain margins would read infinite. ``omega`` ends at ``pi / Ts``.
+    The Nyquist plot of a sampled loop ends on the real axis at ``w = pi / Ts``
+    (``z = -1``). The loops here cross the negative real axis exactly there, where the
+    sign of the imaginary part python-control tests for a crossing is rounding noise:
+    when ``L(-1) < 0``, ``-1 / L(-1)`` is a gain margin too, and the one nearer 1 is
+    reported.
     """
-    gm, pm, _, wpc, wgc, _ = ct.stability_margins(ct.frd(L, omega))
+    nyquist = np.pi / L.dt
+    omega = Setting(Ts=L.dt).omega if omega is None else np.asarray(omega, dtype=float)
+    gm, pm, _, wpc, wgc, _ = ct.stability_margins(ct.frd(L, omega[omega < nyquist]))
+    end = complex(frequency_response(L, [nyquist])[0, 0, 0]).real
+    if end < 0 and (not np.isfinite(gm) or abs(np.log(-1 / end)) < abs(np.log(gm))):
+        gm, wpc = -1.0 / end, nyquist
     return {"gain_margin": _finite_or_none(gm), "phase_margin_deg": _finite_or_none(pm),
             "phase_crossover_rad_s": _finite_or_none(wpc),
             "gain_crossover_rad_s": _finite_or_none(wgc)}
@@ -356,7 +400,7 @@ def _finite_or_none(value):
     return value if np.isfinite(value) else None
 
 
-def report(K_frit=None, *, engine="fast", directions=tuple(DIRECTIONS),
+def report(K_frit=None, *, setting=PAPER, engine="fast", directions=tuple(DIRECTIONS),
            confirm_bounds=True) -> dict:
     """Every number of this module for the loops of :func:`loops`, JSON-ready.
 
@@ -368,22 +412,24 @@ def report(K_frit=None, *, engine="fast", directions=tuple(DIRECTIONS),
     """
     out = {"operating_point": "target attitude q = [1, 0, 0, 0], wheels at rest, no "
                               "momentum (H0 = 0); r = 0",
-           "Ts_s": sc.TS_PAPER, "F_per_s": sc.F_PAPER,
+           "Ts_s": setting.Ts, "F_per_s": np.asarray(setting.F, dtype=float).tolist(),
            "scale": "J_t = J_m + s Delta J on the direction's axes (Table 2: s = 1); ratio "
                     "= J_t / J_m of the reference axis (x along Delta J)",
            "loops": {}, "sensitivity_band_rad_s": {}}
-    for label, K in loops(K_frit).items():
+    for label, K in loops(K_frit, setting=setting).items():
         entry = {"K": None if K is None else np.asarray(K, float).reshape(-1).tolist()
                  if np.ndim(K) else [K, 0.0, 0.0, K], "tolerated": {}, "confirmed": {}}
         for direction in directions:
-            bounds = tolerated(K, direction)
+            bounds = tolerated(K, direction, setting=setting)
             entry["tolerated"][direction] = bounds
             if confirm_bounds:
                 entry["confirmed"][direction] = confirmations(K, bounds, direction,
-                                                              engine=engine)
+                                                              setting=setting, engine=engine)
         # each wheel's loop cut alone, the other closed
-        entry["margins_at_u"] = {s: margins(transfers(K, at=s).L) for s in ("u[0]", "u[1]")}
+        entry["margins_at_u"] = {s: margins(transfers(K, at=s, setting=setting).L)
+                                 for s in ("u[0]", "u[1]")}
         out["loops"][label] = entry
         if K is not None:
-            out["sensitivity_band_rad_s"][label] = [list(b) for b in sensitivity_band(K)]
+            out["sensitivity_band_rad_s"][label] = [
+                list(b) for b in sensitivity_band(K, setting=setting)]
     return out

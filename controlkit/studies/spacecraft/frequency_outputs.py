@@ -32,27 +32,46 @@ def frit_gain(metrics) -> np.ndarray | None:
     return None if K is None or "error" in entry else np.asarray(K, dtype=float)
 
 
-def write(metrics, folder, engine="fast"):
+def setting(options) -> frequency.Setting:
+    """The loops' ``F``, ``Ts`` and fixed gain ``K`` from a run's options (the paper's when
+    not set).
+
+    Examples
+    --------
+    >>> setting({"F": 0.002}).F, setting({}).Ts
+    (0.002, 0.1)
+    """
+    paper = frequency.PAPER
+    return frequency.Setting(F=options.get("F", paper.F), Ts=options.get("Ts", paper.Ts),
+                             K_fixed=options.get("K", paper.K_fixed))
+
+
+def write(metrics, folder, engine="fast", options=None):
     """Write :data:`REPORT` into ``folder``; return its path and the figures to draw.
 
-    The gain FRIT converged to is the ``proposed`` case's final ``K`` when the run has
-    it; without it the FRIT loop is left out.
+    Written when the run has the ``proposed`` case: its final ``K`` is the gain FRIT
+    converged to, compared with the loops without MEC and with the fixed gain. The loops
+    take the run's ``F``, ``Ts`` and ``K`` options.
 
     Returns
     -------
     tuple
         ``([path of the report], (figures, tables, stems))``: :func:`figures` and its
-        arguments, for the figure workers.
+        arguments, for the figure workers; ``([], None)`` without the proposed case.
     """
     from ...outputs.export import write_json
 
     K_frit = frit_gain(metrics)
-    result = frequency.report(K_frit, engine=engine)
-    result["K_frit_source"] = ("final K of the proposed case of this run" if K_frit is not None
-                               else "no proposed case in this run: the FRIT loop is left out")
+    if K_frit is None:
+        return [], None
+    design = setting(options or {})
+    result = frequency.report(K_frit, setting=design, engine=engine)
+    result["K_frit_source"] = (f"final K of the proposed case of this run "
+                               f"({metrics['proposed'].get('horizon_s', 0):g} s)")
     path = Path(folder) / REPORT
     write_json(path, result)
-    columns = {"K_frit": np.zeros(0) if K_frit is None else K_frit.ravel()}
+    columns = {"K_frit": K_frit.ravel(), "F": np.asarray(design.F, dtype=float).ravel(),
+               "Ts": np.array([design.Ts]), "K_fixed": np.array([design.K_fixed])}
     for direction in BAR_DIRECTIONS:
         for side in ("low", "high"):
             ratios = [entry["tolerated"][direction][f"{side}_ratio"]
@@ -84,28 +103,36 @@ def figure(tables, stem):
     """
     columns = tables["frequency"]
     K_frit = np.asarray(columns["K_frit"])
-    gains = frequency.loops(K_frit.reshape(2, 2) if K_frit.size else None)
+    paper = frequency.PAPER
+    F = np.asarray(columns.get("F", paper.F), dtype=float).ravel()
+    design = frequency.Setting(F=float(F[0]) if F.size == 1 else tuple(F),
+                               Ts=float(np.asarray(columns.get("Ts", paper.Ts)).ravel()[0]),
+                               K_fixed=float(np.asarray(columns.get("K_fixed",
+                                                                    paper.K_fixed)).ravel()[0]))
+    gains = frequency.loops(K_frit.reshape(2, 2) if K_frit.size else None, setting=design)
     title = dict(FIGURES)[stem]
     if stem == "freq04_tolerance":
         return _tolerance(gains, columns, title)
+    omega = design.omega
     if stem == "freq01_loop_gain":
         systems = {}
         for label, K in gains.items():
-            L = frequency.transfers(K, at="u[0]").L
+            L = frequency.transfers(K, at="u[0]", setting=design).L
             m = frequency.margins(L)
             systems[f"{label}: GM {m['gain_margin']:.3g}, PM "
                      f"{m['phase_margin_deg']:.0f} deg"] = L
-        return compare_frequency_responses(systems, frequency.OMEGA, title=title,
+        return compare_frequency_responses(systems, omega, title=title,
                                            lines=[(1.0, "|L| = 1 (0 dB)")])
     which = "S" if stem == "freq02_sensitivity" else "T"
-    systems = {label: getattr(frequency.transfers(K), which) for label, K in gains.items()}
+    systems = {label: getattr(frequency.transfers(K, setting=design), which)
+               for label, K in gains.items()}
     bands = []
     if which == "S":
         for label, K in gains.items():
             if K is not None and np.ndim(K) == 0:
                 bands = [(low, high, f"{label}: S below the loop without MEC")
-                         for low, high in frequency.sensitivity_band(K)]
-    return compare_frequency_responses(systems, frequency.OMEGA, title=title, phase=False,
+                         for low, high in frequency.sensitivity_band(K, setting=design)]
+    return compare_frequency_responses(systems, omega, title=title, phase=False,
                                        bands=bands[:1],
                                        ylabel=f"largest singular value of {which} [dB]")
 
