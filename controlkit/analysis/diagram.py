@@ -28,7 +28,18 @@ RATE_TOLERANCE = 1e-9
 
 @dataclass
 class Leaf:
-    """One block of a flattened diagram, with its place in the stacked vectors."""
+    """One block of a flattened diagram, with its place in the stacked vectors.
+
+    Examples
+    --------
+    >>> plant = ct.ss(-1.0, 1.0, 1.0, 0.0, name="plant", inputs="u", outputs="y")
+    >>> gain = ct.ss([], [], [], [[2.0]], name="gain", inputs="e", outputs="u")
+    >>> error = ct.summing_junction(["r", "-y"], "e", name="error")
+    >>> loop = ct.interconnect([plant, gain, error], inputs="r", outputs="y")
+    >>> leaf = flatten(loop, {}).leaves[1]
+    >>> leaf.name, leaf.u, leaf.y, leaf.period
+    ('gain', slice(1, 2, None), slice(1, 2, None), None)
+    """
 
     system: ct.InputOutputSystem
     params: dict
@@ -50,7 +61,22 @@ class Leaf:
 
 @dataclass
 class Flat:
-    """A diagram as leaf blocks and the matrices ``W, V, Y, E`` (module description)."""
+    """A diagram as leaf blocks and the matrices ``W, V, Y, E`` (module description).
+
+    Examples
+    --------
+    >>> plant = ct.ss(-1.0, 1.0, 1.0, 0.0, name="plant", inputs="u", outputs="y")
+    >>> gain = ct.ss([], [], [], [[2.0]], name="gain", inputs="e", outputs="u")
+    >>> error = ct.summing_junction(["r", "-y"], "e", name="error")
+    >>> loop = ct.interconnect([plant, gain, error], inputs="r", outputs="y")
+    >>> flat = flatten(loop, {})
+    >>> flat.labels  # every block's output
+    ['plant.y', 'gain.u', 'error.e']
+    >>> flat.W.tolist()  # inputs u (plant), e (gain), r and y (junction) from the outputs
+    [[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]
+    >>> flat.V.ravel().tolist()  # and from the diagram's input r
+    [0.0, 0.0, 1.0, 0.0]
+    """
 
     leaves: list
     W: np.ndarray
@@ -80,6 +106,15 @@ def flatten(sys, params) -> Flat:
 
     Parameters are merged as python-control merges them when it runs an interconnect:
     a block sees its own, overridden by its diagram's, overridden by ``params``.
+
+    Examples
+    --------
+    >>> plant = ct.ss(-1.0, 1.0, 1.0, 0.0, name="plant", inputs="u", outputs="y")
+    >>> gain = ct.ss([], [], [], [[2.0]], name="gain", inputs="e", outputs="u")
+    >>> error = ct.summing_junction(["r", "-y"], "e", name="error")
+    >>> loop = ct.interconnect([plant, gain, error], inputs="r", outputs="y")
+    >>> [leaf.name for leaf in flatten(loop, {}).leaves]
+    ['plant', 'gain', 'error']
     """
     leaves: list[Leaf] = []
     W, V, Y, E = _flatten(sys, dict(params), leaves, [0, 0, 0])
@@ -117,7 +152,18 @@ def _flatten(sys, params, leaves, offsets):
 
 def base_and_frame(flat) -> tuple[float, int, dict]:
     """The shortest period, the frame (base periods until every block fires together) and
-    how often each discrete leaf fires (in base periods), for a sampled-data diagram."""
+    how often each discrete leaf fires (in base periods), for a sampled-data diagram.
+
+    Examples
+    --------
+    >>> fast = ct.ss([], [], [], [[1.0]], dt=0.1, name="fast", inputs="y", outputs="v")
+    >>> slow = ct.ss(0.5, 1.0, 1.0, 0.0, dt=0.3, name="slow", inputs="v", outputs="u")
+    >>> plant = ct.ss(-1.0, 1.0, 1.0, 0.0, name="plant", inputs="u", outputs="y")
+    >>> from controlkit import interconnect
+    >>> base, frame, _ = base_and_frame(flatten(interconnect([plant, fast, slow]), {}))
+    >>> base, frame
+    (0.1, 3)
+    """
     periods = [leaf.period for leaf in flat.discrete()]
     if any(math.isnan(p) for p in periods):
         names = [leaf.name for leaf in flat.discrete() if math.isnan(leaf.period)]
@@ -137,7 +183,18 @@ def base_and_frame(flat) -> tuple[float, int, dict]:
 
 def signals(flat, t, x, u):
     """Every block's inputs and outputs at ``(t, x, u)``, as python-control finds them:
-    sweeps of the blocks' outputs from zero until the inputs stop changing."""
+    sweeps of the blocks' outputs from zero until the inputs stop changing.
+
+    Examples
+    --------
+    >>> plant = ct.ss(-1.0, 1.0, 1.0, 0.0, name="plant", inputs="u", outputs="y")
+    >>> gain = ct.ss([], [], [], [[2.0]], name="gain", inputs="e", outputs="u")
+    >>> error = ct.summing_junction(["r", "-y"], "e", name="error")
+    >>> loop = ct.interconnect([plant, gain, error], inputs="r", outputs="y")
+    >>> u_b, y_b = signals(flatten(loop, {}), 0.0, np.array([0.5]), np.array([1.0]))
+    >>> y_b.tolist()  # y, u = 2 e, e = r - y
+    [0.5, 1.0, 0.5]
+    """
     u_b = flat.V @ u
     y_b = np.zeros(flat.W.shape[1])
     for _ in range(len(flat.leaves) + 1):
@@ -154,7 +211,14 @@ def signals(flat, t, x, u):
 @dataclass
 class Jacobians:
     """Every leaf's Jacobians placed in the stacked vectors: ``x_b' = A x + B u_b``,
-    ``y_b = C x + D u_b``."""
+    ``y_b = C x + D u_b``, and how each block was differentiated (:func:`stack`).
+
+    Examples
+    --------
+    >>> Jacobians(np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.eye(1),
+    ...           {"gain": "linear"}).methods
+    {'gain': 'linear'}
+    """
 
     A: np.ndarray
     B: np.ndarray
@@ -164,7 +228,20 @@ class Jacobians:
 
 
 def stack(flat, blocks) -> Jacobians:
-    """Place each leaf's ``(A, B, C, D, method)`` of ``blocks`` (in leaf order)."""
+    """Place each leaf's ``(A, B, C, D, method)`` of ``blocks`` (in leaf order).
+
+    Examples
+    --------
+    >>> plant = ct.ss(-1.0, 1.0, 1.0, 0.0, name="plant", inputs="u", outputs="y")
+    >>> gain = ct.ss([], [], [], [[2.0]], name="gain", inputs="e", outputs="u")
+    >>> error = ct.summing_junction(["r", "-y"], "e", name="error")
+    >>> loop = ct.interconnect([plant, gain, error], inputs="r", outputs="y")
+    >>> flat = flatten(loop, {})
+    >>> jac = stack(flat, [(*(np.atleast_2d(m) for m in (leaf.system.A, leaf.system.B,
+    ...                     leaf.system.C, leaf.system.D)), "linear") for leaf in flat.leaves])
+    >>> jac.D.tolist()  # rows: outputs y, u, e; columns: inputs u, e, r, y
+    [[0.0, 0.0, 0.0, 0.0], [0.0, 2.0, 0.0, 0.0], [0.0, 0.0, 1.0, -1.0]]
+    """
     n, nu, ny = flat.nstates, flat.W.shape[0], flat.W.shape[1]
     A, B, C, D = np.zeros((n, n)), np.zeros((n, nu)), np.zeros((ny, n)), np.zeros((ny, nu))
     methods = {}
@@ -189,6 +266,17 @@ def compose(flat, jac, wiring=None):
 
     ``y_b = C x + D (W y_b + V u)`` gives ``y_b``; then ``u_b`` and ``x' = A x + B u_b``.
     ``wiring`` replaces ``(W, V, Y, E)`` (a loop cut open, :mod:`controlkit.analysis.loops`).
+
+    Examples
+    --------
+    >>> plant = ct.ss(-1.0, 1.0, 1.0, 0.0, name="plant", inputs="u", outputs="y")
+    >>> gain = ct.ss([], [], [], [[2.0]], name="gain", inputs="e", outputs="u")
+    >>> error = ct.summing_junction(["r", "-y"], "e", name="error")
+    >>> loop = ct.interconnect([plant, gain, error], inputs="r", outputs="y")
+    >>> from controlkit.analysis.linearize import jacobians_at
+    >>> flat, jac = jacobians_at(loop, np.zeros(1), np.zeros(1), 0.0, None, None)
+    >>> [m.tolist() for m in compose(flat, jac)]  # x' = -x + 2 (r - x)
+    [[[-3.0]], [[2.0]], [[1.0]], [[0.0]]]
     """
     W, V, Y, E = wiring or (flat.W, flat.V, flat.Y, flat.E)
     lhs = np.eye(W.shape[1]) - jac.D @ W
@@ -212,6 +300,18 @@ def compose_sampled(flat, jac, wiring=None):
 
     The outputs are those at the frame's first instant. With one rate the frame is the
     base period.
+
+    Examples
+    --------
+    >>> from controlkit import interconnect
+    >>> from controlkit.analysis.linearize import jacobians_at
+    >>> plant = ct.ss(0.0, 1.0, 1.0, 0.0, name="plant", inputs="u", outputs="y")
+    >>> gain = ct.ss([], [], [], [[-2.0]], dt=0.25, name="gain", inputs="y", outputs="u")
+    >>> flat, jac = jacobians_at(interconnect([plant, gain], inputs=[], outputs="y"),
+    ...                          np.zeros(1), np.zeros(0), 0.0, None, None)
+    >>> A, B, C, D, period = compose_sampled(flat, jac)
+    >>> A.tolist(), period  # x[k+1] = x[k] - 0.25 * 2 x[k]
+    ([[0.5]], 0.25)
     """
     W, V, Y, E = wiring or (flat.W, flat.V, flat.Y, flat.E)
     base, frame, every = base_and_frame(flat)

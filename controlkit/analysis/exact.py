@@ -47,7 +47,7 @@ def _rotated_momentum_jacobian(q, H) -> np.ndarray:
     return np.einsum("jik,j->ik", dR, np.asarray(H, dtype=float))
 
 
-def plant_rhs(t, x, u, p):
+def _plant_rhs(t, x, u, p):
     """Eq. (2)-(4): ``q' = Q(q) w_b``, ``w_b = J_t^-1 (R_bs(q)^T H0(t) - b1 u1 - b2 u2)``.
 
     ``dq'/dq = W(w_b)/2 + Q(q) J_t^-1 d(R^T H0)/dq`` and ``dq'/du = -Q(q) J_t^-1 [b1 b2]``.
@@ -60,7 +60,7 @@ def plant_rhs(t, x, u, p):
     return 0.5 * _omega(w) + Q @ J_inv @ _rotated_momentum_jacobian(x, H), -Q @ J_inv @ b
 
 
-def linearizer_output(t, x, u, p):
+def _linearizer_output(t, x, u, p):
     """Eq. (11): ``u = A(q)^-1 (mu - f(q))`` with ``A = Q_12(q) G``, ``f = Q_12(q) w_n(q)``.
 
     ``du/dmu = A^-1`` and ``du/dq = -A^-1 (dA/dq u + df/dq)``; ``Q_12`` is rows 1-2 of
@@ -84,18 +84,18 @@ def linearizer_output(t, x, u, p):
     return np.zeros((2, 0)), np.hstack([A_inv, -A_inv @ (dA_times_y + df)])
 
 
-def attitude_output(t, x, u, p):
+def _attitude_output(t, x, u, p):
     """Eq. (9): ``h = [q1, q2]``."""
     return np.zeros((2, 0)), np.eye(2, 4, 1)
 
 
-def controller_output(t, x, u, p):
+def _controller_output(t, x, u, p):
     """Eq. (12): ``mu = F (r - h)``."""
     F = np.diag(p[sc.CONTROLLER.slice("F")])
     return np.zeros((2, 0)), np.hstack([F, -F])
 
 
-def mec_output(t, x, u, p):
+def _mec_output(t, x, u, p):
     """Eq. (13)-(15): ``mu = mu_n + K (hn - h)``, bilinear in ``K`` and ``hn - h``."""
     K = u[mec.MEC_INPUTS.slice("K")].reshape(2, 2)
     e = u[mec.MEC_INPUTS.slice("hn")] - u[mec.MEC_INPUTS.slice("h")]
@@ -103,48 +103,50 @@ def mec_output(t, x, u, p):
     return np.zeros((2, 0)), np.hstack([np.eye(2), K, -K, dK])
 
 
-def state_output(t, x, u, p):
+def _state_output(t, x, u, p):
     """``y = x``."""
     return np.eye(x.size), np.zeros((x.size, u.size))
 
 
-def identity_output(t, x, u, p):
+def _identity_output(t, x, u, p):
     """``y = u``."""
     return np.zeros((u.size, x.size)), np.eye(u.size)
 
 
-def constant_output(t, x, u, p):
+def _constant_output(t, x, u, p):
     """``y = p``: a source."""
     return np.zeros((p.size, x.size)), np.zeros((p.size, u.size))
 
 
-def saturation_output(t, x, u, p):
+def _saturation_output(t, x, u, p):
     """``y = clip(u, -p, p)``: slope 1 inside the limits (on them too), 0 beyond."""
     return np.zeros((u.size, x.size)), np.diag((np.abs(u) <= p).astype(float))
 
 
-def integrator_update(t, x, u, p):
+def _integrator_update(t, x, u, p):
     """``x[k+1] = x[k] + Ts u[k]``."""
     return np.eye(x.size), p[common.INTEGRATOR.Ts] * np.eye(x.size, u.size)
 
 
-def lowpass_update(t, x, u, p):
+def _lowpass_update(t, x, u, p):
     """``y[k+1] = a y[k] + (1 - a) u[k]``."""
     a = p[common.LOWPASS.a]
     return a * np.eye(x.size), (1.0 - a) * np.eye(x.size, u.size)
 
 
-#: Kernel to its exact Jacobian.
+#: Kernel to its exact Jacobian ``jacobian(t, x, u, p) -> (F_x, F_u)``.
+#:
+#: Examples: ``EXACT[controlkit.kernels.common.integrator_update]`` gives ``(I, Ts I)``.
 EXACT = {
-    sc.plant_rhs: plant_rhs,
-    sc.linearizer_output: linearizer_output,
-    sc.attitude_output: attitude_output,
-    sc.controller_output: controller_output,
-    mec.mec_output: mec_output,
-    common.state_output: state_output,
-    common.identity_output: identity_output,
-    common.constant_output: constant_output,
-    common.saturation_output: saturation_output,
-    common.integrator_update: integrator_update,
-    common.lowpass_update: lowpass_update,
+    sc.plant_rhs: _plant_rhs,
+    sc.linearizer_output: _linearizer_output,
+    sc.attitude_output: _attitude_output,
+    sc.controller_output: _controller_output,
+    mec.mec_output: _mec_output,
+    common.state_output: _state_output,
+    common.identity_output: _identity_output,
+    common.constant_output: _constant_output,
+    common.saturation_output: _saturation_output,
+    common.integrator_update: _integrator_update,
+    common.lowpass_update: _lowpass_update,
 }

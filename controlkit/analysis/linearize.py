@@ -140,7 +140,19 @@ def linearize(sys, xeq, ueq=None, t=0, params=None, **kw):
 
 
 def jacobians_at(sys, x, u, t, params, eps):
-    """The flattened diagram and its blocks' stacked Jacobians at ``(t, x, u)``."""
+    """The flattened diagram and its blocks' stacked Jacobians at ``(t, x, u)``: the
+    operating point's signals found, each block differentiated (its ``check_state``, if
+    any, applied to its part of ``x`` first).
+
+    Examples
+    --------
+    >>> from controlkit.studies.spacecraft.diagrams import output_zeroing_loop
+    >>> loop = output_zeroing_loop()
+    >>> flat, jac = jacobians_at(loop, np.array([1.0, 0, 0, 0]), np.zeros(2), 0.0, None,
+    ...                          None)
+    >>> jac.methods["plant"], jac.methods["linearizer"]
+    ('rk4 (exact)', 'exact')
+    """
     flat = flatten(sys, params or {})
     for leaf in flat.leaves:  # a block's own check of its state (a unit quaternion)
         check = getattr(leaf.system, "check_state", None)

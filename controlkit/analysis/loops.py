@@ -29,6 +29,15 @@ class LoopTransfers(NamedTuple):
     """The loop gain ``L``, sensitivity ``S`` and complementary sensitivity ``T`` at a cut.
 
     Each is a :class:`control.StateSpace` whose inputs and outputs are the cut signals.
+
+    Examples
+    --------
+    >>> plant = ct.tf([1], [1, 0], name="plant", inputs="u", outputs="y")
+    >>> minus = ct.summing_junction(["r", "-y"], "u", name="error")
+    >>> transfers = loop_transfers(ct.interconnect([plant, minus], inputs="r", outputs="y"),
+    ...                            "u", 0.0)
+    >>> transfers.T.input_labels, round(complex(transfers.T(0.0)).real, 12)
+    (['u'], 1.0)
     """
 
     L: ct.StateSpace

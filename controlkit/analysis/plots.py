@@ -37,7 +37,13 @@ def frequency_response(G, omega) -> np.ndarray:
 
 
 def gain(G, omega) -> np.ndarray:
-    """``|G|`` of a SISO system, or its largest singular value, at each ``omega``."""
+    """``|G|`` of a SISO system, or its largest singular value, at each ``omega``.
+
+    Examples
+    --------
+    >>> gain(ct.tf([1], [1, 1]), [1.0]).round(6).tolist()  # 1 / sqrt(2)
+    [0.707107]
+    """
     response = frequency_response(G, omega)
     if response.shape[1:] == (1, 1):
         return np.abs(response[:, 0, 0])

@@ -274,6 +274,12 @@ def confirm(K, ratio, direction="delta_J", *, setting=PAPER, engine="fast", tilt
         ``scale``, ``ratio``, ``stable`` (from the simulation), ``predicted_stable``
         (from the eigenvalues), ``growth`` (last-tenth ``|h|`` over the initial; None when
         the run diverged), ``diverged`` and ``horizon_s``.
+
+    Examples
+    --------
+    >>> run = confirm(0.1, 0.004, "x")  # lighter than the bound 0.005045: diverges
+    >>> run["stable"], run["predicted_stable"]
+    (False, False)
     """
     scale = _scale(ratio, direction)
     rho = spectral_radius(K, scale, direction, setting=setting)
@@ -301,7 +307,14 @@ def confirm(K, ratio, direction="delta_J", *, setting=PAPER, engine="fast", tilt
 def confirmations(K, bounds, direction="delta_J", *, setting=PAPER, engine="fast") -> dict:
     """:func:`confirm` just inside and just outside each bound of :func:`tolerated`
     (:data:`CONFIRM_MARGIN` apart in ``J_t / J_m``); outside points beyond the physical
-    limit are not simulated."""
+    limit are not simulated.
+
+    Examples
+    --------
+    >>> checks = confirmations(0.1, {"low_ratio": 0.0050448, "high_ratio": None}, "x")
+    >>> checks["low"]["inside"]["stable"], checks["low"]["outside"]["stable"]
+    (True, False)
+    """
     out = {}
     floor = _ratio(physical_limit(direction), direction)
     for side, toward in (("low", 1.0), ("high", -1.0)):
@@ -332,7 +345,15 @@ def loops(K_frit=None, *, setting=PAPER) -> dict:
 
 
 def transfers(K=None, scale=1.0, at="u", *, setting=PAPER):
-    """:class:`~controlkit.analysis.loops.LoopTransfers` at the plant input, state-reduced."""
+    """:class:`~controlkit.analysis.loops.LoopTransfers` at the plant input ``at`` of the
+    loop with gain ``K`` at the target, :func:`~controlkit.analysis.reduced` (the modes the
+    wiring decouples dropped).
+
+    Examples
+    --------
+    >>> transfers(0.1, at="u[0]").L.state_labels
+    ['plant_q[1]', 'nominal_hn[0]']
+    """
     loop, x = loop_at_target(K, scale, setting=setting)
     return LoopTransfers(*(reduced(G) for G in loop_transfers(loop, at, x)))
 
@@ -383,6 +404,12 @@ def margins(L, omega=None) -> dict:
     sign of the imaginary part python-control tests for a crossing is rounding noise:
     when ``L(-1) < 0``, ``-1 / L(-1)`` is a gain margin too, and the one nearer 1 is
     reported.
+
+    Examples
+    --------
+    >>> m = margins(transfers(0.1, at="u[0]").L)  # 4 / (g (2 Ts (F + K) - Ts^2 K F))
+    >>> round(m["gain_margin"], 1), round(m["phase_crossover_rad_s"], 2)
+    (199.2, 31.42)
     """
     nyquist = np.pi / L.dt
     omega = Setting(Ts=L.dt).omega if omega is None else np.asarray(omega, dtype=float)

@@ -26,7 +26,15 @@ BAR_DIRECTIONS = {"x": ("x axis only", "#0072B2"), "y": ("y axis only", "#E69F00
 
 
 def frit_gain(metrics) -> np.ndarray | None:
-    """The gain the ``proposed`` case ended with (its ``final_K``), or None without it."""
+    """The gain the ``proposed`` case ended with (its ``final_K``), or None without it.
+
+    Examples
+    --------
+    >>> frit_gain({"proposed": {"final_K": [1.0, 0.0, 0.0, 2.0]}}).tolist()
+    [1.0, 0.0, 0.0, 2.0]
+    >>> frit_gain({"ideal": {}}) is None
+    True
+    """
     entry = metrics.get("proposed") or {}
     K = entry.get("final_K")
     return None if K is None or "error" in entry else np.asarray(K, dtype=float)
@@ -46,8 +54,8 @@ def setting(options) -> frequency.Setting:
                              K_fixed=options.get("K", paper.K_fixed))
 
 
-def write(metrics, folder, engine="fast", options=None):
-    """Write :data:`REPORT` into ``folder``; return its path and the figures to draw.
+def analyse(metrics, engine="fast", options=None):
+    """The report and the figures' tables for a run's metrics, or ``(None, None)``.
 
     Written when the run has the ``proposed`` case: its final ``K`` is the gain FRIT
     converged to, compared with the loops without MEC and with the fixed gain. The loops
@@ -56,20 +64,21 @@ def write(metrics, folder, engine="fast", options=None):
     Returns
     -------
     tuple
-        ``([path of the report], (figures, tables, stems))``: :func:`figures` and its
-        arguments, for the figure workers; ``([], None)`` without the proposed case.
-    """
-    from ...outputs.export import write_json
+        ``(report, tables)``: :func:`controlkit.studies.spacecraft.frequency.report`'s
+        dict (with the gain's source) and :func:`figures`'s tables.
 
+    Examples
+    --------
+    >>> analyse({"ideal": {}})  # no proposed case: nothing to compare
+    (None, None)
+    """
     K_frit = frit_gain(metrics)
     if K_frit is None:
-        return [], None
+        return None, None
     design = setting(options or {})
     result = frequency.report(K_frit, setting=design, engine=engine)
     result["K_frit_source"] = (f"final K of the proposed case of this run "
                                f"({metrics['proposed'].get('horizon_s', 0):g} s)")
-    path = Path(folder) / REPORT
-    write_json(path, result)
     columns = {"K_frit": K_frit.ravel(), "F": np.asarray(design.F, dtype=float).ravel(),
                "Ts": np.array([design.Ts]), "K_fixed": np.array([design.K_fixed])}
     for direction in BAR_DIRECTIONS:
@@ -78,12 +87,45 @@ def write(metrics, folder, engine="fast", options=None):
                       for entry in result["loops"].values()]
             columns[f"{direction}_{side}"] = np.array([np.nan if r is None else r
                                                        for r in ratios])
-    tables = {"frequency": columns}
+    return result, {"frequency": columns}
+
+
+def write(metrics, folder, engine="fast", options=None):
+    """Write :data:`REPORT` into ``folder`` (see :func:`analyse`); return its path and the
+    figures to draw.
+
+    Returns
+    -------
+    tuple
+        ``([path of the report], (figures, tables, stems))``: :func:`figures` and its
+        arguments, for the figure workers; ``([], None)`` without the proposed case.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> write({"ideal": {}}, tempfile.mkdtemp())
+    ([], None)
+    """
+    from ...outputs.export import write_json
+
+    result, tables = analyse(metrics, engine, options)
+    if result is None:
+        return [], None
+    path = Path(folder) / REPORT
+    write_json(path, result)
     return [path], (figures, tables, tuple(spec[0] for spec in FIGURES))
 
 
 def figures(tables, outdir, *, stems=None) -> list[Path]:
-    """Draw the figures of :data:`FIGURES` (PNG and SVG) from ``write``'s tables."""
+    """Draw the figures of :data:`FIGURES` (PNG and SVG) from :func:`analyse`'s tables.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> tables = {"frequency": {"K_frit": np.zeros(0)}}
+    >>> [p.name for p in figures(tables, tempfile.mkdtemp(), stems=["freq03_complementary"])]
+    ['freq03_complementary.png', 'freq03_complementary.svg']
+    """
     from ...outputs.style import save
 
     written = []
