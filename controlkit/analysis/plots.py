@@ -86,7 +86,7 @@ def compare_frequency_responses(systems, omega=None, *, title=None, phase=True, 
     >>> [ax.get_ylabel() for ax in fig.axes]
     ['gain [dB]', 'phase [deg]']
     """
-    from ..outputs.style import legend_outside, new_figure, slide_style
+    from ..outputs.style import legend_outside, log_scale, new_figure, slide_style
 
     if not isinstance(systems, dict) or not systems:
         raise ValueError(f"systems must be a dict of label -> system, got {systems!r}")
@@ -103,11 +103,13 @@ def compare_frequency_responses(systems, omega=None, *, title=None, phase=True, 
             color = COLORS[i % len(COLORS)]
             response = frequency_response(G, omega)
             style = dict(color=color, linewidth=2.0, linestyle=("-", "--", "-.", ":")[i % 4])
-            axes[0].semilogx(omega, 20 * np.log10(np.maximum(gain(G, omega), 1e-300)),
-                             label=label, **style)
+            axes[0].plot(omega, 20 * np.log10(np.maximum(gain(G, omega), 1e-300)),
+                         label=label, **style)
             if len(axes) > 1 and response.shape[1:] == (1, 1):
-                axes[1].semilogx(omega, np.degrees(np.unwrap(np.angle(response[:, 0, 0]))),
-                                 **style)
+                axes[1].plot(omega, np.degrees(np.unwrap(np.angle(response[:, 0, 0]))),
+                             **style)
+        for ax in axes:  # tick labels without mathtext: a third of the time to save
+            log_scale(ax, "x")
         nyquist = sorted({np.pi / G.dt for G in systems.values() if G.isdtime(strict=True)
                           and G.dt is not True})
         at_edge = [w for w in nyquist if abs(w - omega[-1]) <= 1e-9 * w]

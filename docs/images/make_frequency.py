@@ -1,7 +1,7 @@
 """The pictures of *MEC in the frequency domain*: ``python docs/images/make_frequency.py``.
 
 They are the figures ``controlkit reproduce spacecraft`` writes (``freq01``, ``freq02``,
-``freq04``), drawn from the loops linearized at the target with the gain FRIT converges to
+``freq03``), drawn from the loops linearized at the target with the gain FRIT converges to
 in the ``proposed`` case over the paper's 20 000 s.
 """
 
@@ -16,7 +16,7 @@ from controlkit.studies.spacecraft import frequency_outputs, outputs, scenario  
 HERE = Path(__file__).parent
 PICTURES = {"freq01_loop_gain": "mec_frequency_loop_gain.png",
             "freq02_sensitivity": "mec_frequency_sensitivity.png",
-            "freq04_tolerance": "mec_frequency_tolerance.png"}
+            "freq03_tolerance": "mec_frequency_tolerance.png"}
 
 
 def main():

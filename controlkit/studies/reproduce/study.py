@@ -115,8 +115,6 @@ def _run_study(s, cases, folder, horizon, stride, engine, log, pool, options, un
         else:
             write_json(folder / "metrics.json", study_metrics)
             manifest["files"] = sorted(set(manifest["files"]) | {"metrics.json"})
-            if s.extra is not None and tables:
-                _extra(s, study_metrics, folder, engine, options, log, pool, manifest)
             if tables:
                 names = _figure_files(s, tables)
                 manifest["files"] = sorted(set(manifest["files"]) | set(names))
@@ -126,6 +124,8 @@ def _run_study(s, cases, folder, horizon, stride, engine, log, pool, options, un
                 else:
                     for path in s.figures(tables, folder):
                         log.write(f"  wrote {path}\n")
+            if s.extra is not None and tables:  # while the workers draw the figures
+                _extra(s, study_metrics, folder, engine, options, log, pool, manifest)
     except KeyboardInterrupt:
         for entry in manifest["cases"].values():
             if entry["status"] in ("pending", "running"):

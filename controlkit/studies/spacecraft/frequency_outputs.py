@@ -17,10 +17,13 @@ REPORT = "mec_frequency.json"
 FIGURES = (
     ("freq01_loop_gain", "Loop gain at the plant input (wheel 1), at the target"),
     ("freq02_sensitivity", "Input sensitivity S at the target, both wheels"),
-    ("freq03_complementary", "Complementary sensitivity T at the target, both wheels"),
-    ("freq04_tolerance", "Inertia errors the loop tolerates (eigenvalues at the target)"),
+    ("freq03_tolerance", "Inertia errors the loop tolerates (eigenvalues at the target)"),
 )
-#: The directions of ``freq04_tolerance``, bottom to top within a loop, and their colours.
+#: Further figures :func:`figure` draws on request (not written by ``reproduce``).
+MORE_FIGURES = (
+    ("freq_complementary", "Complementary sensitivity T at the target, both wheels"),
+)
+#: The directions of ``freq03_tolerance``, bottom to top within a loop, and their colours.
 BAR_DIRECTIONS = {"x": ("x axis only", "#0072B2"), "y": ("y axis only", "#E69F00"),
                   "delta_J": ("all axes, along ΔJ", "#009E73")}
 
@@ -87,6 +90,10 @@ def analyse(metrics, engine="fast", options=None):
                       for entry in result["loops"].values()]
             columns[f"{direction}_{side}"] = np.array([np.nan if r is None else r
                                                        for r in ratios])
+    for key in ("gain_margin", "phase_margin_deg"):
+        values = [entry["margins_at_u"]["u[0]"][key] for entry in result["loops"].values()]
+        columns[f"{key.removesuffix('_deg')}_u0"] = np.array(
+            [np.nan if v is None else v for v in values])
     return result, {"frequency": columns}
 
 
@@ -123,8 +130,8 @@ def figures(tables, outdir, *, stems=None) -> list[Path]:
     --------
     >>> import tempfile
     >>> tables = {"frequency": {"K_frit": np.zeros(0)}}
-    >>> [p.name for p in figures(tables, tempfile.mkdtemp(), stems=["freq03_complementary"])]
-    ['freq03_complementary.png', 'freq03_complementary.svg']
+    >>> [p.name for p in figures(tables, tempfile.mkdtemp(), stems=["freq02_sensitivity"])]
+    ['freq02_sensitivity.png', 'freq02_sensitivity.svg']
     """
     from ...outputs.style import save
 
@@ -152,15 +159,20 @@ def figure(tables, stem):
                                K_fixed=float(np.asarray(columns.get("K_fixed",
                                                                     paper.K_fixed)).ravel()[0]))
     gains = frequency.loops(K_frit.reshape(2, 2) if K_frit.size else None, setting=design)
-    title = dict(FIGURES)[stem]
-    if stem == "freq04_tolerance":
+    known = dict(FIGURES + MORE_FIGURES)
+    if stem not in known:
+        raise ValueError(f"stem must be one of {list(known)}, got {stem!r}")
+    title = known[stem]
+    if stem == "freq03_tolerance":
         return _tolerance(gains, columns, title)
     omega = design.omega
     if stem == "freq01_loop_gain":
         systems = {}
-        for label, K in gains.items():
+        for i, (label, K) in enumerate(gains.items()):
             L = frequency.transfers(K, at="u[0]", setting=design).L
-            m = frequency.margins(L)
+            m = {"gain_margin": columns["gain_margin_u0"][i],
+                 "phase_margin_deg": columns["phase_margin_u0"][i]} \
+                if "gain_margin_u0" in columns else frequency.margins(L)
             systems[f"{label}: GM {m['gain_margin']:.3g}, PM "
                      f"{m['phase_margin_deg']:.0f} deg"] = L
         return compare_frequency_responses(systems, omega, title=title,
