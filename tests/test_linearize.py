@@ -162,9 +162,17 @@ def test_bad_arguments_are_refused_by_name(case):
         linearize(kincar(), **arguments)
 
 
+def test_a_transfer_function_is_linearized_in_its_state_space_form():
+    G = ct.tf([2.0, 1.0], [1.0, 3.0, 2.0], name="G")
+    lin = linearize(G, 0.0, 0.0)
+    np.testing.assert_allclose(complex(lin(1j)), complex(G(1j)), rtol=1e-12)
+
+
 def test_what_is_not_a_system_or_has_no_inputs_is_refused():
     with pytest.raises(TypeError, match="Can only linearize InputOutputSystem types"):
         linearize(np.eye(2), 0)
+    with pytest.raises(TypeError, match="got FrequencyResponseData"):
+        linearize(ct.frd([1.0, 0.5], [1.0, 2.0]), 0)
     autonomous = ct.nlsys(lambda t, x, u, p: -x, lambda t, x, u, p: x, states=1, inputs=0,
                           outputs=1, name="decay")
     with pytest.raises(ValueError, match="'decay' has no inputs, and python-control"):

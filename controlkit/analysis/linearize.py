@@ -105,9 +105,7 @@ def linearize(sys, xeq, ueq=None, t=0, params=None, **kw):
     >>> lin.A.tolist(), lin.B.tolist(), lin.dt
     ([[0.6]], [[0.4]], 0.5)
     """
-    if not isinstance(sys, ct.InputOutputSystem):
-        raise TypeError(f"Can only linearize InputOutputSystem types, got "
-                        f"{type(sys).__name__}")
+    sys = _state_space_or_system(sys)
     eps = kw.pop("eps", None)
     copy_names = kw.pop("copy_names", False)
     x, u = _operating_point(sys, xeq, ueq)
@@ -162,6 +160,17 @@ def jacobians_at(sys, x, u, t, params, eps):
     blocks = [block_jacobians(leaf.system, t, x[leaf.x], u_b[leaf.u], leaf.params, step=eps)
               for leaf in flat.leaves]
     return flat, stack(flat, blocks)
+
+
+def _state_space_or_system(sys):
+    """``sys`` as a system with states: a transfer function in its state-space form (as
+    ``interconnect`` makes it); a frequency response, which has none, refused."""
+    if isinstance(sys, ct.TransferFunction):
+        return ct.ss(sys)
+    if not isinstance(sys, ct.NonlinearIOSystem):
+        raise TypeError(f"Can only linearize InputOutputSystem types with a state-space "
+                        f"model, got {type(sys).__name__}")
+    return sys
 
 
 def _finite(name, value) -> float:

@@ -22,7 +22,7 @@ import control as ct
 import numpy as np
 
 from .diagram import compose, compose_sampled
-from .linearize import _finite, _operating_point, jacobians_at
+from .linearize import _finite, _operating_point, _state_space_or_system, jacobians_at
 
 
 class LoopTransfers(NamedTuple):
@@ -87,6 +87,7 @@ def loop_transfers(sys, at, xeq, ueq=None, t=0, params=None, *, eps=None) -> Loo
     >>> complex(L(2j)), complex(S(2j)).real
     ((-0-0.5j), 0.8)
     """
+    sys = _state_space_or_system(sys)
     x, u = _operating_point(sys, xeq, ueq)
     t = _finite("t", t)
     flat, jac = jacobians_at(sys, x, u, t, params, None if eps is None else _finite("eps", eps))
