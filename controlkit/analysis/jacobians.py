@@ -138,18 +138,17 @@ def _sampled(block, t, x, u, params, step):
         h = block.dt / block.substeps
         X = np.hstack([np.eye(n), np.zeros((n, m))])
         xk = np.array(x, dtype=float)
-        for i in range(block.substeps):
+        for i in range(block.substeps):  # the stages of rk4_step, each with its derivative
             ti = t + i * h
-            stages, slopes = [], []
-            for c, weight in ((0.0, None), (0.5, 0), (0.5, 1), (1.0, 2)):
-                xs = xk if weight is None else xk + (c * h) * stages[weight][0]
-                dxs = X if weight is None else X + (c * h) * stages[weight][1]
+            stages = []  # (k, dk/dz)
+            for c, previous in ((0.0, None), (0.5, 0), (0.5, 1), (1.0, 2)):
+                xs, dxs = (xk, X) if previous is None else (
+                    xk + (c * h) * stages[previous][0], X + (c * h) * stages[previous][1])
                 A, B, how = jacobian(ti + c * h, xs)
                 stages.append((rhs(ti + c * h, xs), A @ dxs + B @ lifted))
-            slopes = [k for k, _ in stages]
-            xk = xk + (h / 6) * (slopes[0] + 2 * slopes[1] + 2 * slopes[2] + slopes[3])
-            d = [dk for _, dk in stages]
-            X = X + (h / 6) * (d[0] + 2 * d[1] + 2 * d[2] + d[3])
+            (k1, d1), (k2, d2), (k3, d3), (k4, d4) = stages
+            xk = xk + (h / 6) * (k1 + 2 * k2 + 2 * k3 + k4)
+            X = X + (h / 6) * (d1 + 2 * d2 + 2 * d3 + d4)
         method = "rk4 (exact)" if how in ("exact", "linear") else f"rk4 of {how}"
     else:
         def variational(tau, y):

@@ -125,6 +125,7 @@ def _run_study(s, cases, folder, horizon, stride, engine, log, pool, options, un
                     for path in s.figures(tables, folder):
                         log.write(f"  wrote {path}\n")
             if s.extra is not None and tables:  # while the workers draw the figures
+                write_json(folder / MANIFEST, manifest)  # a run killed now lists them
                 _extra(s, study_metrics, folder, engine, options, log, pool, manifest)
     except KeyboardInterrupt:
         for entry in manifest["cases"].values():
@@ -157,6 +158,7 @@ def _extra(s, study_metrics, folder, engine, options, log, pool, manifest) -> No
         names |= {f"{stem}.{ext}" for stem in stems for ext in ("png", *VECTOR_FORMATS)}
     manifest["files"] = sorted(set(manifest["files"]) | names)
     manifest["extra_wall_time_s"] = round(time.perf_counter() - started, 3)
+    write_json(folder / MANIFEST, manifest)
 
 
 def _streamed(s, case, horizon, stride, csv_path, progress, options):

@@ -7,7 +7,7 @@ model at ``Ts``, :func:`~controlkit.analysis.loops.loop_transfers` its loop gain
 sensitivities at the plant input ``u``, and the eigenvalues decide how large an inertia
 error it tolerates:
 
-- :func:`tolerated` bisects the scale ``s`` of the inertia error ``J_t = J_m + s Delta J``
+- :func:`tolerated` brackets the scale ``s`` of the inertia error ``J_t = J_m + s Delta J``
   (Table 2's ``Delta J`` at ``s = 1``; one axis at a time, or all three along ``Delta J``)
   for the largest spectral radius of the closed loop crossing 1, in both directions from
   ``s = 1``, down to the physical limit (the body's inertia ``J_b`` positive definite);
