@@ -16,8 +16,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._jit import python_function
 from ..kernels import common, mec
 from ..kernels import spacecraft as sc
+
+# plain Python: called here with other argument types than the kernels call them, the
+# compiled versions would be compiled again for those (seconds, once per machine)
+_momentum_at = python_function(sc.momentum_at)
+_rotation = python_function(sc.rotation)
 
 
 def _omega(w) -> np.ndarray:
@@ -51,12 +57,14 @@ def _plant_rhs(t, x, u, p):
     """Eq. (2)-(4): ``q' = Q(q) w_b``, ``w_b = J_t^-1 (R_bs(q)^T H0(t) - b1 u1 - b2 u2)``.
 
     ``dq'/dq = W(w_b)/2 + Q(q) J_t^-1 d(R^T H0)/dq`` and ``dq'/du = -Q(q) J_t^-1 [b1 b2]``.
+    ``w_b`` is read back from the kernel's ``q'``: the columns of ``Q(q)`` are orthogonal,
+    of length ``|q|/2``, so ``w_b = 4 Q(q)^T q' / |q|^2``.
     """
     J_inv = p[sc.PLANT.slice("J_t_inv")].reshape(3, 3)
     b = np.column_stack([p[sc.PLANT.slice("b1")], p[sc.PLANT.slice("b2")]])
-    H = np.array(sc.momentum_at(t, p, sc.PLANT.H0))
-    w = np.array(sc.body_rate(t, x, u, p))
+    H = np.array(_momentum_at(t, p, sc.PLANT.H0))
     Q = _rate_matrix(x)
+    w = 4.0 * Q.T @ sc.plant_rhs(t, x, u, p, np.empty(4)) / (x @ x)
     return 0.5 * _omega(w) + Q @ J_inv @ _rotated_momentum_jacobian(x, H), -Q @ J_inv @ b
 
 
@@ -73,10 +81,10 @@ def _linearizer_output(t, x, u, p):
                          "not an attitude, or its decoupling matrix is singular there")
     G = p[sc.LINEARIZER.slice("G")].reshape(3, 2)
     J_inv = p[sc.LINEARIZER.slice("J_m_inv")].reshape(3, 3)
-    H = np.array(sc.momentum_at(t, p, sc.LINEARIZER.H0n))
+    H = np.array(_momentum_at(t, p, sc.LINEARIZER.H0n))
     rows = slice(1, 3)
     A = _rate_matrix(q)[rows] @ G
-    w_n = J_inv @ np.array(sc.body_from_inertial(q, H))
+    w_n = J_inv @ (np.array(_rotation(q)).reshape(3, 3).T @ H)
     dA_times_y = sum(y[c] * 0.5 * _omega(G[:, c])[rows] for c in range(2))
     df = 0.5 * _omega(w_n)[rows] + _rate_matrix(q)[rows] @ J_inv @ _rotated_momentum_jacobian(
         q, H)
