@@ -32,6 +32,10 @@ _LAZY = {
     "explain": "controlkit.engines.fast",
     "draw_block_diagram": "controlkit.drawing",
     "plot": "controlkit.plotting",
+    "linearize": "controlkit.analysis",
+    "find_eqpt": "controlkit.analysis",
+    "loop_transfers": "controlkit.analysis",
+    "compare_frequency_responses": "controlkit.analysis",
 }
 
 __all__ = sorted(_LAZY)

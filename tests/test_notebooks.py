@@ -11,8 +11,14 @@ import pytest
 NOTEBOOKS = sorted((Path(__file__).parent.parent / "notebooks").glob("*.ipynb"))
 
 
-def test_the_course_starts_with_a_first_loop_and_has_nine_notebooks():
-    assert [p.name[:3] for p in NOTEBOOKS] == [f"{i:02d}_" for i in range(9)]
+def test_the_course_starts_with_a_first_loop_and_has_nine_notebooks_and_their_sequels():
+    # a sequel to notebook n is numbered nb ("02b_..."), and sorts right after it
+    numbers = [p.name.split("_")[0] for p in NOTEBOOKS]
+    assert [n for n in numbers if n.isdigit()] == [f"{i:02d}" for i in range(9)]
+    for n in numbers:
+        assert n[:2].isdigit() and n[2:] in ("", "b", "c"), n
+        if n[2:]:
+            assert numbers.index(n) > numbers.index(n[:2]), n
     assert NOTEBOOKS[0].name == "00_first_loop.ipynb"
 
 

@@ -143,6 +143,10 @@ class Study:
     horizon_note : callable, optional
         ``horizon_note(seconds) -> str or None``: what a run that short cannot show of
         the study's claim (the command line prints it after the results).
+    extra : callable, optional
+        ``extra(metrics, folder, engine, options) -> (paths, (figures, tables, stems) or
+        None)``: files a study writes from its cases' metrics once they are all run (the
+        spacecraft's frequency-domain bounds), and figures for the workers to draw.
 
     Examples
     --------
@@ -174,6 +178,7 @@ class Study:
     stems_for: Callable | None = None
     robustness: Robustness | None = None
     horizon_note: Callable[[float], str | None] | None = None
+    extra: Callable | None = None
 
     def stems(self, cases) -> tuple[str, ...]:
         """The figures drawn for ``cases`` (see :attr:`stems_for`)."""

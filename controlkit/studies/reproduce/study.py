@@ -124,6 +124,9 @@ def _run_study(s, cases, folder, horizon, stride, engine, log, pool, options, un
                 else:
                     for path in s.figures(tables, folder):
                         log.write(f"  wrote {path}\n")
+            if s.extra is not None and tables:  # while the workers draw the figures
+                write_json(folder / MANIFEST, manifest)  # a run killed now lists them
+                _extra(s, study_metrics, folder, engine, options, log, pool, manifest)
     except KeyboardInterrupt:
         for entry in manifest["cases"].values():
             if entry["status"] in ("pending", "running"):
@@ -138,6 +141,24 @@ def _run_study(s, cases, folder, horizon, stride, engine, log, pool, options, un
         with contextlib.suppress(OSError):
             write_json(folder / MANIFEST, manifest)
     return study_metrics
+
+
+def _extra(s, study_metrics, folder, engine, options, log, pool, manifest) -> None:
+    """The study's files written from all its cases (:attr:`Study.extra`), listed in the
+    manifest; their figures go to the workers."""
+    started = time.perf_counter()
+    paths, drawing = s.extra(study_metrics, folder, engine, options)
+    log.writelines(f"  wrote {path}\n" for path in paths)
+    names = {path.name for path in paths}
+    if drawing is not None:
+        from ...outputs.style import VECTOR_FORMATS
+
+        figures, tables, stems = drawing
+        pool.submit(figures, tables, folder, stems)
+        names |= {f"{stem}.{ext}" for stem in stems for ext in ("png", *VECTOR_FORMATS)}
+    manifest["files"] = sorted(set(manifest["files"]) | names)
+    manifest["extra_wall_time_s"] = round(time.perf_counter() - started, 3)
+    write_json(folder / MANIFEST, manifest)
 
 
 def _streamed(s, case, horizon, stride, csv_path, progress, options):

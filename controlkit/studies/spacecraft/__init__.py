@@ -2,14 +2,15 @@
 
 ``scenario`` holds the published parameter sets and cases, ``diagrams`` the paper's
 Fig. 2-4 wired with ``control.interconnect``, ``outputs`` the CSV columns, metrics and
-Fig. 5-10, ``robustness`` the sweep over model errors; :data:`STUDY` is the study's
-registry entry.
+Fig. 5-10, ``robustness`` the sweep over model errors, ``frequency`` the loops linearized
+at the target with and without MEC (``frequency_outputs`` their files); :data:`STUDY` is
+the study's registry entry.
 """
 
 from __future__ import annotations
 
 from ..registry import Study, scenario_runner
-from . import outputs, robustness, scenario
+from . import frequency_outputs, outputs, robustness, scenario
 
 
 def _streaming_metrics(case, horizon):
@@ -25,5 +26,5 @@ STUDY = Study(
     figure_columns=outputs.figure_columns, stems_for=outputs.figure_stems,
     Ts=scenario.sc.TS_PAPER, horizon=scenario.HORIZON, signals=60,
     streaming=_streaming_metrics, robustness=robustness.ROBUSTNESS,
-    horizon_note=scenario.horizon_note,
+    horizon_note=scenario.horizon_note, extra=frequency_outputs.write,
 )
