@@ -20,7 +20,8 @@ from ..contract import response as base_response
 from . import loops, rk, store
 from .diagnose import explain_failure
 from .loops import BUDGET, INSTANT, INTEGRATOR_FAILED, NEXT_TIME, UNDER_WAY
-from .run import CHECKED, Pieces, Runner, interrupted, now, quiet_numbers, same_numbers
+from .pieces import Pieces, interrupted, now, quiet_numbers, same_numbers
+from .run import CHECKED, Runner
 from .tiers import NotCompiled
 
 #: The methods integrated by the engine's own code; the stiff ones go to scipy.

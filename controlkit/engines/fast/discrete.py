@@ -14,7 +14,8 @@ import numpy as np
 from ..contract import UnsupportedSystem, check_arguments, chunk_bounds, recorded_indices
 from ..contract import response as base_response
 from .diagnose import diverged, explain_failure, sampled_block_blew_up
-from .run import CHECKED, Pieces, Runner, interrupted, now, quiet_numbers, same_numbers
+from .pieces import Pieces, interrupted, now, quiet_numbers, same_numbers
+from .run import CHECKED, Runner
 from .tiers import NotCompiled
 
 #: Steps simulated per chunk when a run is streamed (bounds the memory of long runs).

@@ -22,7 +22,8 @@ from ..contract import UnsupportedSystem
 from ..contract import response as base_response
 from .continuous import STIFF_METHODS, _failed, _Run, run_continuous
 from .discrete import simulate
-from .run import CHECKED, NUMBA_START_SECONDS, PAYS, compile_estimate, compiled_job, now
+from .pieces import now
+from .run import CHECKED, NUMBA_START_SECONDS, PAYS, compile_estimate, compiled_job
 from .tiers import _local_params
 
 

@@ -28,7 +28,6 @@ change no number: a run gives the same result however it is cut.
 
 from __future__ import annotations
 
-import time
 import warnings
 from dataclasses import dataclass, field
 
@@ -37,8 +36,9 @@ import numpy as np
 
 from ... import _jit
 from ..contract import UnsupportedSystem
-from . import codegen, reuse, store
+from . import reuse, store
 from .codegen import evaluation_order, generate
+from .pieces import PIECE_SECONDS
 from .plan import Plan, make_plan
 from .tiers import BlockTier, NotCompiled, _resolve, as_interconnect, blocks_of
 
@@ -47,8 +47,6 @@ from .tiers import BlockTier, NotCompiled, _resolve, as_interconnect, blocks_of
 RULE = ("compiled when asked (compile=True), when the diagram's module is compiled "
         "already, or when the run would take longer as Python than compiling it takes "
         "(timed on its first tenth of a second); else as Python")
-#: The length of a piece of a run (progress, Ctrl-C and the rule act between pieces).
-PIECE_SECONDS = 0.1
 #: Compiling pays when the rest of the run as Python would take this many times longer
 #: than loading numba and compiling (a margin for the estimates).
 PAYS = 1.5
@@ -354,86 +352,7 @@ class Runner:
                       f"lists every block's tier)", stacklevel=5)
 
 
-def same_numbers(a, b, rtol) -> bool:
-    """Whether two pieces of a run agree to ``rtol`` (relative to their size).
-
-    Examples
-    --------
-    >>> same_numbers([1.0, 2.0], [1.0, 2.0 + 1e-13], 1e-12), same_numbers([1.0], [1.1], 1e-9)
-    (True, False)
-    """
-    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    scale = max(1.0, float(np.nanmax(np.abs(a), initial=0.0)))
-    return bool(np.allclose(a, b, rtol=rtol, atol=rtol * scale, equal_nan=True))
-
-
-class Pieces:
-    """Piece sizes of about :data:`PIECE_SECONDS`, learnt from the pieces run so far.
-
-    Examples
-    --------
-    >>> pieces = Pieces(first=10)
-    >>> pieces.next()
-    10
-    >>> pieces.took(10, 0.001)
-    >>> pieces.next() > 10
-    True
-    """
-
-    def __init__(self, first=64):
-        self.size = first
-
-    def next(self) -> int:
-        return int(self.size)
-
-    def took(self, size: int, seconds: float) -> None:
-        if size >= self.size:  # a full piece: aim at the target
-            rate = size / max(seconds, 1e-6)
-            self.size = int(min(max(rate * PIECE_SECONDS, 16), self.size * 8))
-
-
-def interrupted(response_so_far):
-    """The ``KeyboardInterrupt`` raised when Ctrl-C stops a run, carrying what was
-    computed (``.response``).
-
-    Examples
-    --------
-    >>> interrupted("so far").response
-    'so far'
-    """
-    error = KeyboardInterrupt("the run was stopped; what was computed is on this "
-                              "exception's `response`")
-    error.response = response_so_far
-    return error
-
-
-def now() -> float:
-    """The clock the pieces and the rule are timed by (seconds, monotonic).
-
-    Examples
-    --------
-    >>> now() <= now()
-    True
-    """
-    return time.perf_counter()
-
-
-def quiet_numbers():
-    """numpy's warnings of overflow and invalid results off while a module runs as Python:
-    compiled code gives none, and the engine says itself where a state or an output went
-    non-finite (a division by zero still warns, as in python-control).
-
-    Examples
-    --------
-    >>> with quiet_numbers():
-    ...     float(np.float64(1e308) * 10)
-    inf
-    """
-    return np.errstate(over="ignore", under="ignore", invalid="ignore")
-
-
-__all__ = ["DIFFERS", "PIECE_SECONDS", "RULE", "Job", "Pieces", "Runner", "codegen",
-           "compiled_job", "explain", "interrupted", "prepare", "same_numbers"]
+__all__ = ["DIFFERS", "RULE", "Job", "Runner", "compiled_job", "explain", "prepare"]
 
 
 def explain(sys, params=None) -> list[BlockTier]:

@@ -1,0 +1,93 @@
+"""A run in pieces of about a tenth of a second: their sizes, the clock, Ctrl-C, and two
+runs of one piece compared.
+
+Between two pieces a run reports its progress, Ctrl-C stops it, and the rule of
+:mod:`.run` may move it from Python to compiled code; the pieces change no number.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+#: The length of a piece of a run (progress, Ctrl-C and the rule act between pieces).
+PIECE_SECONDS = 0.1
+
+
+def same_numbers(a, b, rtol) -> bool:
+    """Whether two pieces of a run agree to ``rtol`` (relative to their size).
+
+    Examples
+    --------
+    >>> same_numbers([1.0, 2.0], [1.0, 2.0 + 1e-13], 1e-12), same_numbers([1.0], [1.1], 1e-9)
+    (True, False)
+    """
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    scale = max(1.0, float(np.nanmax(np.abs(a), initial=0.0)))
+    return bool(np.allclose(a, b, rtol=rtol, atol=rtol * scale, equal_nan=True))
+
+
+class Pieces:
+    """Piece sizes of about :data:`PIECE_SECONDS`, learnt from the pieces run so far.
+
+    Examples
+    --------
+    >>> pieces = Pieces(first=10)
+    >>> pieces.next()
+    10
+    >>> pieces.took(10, 0.001)
+    >>> pieces.next() > 10
+    True
+    """
+
+    def __init__(self, first=64):
+        self.size = first
+
+    def next(self) -> int:
+        return int(self.size)
+
+    def took(self, size: int, seconds: float) -> None:
+        if size >= self.size:  # a full piece: aim at the target
+            rate = size / max(seconds, 1e-6)
+            self.size = int(min(max(rate * PIECE_SECONDS, 16), self.size * 8))
+
+
+def interrupted(response_so_far):
+    """The ``KeyboardInterrupt`` raised when Ctrl-C stops a run, carrying what was
+    computed (``.response``).
+
+    Examples
+    --------
+    >>> interrupted("so far").response
+    'so far'
+    """
+    error = KeyboardInterrupt("the run was stopped; what was computed is on this "
+                              "exception's `response`")
+    error.response = response_so_far
+    return error
+
+
+def now() -> float:
+    """The clock the pieces and the rule are timed by (seconds, monotonic).
+
+    Examples
+    --------
+    >>> now() <= now()
+    True
+    """
+    return time.perf_counter()
+
+
+def quiet_numbers():
+    """numpy's warnings of overflow and invalid results off while a module runs as Python:
+    compiled code gives none, and the engine says itself where a state or an output went
+    non-finite (a division by zero still warns, as in python-control).
+
+    Examples
+    --------
+    >>> with quiet_numbers():
+    ...     float(np.float64(1e308) * 10)
+    inf
+    """
+    return np.errstate(over="ignore", under="ignore", invalid="ignore")
