@@ -217,7 +217,10 @@ class KernelBlock(ct.NonlinearIOSystem):
         def function(t, x, u, _params):
             x = self._checked("state x", x, self.nstates, self.state_labels)
             u = self._checked("input u", u, self.ninputs, self.input_labels)
-            out = kernel(t, x, u, p, np.empty(self.noutputs if output else self.nstates))
+            # a kernel says itself where it fails (NaN, rule 6; its check says why), as
+            # compiled, so numpy's overflow warnings are not the block's words
+            with np.errstate(over="ignore", invalid="ignore"):
+                out = kernel(t, x, u, p, np.empty(self.noutputs if output else self.nstates))
             if check is not None and self.noutputs and np.isnan(out[0]):
                 check(t, x, u, out)
             return out
