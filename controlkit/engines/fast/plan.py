@@ -134,13 +134,16 @@ def _sparse_rows(matrix):
             np.array(gain, dtype=float))
 
 
-def _kind(block, kernel) -> int:
+def _kind(block, kernel, diagram_dt) -> int:
+    """A block's kind; one of unspecified timebase (``dt = None``) with states takes the
+    diagram's, as python-control does (integrated in a continuous diagram)."""
     system = block.system
+    dt = diagram_dt if system.dt is None and system.nstates else system.dt
     if kernel.rk4 is not None:
         return SAMPLED
-    if system.dt is True or (system.dt is not None and system.dt > 0):
+    if dt is True or (dt is not None and dt > 0):
         return DISCRETE
-    if system.dt == 0 and system.nstates and kernel.update is not None:
+    if (dt == 0 or dt is None) and system.nstates and kernel.update is not None:
         return CONTINUOUS
     return STATIC
 
@@ -179,10 +182,11 @@ def make_plan(sys, blocks, order) -> Plan:
     rows, h, continuous = [], [], []
     for b in blocks:
         k, s = b.kernel, b.system
-        kind = _kind(b, k)
+        kind = _kind(b, k, sys.dt)
         every = 0
         if kind in (DISCRETE, SAMPLED):
-            every = 1 if not base or s.dt is True else max(1, round(float(s.dt) / base))
+            timed = base and s.dt is not True and s.dt is not None
+            every = max(1, round(float(s.dt) / base)) if timed else 1
         substeps = k.rk4[1] if kind == SAMPLED else 0
         h.append(k.rk4[0] / k.rk4[1] if kind == SAMPLED else 0.0)
         rows.append([b.x0, s.nstates, b.u0, s.ninputs, b.y0, s.noutputs, b.p0,
