@@ -3,8 +3,7 @@
 Every problem takes the same kind of ``args``: ``(p, T, U)`` -- parameters (1-D), and the
 time points and input samples (``U[k, j]`` is input ``k`` at ``T[j]``) of a tabulated
 input, read with python-control's linear interpolation (:func:`input_at`). One type of
-``args`` means one compiled integrator for all of them (see
-:func:`controlkit.engines.fast.rk.first_class`).
+``args`` means one compiled caller of the integrator for all of them.
 
 The scipy reference calls the *same* Python function (``py_func``), so both sides
 evaluate the right-hand side with identical operations -- provided numba compiles them to

@@ -20,8 +20,10 @@ PID_FOLDER = "CONTROLKIT_TEST_PID_FOLDER"
 
 def _note_pid(x, folder=None) -> None:
     folder = folder or os.environ.get(PID_FOLDER)
-    if folder:
-        (Path(folder) / f"{x}.pid").write_text(str(os.getpid()))
+    if folder:  # whole or not at all: a test reads the pid as soon as the file is there
+        tmp = Path(folder) / f".{x}.{os.getpid()}.tmp"
+        tmp.write_text(str(os.getpid()))
+        os.replace(tmp, Path(folder) / f"{x}.pid")
 
 
 def square(x, pause=0.0):

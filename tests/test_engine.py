@@ -28,9 +28,11 @@ def start(loop):
     return initial_state(loop, plant=Q0, **({"nominal": H0} if "nominal" in names else {}))
 
 
-def assert_same(loop, T, X0):
+def assert_same(loop, T, X0, compile=None):
     ref = simulate(loop, T, X0=X0, engine="python-control")
-    fast = simulate(loop, T, X0=X0, engine="fast")
+    fast = simulate(loop, T, X0=X0, engine="fast", compile=compile)
+    if compile is not None:
+        assert fast.engine_mode == ("compiled" if compile else "python")
     assert list(fast.output_labels) == list(ref.output_labels)
     assert list(fast.state_labels) == list(ref.state_labels)
     assert fast.outputs.shape == ref.outputs.shape and fast.states.shape == ref.states.shape
@@ -42,14 +44,16 @@ def assert_same(loop, T, X0):
 @pytest.mark.parametrize("case", [
     "ideal", "without_mec", "mec_fixed", "proposed", "proposed_literal"])
 def test_spacecraft_scenarios_match_python_control_over_2000_s(case):
+    # the papers' horizons run compiled (as the rule would choose for them), to the bit
     loop = scenario.build_loop(case, h0=H0)
-    assert_same(loop, np.arange(20001) * 0.1, start(loop))
+    assert_same(loop, np.arange(20001) * 0.1, start(loop), compile=True)
 
 
 @pytest.mark.parametrize("case", list(cmg_scenario.CASES))
 def test_cmg_scenarios_match_python_control_over_12_s(case):
     loop = cmg_scenario.build_loop(case)
-    assert_same(loop, np.arange(12001) * 0.001, initial_state(loop, cmg=cmg_scenario.X0_THESIS))
+    assert_same(loop, np.arange(12001) * 0.001, initial_state(loop, cmg=cmg_scenario.X0_THESIS),
+                compile=True)
 
 
 def test_rewired_mec_with_other_gain_and_controller_matches():
@@ -136,17 +140,23 @@ def test_algebraic_loop_is_named():
 
 
 def test_engine_without_numba_gives_the_same_numbers(tmp_path):
+    # CONTROLKIT_DISABLE_NUMBA=1: even compile=True runs as Python (with a warning), and
+    # numba is never imported
     code = (
-        "import numpy as np; from controlkit.studies.spacecraft import scenario as s;"
-        "r = s.run('proposed', horizon=100.0, engine='fast');"
+        "import sys, warnings; import numpy as np;"
+        "from controlkit.studies.spacecraft import scenario as s;"
+        "warnings.simplefilter('ignore');"
+        "r = s.run('proposed', horizon=100.0, engine='fast', compile=True);"
+        "assert r.engine_mode == 'python' and 'numba' not in sys.modules;"
         "np.save(r'%s', r.outputs)" % (tmp_path / "plain.npy")
     )
     env = {**os.environ, "CONTROLKIT_DISABLE_NUMBA": "1",
            "CONTROLKIT_CACHE_DIR": str(tmp_path / "cache")}
     subprocess.run([sys.executable, "-c", code], env=env, check=True)
     plain = np.load(tmp_path / "plain.npy")
-    compiled = scenario.run("proposed", horizon=100.0, engine="fast").outputs
-    np.testing.assert_array_equal(plain, compiled)
+    compiled = scenario.run("proposed", horizon=100.0, engine="fast", compile=True)
+    assert compiled.engine_mode == "compiled"
+    np.testing.assert_array_equal(plain, compiled.outputs)
 
 
 def test_unknown_engine_is_refused():
@@ -155,14 +165,15 @@ def test_unknown_engine_is_refused():
 
 
 _COMPILE_ONE = """
-import controlkit._jit, numba
+import controlkit._jit
+numba = controlkit._jit.numba_module()
 f = numba.njit(lambda x: x + 1.0)
 f(1.0)
 print(next(iter(f.overloads.values())).fndesc.unique_name)
 """
 
 
-@pytest.mark.skipif(not _jit.HAVE_NUMBA, reason="numba not installed")
+@pytest.mark.skipif(not _jit.available(), reason="numba not installed")
 def test_two_processes_name_the_same_compiled_function_differently():
     # numba numbered compiled functions 1, 2, 3 in every process, so the same kernel
     # compiled by two processes (a loop's copy, the kernel's own cache) had one name and
@@ -175,29 +186,28 @@ def test_two_processes_name_the_same_compiled_function_differently():
 _LOOP_COMPILED = """
 import sys
 import numpy as np
-sys.path.insert(0, sys.argv[2])
-from controlkit.engines.fast import background, loader, run
+sys.path.insert(0, sys.argv[1])
+from controlkit.engines import fast
 from user_diagrams import lti_loop
 loop, T, X0, U, _ = lti_loop(steps=10)
-job = run.prepare(loop)
-if sys.argv[1] == "compile":  # compile the diagram's module into the cache
-    background.prime(job.loop("run_discrete", policy="now")[0], "run_discrete")
-else:  # a new process: the compiled module, found in the cache
-    print(loader.is_compiled(loader.load(job.source).run_discrete))
+before = fast.prepare(loop, compiled=True).is_compiled()
+resp = fast.simulate(loop, T, X0, U, compile=True)
+print("RESULT", before, resp.engine_mode)
 """
 
 
-@pytest.mark.skipif(not _jit.HAVE_NUMBA, reason="numba not installed")
-def test_a_compiled_loop_is_found_under_numba_cache_dir(tmp_path):
-    # the module's cache was looked for next to its file only, so with NUMBA_CACHE_DIR
-    # every run went to the driver and compiled the module again in the background
+@pytest.mark.skipif(not _jit.available(), reason="numba not installed")
+def test_a_compiled_module_is_kept_and_found_under_numba_cache_dir(tmp_path):
+    # with NUMBA_CACHE_DIR set, numba keeps the compiled code there, not beside the store's
+    # modules: a second process must find it there (else it compiles again)
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba"),
-           "CONTROLKIT_CACHE_DIR": str(tmp_path / "loops")}
+           "CONTROLKIT_CACHE_DIR": str(tmp_path / "store"), "NUMBA_DEBUG_CACHE": "1"}
     tests = os.path.dirname(__file__)
-    for step in ("compile", "load"):
-        out = subprocess.run([sys.executable, "-c", _LOOP_COMPILED, step, tests], env=env,
-                             capture_output=True, text=True, check=True).stdout
-    assert out.strip() == "True"
-    assert not list((tmp_path / "loops").glob("__pycache__/*.nbi"))  # it went there instead
+    outs = [subprocess.run([sys.executable, "-c", _LOOP_COMPILED, tests], env=env,
+                           capture_output=True, text=True, check=True).stdout
+            for _ in range(2)]
+    results = [[line for line in out.splitlines() if line.startswith("RESULT")] for out in outs]
+    assert results == [["RESULT False compiled"], ["RESULT True compiled"]]
+    assert "data saved to" not in outs[1] and "data loaded from" in outs[1]
+    assert not list((tmp_path / "store").glob("__pycache__/*.nbi"))  # it went there instead
     assert list((tmp_path / "numba").rglob("diagram_*.nbi"))
-

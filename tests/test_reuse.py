@@ -10,6 +10,7 @@ import pytest
 import controlkit
 from controlkit.engines.fast import reuse
 from controlkit.engines.fast.run import prepare
+from controlkit.engines.fast.tiers import NotCompiled
 
 T = np.linspace(0.0, 4.0, 81)
 GAIN = 2.0  # read by ``scaled`` below, from this module
@@ -37,13 +38,15 @@ def lag_loop(update, params=None, dt=0):
     return ct.interconnect([block], inputs="u", outputs="y", name="lag_loop")
 
 
-def test_a_diagram_called_again_unchanged_reuses_its_job_and_a_new_value_does_not():
+@pytest.mark.parametrize("compiled", [False, True])
+def test_a_diagram_called_again_unchanged_reuses_its_job_and_a_new_value_does_not(compiled):
+    # preparing a compiled job writes its module's text; nothing is compiled here
     loop = lag_loop(scaled)
-    start = (0.0, np.zeros(1), np.ones(1))
-    first = prepare(loop, {"a": 1.0}, start)
-    assert prepare(loop, {"a": 1.0}, start) is first
-    assert prepare(loop, {"a": 1.5}, start) is not first
-    assert prepare(loop, {"a": 1.5}, (0.0, np.ones(1), np.ones(1))) is not first
+    first = prepare(loop, {"a": 1.0}, compiled=compiled)
+    assert first.compiled is compiled
+    assert prepare(loop, {"a": 1.0}, compiled=compiled) is first
+    assert prepare(loop, {"a": 1.0}, compiled=not compiled) is not first
+    assert prepare(loop, {"a": 1.5}, compiled=compiled) is not first
 
 
 def test_a_closure_array_changed_in_place_between_calls_is_read_again():
@@ -130,7 +133,10 @@ def test_an_array_bound_by_a_partial_changed_in_place_is_read_again():
     assert agrees(loop, 1.0, [0.0])[-1] == pytest.approx(2.0, rel=3e-2)
 
 
-def test_a_discrete_diagram_called_again_after_a_change_gives_the_new_answer():
+@pytest.mark.parametrize("compile", [None, True])
+def test_a_discrete_diagram_called_again_after_a_change_gives_the_new_answer(compile):
+    # compiled: the array's values are the module's data, read at each run (its text,
+    # and the compiled code, stay the same)
     table = np.array([0.5])
 
     def update(t, x, u, params):
@@ -138,24 +144,54 @@ def test_a_discrete_diagram_called_again_after_a_change_gives_the_new_answer():
 
     loop = lag_loop(update, dt=0.1)
     Td = np.arange(20) * 0.1
-    first = controlkit.input_output_response(loop, Td, 1.0, [0.0]).outputs
+    first = controlkit.input_output_response(loop, Td, 1.0, [0.0], compile=compile)
     table[0] = 0.9
-    second = controlkit.input_output_response(loop, Td, 1.0, [0.0]).outputs
+    second = controlkit.input_output_response(loop, Td, 1.0, [0.0], compile=compile)
     ref = ct.input_output_response(loop, Td, 1.0, [0.0]).outputs
-    np.testing.assert_array_equal(second, ref)
-    assert first[-1] == pytest.approx(2.0, rel=1e-3) and second[-1] > 8.0
+    np.testing.assert_array_equal(second.outputs, ref)
+    assert first.outputs[-1] == pytest.approx(2.0, rel=1e-3) and second.outputs[-1] > 8.0
+    if compile:
+        assert first.engine_mode == second.engine_mode == "compiled"
 
 
-def test_a_block_run_as_python_is_never_kept():
+def test_a_compiled_diagram_reads_a_module_global_and_a_helper_again_at_each_run():
+    global GAIN, shaping
+    loop = lag_loop(scaled, dt=0.1)
+    Td = np.arange(20) * 0.1
+    saved = GAIN, shaping
+
+    def agrees_compiled():
+        ours = controlkit.input_output_response(loop, Td, 1.0, [0.0], compile=True)
+        assert ours.engine_mode == "compiled"
+        ref = ct.input_output_response(loop, Td, 1.0, [0.0])
+        np.testing.assert_array_equal(ours.outputs, ref.outputs)
+        return ours.outputs
+
+    try:
+        before = agrees_compiled()
+        GAIN = 3.0
+        assert agrees_compiled()[1] == 1.5 * before[1]
+        shaping = lambda v: -v  # noqa: E731 - a helper replaced, as in a notebook cell
+        assert agrees_compiled()[1] == -1.0
+    finally:
+        GAIN, shaping = saved
+
+
+def test_a_block_that_cannot_be_compiled_has_a_python_job_only_and_it_is_reused():
+    # run as Python, a block's functions are called as they are: a job is reused while
+    # the same functions and parameters are handed to it
     def valve(t, x, u, params):
         return [-x[0] + (u[0] if params["mode"] == "open" else 0.0)]
 
     loop = lag_loop(valve, params={"mode": "open"})
-    start = (0.0, np.zeros(1), np.ones(1))
-    first = prepare(loop, None, start)
+    first = prepare(loop)
     assert [b.tier for b in first.blocks] == ["python"]
-    assert prepare(loop, None, start) is not first
+    assert prepare(loop) is first
+    with pytest.raises(NotCompiled, match=r"block 'lag': parameter 'mode' is a str \('open'\), "
+                                          r"which compiled code cannot take"):
+        prepare(loop, compiled=True)
     agrees(loop, 1.0, [0.0])
+    assert agrees(loop, 1.0, [0.0], params={"mode": "shut"})[-1] == 0.0
 
 
 @pytest.mark.parametrize("value", [object(), {"nested": 1.0}, np.array([None])])
@@ -260,8 +296,7 @@ def test_a_kept_job_lives_with_its_diagram_and_no_copy_or_pickle_carries_it():
     agrees(loop, 1.0, [0.0])
     for other in (copy.copy(loop), copy.deepcopy(loop),
                   pickle.loads(cloudpickle.dumps(loop))):  # as sweeps send it to workers
-        assert reuse.reused(other, reuse.job_key(other, None, (0.0, np.zeros(1),
-                                                               np.ones(1)))) is None
+        assert reuse.reused(other, reuse.job_key(other, None)) is None
         agrees(other, 1.0, [0.0])
     gone = weakref.ref(loop)
     del loop

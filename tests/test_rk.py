@@ -1,5 +1,6 @@
-"""The compiled Runge-Kutta integrator (controlkit.engines.fast.rk) against scipy's
-``solve_ivp``, step for step.
+"""The Runge-Kutta integrator (controlkit.engines.fast.rk) against scipy's ``solve_ivp``,
+step for step: run as Python (:func:`rk.solve_ivp`, a Python call of the loop) and
+compiled (the step machine kept in the store, called by a compiled caller).
 
 Equality means: ``max |ours - scipy| <= 1e-12 * max(1, |scipy|)`` per component, the
 same number of right-hand-side evaluations and the same accepted step times. With
@@ -15,6 +16,7 @@ rest of the sweep is marked slow (``pytest -m slow tests/test_rk.py``).
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 import textwrap
@@ -25,7 +27,8 @@ import pytest
 import rk_problems as P
 import scipy.integrate
 
-from controlkit.engines.fast import rk
+from controlkit import _jit
+from controlkit.engines.fast import rk, store
 
 METHODS = ["RK23", "RK45", "DOP853"]
 PROBLEMS = P.make_problems()
@@ -91,7 +94,8 @@ def scipy_solve(problem, method, t_eval, t_span=None, y0=None, **options):
 
 
 def our_solve(problem, method, t_eval, t_span=None, y0=None, log_steps=200_000, **options):
-    """:func:`rk.solve_ivp` on the compiled right-hand side."""
+    """:func:`rk.solve_ivp` on the same right-hand side (a Python call: the loop run as
+    Python)."""
     return rk.solve_ivp(
         problem.rhs,
         problem.t_span if t_span is None else t_span,
@@ -247,7 +251,7 @@ def run_sampled_loop_ours(method, samples, t_out, closed_everywhere, gains, **op
     interval with :func:`rk.solve_interval` (one workspace, no allocation per interval)."""
     p = np.array([9.81, 0.05, 0.0])
     args = (p, *P.no_table())
-    rhs = rk.first_class(P.pendulum_held_torque, args)
+    rhs = P.pendulum_held_torque
     y = np.array([2.5, 0.0])
     n = y.shape[0]
     y_eval = np.full((t_out.shape[0], n), np.nan)
@@ -259,11 +263,11 @@ def run_sampled_loop_ours(method, samples, t_out, closed_everywhere, gains, **op
         p[2] = -(gains[0] * y[0] + gains[1] * y[1])
         last = k == samples.shape[0] - 2
         status, i_eval = rk.solve_interval(
-            rk.machine_function(), rhs, args, rk.METHOD_INDEX[method], samples[k],
+            None, rhs, args, rk.METHOD_INDEX[method], samples[k],
             samples[k + 1], y,
             options.get("rtol", 1e-3), atol, options.get("max_step", np.inf),
             options.get("first_step", 0.0), t_out, i_eval, closed_everywhere or last,
-            y_eval, y, work, True,
+            y_eval, y, work, True, 0, False,
         )
         assert status == rk.SUCCESS
         states.append(y.copy())
@@ -443,8 +447,42 @@ def test_bad_arguments_raise_as_scipy(case):
         our_solve(problem, "RK45", t_eval, t_span=(0.0, 10.0), **options)
 
 
-def compiled_call(**changes):
-    """:func:`rk.solve_interval` on van der Pol over [0, 1] with some arguments changed."""
+if _jit.available():
+    numba = _jit.numba_module()
+
+    @numba.njit
+    def _compiled_interval(machine, args, method, t0, t1, y0, rtol, atol, max_step,
+                           first_step, t_eval, i_eval, closed_right, y_eval, y_end, work,
+                           budget, resume):
+        """Generated code as controlkit writes it: the right-hand side a global (a
+        compile-time constant), the step machine compiled once and kept in the store,
+        received as an argument and called through a pointer."""
+        return rk.solve_interval(
+            machine, P.van_der_pol, args, method, t0, t1, y0, rtol, atol, max_step,
+            first_step, t_eval, i_eval, closed_right, y_eval, y_end, work, True, budget,
+            resume,
+        )
+
+    @numba.njit
+    def _caller_machine_linked(y0, t_eval, y_eval, work):
+        """Generated code with the machine linked in: the right-hand side is a global and
+        the machine's code compiled into this function."""
+        p = np.array([2.0])
+        args = (p, np.zeros(2), np.zeros((0, 2)))
+        y_end = np.empty(2)
+        return rk.solve_interval(
+            rk.machine, P.van_der_pol, args, 2, 0.0, 20.0, y0, 1e-3, np.full(2, 1e-6),
+            np.inf, 0.0, t_eval, 0, True, y_eval, y_end, work, True, 0, False,
+        )
+
+needs_numba = pytest.mark.skipif(not _jit.available(), reason="needs numba")
+#: The two ways of running the loop around the step machine.
+WAYS = ["python", pytest.param("compiled", marks=needs_numba)]
+
+
+def interval_call(way, budget=0, resume=False, **changes):
+    """:func:`rk.solve_interval` on van der Pol over [0, 1] with some arguments changed:
+    ``(status, next_eval, y_eval, work)``."""
     problem = PROBLEMS["van_der_pol"]
     call = {
         "t0": 0.0, "t1": 1.0, "y0": problem.y0.copy(), "rtol": 1e-3, "atol": np.full(2, 1e-6),
@@ -453,16 +491,21 @@ def compiled_call(**changes):
         "method": rk.METHOD_INDEX["RK45"],
     }
     call.update(changes)
-    y_eval = np.zeros((call["t_eval"].shape[0], 2))
-    return rk.solve_interval(
-        rk.machine_function(), rk.first_class(problem.rhs, problem.args), problem.args,
-        call["method"], call["t0"],
-        call["t1"], call["y0"], call["rtol"], call["atol"], call["max_step"],
-        call["first_step"], call["t_eval"], call["i_eval"], call["closed_right"], y_eval,
-        np.zeros(2), call["work"], True,
-    )
+    y_eval = changes.get("y_eval", np.zeros((call["t_eval"].shape[0], 2)))
+    arguments = (problem.args, call["method"], call["t0"], call["t1"], call["y0"],
+                 call["rtol"], call["atol"], call["max_step"], call["first_step"],
+                 call["t_eval"], call["i_eval"], call["closed_right"], y_eval, np.zeros(2),
+                 call["work"])
+    if way == "compiled":
+        status, next_eval = _compiled_interval(store.step_machine(), *arguments, budget,
+                                               resume)
+    else:
+        status, next_eval = rk.solve_interval(None, P.van_der_pol, *arguments, True, budget,
+                                              resume)
+    return int(status), int(next_eval), y_eval, call["work"]
 
 
+@pytest.mark.parametrize("way", WAYS)
 @pytest.mark.parametrize(
     "changes",
     [
@@ -483,78 +526,71 @@ def compiled_call(**changes):
     ],
     ids=lambda changes: next(iter(changes)),
 )
-def test_bad_arguments_compiled_status(changes):
-    status, next_eval = compiled_call(**changes)
+def test_bad_arguments_give_the_invalid_argument_status(changes, way):
+    status, next_eval, _, _ = interval_call(way, **changes)
     assert status == rk.INVALID_ARGUMENT
     assert next_eval == changes.get("i_eval", 0)
 
 
-def test_compiled_status_success_and_evaluation_index():
-    status, next_eval = compiled_call()
+@pytest.mark.parametrize("way", WAYS)
+def test_status_success_and_evaluation_index(way):
+    status, next_eval, _, _ = interval_call(way)
     assert (status, next_eval) == (rk.SUCCESS, 5)
-    status, next_eval = compiled_call(closed_right=False)
+    status, next_eval, _, _ = interval_call(way, closed_right=False)
     assert (status, next_eval) == (rk.SUCCESS, 4)  # t = 1 left to the next interval
 
 
-# ------------------------------------------------------------------------------------------
-# The ways of calling it: global right-hand side pasted in, first-class function, Python
-# ------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("way", WAYS)
+@pytest.mark.parametrize("budget", [1, 7, 50])
+def test_an_interval_paused_and_resumed_gives_the_same_bits(way, budget):
+    # a long run returns to Python every so many evaluations (progress, Ctrl-C): the
+    # interval goes on from its workspace, with the steps of one call
+    t_eval = np.linspace(0.0, 20.0, 41)
+    whole = interval_call(way, t1=20.0, t_eval=t_eval, work=rk.make_workspace(2, 0, 41))
+    work, y_eval = rk.make_workspace(2, 0, 41), np.zeros((41, 2))
+    status, pauses = rk.PAUSED, -1
+    while status == rk.PAUSED:
+        status, next_eval, _, _ = interval_call(way, budget, pauses >= 0, t1=20.0,
+                                                t_eval=t_eval, work=work, y_eval=y_eval)
+        pauses += 1
+    assert (status, next_eval) == (rk.SUCCESS, 41) == whole[:2]
+    assert pauses == whole[3].ints[rk.NFEV] // budget
+    np.testing.assert_array_equal(y_eval, whole[2])
+    assert work.ints[rk.NFEV] == whole[3].ints[rk.NFEV]
 
 
-if rk.HAVE_NUMBA:
-    import numba
-
-    @numba.njit
-    def _caller_machine_linked(machine, y0, t_eval, y_eval, work):
-        """Generated code with the machine linked in: the right-hand side is a global and
-        the machine is called directly (its code compiled into this function)."""
-        p = np.array([2.0])
-        args = (p, np.zeros(2), np.zeros((0, 2)))
-        y_end = np.empty(2)
-        return rk.solve_interval(
-            rk.machine, P.van_der_pol, args, 2, 0.0, 20.0, y0, 1e-3, np.full(2, 1e-6),
-            np.inf, 0.0, t_eval, 0, True, y_eval, y_end, work, True,
-        )
-
-    @numba.njit
-    def _caller_machine_by_pointer(machine, y0, t_eval, y_eval, work):
-        """Generated code as controlkit writes it: the right-hand side is a global, the
-        machine a first-class function it receives (called through a pointer)."""
-        p = np.array([2.0])
-        args = (p, np.zeros(2), np.zeros((0, 2)))
-        y_end = np.empty(2)
-        return rk.solve_interval(
-            machine, P.van_der_pol, args, 2, 0.0, 20.0, y0, 1e-3, np.full(2, 1e-6),
-            np.inf, 0.0, t_eval, 0, True, y_eval, y_end, work, True,
-        )
-
-    CALLERS = {"linked": _caller_machine_linked, "by_pointer": _caller_machine_by_pointer}
-
-
-@pytest.mark.skipif(not rk.HAVE_NUMBA, reason="needs numba")
+@needs_numba
 @pytest.mark.parametrize("caller", slow_unless(lambda caller: caller == "by_pointer",
                                                "by_pointer", "linked"))
 def test_compiled_caller_with_global_rhs(caller):
     """A compiled caller holding the right-hand side as a global (the machine linked
-    into it: ~5 s to compile, slow; or by pointer) equals :func:`rk.solve_ivp`."""
+    into it: slow to compile; or by pointer, as controlkit's modules call the step
+    machine of the store) equals :func:`rk.solve_ivp` run as Python."""
     problem = PROBLEMS["van_der_pol"]
     t_eval = np.linspace(0.0, 20.0, 51)
     y_eval = np.zeros((51, 2))
     work = rk.make_workspace(2, 0, 51)
-    status, served = CALLERS[caller](rk.machine_function(), problem.y0, t_eval, y_eval, work)
+    if caller == "linked":
+        status, served = _caller_machine_linked(problem.y0, t_eval, y_eval, work)
+    else:
+        status, served = _compiled_interval(
+            store.step_machine(), (np.array([2.0]), np.zeros(2), np.zeros((0, 2))), 2, 0.0,
+            20.0, problem.y0, 1e-3, np.full(2, 1e-6), np.inf, 0.0, t_eval, 0, True, y_eval,
+            np.empty(2), work, 0, False)
     ours = our_solve(problem, "DOP853", t_eval)
     assert (status, served) == (rk.SUCCESS, 51)
     assert np.array_equal(y_eval.T, ours["y"])
     assert work.ints[rk.NFEV] == ours["nfev"]
 
 
-@pytest.mark.skipif(not rk.HAVE_NUMBA, reason="needs numba")
-def test_machine_compiled_with_a_random_id():
+@needs_numba
+def test_the_step_machine_is_compiled_with_a_random_id():
     """The machine is compiled under controlkit._jit's random function ids (numba issue
-    10486): its compiled name ends with a 128-bit number, not a per-process counter."""
-    rk.machine_function()
-    names = [overload.fndesc.unique_name for overload in rk.machine.overloads.values()]
-    assert names and all(int(name.rsplit("$", 1)[1]) > 2**64 for name in names), names
+    10486): its C function's symbol holds a 128-bit number (``v<id>`` in numba's
+    mangling), not a per-process counter."""
+    name = store.step_machine().native_name
+    ids = [int(found) for found in re.findall(r"v(\d+)B", name)]
+    assert ids and all(i > 2**64 for i in ids), name
 
 
 def test_plain_python_equals_scipy():
@@ -563,7 +599,8 @@ def test_plain_python_equals_scipy():
         """
         import numpy as np, scipy.integrate, rk_problems as P
         from controlkit.engines.fast import rk
-        assert not rk.HAVE_NUMBA and rk.machine is rk.machine_on_arrays
+        from controlkit import _jit
+        assert not _jit.available()
         problem = P.make_problems()["mass_spring_input"]
         t_eval = np.linspace(*problem.t_span, 31)
         for method in ("RK23", "RK45", "DOP853"):
@@ -573,6 +610,8 @@ def test_plain_python_equals_scipy():
                                 t_eval=t_eval, args=problem.args)
             assert np.array_equal(ours["y"], theirs.y), method
             assert ours["nfev"] == theirs.nfev, method
+        import sys
+        assert "numba" not in sys.modules
         print("same")
         """
     )

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from controlkit.engines.contract import recorded_indices
-from controlkit.engines.fast import run as fast_run
+from controlkit.engines.fast import discrete
 from controlkit.studies.spacecraft import scenario as spacecraft
 
 
@@ -27,7 +27,7 @@ def test_decimated_run_keeps_exactly_the_full_runs_samples(engine_name):
 
 
 def test_streaming_crosses_chunk_boundaries(monkeypatch):
-    monkeypatch.setattr(fast_run, "STREAM_CHUNK_STEPS", 64)  # many chunks on a short run
+    monkeypatch.setattr(discrete, "STREAM_CHUNK_STEPS", 64)  # many chunks on a short run
     full = spacecraft.run("without_mec", horizon=100.0)
     chunks = []
     kept = spacecraft.run("without_mec", horizon=100.0, record_every=10,

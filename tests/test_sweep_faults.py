@@ -97,7 +97,9 @@ def test_killed_sweep_resumes_to_the_uninterrupted_table(tmp_path, sig, executor
 # --- one writer per store -------------------------------------------------------------------
 
 def test_second_sweep_on_a_store_in_use_is_refused_naming_the_holder(tmp_path):
-    store, runs, pause = tmp_path / "store", 40, 0.1
+    # 20 s of runs: the first sweep still holds the store while a second script starts
+    # on a busy machine (at 4 s it had once finished before the second asked)
+    store, runs, pause = tmp_path / "store", 40, 0.5
     first = start_script(store, "serial", runs, pause)
     wait_for(lambda: len(lines(store)) >= 2, 60, "the first sweep's rows")
     code, _, err = run_script(store, "serial", runs, pause, "--resume")
