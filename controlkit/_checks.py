@@ -2,7 +2,8 @@
 
 Every function raises a ``ValueError`` whose message names the offending
 argument and says what is allowed, so that a student who mistypes a
-parameter is told which one and why.
+parameter is told which one and why; :func:`install_hint` says what to install
+when an optional package is missing.
 """
 
 from __future__ import annotations
@@ -13,6 +14,23 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+
+
+def install_hint(package: str, extra: str) -> str:
+    """What to run when the optional ``package`` is missing: it, or controlkit's ``extra``.
+
+    controlkit is installed from its folder (a clone), not from a package index, so an
+    extra is ``pip install ".[extra]"`` run there; ``pip install "controlkit[extra]"``
+    would look for controlkit on PyPI.
+
+    Examples
+    --------
+    >>> install_hint("pandas", "sweep")
+    'pip install pandas (or, in the folder of your controlkit clone, pip install ".[sweep]")'
+    """
+    shown = f'"{package}"' if "[" in package else package
+    return (f'pip install {shown} (or, in the folder of your controlkit clone, '
+            f'pip install ".[{extra}]")')
 
 
 def positive_scalar(name: str, value, *, allow_zero: bool = False) -> float:

@@ -111,19 +111,84 @@ def match_signals(pattern: str, labels: Sequence[str]) -> list[str]:
     return found
 
 
-def _columns(resp, derived):
-    """Every signal of ``resp`` (outputs, then states, then inputs) as label -> samples."""
-    if getattr(resp, "ntraces", 0):
-        raise ValueError(f"plot draws one response at a time; this one has {resp.ntraces} "
-                         f"traces: pass resp[i] or one response per trace in a dict")
+#: The kinds of response whose default is one axes per output, as python-control draws them:
+#: ``trace_types`` of :func:`control.step_response`, ``impulse_response``,
+#: ``initial_response``.
+PER_OUTPUT = ("step", "impulse", "initial")
+
+
+def _is_response(resp):
+    return hasattr(resp, "time") and hasattr(resp, "output_labels")
+
+
+def _responses(resp):
+    """``resp`` as ``[(name, response)]``: one response, a list of them or a dict by name.
+
+    A list's responses are named by their systems (``resp.sysname``), as python-control's
+    legends name them; a name that repeats gets its place in the list, ``"G (2)"``.
+    """
+    if _is_response(resp):
+        return [(None, resp)]
+    if isinstance(resp, Mapping):
+        named = list(resp.items())
+    elif isinstance(resp, Sequence) and not isinstance(resp, str):
+        names = [getattr(r, "sysname", None) or f"response {i}" for i, r in enumerate(resp)]
+        named = [(name if names.count(name) == 1 else f"{name} ({i + 1})", r)
+                 for i, (name, r) in enumerate(zip(names, resp, strict=True))]
+    else:
+        named = None
+    if not named:
+        raise ValueError("resp must be a control.TimeResponseData (the result of "
+                         "step_response, input_output_response, ...), or a non-empty list or "
+                         f"dict of them, got {_describe(resp)}")
+    for name, r in named:
+        if not _is_response(r):
+            raise ValueError(f"resp[{name!r}] must be a control.TimeResponseData, got "
+                             f"{_describe(r)}")
+    return named
+
+
+def _describe(value):
+    if isinstance(value, np.ndarray):  # resp[0], resp[1]: python-control's legacy (t, y)
+        return (f"an array of shape {value.shape} (resp[0], resp[1] are the response "
+                f"unpacked as time and outputs: pass the response itself)")
+    return type(value).__name__
+
+
+def _traces(name, resp):
+    """The traces of one response as ``[(name, {kind: 2-D samples})]``.
+
+    A step or impulse response of a system with several inputs holds one trace per input
+    (``resp.y[:, i, :]``), labelled as python-control labels them (``"From u[0]"``); each
+    is drawn as a response of its own. Responses with one trace keep their ``name``.
+    """
+    n = len(resp.time)
+    ntraces = getattr(resp, "ntraces", 0) or 0
+    labels = list(getattr(resp, "trace_labels", None) or [])
+    found = []
+    for i in range(max(ntraces, 1)):
+        data = {}
+        for kind in ("outputs", "states", "inputs"):
+            values = getattr(resp, kind, None)
+            count = len(getattr(resp, f"{kind[:-1]}_labels", None) or [])
+            if values is None or not count:
+                continue
+            values = np.asarray(values, dtype=float)
+            if ntraces:  # (signals, traces, time), or squeezed for a single input/output
+                values = values.reshape(count, ntraces, n)[:, i, :]
+            data[kind] = values.reshape(count, n)
+        trace = labels[i] if i < len(labels) and labels[i] else f"trace {i}"
+        label = name if ntraces <= 1 else trace if name is None else f"{name}, {trace}"
+        found.append((label, data))
+    return found
+
+
+def _columns(resp, data, derived):
+    """Every signal of a trace (outputs, then states, then inputs) as label -> samples."""
     columns = {}
     n = len(resp.time)
-    for kind in ("outputs", "states", "inputs"):
-        labels = list(getattr(resp, f"{kind[:-1]}_labels", None) or [])
-        values = getattr(resp, kind, None)
-        if not labels or values is None:
-            continue
-        values = np.asarray(values, dtype=float).reshape(len(labels), n)
+    for kind, values in data.items():
+        labels = list(getattr(resp, f"{kind[:-1]}_labels"))
         for label, row in zip(labels, values, strict=True):
             columns.setdefault(label, row)
     for name, spec in (derived or {}).items():
@@ -141,6 +206,12 @@ def _columns(resp, derived):
     return columns
 
 
+def _kind(resp):
+    """``"step"``, ``"impulse"``, ``"initial"``, ``"forced"`` or None (python-control's)."""
+    types = getattr(resp, "trace_types", None)
+    return types[0] if types else None
+
+
 def _envelope(time, values, max_points):
     """``values`` thinned to about ``max_points`` samples, keeping each bucket's min and max."""
     if values.size <= max_points:
@@ -153,6 +224,18 @@ def _envelope(time, values, max_points):
     index = (np.arange(n) * per)[:, None] + np.stack([first, second], axis=1)
     index = np.append(index.ravel(), np.arange(n * per, values.size))
     return time[index], values[index]
+
+
+def _names(row, labels):
+    """How an axes names its signals: a whole vector by its base name (``h`` for ``h[0],
+    h[1]``), an element by its label (``u[0]``), in the order of ``row``."""
+    names = []
+    for label in row:
+        m = _INDEXED.fullmatch(label)
+        whole = m and all(other in row for other in labels
+                          if (n := _INDEXED.fullmatch(other)) and n["base"] == m["base"])
+        names.append(m["base"] if whole else label)
+    return list(dict.fromkeys(names))
 
 
 def _by_label(table, labels, argument):
@@ -174,16 +257,23 @@ def plot(resp, signals=None, *, time_unit="s", log=(), units=None, derived=None,
 
     Parameters
     ----------
-    resp : control.TimeResponseData, or dict of str to it
-        A response (:func:`controlkit.input_output_response`,
-        :func:`control.input_output_response`, :func:`controlkit.simulation.simulate`),
-        or several by name, drawn on the same axes in different colours (for instance
-        ``{"ideal": r1, "without MEC": r2}``).
+    resp : control.TimeResponseData, or list or dict of them
+        Any response python-control returns: :func:`control.step_response`,
+        ``impulse_response``, ``initial_response``, ``forced_response``,
+        ``input_output_response`` (and :func:`controlkit.input_output_response`,
+        :func:`controlkit.simulation.simulate`). Several responses are drawn on the same
+        axes in different colours: a dict names them (``{"ideal": r1, "without MEC":
+        r2}``), a list (or python-control's ``TimeResponseList``) by their systems'
+        names. A response with several traces (the step response of a system with
+        several inputs) is drawn as one response per trace, named as python-control
+        names them (``"From u[0]"``; ``"ideal, From u[0]"`` in a dict).
     signals : sequence, optional
         One entry per axes, top to bottom: a label or pattern (see
         :func:`match_signals`: ``"h[0]"``, ``"q"``, ``"q[1:3]"``, ``"mu*"``), or a list
         of them drawn together. Outputs, states and inputs are all found by label.
-        Default: every output, one axes per base name.
+        Default: every output; one axes per output for step, impulse and initial
+        responses (as ``resp.plot()`` draws them), else one axes per base name (the four
+        ``q[i]`` together).
     time_unit : {"ms", "s", "min", "h", "d"}
         Unit of the time axis.
     log : sequence of str
@@ -201,11 +291,12 @@ def plot(resp, signals=None, *, time_unit="s", log=(), units=None, derived=None,
         Horizontal reference lines by signal pattern: ``{pattern: value}`` or
         ``{pattern: (value, label)}``, e.g. a requirement.
     styles : dict, optional
-        Line styles by response name (several responses) or by signal pattern (one
-        response), e.g. ``{"ideal": "--"}``: a curve that lies on another stays visible.
-        Curves given a style are drawn last, on top.
+        Line styles by response name (several responses, or a response's traces) or by
+        signal pattern (one response), e.g. ``{"ideal": "--"}``: a curve that lies on
+        another stays visible. Curves given a style are drawn last, on top.
     title : str, optional
-        Title above the top axes.
+        Title above the top axes (TeX allowed). Default: none, except for step, impulse
+        and initial responses, which keep python-control's (``"Step response for G"``).
     size : tuple of float, optional
         Figure size in inches; default 8 inches wide (a 16:9 slide at 4.5 inches high)
         and 1.6 inches per axes beyond the second.
@@ -222,13 +313,14 @@ def plot(resp, signals=None, *, time_unit="s", log=(), units=None, derived=None,
     Raises
     ------
     ValueError
-        A signal or pattern that names nothing (the message lists the signals), an
-        unknown ``time_unit``, a ``derived`` entry of the wrong shape.
+        A ``resp`` that is not a response (or list or dict of them), a signal or
+        pattern that names nothing (the message lists the signals), an unknown
+        ``time_unit``, a ``derived`` entry of the wrong shape.
 
     Notes
     -----
     Colours: with one response, each signal on an axes has its own colour, named in a
-    legend to the right of the axes. With several responses, each response has its
+    legend to the right of the axes. With several responses (or traces), each has its
     colour, named once in a legend under the figure (with the reference lines), and the
     signals of one axes have their own line styles, named to the right of the axes.
 
@@ -246,6 +338,16 @@ def plot(resp, signals=None, *, time_unit="s", log=(), units=None, derived=None,
     >>> error = {"error": (lambda y: 1.0 - y[0], "y")}
     >>> plot(resp, ["error"], derived=error, log=["error"]).axes[0].get_yscale()
     'log'
+
+    The step responses of a system with two inputs and two outputs: an axes per output,
+    a colour per input:
+
+    >>> G = ct.ss([[-1, 0.5], [0, -2]], np.eye(2), [[1, 0], [0.3, 1]], 0, name="G")
+    >>> shown = plot(ct.step_response(G))
+    >>> shown.signals, shown.axes[0].get_title()
+    ([['y[0]'], ['y[1]']], 'Step response for G')
+    >>> [t.get_text() for t in shown.figure.legends[0].get_texts()]
+    ['From u[0]', 'From u[1]']
     """
     import matplotlib.pyplot as plt
     from matplotlib.lines import Line2D
@@ -258,17 +360,26 @@ def plot(resp, signals=None, *, time_unit="s", log=(), units=None, derived=None,
         raise ValueError(f"max_points must be an integer >= 2, got {max_points!r}")
     if isinstance(log, str):
         log = [log]
-    runs = dict(resp) if isinstance(resp, Mapping) else {None: resp}
-    if not runs:
-        raise ValueError("resp must be a response or a non-empty dict of responses")
-    tables = {name: (np.asarray(r.time, dtype=float) / TIME_UNITS[time_unit],
-                     _columns(r, derived)) for name, r in runs.items()}
+    responses = _responses(resp)
+    tables, owner = {}, {}
+    for name, r in responses:
+        time = np.asarray(r.time, dtype=float) / TIME_UNITS[time_unit]
+        for run, data in _traces(name, r):
+            if run in tables:
+                raise ValueError(f"two responses are both named {run!r}: name them apart")
+            tables[run], owner[run] = (time, _columns(r, data, derived)), name
+    first = responses[0][1]
     known = list(next(iter(tables.values()))[1])
-    if signals is None:
-        first = next(iter(runs.values()))
+    kinds = {_kind(r) for _, r in responses}
+    per_output = len(kinds) == 1 and kinds <= set(PER_OUTPUT)
+    if signals is None:  # python-control's step plots: an axes per output; else per vector
         signals = list(dict.fromkeys(
-            (m["base"] if (m := _INDEXED.fullmatch(label)) else label)
+            label if per_output else m["base"] if (m := _INDEXED.fullmatch(label)) else label
             for label in first.output_labels))
+    literal_title = title is None and per_output
+    if literal_title:  # python-control's title, with the system's name as it is
+        (kind,) = kinds
+        title = first.title if len(responses) == 1 else f"{kind.capitalize()} responses"
     if isinstance(signals, str):
         signals = [signals]
     rows = []
@@ -280,16 +391,17 @@ def plot(resp, signals=None, *, time_unit="s", log=(), units=None, derived=None,
     if styles is not None and not isinstance(styles, Mapping):
         raise ValueError(f"styles must be a dict of name to line style, got {styles!r}")
     styles = dict(styles or {})
-    if len(runs) > 1:
-        unknown = [name for name in styles if name not in runs]
+    several = len(tables) > 1
+    if several:
+        names = list(dict.fromkeys(list(tables) + list(owner.values())))
+        unknown = [name for name in styles if name not in names]
         if unknown:
             raise ValueError(f"styles names unknown responses {unknown}; responses: "
-                             f"{list(runs)}")
-        style_of = styles
+                             f"{list(tables)}")
+        style_of = {run: styles.get(run, styles.get(owner[run])) for run in tables}
     else:
         style_of = _by_label(styles, known, "styles")
     unit_of, line_of = _by_label(units, known, "units"), _by_label(lines, known, "lines")
-    several = len(runs) > 1
     width, height = size or (8.0, max(4.5, 1.6 * len(rows) + 1.3))
     with slide_style():
         fig, axes = plt.subplots(len(rows), 1, figsize=(width, height), sharex=True,
@@ -331,9 +443,7 @@ def plot(resp, signals=None, *, time_unit="s", log=(), units=None, derived=None,
                     elif text not in [t for _, t in beside]:
                         beside.append((ref, text))
             unit = next((unit_of[label] for label in row if label in unit_of), None)
-            bases = list(dict.fromkeys(
-                (m["base"] if (m := _INDEXED.fullmatch(label)) else label) for label in row))
-            ax.set_ylabel(", ".join(bases) + (f" [{unit}]" if unit else ""))
+            ax.set_ylabel(", ".join(_names(row, known)) + (f" [{unit}]" if unit else ""))
             if is_log:
                 ax.set_yscale("log")
                 ax.yaxis.set_major_formatter(PowerOfTenFormatter())
@@ -342,7 +452,7 @@ def plot(resp, signals=None, *, time_unit="s", log=(), units=None, derived=None,
                           bbox_to_anchor=(1.01, 0.5))
         axes[-1].set_xlabel(f"time [{time_unit}]")
         if title:
-            axes[0].set_title(title)
+            axes[0].set_title(title, parse_math=not literal_title)
         if below:
             fig.legend(list(below.values()), list(below), loc="outside lower center",
                        ncols=min(len(below), 4))

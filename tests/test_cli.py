@@ -160,3 +160,52 @@ def test_csv_rows_are_the_text_numpy_savetxt_writes(monkeypatch):
     export.write_rows(ours, data)
     np.savetxt(reference, data, delimiter=",", fmt="%.10g")
     assert ours.getvalue() == reference.getvalue()
+
+
+class Terminal(io.StringIO):
+    """A stream that says it is a terminal, and keeps each line as it was drawn."""
+
+    def isatty(self):
+        return True
+
+    def drawn(self):
+        return [line for line in self.getvalue().split("\r") if line]
+
+
+def test_the_progress_line_moves_on_a_terminal_while_the_first_report_waits():
+    """The first run of a wiring compiles before its first report: the seconds still move."""
+    import threading
+
+    from processes import wait_for
+
+    from controlkit.studies.reproduce.study import ProgressLine
+
+    screen = Terminal()
+    line = ProgressLine("spacecraft/proposed", screen, tick=0.01)  # no report yet
+    wait_for(lambda: len(screen.drawn()) >= 3, 30, "three redraws before any report")
+    seconds = [float(text.split("(")[1].split("s)")[0]) for text in screen.drawn()[:3]]
+    assert all(text.startswith("  spacecraft/proposed:   0.0 %  (") for text in screen.drawn())
+    line(0.1)
+    wait_for(lambda: screen.drawn()[-1].startswith("  spacecraft/proposed:  10.0 %")
+             and len(screen.drawn()) >= 6, 30, "redraws at 10 %")
+    line(1.0)
+    final = screen.getvalue()
+    assert final.endswith(" s)\n")
+    line(1.0)  # a report after the end draws nothing more
+    assert screen.getvalue() == final and seconds == sorted(seconds)
+    wait_for(lambda: "controlkit-progress" not in [t.name for t in threading.enumerate()],
+             30, "the redraws to stop")
+
+
+def test_the_progress_line_in_a_file_is_drawn_at_the_reports_only():
+    import threading
+
+    from controlkit.studies.reproduce.study import ProgressLine
+
+    log = io.StringIO()
+    before = threading.active_count()
+    line = ProgressLine("cmg/thesis", log)
+    assert threading.active_count() == before  # nothing redraws it
+    line(0.25)
+    line(1.0)
+    assert log.getvalue().count("\r") == 2 and log.getvalue().endswith("\n")

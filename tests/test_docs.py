@@ -9,7 +9,6 @@ their text discusses.
 """
 
 import importlib.util
-import os
 import re
 import shutil
 import subprocess
@@ -18,6 +17,7 @@ import time
 from pathlib import Path
 
 import pytest
+from clones import clean_environment, fresh_clone, new_venv
 
 ROOT = Path(__file__).parent.parent
 _spec = importlib.util.spec_from_file_location("check_screenshots",
@@ -29,29 +29,12 @@ README_DOCS_COMMAND = re.search(r"`(pip install \"\.\[docs\]\" && python -m sphi
                                 (ROOT / "README.md").read_text()).group(1)
 
 
-def _fresh_clone(target: Path) -> Path:
-    """Copy the files a clone of this tree would hold (tracked, or new and not ignored)."""
-    listed = subprocess.run(["git", "ls-files", "-z", "--cached", "--others",
-                             "--exclude-standard"], cwd=ROOT, capture_output=True, check=True)
-    for name in listed.stdout.decode().split("\0"):
-        source = ROOT / name
-        if name and source.is_file():  # a file deleted but not yet committed is skipped
-            (target / name).parent.mkdir(parents=True, exist_ok=True)
-            shutil.copy2(source, target / name)
-    return target
-
-
 @pytest.fixture(scope="module")
 def html(tmp_path_factory):
     """The pages, built by the README's command in a fresh clone and a fresh environment."""
     work = tmp_path_factory.mktemp("fresh")
-    clone = _fresh_clone(work / "controlkit")
-    venv = work / "venv"
-    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
-    env = {k: v for k, v in os.environ.items()
-           if k not in ("VIRTUAL_ENV", "PYTHONPATH", "CONTROLKIT_QUICK", "MPLBACKEND")}
-    env["PATH"] = f"{venv / 'bin'}{os.pathsep}{env.get('PATH', '')}"
-    env["VIRTUAL_ENV"] = str(venv)
+    clone = fresh_clone(work / "controlkit")
+    env = clean_environment(new_venv(work / "venv"))
     start = time.perf_counter()
     result = subprocess.run(["bash", "-c", README_DOCS_COMMAND], cwd=clone, env=env,
                             capture_output=True, text=True)
@@ -146,3 +129,43 @@ def test_pages_render_in_a_real_browser_offline(html, tmp_path):
         assert png.stat().st_size > 20_000
     dom = check.rendered_dom(binary, html / "theory" / "mec.html")
     assert "mjx-container" in dom  # MathJax typeset the equations from _static
+
+
+#: For every code block of a page: its width and the room for text, and each line too wide for
+#: that room, measured in the block's own font (a line that wraps, with ``white-space:
+#: pre-wrap``, is one of those)
+_CODE_FIT = """() => {
+  const measure = document.createElement('canvas').getContext('2d');
+  return [...document.querySelectorAll('div.body pre')].map(pre => {
+    const style = getComputedStyle(pre);
+    measure.font = style.fontSize + ' ' + style.fontFamily;
+    const room = pre.clientWidth - parseFloat(style.paddingLeft)
+                 - parseFloat(style.paddingRight);
+    return {scrolls: pre.scrollWidth > pre.clientWidth + 1,
+            right: pre.getBoundingClientRect().right,
+            wide: pre.textContent.split('\\n').filter(
+              line => measure.measureText(line).width > room)};
+  });
+}"""
+
+
+@pytest.mark.skipif(check.find_chromium() is None, reason="chromium not installed")
+def test_no_code_block_is_cut_off_in_a_1280_px_window(html):
+    from playwright.sync_api import sync_playwright
+
+    pages = [p for p in html.rglob("*.html") if not {"_static", "_sources"} & set(p.parts)]
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=check.find_chromium(),
+                                             args=list(check.FLAGS[:4]))
+        window = browser.new_page(viewport={"width": 1280, "height": 900})
+        blocks = 0
+        for page in pages:
+            window.goto(page.resolve().as_uri())
+            for block in window.evaluate(_CODE_FIT):
+                blocks += 1
+                # nothing behind a scroll bar or past the window's edge, and a line of the
+                # repository's 99 characters fits; only longer ones (a shell command) wrap
+                assert not block["scrolls"] and block["right"] <= 1280, page.name
+                assert all(len(line) > 99 for line in block["wide"]), (page.name, block["wide"])
+        browser.close()
+    assert blocks > 100

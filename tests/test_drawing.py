@@ -118,20 +118,9 @@ def rendered(fig):
     return renderer, texts
 
 
-@pytest.mark.parametrize("name", sorted(PAPER))
-def test_paper_diagrams_fit_a_slide_with_readable_separate_text(name):
-    import matplotlib.pyplot as plt
-
-    fig = draw_block_diagram(PAPER[name]())
+def assert_legible(fig):
+    """No text cut off, overlapping another, partly under a block or crossed by a line."""
     renderer, texts = rendered(fig)
-    width, height = fig.get_size_inches()
-    # the page is the drawing: no blank band pads it (to a slide's proportions or else)
-    top, bottom, left, right = blank_bands(fig)
-    assert max(top, bottom) < 0.35 and max(left, right) < 0.8, blank_bands(fig)
-    # scaled to fit a 1280 x 720 slide, the smallest font must still be 10 px
-    px_per_inch = min(1280 / width, 720 / height)
-    smallest = min(t.get_fontsize() for t in texts) / 72 * px_per_inch
-    assert smallest >= 10.0, smallest
     boxes = [(t.get_text(), t.get_window_extent(renderer)) for t in texts]
     page = fig.bbox
     for label, box in boxes:  # nothing cut off at the edges
@@ -158,6 +147,23 @@ def test_paper_diagrams_fit_a_slide_with_readable_separate_text(name):
                 crosses = (max(x0, x1) >= inner.x0 and min(x0, x1) <= inner.x1
                            and max(y0, y1) >= inner.y0 and min(y0, y1) <= inner.y1)
                 assert not crosses, t.get_text()
+
+
+@pytest.mark.parametrize("name", sorted(PAPER))
+def test_paper_diagrams_fit_a_slide_with_readable_separate_text(name):
+    import matplotlib.pyplot as plt
+
+    fig = draw_block_diagram(PAPER[name]())
+    _, texts = rendered(fig)
+    width, height = fig.get_size_inches()
+    # the page is the drawing: no blank band pads it (to a slide's proportions or else)
+    top, bottom, left, right = blank_bands(fig)
+    assert max(top, bottom) < 0.35 and max(left, right) < 0.8, blank_bands(fig)
+    # scaled to fit a 1280 x 720 slide, the smallest font must still be 10 px
+    px_per_inch = min(1280 / width, 720 / height)
+    smallest = min(t.get_fontsize() for t in texts) / 72 * px_per_inch
+    assert smallest >= 10.0, smallest
+    assert_legible(fig)
     plt.close(fig)
 
 
@@ -461,3 +467,171 @@ def test_the_cmg_loop_is_titled_by_its_name_once_rewired():
     assert "CMG: adaptive backstepping SMC, sampled at Ts" in drawn_texts(cmg_loop())
     texts = drawn_texts(cmg_loop(saturation=cmg.torque_saturation(0.3, 1.0, name="weak")))
     assert "cmg_loop" in texts and "weak" in texts and "torque limits" not in texts
+
+
+# ------------------------------------------- the order of the blocks is not the layout's
+
+
+def cruise_blocks():
+    """python-control's cruise control, simplified: a vehicle on a slope under a PI."""
+    vehicle = ct.nlsys(
+        lambda t, x, u, params: (u[0] - 0.5 * 1.3 * 0.32 * 2.4 * x[0] ** 2
+                                 - 1600 * 9.8 * np.sin(u[1])) / 1600,
+        lambda t, x, u, params: x, inputs=["F", "theta"], outputs="v", states="v",
+        name="vehicle")
+    ctrl = ct.tf2ss(ct.tf([500.0, 50.0], [1.0, 0.0]), inputs="e", outputs="F", name="ctrl")
+    err = ct.summing_junction(inputs=["vref", "-v"], output="e", name="err")
+    return [vehicle, ctrl, err], {"inputs": ["vref", "theta"], "outputs": ["v", "F"]}
+
+
+def speed_loop_blocks():
+    """Notebook 0's first loop: a motor under a PI, both the speed and the voltage out."""
+    motor = ct.nlsys(lambda t, x, u, params: (-x[0] + 2.0 * u[0]) / 0.5,
+                     lambda t, x, u, params: x[0], inputs="v", outputs="w", states="w",
+                     name="motor")
+    pi = ct.tf2ss(ct.tf([2.5, 5.0], [1, 0]), inputs="e", outputs="v", name="pi")
+    error = ct.summing_junction(["w_ref", "-w"], "e", name="error")
+    return [motor, pi, error], {"inputs": "w_ref", "outputs": ["w", "v"]}
+
+
+def pid_blocks():
+    """Three branches in parallel between two junctions, the plant's input an output."""
+    Kp = ct.ss([], [], [], [[2.0]], inputs="e", outputs="up", name="Kp")
+    Ki = ct.tf2ss(ct.tf([0.5], [1, 0]), name="I", inputs="e", outputs="ui")
+    D = ct.tf2ss(ct.tf([0.1, 0], [0.01, 1]), name="D", inputs="e", outputs="ud")
+    pid = ct.summing_junction(inputs=["up", "ui", "ud"], output="u", name="pid")
+    P = ct.tf2ss(ct.tf([1], [1, 2, 1]), name="P", inputs="u", outputs="y")
+    err = ct.summing_junction(inputs=["r", "-y"], output="e", name="err")
+    return [P, pid, D, Ki, Kp, err], {"inputs": "r", "outputs": ["y", "u", "e"]}
+
+
+def feedforward_blocks():
+    sys = feedforward_loop_with_sensor()
+    return list(sys.syslist), {"inputs": ["r", "d"], "outputs": ["y", "u"]}
+
+
+LOOPS = {"cruise": cruise_blocks, "speed_loop": speed_loop_blocks, "pid": pid_blocks,
+         "feedforward": feedforward_blocks}
+
+
+def in_orders(name):
+    """The loop's blocks in every order (three blocks) or in four of them."""
+    import itertools
+
+    blocks, _ = LOOPS[name]()
+    orders = list(itertools.permutations(range(len(blocks))))
+    return orders if len(orders) <= 6 else [orders[0], orders[-1], orders[7], orders[100]]
+
+
+def wired(name, order):
+    blocks, signals = LOOPS[name]()
+    return ct.interconnect([blocks[i] for i in order], name=name, **signals)
+
+
+def geometry(L):
+    """Everything the renderer is told, keyed by names only (never by a position in a list)."""
+    def net(n):
+        return (n.src, n.label)
+
+    def r(v):
+        return round(float(v), 9)
+
+    return {
+        "nodes": {n: tuple(r(d[k]) for k in ("x", "y", "w", "h")) for n, d in L.nodes.items()},
+        "ports": sorted((*net(n), b, r(x), r(y)) for (n, b), (x, y) in L.port_xy.items()),
+        "entries": sorted((*net(n), b, r(x), r(y), side)
+                          for (n, b), (x, y, side) in L.in_xy.items()),
+        "inputs": sorted((*net(n), r(y)) for n, y in L.input_y.items()),
+        "tracks": sorted((*net(n), str(k), r(x)) for (n, k), x in L.track_x.items()),
+        "lanes": sorted((*net(n), r(y)) for n, y in L.lane_top.items())
+        + sorted((*net(n), r(-y)) for n, y in L.lane_bottom.items()),
+        "kinds": sorted((*net(n), tuple(sorted(n.kinds.items())), n.out, n.far)
+                        for n in L.nets),
+        "page": (r(L.width), r(L.height)),
+    }
+
+
+@pytest.mark.parametrize("name", sorted(LOOPS))
+def test_the_same_loop_in_any_block_order_is_drawn_the_same(name):
+    from controlkit.drawing._layout import layout
+
+    orders = in_orders(name)
+    first = geometry(layout(wired(name, orders[0])))
+    for order in orders[1:]:
+        assert geometry(layout(wired(name, order))) == first, order
+
+
+@pytest.mark.parametrize("name", sorted(PAPER))
+def test_the_papers_loops_rebuilt_from_their_blocks_in_other_orders_are_drawn_the_same(name):
+    from controlkit.drawing._layout import layout
+
+    built = PAPER[name]()
+    blocks = list(built.syslist)
+    for order in (blocks[::-1], blocks[1:] + blocks[:1]):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # python-control's notes on the loose ends
+            again = ct.interconnect(order, inputs=built.input_labels,
+                                    outputs=built.output_labels, name=built.name)
+        again.drawing_hints = built.drawing_hints
+        assert [s.name for s in again.syslist] != [s.name for s in blocks]
+        assert geometry(layout(again)) == geometry(layout(built))
+
+
+@pytest.mark.parametrize("name", sorted(LOOPS))
+def test_every_declared_output_leaves_the_drawing_and_nothing_overlaps(name):
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import to_hex
+
+    from controlkit.drawing._layout import layout
+
+    for order in in_orders(name)[:2]:
+        sys = wired(name, order)
+        L = layout(sys)
+        assert {p for net in L.nets if net.out for p in net.out_ports} == set(
+            sys.output_labels)
+        assert not L.omitted
+        fig = draw_block_diagram(sys)
+        # each output named once, in grey italics, right of every block
+        right = max(d["x"] + d["w"] / 2 for d in L.nodes.values())
+        leaving = sorted(t.get_text() for t in fig.axes[0].texts if t.get_style() == "italic"
+                         and t.get_position()[0] > right and to_hex(t.get_color()) == "#333333")
+        assert leaving == sorted(base(o) for o in sys.output_labels), leaving
+        assert_legible(fig)
+        plt.close(fig)
+
+
+def test_the_cruise_loop_reads_from_the_reference_whatever_the_order():
+    """python-control's natural order [vehicle, ctrl, err]: the junction still comes first,
+    the slope theta enters above the reference, and both v and F leave on the right."""
+    import matplotlib.pyplot as plt
+
+    from controlkit.drawing._layout import layout
+
+    L = layout(wired("cruise", (0, 1, 2)))
+    assert [n for n in sorted(L.nodes, key=L.layer.get)] == ["err", "ctrl", "vehicle"]
+    y = {net.label: value for net, value in L.input_y.items()}
+    assert y["theta"] - y["vref"] >= 0.25
+    fig = draw_block_diagram(wired("cruise", (0, 1, 2)))
+    texts = {t.get_text(): t for t in fig.axes[0].texts}
+    x_vehicle = L.nodes["vehicle"]["x"] + L.nodes["vehicle"]["w"] / 2
+    assert texts["v"].get_position()[0] > x_vehicle and texts["F"].get_position()[0] > x_vehicle
+    plt.close(fig)
+
+
+def test_an_outputs_hint_draws_some_outputs_and_names_the_others_under_the_drawing():
+    import matplotlib.pyplot as plt
+
+    sys = wired("pid", range(6))
+    sys.drawing_hints = {"outputs": ["y"]}
+    fig = draw_block_diagram(sys)
+    texts = [t.get_text() for t in fig.axes[0].texts]
+    assert "also outputs: u, e" in texts
+    assert_legible(fig)
+    plt.close(fig)
+    assert "also outputs: u, q, mu" in drawn_texts(PAPER["fig2"]())  # Fig. 2 draws h only
+    # a hint left from before a rewiring: what it names that is gone is passed over, and
+    # it never hides every output
+    sys.drawing_hints = {"outputs": ["y", "z"]}
+    assert "also outputs: u, e" in drawn_texts(sys)
+    sys.drawing_hints = {"outputs": ["z"]}
+    assert not [t for t in drawn_texts(sys) if t.startswith("also outputs")]

@@ -63,7 +63,8 @@ def test_one_axes_per_entry_sharing_time_in_the_unit_asked_for(mec_run):
     top, middle, bottom = shown.axes
     assert top.get_shared_x_axes().joined(top, bottom)
     assert bottom.get_xlabel() == "time [min]" and top.get_xlabel() == ""
-    assert middle.get_ylabel() == "u, mu [rad/s]" and bottom.get_ylabel() == "K [1/s]"
+    # a whole vector by its name, an element by its label
+    assert middle.get_ylabel() == "u[0], mu[0] [rad/s]" and bottom.get_ylabel() == "K [1/s]"
     # the data are the response's, the time divided by 60
     line = top.get_lines()[1]
     np.testing.assert_allclose(line.get_xdata(), mec_run.time / 60.0)
@@ -140,6 +141,137 @@ def test_a_curve_given_a_style_stays_visible_on_top_of_its_twin():
         plot(runs, ["y"], styles={"c": "--"})
     single = plot(lag_response(), [["y", "u"]], styles={"u": ":"})
     assert [line.get_linestyle() for line in single.axes[0].get_lines()] == ["-", ":"]
+
+
+# --- every response python-control returns ------------------------------------------------
+
+#: A system with two inputs, two outputs and two states, as a lecture's first MIMO example
+MIMO = ct.ss([[-1.0, 0.5], [0.0, -2.0]], [[1.0, 0.0], [0.0, 1.0]], [[1.0, 0.0], [0.3, 1.0]],
+             0.0, name="G")
+SISO = ct.tf([1.0], [1.0, 2.0, 1.0], name="P")
+T = np.linspace(0.0, 5.0, 101)
+
+
+def drawn(ax):
+    """The data curves of an axes (reference lines excluded), as arrays."""
+    return [np.asarray(line.get_ydata(), dtype=float) for line in ax.get_lines()
+            if line.get_linestyle() != ":"]
+
+
+@pytest.mark.parametrize("kind, respond", [
+    ("step", lambda: ct.step_response(MIMO, T)),
+    ("impulse", lambda: ct.impulse_response(MIMO, T)),
+])
+def test_a_response_with_a_trace_per_input_has_an_axes_per_output(kind, respond):
+    resp = respond()
+    assert resp.ntraces == 2
+    shown = plot(resp)
+    assert shown.signals == [["y[0]"], ["y[1]"]]
+    assert [ax.get_ylabel() for ax in shown.axes] == ["y[0]", "y[1]"]
+    assert shown.axes[0].get_title() == f"{kind.capitalize()} response for G"
+    for i, ax in enumerate(shown.axes):  # output i, one curve per input, in trace order
+        curves = drawn(ax)
+        assert len(curves) == 2
+        for j, curve in enumerate(curves):
+            np.testing.assert_array_equal(curve, resp.y[i, j, :])
+    colours = [line.get_color() for line in shown.axes[0].get_lines()]
+    assert colours[0] != colours[1]
+    assert [t.get_text() for t in shown.figure.legends[0].get_texts()] == [
+        "From u[0]", "From u[1]"]  # python-control's trace labels
+
+
+def test_a_siso_step_response_is_one_curve_titled_as_python_control_titles_it():
+    resp = ct.step_response(SISO, T)
+    shown = plot(resp)
+    assert shown.signals == [["y[0]"]] and shown.axes[0].get_ylabel() == "y"
+    (curve,) = drawn(shown.axes[0])
+    np.testing.assert_array_equal(curve, resp.outputs)
+    assert shown.axes[0].get_title() == "Step response for P"
+    assert not shown.figure.legends  # one curve: nothing to tell apart
+
+
+@pytest.mark.parametrize("respond, states", [
+    (lambda: ct.initial_response(MIMO, T, X0=[1.0, -0.5]), True),
+    (lambda: ct.forced_response(MIMO, T, np.vstack([np.sin(T), np.ones_like(T)])), True),
+    (lambda: ct.input_output_response(MIMO, T, np.vstack([np.sin(T), np.ones_like(T)])),
+     True),
+])
+def test_initial_forced_and_input_output_responses_are_drawn_from_their_own_data(
+        respond, states):
+    resp = respond()
+    shown = plot(resp, [["y[0]", "y[1]"], "x"])
+    curves = drawn(shown.axes[0])
+    for i in range(2):
+        np.testing.assert_array_equal(curves[i], resp.y[i])
+    for i, curve in enumerate(drawn(shown.axes[1])):
+        np.testing.assert_array_equal(curve, resp.x[i])
+    assert shown.axes[1].get_ylabel() == "x"
+
+
+def test_the_initial_response_has_an_axes_per_output_and_no_input():
+    resp = ct.initial_response(MIMO, T, X0=[1.0, -0.5])
+    shown = plot(resp)
+    assert shown.signals == [["y[0]"], ["y[1]"]]
+    assert shown.axes[0].get_title() == "Initial response for G"
+    with pytest.raises(ValueError, match=r"no signal matches 'u'; signals: \['y\[0\]', "
+                       r"'y\[1\]', 'x\[0\]', 'x\[1\]'\]"):
+        plot(resp, ["u"])  # an initial response has no input
+
+
+def test_each_trace_keeps_its_own_inputs_and_states():
+    resp = ct.step_response(MIMO, T)
+    shown = plot(resp, ["y[1]", "u[0]", "x[1]"])
+    u0 = drawn(shown.axes[1])
+    np.testing.assert_array_equal(u0[0], np.ones_like(T))   # the step on u[0]
+    np.testing.assert_array_equal(u0[1], np.zeros_like(T))  # ... and none while u[1] steps
+    np.testing.assert_array_equal(drawn(shown.axes[2])[1], resp.x[1, 1, :])
+
+
+def closed_loop(kp):
+    return ct.feedback(SISO * ct.tf([kp, 1.0], [1.0, 0.0]), 1, name=f"PI kp={kp:g}")
+
+
+def test_a_list_of_step_responses_is_compared_on_shared_axes_named_by_system():
+    loops = [closed_loop(2.0), closed_loop(5.0)]
+    for resp in (ct.step_response(loops, T), [ct.step_response(s, T) for s in loops]):
+        shown = plot(resp, lines={"y": (1.0, "set point")})
+        assert len(shown.axes) == 1 and shown.axes[0].get_title() == "Step responses"
+        curves = drawn(shown.axes[0])
+        for curve, one in zip(curves, resp, strict=True):
+            np.testing.assert_array_equal(curve, one.outputs)
+        assert [t.get_text() for t in shown.figure.legends[0].get_texts()] == [
+            "PI kp=2", "PI kp=5", "set point"]
+    twice = plot([ct.step_response(loops[0], T)] * 2)
+    assert [t.get_text() for t in twice.figure.legends[0].get_texts()] == [
+        "PI kp=2 (1)", "PI kp=2 (2)"]  # the same system twice: told apart by place
+
+
+def test_a_dict_of_multi_input_responses_names_each_trace_after_its_response():
+    runs = {"G": ct.step_response(MIMO, T), "2G": ct.step_response(2 * MIMO, T)}
+    shown = plot(runs, styles={"2G": "--"})
+    assert [t.get_text() for t in shown.figure.legends[0].get_texts()] == [
+        "G, From u[0]", "G, From u[1]", "2G, From u[0]", "2G, From u[1]"]
+    lines = shown.axes[1].get_lines()
+    assert [line.get_linestyle() for line in lines] == ["-", "-", "--", "--"]
+    np.testing.assert_allclose(lines[3].get_ydata(), 2 * runs["G"].y[1, 1, :])
+    assert len({line.get_color() for line in lines}) == 4
+
+
+@pytest.mark.parametrize("resp, message", [
+    (lambda: ct.step_response(SISO, T)[1], r"resp must be a control.TimeResponseData \(the "
+     r"result of step_response, input_output_response, ...\), or a non-empty list or dict "
+     r"of them, got an array of shape \(101,\) \(resp\[0\], resp\[1\] are the "
+     r"response unpacked as time and outputs: pass the response itself\)"),
+    (lambda: [], r"resp must be a control.TimeResponseData .* got list"),
+    (lambda: {}, r"resp must be a control.TimeResponseData .* got dict"),
+    (lambda: {"a": ct.step_response(SISO, T), "b": "y"},
+     r"resp\['b'\] must be a control.TimeResponseData, got str"),
+    (lambda: {"a, From u[0]": ct.step_response(SISO, T), "a": ct.step_response(MIMO, T)},
+     r"two responses are both named 'a, From u\[0\]': name them apart"),
+])
+def test_what_is_not_a_response_is_refused_with_what_is(resp, message):
+    with pytest.raises(ValueError, match=message):
+        plot(resp())
 
 
 @pytest.mark.parametrize("kwargs, message", [

@@ -143,6 +143,40 @@ def test_study_rows_and_summary_are_consistent(tmp_path):
         assert (tmp_path / f"{stem}.png").stat().st_size > 10_000
 
 
+def test_cases_at_the_same_success_rate_are_each_visible_in_the_figure():
+    """Notebook 6: three cases meet the requirement in every run of most bins; as curves
+    their 100 % points lay on one another and only one case showed."""
+    import matplotlib.pyplot as plt
+
+    edges = np.linspace(0.0, 3.0, 7)
+    rates = {"without_mec": [1, 0.6, 0.2, 0, 0, float("nan")], "mec_fixed": [1] * 6,
+             "proposed": [1, 1, 1, 1, 1, 0.8], "safeguarded": [1] * 6}
+    summary = {case: {"success_rate": 1.0, "runs": 30, "success_by_inertia_error": [
+        {"mean_factor_low": a, "mean_factor_high": b, "runs": 5, "success_rate": r}
+        for a, b, r in zip(edges[:-1], edges[1:], rate, strict=True)]}
+        for case, rate in rates.items()}
+    table = pd.DataFrame({"case": list(rates), "error": "",
+                          "max_pointing_error_last_half_deg": 0.01})
+    fig = sc_robustness.figures(table, summary)["robustness_success_vs_inertia"]
+    ax = fig.axes[0]
+    # each case's bars (matplotlib labels a case's container of bars, not each bar)
+    bars = {group.get_label(): list(group) for group in ax.containers}
+    assert sorted(bars) == sorted(rates)
+    assert [len(bars[c]) for c in rates] == [5, 6, 6, 6]  # no bar for a bin without runs
+    heights = {c: [round(b.get_height()) for b in bars[c]] for c in rates}
+    assert heights["proposed"][-1] == 80 and heights["without_mec"][3] == 0
+    spans = [(b.get_x(), b.get_x() + b.get_width()) for c in rates for b in bars[c]]
+    for i, (a0, a1) in enumerate(spans):  # side by side: no two bars share any width
+        for b0, b1 in spans[i + 1:]:
+            assert a1 <= b0 + 1e-12 or b1 <= a0 + 1e-12
+    looks = {(tuple(bars[c][0].get_facecolor()), bars[c][0].get_hatch()) for c in rates}
+    assert len(looks) == 4  # each case its colour and hatching
+    assert min(b.get_linewidth() for c in rates for b in bars[c]) > 1  # 0 % still a stroke
+    legend = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert set(rates) <= set(legend) and "Table 2's error" in legend
+    plt.close(fig)
+
+
 def test_trajectories_are_kept_per_run():
     table = sweep(sc_robustness.run, grid={"angle_deg": [10.0, 20.0]},
                   cases=["ideal"], fixed={"horizon": 10.0, "keep_every": 10},

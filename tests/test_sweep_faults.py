@@ -648,8 +648,26 @@ def test_a_function_of_a_notebook_goes_to_the_workers_by_value(tmp_path, options
 def test_without_cloudpickle_the_message_says_what_to_install(monkeypatch):
     monkeypatch.setitem(sys.modules, "cloudpickle", None)  # import cloudpickle fails
     with pytest.raises(ValueError, match=r"sending it by value needs cloudpickle: pip install "
-                                         r'"controlkit\[sweep\]", or use executor=\'threads\''):
+                                         r"cloudpickle \(or, in the folder of your controlkit "
+                                         r'clone, pip install "\.\[sweep\]"\); or use '
+                                         r"executor='threads'"):
         sweep(lambda x: {"y": x}, grid={"x": [1]}, progress=False)
+
+
+@pytest.mark.parametrize("missing, call, message", [
+    ("pandas", lambda: __import__("controlkit.sweep.rows", fromlist=["_pandas"])._pandas(),
+     r"controlkit.sweep returns a pandas DataFrame: pip install pandas \(or, in the folder of "
+     r'your controlkit clone, pip install "\.\[sweep\]"\)'),
+    ("distributed", lambda: __import__("controlkit.sweep.executors", fromlist=["x"])
+     ._check_executor("dask", None, None, None),
+     r'executor="dask" needs Dask: pip install "dask\[distributed\]" \(or, in the folder of '
+     r'your controlkit clone, pip install "\.\[cluster\]"\)'),
+])
+def test_a_missing_optional_package_is_named_with_the_extra_run_in_the_clone(
+        monkeypatch, missing, call, message):
+    monkeypatch.setitem(sys.modules, missing, None)  # its import fails
+    with pytest.raises((ImportError, ValueError), match=message):
+        call()
 
 
 def appends(x, seen):

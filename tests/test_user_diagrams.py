@@ -86,6 +86,23 @@ def test_unknown_params_key_is_refused_on_both_engines(which):
         simulate(loop, [0.0, 0.1], X0=X0, params={"F": 10}, engine=which)
 
 
+def test_the_drop_in_accepts_a_params_key_no_block_reads_as_python_control_does():
+    """docs/fast-blocks.md: only ``simulate`` refuses such a key; the drop-in changes nothing."""
+    import controlkit
+
+    loop, T, X0, U, _ = tank_with_params(steps=50)
+    misspelt = controlkit.input_output_response(loop, T, U, X0, params={"laek": 0.9})
+    reference = ct.input_output_response(loop, T, U, X0, params={"laek": 0.9})
+    default = controlkit.input_output_response(loop, T, U, X0)
+    np.testing.assert_allclose(misspelt.outputs, reference.outputs, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(misspelt.outputs, default.outputs)
+    own = output_zeroing_loop(controller=sc.outer_controller(0.5))
+    X0 = initial_state(own, plant=initial_attitude())
+    bound = controlkit.input_output_response(own, [0.0, 0.1, 0.2], 0.0, X0, params={"F": 10})
+    np.testing.assert_array_equal(
+        bound.outputs, controlkit.input_output_response(own, [0.0, 0.1, 0.2], 0.0, X0).outputs)
+
+
 @pytest.mark.parametrize("which", ENGINES)
 def test_params_are_honoured_on_both_engines(which):
     loop, T, X0, U, params = tank_with_params(steps=50)

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 _PORT_PITCH = 0.34   # between two ports on a block's side (inches)
 _TRACK_PITCH = 0.17  # between two vertical tracks in a gap (inches)
 _LANE_PITCH = 0.22   # between two horizontal lanes (inches)
+_INPUT_PITCH = 0.25  # between the starts of two external inputs, whose names stand there
 
 
 def _text_size(text, size, math=False, weight="normal"):
@@ -34,12 +35,14 @@ class _Draft:
 
     - ``_place_blocks``: ``nodes`` (``{block: node dict}``; later stages add its size and
       place), ``nets``, ``layer`` (``{block: column}``) and ``row``;
+    - ``_classify_nets``: each net's kinds and exits, and ``omitted`` (the declared
+      outputs not drawn as arrows);
     - ``_place_rows``: ``y_row`` (``{row: y}``) and ``local`` (``{row: [feedback nets
       inside one frame on that row]}``, run in a lane just under the row);
     - ``_place_columns``: ``label_w`` (``{gap: width of its labels}``), ``exits``
       (``{gap: [nets]}`` leaving along a track there), ``entries`` (``{gap: [(net,
       column)]}`` arriving along one), ``gap_x`` (``{gap: left edge}``) and ``x_right``;
-    - ``_place_ports``: ``port_xy`` and ``in_xy``;
+    - ``_place_ports``: ``port_xy`` and ``in_xy``; ``_place_inputs``: ``input_y``;
     - ``_place_tracks``: ``track_x``; ``_place_lanes``: ``lane_top``, ``lane_bottom`` and
       ``local_nets``.
 
@@ -66,6 +69,8 @@ class _Draft:
     lane_top: dict = field(default_factory=dict)
     lane_bottom: dict = field(default_factory=dict)
     local_nets: set = field(default_factory=set)
+    omitted: list = field(default_factory=list)
+    input_y: dict = field(default_factory=dict)
 
     def __post_init__(self):
         self._frame_of = {}  # block -> the first frame that lists it

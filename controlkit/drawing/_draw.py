@@ -48,10 +48,15 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
     of it; a block's own ``junction`` attribute, ``{input: sign}``, does the same for
     that block, wherever it is wired), ``beside`` (``{block: other}``: put
     ``block`` in the column of ``other``, on a row of its own - a branch in
-    parallel), ``rows`` (``{block: row}``, 0 the main row) and ``notes``
-    (``{block: text}``, a second line inside the block). External outputs that
-    are signals already drawn inside the diagram are not drawn again; those of
-    blocks in the last column leave it on the right.
+    parallel), ``rows`` (``{block: row}``, 0 the main row), ``notes``
+    (``{block: text}``, a second line inside the block) and ``outputs`` (the
+    declared outputs to draw, by label or base name; the others are named in a line
+    under the drawing). Every declared output (or each one ``outputs`` names) leaves
+    the diagram on the right: straight from a block of the last column, along a lane
+    above the rows from one further left that also feeds blocks.
+
+    The layout never reads the order of ``sys.syslist``: the same loop listed in any
+    order is drawn the same.
 
     Examples
     --------
@@ -129,13 +134,12 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
             if nodes[net.src].get("flip"):
                 text(sx - 0.07, sy + 0.04, net.label, ha="right", va="bottom", color=color,
                      bbox=white, zorder=6)
-            elif not nodes[net.src]["virtual"] and not (net.out and not net.dangling):
+            elif not nodes[net.src]["virtual"] and not (net.out and not net.dangling
+                                                        and not net.far):
                 text(sx + 0.07, sy + 0.04, net.label, ha="left", va="bottom", color=color,
                      bbox=white, zorder=6)
         else:
-            sx = gap_x[0]
-            firsts = [in_xy[(net, b)][1] for b in net.kinds]
-            sy = firsts[0]
+            sx, sy = gap_x[0], L.input_y[net]
             text(sx - 0.08, sy, net.label, ha="right", va="center", color=_GREY,
                  style="italic")
         if net.dangling:
@@ -214,16 +218,27 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
         if node["shape"] == "sum":
             ax.add_patch(Circle((x, y), w / 2, facecolor="white", edgecolor=_BLUE,
                                 linewidth=1.4, zorder=4))
-            for feed in [net for net in nets if n in net.kinds]:
+            feeds = [net for net in nets if n in net.kinds]
+            sides = {in_xy[(feed, n)][2] for feed in feeds}
+            # a sign stands beside its arrow, away from the circle: a top or bottom arrow's on
+            # its outer side; a left entry's above its wire, or below it (a lower entry, or
+            # arrows coming from above only), and an arrow left of centre on the same side
+            # as the left entry's sign has its sign further out, clear of it
+            lower = "top" in sides and "bottom" not in sides
+            for feed in feeds:
                 px, py, side = in_xy[(feed, n)]
                 # the wire's gain times, for a summing_junction block, the port's sign
                 sign = next(np.sign(g) * (1.0 if node["virtual"]
                                           else node["signs"].get(ports[0], 1.0))
                             for b, ports, g in feed.dests if b == n)
                 mark = "+" if sign > 0 else "\u2212"
-                below = side == "left" and py < y - 1e-9  # a lower entry: its sign below
-                dx, dy = {"left": (-0.1, -0.13 if below else 0.13), "bottom": (-0.13, -0.12),
-                          "top": (-0.13, 0.12)}[side]
+                if side == "left":
+                    below = py < y - 1e-9 or lower
+                    dx, dy = -0.1, -0.13 if below else 0.13
+                else:
+                    up = 1 if side == "top" else -1
+                    shared = "left" in sides and (side == "top") != lower and px < x - 1e-9
+                    dx, dy = (-0.13 if px <= x + 1e-9 else 0.13), up * (0.25 if shared else 0.12)
                 text(px + dx, py + dy, mark, size=f_sig + 1, ha="center", va="center",
                      color=_BLUE, weight="bold")
             continue
@@ -250,6 +265,9 @@ def draw_block_diagram(sys, filename=None, *, ax=None, title=None, labels=None, 
         text(x, y - 0.17, node["sub"], size=f_sub, ha="center", va="center", color="#555",
              zorder=5)
 
+    if L.omitted:  # declared outputs the hints leave out of the drawing, named
+        text(x_mid - width / 2 + 0.2, L.y_omitted, L.omitted, size=f_sub, ha="left",
+             va="center", color=_GREY, style="italic", zorder=5)
     if legend:
         x0, y0 = x_mid - width / 2 + 0.35, y_bottom + 0.2
         for i, (fill, words) in enumerate(((_FILL_DISCRETE, "discrete: updates at its instants, "

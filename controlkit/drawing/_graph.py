@@ -147,6 +147,50 @@ def _owners(sys):
     return out_owner, in_owner
 
 
+def _block_rank(sys):
+    """``{block: rank}``: an order of the blocks that is the wiring's, not ``sys.syslist``'s.
+
+    The same loop listed in another order (python-control's natural ``[plant, controller,
+    error]`` or the signal's ``[error, controller, plant]``) must be drawn the same, so the
+    layout never reads the list's order. Blocks are ranked breadth first along the signal:
+    first those the external inputs feed (the first declared input, usually the
+    reference, first), then the blocks they feed, and so on; what no input reaches
+    (a constant gain) follows, breadth first from it. Ties go by name.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> P = ct.tf2ss(ct.tf([1], [1, 1]), name="P", inputs="u", outputs="y")
+    >>> C = ct.tf2ss(ct.tf([2, 1], [1, 0]), name="C", inputs="e", outputs="u")
+    >>> err = ct.summing_junction(inputs=["r", "-y"], output="e", name="err")
+    >>> _block_rank(ct.interconnect([P, C, err], inputs="r", outputs="y"))
+    {'err': 0, 'C': 1, 'P': 2}
+    """
+    names = [s.name for s in sys.syslist]
+    out_block = [k for k, s in enumerate(sys.syslist) for _ in range(s.noutputs)]
+    in_block = [k for k, s in enumerate(sys.syslist) for _ in range(s.ninputs)]
+    succ = defaultdict(set)
+    for i, j in zip(*np.nonzero(sys.connect_map), strict=True):
+        succ[out_block[j]].add(in_block[i])
+    first_input = {}
+    for i, e in zip(*np.nonzero(sys.input_map), strict=True):
+        first_input[in_block[i]] = min(first_input.get(in_block[i], e), e)
+    ranked = sorted(first_input, key=lambda k: (first_input[k], names[k]))
+    unreached = sorted(set(range(len(names))) - set(ranked), key=names.__getitem__)
+    seen = set(ranked)
+    i = 0
+    while len(ranked) < len(names):
+        if i == len(ranked):  # nothing left that the ranked blocks feed: start again
+            start = next(k for k in unreached if k not in seen)
+            ranked.append(start)
+            seen.add(start)
+        for m in sorted(succ[ranked[i]] - seen, key=names.__getitem__):
+            ranked.append(m)
+            seen.add(m)
+        i += 1
+    return {names[k]: r for r, k in enumerate(ranked)}
+
+
 # ----------------------------------------------------------------------------- block shapes
 
 def _static_matrix(s):
@@ -218,15 +262,18 @@ def _nets(sys, nodes, sums=None):
     """
     sums = sums or {}
     out_owner, in_owner = _owners(sys)
+    rank = _block_rank(sys)  # the blocks taken in the wiring's order, never the list's
     sizes = defaultdict(int)
     for _, name in out_owner:
         sizes[_base(name)] += 1
     for name in sys.input_labels:
         sizes[_base(name)] += 1
     wires = []  # (src node, src signal, dst node, dst port, sign)
-    for i, (block, port) in enumerate(in_owner):
+    for i in sorted(range(len(in_owner)), key=lambda i: (rank[in_owner[i][0]], i)):
+        block, port = in_owner[i]
         feeds = [(out_owner[j][0], out_owner[j][1], sys.connect_map[i, j])
-                 for j in np.nonzero(sys.connect_map[i])[0]]
+                 for j in sorted(np.nonzero(sys.connect_map[i])[0],
+                                 key=lambda j: (rank[out_owner[j][0]], j))]
         feeds += [(_IN, sys.input_labels[e], sys.input_map[i, e])
                   for e in np.nonzero(sys.input_map[i])[0]]
         if block in sums and _base(port) in sums[block]:  # a sum inside the block

@@ -8,7 +8,8 @@ shared :class:`_Draft` and leaves the rest to the next stages:
 3. :func:`_classify_nets` - each connection: to the next column, skipping columns, back, out;
 4. :func:`_place_rows` - the y of each row, with room for feedback inside a frame;
 5. :func:`_place_columns` - the x of each column and the width of the gaps between them;
-6. :func:`_place_ports` - where each net leaves and enters a block (:mod:`._routing`);
+6. :func:`_place_ports` - where each net leaves and enters a block, and
+   :func:`_place_inputs` where each external input starts (:mod:`._routing`);
 7. :func:`_place_tracks` and :func:`_place_lanes` - the vertical runs in the gaps and the
    horizontal runs above and below the rows (:mod:`._routing`);
 8. :func:`_frame` - the title and the page's extent, as a :class:`DiagramLayout`.
@@ -19,23 +20,26 @@ points), x to the right, y up, row 0 at ``y = 0``.
 
 from __future__ import annotations
 
-from collections import defaultdict
+from collections import Counter, defaultdict
 from dataclasses import dataclass, field
 
 from ._draft import _LANE_PITCH, _PORT_PITCH, _TRACK_PITCH, _Draft, _text_size
 from ._graph import (
     _IN,
     _OUT,
+    _base,
+    _block_rank,
     _discrete,
     _kind,
     _nets,
     _require_interconnect,
     _shape,
+    _signal_label,
     compress_signals,
     diagram_graph,
 )
 from ._ordering import _columns, _feedback_elements, _rows, _vertical_ok
-from ._routing import _place_lanes, _place_ports, _place_tracks
+from ._routing import _place_inputs, _place_lanes, _place_ports, _place_tracks
 
 
 @dataclass(frozen=True)
@@ -58,6 +62,9 @@ class DiagramLayout:
         ``{(net, block): (x, y)}`` where a net leaves its source block.
     in_xy : dict
         ``{(net, block): (x, y, side)}`` where it enters, and from which side.
+    input_y : dict
+        ``{net: y}`` where an external input starts (its name is written there), left of
+        the first column.
     track_x : dict
         ``{(net, "exit") | (net, column): x}``: the vertical runs in the gaps.
     lane_top, lane_bottom : dict
@@ -82,6 +89,11 @@ class DiagramLayout:
         The page: the drawing and nothing around it (no bands added for proportions).
     y_top, y_bottom : float
         The page's top and bottom edges.
+    omitted : str
+        The declared outputs not drawn as arrows (the ``outputs`` hint leaves them out),
+        as a label (``"u, q, mu"``), written under the drawing at ``y_omitted``; ``""``
+        when every output is drawn.
+    y_omitted : float
     """
 
     nodes: dict
@@ -90,6 +102,7 @@ class DiagramLayout:
     row: dict
     port_xy: dict
     in_xy: dict
+    input_y: dict
     track_x: dict
     lane_top: dict
     lane_bottom: dict
@@ -107,6 +120,8 @@ class DiagramLayout:
     height: float
     y_top: float
     y_bottom: float
+    omitted: str = ""
+    y_omitted: float = 0.0
 
 
 @dataclass
@@ -116,7 +131,8 @@ class _Hints:
     ``labels`` (display names, TeX: the hints', then blocks' ``display_name``, then the
     ``labels`` argument), ``groups`` (frames), ``beside`` (``{block: other}``: share a
     column), ``rows`` (``{block: row}``), ``notes`` (second lines), ``sums``
-    (``{block: {input: sign}}``: the hints', then blocks' ``junction``) and ``title``.
+    (``{block: {input: sign}}``: the hints', then blocks' ``junction``), ``title`` and
+    ``outputs`` (the declared outputs drawn as arrows; None: all).
     """
 
     labels: dict
@@ -126,6 +142,7 @@ class _Hints:
     notes: dict = field(default_factory=dict)
     sums: dict = field(default_factory=dict)
     title: str | None = None
+    outputs: list | None = None
 
     @classmethod
     def of(cls, sys, labels, groups):
@@ -144,7 +161,7 @@ class _Hints:
                 sums.setdefault(s.name, dict(s.junction))
         return cls(merged_labels, merged_groups, dict(hints.get("beside", {})),
                    dict(hints.get("rows", {})), dict(hints.get("notes", {})),
-                   sums, hints.get("title"))
+                   sums, hints.get("title"), hints.get("outputs"))
 
 
 def layout(sys, *, labels=None, groups=None, fontsize=10.0, title=None) -> DiagramLayout:
@@ -159,10 +176,11 @@ def layout(sys, *, labels=None, groups=None, fontsize=10.0, title=None) -> Diagr
                    groups=hints.groups)
     _place_blocks(draft, sys, hints)
     _size_blocks(draft)
-    _classify_nets(draft, sys)
+    _classify_nets(draft, sys, _shown_outputs(sys, hints.outputs))
     _place_rows(draft)
     _place_columns(draft)
     _place_ports(draft)
+    _place_inputs(draft)
     _place_tracks(draft)
     _place_lanes(draft)
     return _frame(draft, sys, title, hints.title)
@@ -171,9 +189,10 @@ def layout(sys, *, labels=None, groups=None, fontsize=10.0, title=None) -> Diagr
 # ----------------------------------------------------------------------------- the stages
 
 def _blocks(sys, hints):
-    """A node for each block of ``sys`` with its shape and texts, and the blocks' order."""
-    nodes, order = {}, {}
-    for i, s in enumerate(sys.syslist):
+    """A node for each block of ``sys`` with its shape and texts, and the blocks' order
+    (:func:`._graph._block_rank`: the wiring's, whatever the order of ``sys.syslist``)."""
+    nodes, order = {}, _block_rank(sys)
+    for s in sorted(sys.syslist, key=lambda s: order[s.name]):
         shape, extra = _shape(s)
         label = hints.labels.get(s.name)
         nodes[s.name] = {"shape": shape, "signs": extra if shape == "sum" else {},
@@ -184,7 +203,6 @@ def _blocks(sys, hints):
                          "sub": hints.notes.get(s.name) or (
                              (f"{s.name}, {_kind(s)}" if _kind(s) != "static" else s.name)
                              if label is not None else _kind(s))}
-        order[s.name] = i
     return nodes, order
 
 
@@ -255,23 +273,21 @@ def _size_blocks(draft):
         node["h"] = max(th + sh + 0.3, pitch * max(n_in[n], n_out[n], 1) + 0.15)
 
 
-def _classify_nets(draft, sys):
+def _classify_nets(draft, sys, shown):
     """Decide how each net runs: its ``kinds`` and whether it leaves the loop.
 
     A destination in the next column (or a sensor fed by its block) is ``"next"`` (a
     short arrow), one further right ``"skip"`` (a lane above the rows), one to the left
-    or in the same column ``"back"`` (feedback, a lane below). A loop output of the last
-    column leaves on the right (``out``). One made further left is a short grey stub
-    (``dangling``) if the signal goes nowhere else, and is not drawn again if it feeds
-    blocks (it is on the page already) - unless no output leaves on the right: then the
-    loop's first output does, along a top lane (``far``), where a reader looks for the
-    result. Nets that go nowhere are dropped.
+    or in the same column ``"back"`` (feedback, a lane below). Every declared output in
+    ``shown`` (all of them unless the ``outputs`` hint chooses) leaves the loop: from the
+    last column on the right (``out``); from further left as a short grey stub
+    (``dangling``) if the signal goes nowhere else, or, if it feeds blocks too, along a
+    top lane to the right (``far``), where a reader looks for the results. Outputs not
+    shown are listed under the drawing (``omitted``). Nets that go nowhere are dropped.
     """
     nodes, layer = draft.nodes, draft.layer
 
     def kind_of(net, b):
-        if b == _OUT:
-            return "out"
         ls = layer[net.src] if net.src in nodes else -1
         if layer[b] == ls + 1 or nodes[b].get("feeder") == net.src:
             return "next"
@@ -280,19 +296,28 @@ def _classify_nets(draft, sys):
     last = draft.ncol - 1
     for net in draft.nets:
         internal = [b for b, _, _ in net.dests if b != _OUT]
-        net.out_ports = [p for b, ports, _ in net.dests if b == _OUT for p in ports]
-        net.far = False
-        net.out = any(b == _OUT for b, _, _ in net.dests) and (
-            not internal or layer.get(net.src, -1) == last)
+        net.out_ports = [p for b, ports, _ in net.dests if b == _OUT for p in ports
+                         if p in shown]
+        net.out = bool(net.out_ports)
+        net.far = net.out and bool(internal) and layer.get(net.src, -1) != last
         net.dests = [d for d in net.dests if d[0] != _OUT]
         net.dangling = not net.dests and net.out and layer.get(net.src, -1) != last
         net.kinds = {b: kind_of(net, b) for b, _, _ in net.dests}
     draft.nets = [n for n in draft.nets if n.dests or n.out]
-    if sys.noutputs and not any(n.out and not n.dangling for n in draft.nets):
-        # the loop's first output leaves on the right even when its block is not last
-        for net in draft.nets:
-            if sys.output_labels[0] in net.out_ports and net.dests:
-                net.out, net.far, net.dangling = True, True, False
+    draft.omitted = [label for label in sys.output_labels if label not in shown]
+
+
+def _shown_outputs(sys, hint):
+    """The declared outputs drawn as arrows: all, or those the ``outputs`` hint names
+    (labels, or base names for every element: ``"h"`` is ``h[0], h[1]``).
+
+    Like the other hints, names of signals the diagram no longer has (a rewired loop
+    keeps its builder's hints) are passed over, and a hint that names none of its
+    outputs draws them all: a hint never hides every output.
+    """
+    hint = [hint] if isinstance(hint, str) else list(hint or [])
+    shown = {label for label in sys.output_labels if label in hint or _base(label) in hint}
+    return shown or set(sys.output_labels)
 
 
 def _place_rows(draft):
@@ -321,7 +346,8 @@ def _fill_gaps(draft):
     """Decide what each gap between columns holds: labels and vertical tracks.
 
     Gap ``c`` is left of column ``c``. It holds the labels of the signals leaving column
-    ``c - 1`` (a loop output is labelled where it leaves instead), the red notes of loose
+    ``c - 1`` (a loop output of the last column is labelled where it leaves instead, one
+    leaving along a top lane at both ends), the red notes of loose
     ends, an exit track for each net of column ``c - 1`` that branches, changes row or
     leaves along a lane (a flipped block's, in the gap on its left), and an entry track
     for each lane arriving at a block of column ``c`` from its side (a junction fed from
@@ -335,7 +361,7 @@ def _fill_gaps(draft):
         w, _ = _text_size(net.label, f_sig)
         flip = nodes.get(net.src, {}).get("flip", False)
         if net.src in nodes and not nodes[net.src]["virtual"] and not flip and not (
-                net.out and not net.dangling):  # a loop output is labelled where it leaves
+                net.out and not net.dangling and not net.far):  # labelled where it leaves
             label_w[src_col + 1] = max(label_w[src_col + 1], w + 0.2)
         if net.dangling:
             continue
@@ -391,7 +417,7 @@ def _frame(draft, sys, title, hint_title):
     A title given as an argument or a hint is TeX; the system's own name is drawn
     literally.
     """
-    f_sig, f_name, _ = draft.fonts
+    f_sig, f_name, f_sub = draft.fonts
     top_rows, bottom_rows = draft.blocks_top(), draft.blocks_bottom()
     title_math = title is not None or bool(hint_title)  # the system's own name is literal
     title = title if title is not None else hint_title or sys.name
@@ -405,15 +431,23 @@ def _frame(draft, sys, title, hint_title):
     tw, th = _text_size(title, f_name + 1, title_math and title.count("$") >= 2)
     y_title = y_top + th * 0.6
     y_top = y_title + th * 0.6
-    width = max(x_right_text - x_left, tw + 0.4) + 0.3
+    sizes = Counter(_base(label) for label in sys.output_labels)
+    omitted = f"also outputs: {_signal_label(draft.omitted, sizes)}" if draft.omitted else ""
+    nw = _text_size(omitted, f_sub)[0] + 0.4 if omitted else 0.0
+    y_omitted = y_bottom - 0.1
+    if omitted:  # a line under the drawing names the outputs drawn nowhere else
+        y_bottom -= 0.3
+    width = max(x_right_text - x_left, tw + 0.4, nw) + 0.3
     height = y_top - y_bottom + 0.2
     # no blank bands to reach a slide's proportions: a wide diagram stays wide, and a slide
     # or a notebook scales it to its width
     x_mid = (x_left + x_right_text) / 2
     return DiagramLayout(
         nodes=draft.nodes, nets=draft.nets, layer=draft.layer, row=draft.row,
-        port_xy=draft.port_xy, in_xy=draft.in_xy, track_x=draft.track_x,
+        port_xy=draft.port_xy, in_xy=draft.in_xy, input_y=draft.input_y,
+        track_x=draft.track_x,
         lane_top=draft.lane_top, lane_bottom=draft.lane_bottom, local_nets=draft.local_nets,
         groups=draft.groups, graph=draft.graph, gap_x=draft.gap_x, x_right=draft.x_right,
         fonts=draft.fonts, title=title, title_math=title_math, y_title=y_title, x_mid=x_mid,
-        width=width, height=height, y_top=y_top, y_bottom=y_bottom)
+        width=width, height=height, y_top=y_top, y_bottom=y_bottom, omitted=omitted,
+        y_omitted=y_omitted)

@@ -15,29 +15,55 @@ from ._graph import _IN
 
 
 def _columns(nodes, nets, beside):
-    """Columns by longest path once the DFS back edges (feedback) are removed.
+    """Columns by longest path once the feedback edges are removed.
 
-    A depth-first search from the blocks the external inputs feed marks the edges that
-    close a loop; without them the graph is acyclic and ``column(b) = max(column(a) + 1)``
-    over the blocks ``a`` feeding ``b``, so every forward arrow points right. A source
-    (a constant gain) sits just before the block it feeds; ``beside`` puts a block in
-    another's column. Returns ``({block: column}, [blocks fed by external inputs])``.
+    Feedback is found as a reader of a control diagram finds it: first the signals
+    subtracted at a junction (``r - y``) that close a loop, then, for loops without
+    one, the edges a depth-first search from the blocks the external inputs feed finds
+    closing a loop. Without them the graph is acyclic and ``column(b) = max(column(a) +
+    1)`` over the blocks ``a`` feeding ``b``, so every forward arrow points right. A
+    source (a constant gain) sits just before the block it feeds; ``beside`` puts a block
+    in another's column. Returns ``({block: column}, [blocks fed by external inputs])``.
     """
     names = [n for n in nodes]
     succ = defaultdict(list)
+    subtracted = []  # (a, b): a's signal enters the junction b with a minus sign
     for net in nets:
         if net.src in nodes and net.src not in beside:
-            for b, _, _ in net.dests:
+            for b, ports, sign in net.dests:
                 if b in nodes and b != net.src and b not in succ[net.src]:
                     succ[net.src].append(b)
+                if b in nodes and nodes[b]["shape"] == "sum" and sign * (
+                        1.0 if nodes[b]["virtual"] else nodes[b]["signs"].get(ports[0], 1.0)
+                ) < 0:
+                    subtracted.append((net.src, b))
     entries = [b for net in nets if net.src == _IN for b, _, _ in net.dests if b in nodes]
     fed = {b for a in succ for b in succ[a]}
     roots = list(dict.fromkeys(entries)) + [n for n in names if n not in fed]
     state, back = {}, set()
 
+    def reaches(start, goal):
+        """Whether ``goal`` is downstream of ``start`` along edges not yet called back."""
+        seen, stack = {start}, [start]
+        while stack:
+            n = stack.pop()
+            for m in succ[n]:
+                if (n, m) not in back and m not in seen:
+                    if m == goal:
+                        return True
+                    seen.add(m)
+                    stack.append(m)
+        return False
+
+    for a, b in subtracted:  # y fed back into e = r - y closes the loop: feedback
+        if reaches(b, a):
+            back.add((a, b))
+
     def visit(n):
         state[n] = 1
         for m in succ[n]:
+            if (n, m) in back:
+                continue
             if state.get(m) == 1:
                 back.add((n, m))
             elif m not in state:

@@ -10,7 +10,7 @@ from collections import defaultdict
 
 import numpy as np
 
-from ._draft import _LANE_PITCH, _PORT_PITCH, _TRACK_PITCH
+from ._draft import _INPUT_PITCH, _LANE_PITCH, _PORT_PITCH, _TRACK_PITCH
 from ._ordering import _vertical_ok
 
 
@@ -85,6 +85,35 @@ def _sum_ports(n, node, ins, draft):
                 draft.in_xy[(net, n)] = (x + r * t, y + s * r * np.sqrt(1 - t * t), side)
 
 
+def _place_inputs(draft):
+    """Decide where each external input starts, left of the first column: ``input_y``.
+
+    An input that feeds a block of the first column starts level with its port there
+    (the main row's first), so its arrow is straight; one that only skips to later
+    columns runs along a lane above the rows, so it starts above the others, the one on
+    the higher lane higher, and its rise crosses no other input. Names are written at
+    the start, so starts at least :data:`_INPUT_PITCH` apart keep them from overlapping.
+    """
+    inputs = [net for net in draft.nets if net.src not in draft.nodes]
+    level = {}
+    for net in inputs:
+        nexts = [b for b, k in net.kinds.items() if k == "next"]
+        if nexts:
+            first = min(nexts, key=lambda b: (draft.row[b], -draft.in_xy[(net, b)][1]))
+            level[net] = draft.in_xy[(net, first)][1]
+    above = max(level.values(), default=0.0)
+    risers = sorted((net for net in inputs if net not in level),
+                    key=lambda net: (draft.inner(net), draft.span(net)))
+    for i, net in enumerate(risers):
+        level[net] = above + _INPUT_PITCH * (i + 1)
+    previous = None
+    for net in sorted(inputs, key=lambda net: -level[net]):  # top down, pushed apart
+        if previous is not None and level[net] > previous - _INPUT_PITCH:
+            level[net] = previous - _INPUT_PITCH
+        previous = level[net]
+    draft.input_y = level
+
+
 def _place_tracks(draft):
     """Decide the x of each vertical run in the gaps: ``track_x``.
 
@@ -96,7 +125,7 @@ def _place_tracks(draft):
     nodes, layer, track = draft.nodes, draft.layer, _TRACK_PITCH
 
     def exit_key(net):
-        y0 = draft.port_xy[(net, net.src)][1] if net.src in nodes else 0.0
+        y0 = draft.port_xy[(net, net.src)][1] if net.src in nodes else draft.input_y[net]
         up = draft.towards(net) > y0
         return (0, -y0) if up else (1, y0)
 

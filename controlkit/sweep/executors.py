@@ -12,6 +12,7 @@ import sys
 
 import numpy as np
 
+from .._checks import install_hint
 from .._workers import call_in_child
 from .rows import _call_elsewhere, _failed_row
 
@@ -87,8 +88,8 @@ def _check_executor(executor, workers, scheduler, timeout) -> str:
         try:
             import distributed  # noqa: F401
         except ImportError:
-            raise ValueError('executor="dask" needs Dask: pip install "controlkit[cluster]"'
-                             ) from None
+            raise ValueError('executor="dask" needs Dask: '
+                             f'{install_hint("dask[distributed]", "cluster")}') from None
     if timeout is not None and (isinstance(timeout, bool) or not isinstance(
             timeout, int | float | np.integer | np.floating) or not math.isfinite(timeout)
             or timeout <= 0):
@@ -169,8 +170,8 @@ def _sendable(function, kind, executor, timeout):
     except ImportError:
         raise ValueError(f"{why}, which cannot import {function!r} by name (a function of "
                          "a notebook or interactive session, a lambda or a closure); "
-                         'sending it by value needs cloudpickle: pip install '
-                         f'"controlkit[sweep]", or {other}') from None
+                         f'sending it by value needs cloudpickle: '
+                         f'{install_hint("cloudpickle", "sweep")}; or {other}') from None
     except Exception as exc:
         raise ValueError(f"{why}, which cannot import {function!r} by name, nor send it by "
                          f"value ({type(exc).__name__}: {exc}); define it at the top of a "

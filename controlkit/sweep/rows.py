@@ -7,6 +7,7 @@ import time
 
 import numpy as np
 
+from .._checks import install_hint
 from .._store import plain, same_value
 from .points import RESERVED, Run
 
@@ -17,7 +18,7 @@ def _pandas():
         import pandas
     except ImportError:
         raise ImportError('controlkit.sweep returns a pandas DataFrame: '
-                          'pip install "controlkit[sweep]"') from None
+                          f'{install_hint("pandas", "sweep")}') from None
     return pandas
 
 

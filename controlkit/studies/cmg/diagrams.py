@@ -81,7 +81,10 @@ def cmg_loop(plant=None, controller=None, *, reference=None, saturation=None, Ts
     papers = all(getattr(b, "display_name", None) == symbol for b, symbol in (
         (reference, "references"), (controller, "adaptive SMC"),
         (saturation, "torque limits"), (plant, "CMG")))
-    loop.drawing_hints = {"title": TITLE if papers and name == "cmg_loop" else name}
+    # drawn leaving the loop: the gyroscope's states and the adaptive gains, as the thesis
+    # draws them; the references and torques, logged too, are named under the drawing
+    loop.drawing_hints = {"title": TITLE if papers and name == "cmg_loop" else name,
+                          "outputs": cmg.STATES + ["a1", "a2", "a3", "a4"]}
     return loop
 
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import contextlib
 import sys
+import threading
 import time
 
 from ...blocks.spacecraft import SingularDecouplingError
@@ -13,20 +14,83 @@ from ...outputs.export import write_csv, write_json
 from .checks import _steps
 from .manifest import MANIFEST, _stale
 
+#: Seconds between two redraws of a progress line on a terminal while no report comes.
+TICK = 0.5
 
-def _progress_printer(label: str, stream=None):
-    stream = stream or sys.stderr
-    start = time.perf_counter()
 
-    def report(fraction):
-        elapsed = time.perf_counter() - start
-        stream.write(f"\r  {label}: {100 * fraction:5.1f} %  ({elapsed:6.1f} s)")
-        if fraction >= 1:
-            stream.write("\n")
-        stream.flush()
+class ProgressLine:
+    r"""One case's progress on one line: the fraction done and the seconds since it began.
 
-    return report
+    The simulation reports its fraction after each chunk of the run. The first run of a
+    new wiring compiles first, which can hold the first report back for tens of seconds
+    and then let all of them through at once; so on a terminal the line is also redrawn
+    every ``tick`` seconds, its time moving while the fraction waits. In a file (a log),
+    where a redraw is one more line, it is written at the reports only.
 
+    Parameters
+    ----------
+    label : str
+        What runs, e.g. ``"spacecraft/proposed"``.
+    stream : file-like, optional
+        Where the line goes (default stderr).
+    tick : float, None or "auto"
+        Seconds between redraws, None for none; ``"auto"``: :data:`TICK` on a terminal,
+        none elsewhere.
+
+    Examples
+    --------
+    >>> import io
+    >>> out = io.StringIO()
+    >>> line = ProgressLine("cmg/thesis", out)
+    >>> line(0.5); line(1.0)
+    >>> out.getvalue().replace("\r", "|")
+    '|  cmg/thesis:  50.0 %  (   0.0 s)|  cmg/thesis: 100.0 %  (   0.0 s)\n'
+    """
+
+    def __init__(self, label: str, stream=None, *, tick: float | None | str = "auto"):
+        self.label, self.stream = label, stream or sys.stderr
+        self.start, self.fraction = time.perf_counter(), 0.0
+        self._lock, self._stop = threading.Lock(), threading.Event()
+        if tick == "auto":
+            tick = TICK if _is_terminal(self.stream) else None
+        if tick is not None:
+            threading.Thread(target=self._redraw_every, args=(tick,), daemon=True,
+                             name="controlkit-progress").start()
+
+    def __call__(self, fraction: float) -> None:
+        with self._lock:
+            if self._stop.is_set():
+                return
+            self.fraction = fraction
+            self._draw()
+            if fraction >= 1:
+                self.stream.write("\n")
+                self.stream.flush()
+                self._stop.set()
+
+    def close(self) -> None:
+        """Stop redrawing (the case ended, finished or not)."""
+        with self._lock:
+            self._stop.set()
+
+    def _draw(self):
+        elapsed = time.perf_counter() - self.start
+        self.stream.write(f"\r  {self.label}: {100 * self.fraction:5.1f} %  "
+                          f"({elapsed:6.1f} s)")
+        self.stream.flush()
+
+    def _redraw_every(self, tick):
+        while not self._stop.wait(tick):
+            with self._lock:
+                if not self._stop.is_set():
+                    self._draw()
+
+
+def _is_terminal(stream) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):  # no isatty, or a closed file
+        return False
 
 
 #: Samples per curve the figures are drawn from (independent of the CSV's --stride).
@@ -78,7 +142,7 @@ def _run_study(s, cases, folder, horizon, stride, engine, log, pool, options, un
             manifest["cases"][case] = {"status": "running"}
             write_json(folder / MANIFEST, manifest)
             started = time.perf_counter()
-            progress = _progress_printer(f"{s.name}/{case}", log)
+            progress = ProgressLine(f"{s.name}/{case}", log)
             csv_name = f"{s.csv_stem(case)}.csv"
             try:
                 if s.write is not None:
@@ -94,6 +158,7 @@ def _run_study(s, cases, folder, horizon, stride, engine, log, pool, options, un
                     write_csv(folder / csv_name, s.csv_columns(columns), stride=step)
                     metrics = s.metrics(columns)
             except Exception as error:  # the case's own failure: recorded, the run goes on
+                progress.close()
                 message = _describe(error)
                 log.write(f"\n  {s.name}/{case} failed: {message}\n")
                 study_metrics[case] = {"error": message}
@@ -101,6 +166,8 @@ def _run_study(s, cases, folder, horizon, stride, engine, log, pool, options, un
                 if raise_errors and not isinstance(error, CASE_FAILURES):
                     raise
                 continue
+            finally:  # finished, failed or interrupted: the line stops moving
+                progress.close()
             elapsed = time.perf_counter() - started
             every = max(1, len(next(iter(columns.values()))) // FIGURE_POINTS)
             tables[case] = {name: values[::every] for name, values in columns.items()}

@@ -49,18 +49,23 @@ def _drawing_hints(name, default_name, figure, plant, linearizer, output, nomina
     (:func:`~controlkit.blocks.contract.drawn_as`): a block passed in is drawn with its own
     name. The builder adds only what is about the wiring: the frame of the linearized
     plant ``L_a`` (Fig. 2), the nominal model in parallel to the plant and a tuner under
-    the output (Fig. 3-4), and the title: the paper's figure (``figure``, a key of
+    the output (Fig. 3-4), the outputs drawn leaving the loop as the paper draws them
+    (``h``, and the tuned ``K``) and the title: the paper's figure (``figure``, a key of
     :data:`TITLES`) when ``name`` is the builder's default and the blocks are the
     paper's, else ``name``.
     """
     frame = (r"$L_a$: linearized plant (Fig. 2)" if _is_papers(linearizer, "linearizer")
              else "linearized plant")
     hints = {"groups": {frame: [linearizer.name, plant.name, output.name]},
-             "title": TITLES[figure] if name == default_name and figure is not None else name}
+             "title": TITLES[figure] if name == default_name and figure is not None else name,
+             # the papers' figures draw h leaving the loop (and the tuned K); the other
+             # outputs, logged for the results, are named under the drawing
+             "outputs": list(H)}
     if nominal is not None:
         hints["beside"] = {nominal.name: plant.name}
     if gain is not None and gain.ninputs:  # a tuner reads mu, hn and h: under the output
         hints.setdefault("beside", {})[gain.name] = output.name
+        hints["outputs"] += list(mec.K_SIGNALS)
     return hints
 
 

@@ -181,7 +181,7 @@ def figures(table, summary) -> dict:
     ``robustness_errors``: the worst last-half error of every run, per case (box plot
     and the runs as dots) on a log axis with the 0.05 deg requirement.
     ``robustness_success_vs_inertia``: success rate against the mean inertia-error
-    factor (1 = Table 2), per case.
+    factor (1 = Table 2), per case, as bars side by side in each bin of the factor.
 
     Examples
     --------
@@ -220,22 +220,42 @@ def figures(table, summary) -> dict:
         out["robustness_errors"] = fig
 
         fig, (ax,) = new_figure()
-        # distinct markers and dashes: cases at the same rate (often 100 %) stay visible
-        styles = ["o-", "s--", "^-.", "D:", "v-"]
-        for i, case in enumerate(cases):
-            bins = summary[case]["success_by_inertia_error"]
-            centres = [(b["mean_factor_low"] + b["mean_factor_high"]) / 2 for b in bins]
-            rates = [100 * b["success_rate"] for b in bins]
-            ax.plot(centres, rates, styles[i % len(styles)], color=CASE_COLORS.get(case, "k"),
-                    label=case, markersize=8 - i, linewidth=2.0)
-        ax.axvline(1.0, color="0.4", linestyle="--", linewidth=1.2, label="Table 2's error")
-        ax.set_ylim(-5, 105)
-        ax.set_xlabel("mean factor on Table 2's inertia error")
+        _success_bars(ax, summary, cases)
+        ax.axvline(1.0, color="0.3", linestyle="--", linewidth=1.4, label="Table 2's error",
+                   zorder=4)
+        ax.set_ylim(-2.5, 109)  # a bar at 0 % stays a stroke above the axis
+        ax.set_xlabel("mean factor on Table 2's inertia error (bins)")
         ax.set_ylabel("requirement met [% of runs]")
         ax.set_title("Success rate against the size of the inertia error")
         legend_outside(fig)
         out["robustness_success_vs_inertia"] = fig
     return out
+
+
+#: Hatching of each case's bars, in the order of the cases: told apart in grey too.
+HATCHES = ("", "//", "..", "xx", "\\\\")
+
+
+def _success_bars(ax, summary, cases):
+    """Each case's success rate per bin of the inertia error, as bars side by side.
+
+    Several cases often meet the requirement in every run of a bin: as curves their
+    100 % points lie on one another and only the last drawn shows. Side by side in their
+    bin, each case has its own bar (its colour and hatching, named in the legend); a case
+    at 0 % keeps a visible stroke at 0, and a bin without runs of a case has no bar.
+    """
+    width = 1.0 / (len(cases) + 1)  # of a bin, with a gap of one bar between bins
+    for i, case in enumerate(cases):
+        bins = summary[case]["success_by_inertia_error"]
+        low = np.array([b["mean_factor_low"] for b in bins])
+        span = np.array([b["mean_factor_high"] for b in bins]) - low
+        rates = np.array([100 * b["success_rate"] for b in bins])
+        drawn = np.isfinite(rates)
+        colour = CASE_COLORS.get(case, "k")
+        ax.bar((low + span * width * (i + 0.5))[drawn], rates[drawn], span[drawn] * width,
+               align="edge", color=colour, alpha=0.85, edgecolor=colour, linewidth=1.5,
+               hatch=HATCHES[i % len(HATCHES)], label=case, zorder=3)
+    ax.grid(axis="x", visible=False)
 
 
 #: The study's registry entry (``controlkit sweep spacecraft``).
