@@ -314,9 +314,11 @@ def test_a_quiet_moment_waits_for_a_thread_making_numbas_context():
 
     making = vars(CPUTarget)["_toplevel_target_context"]._lock
     got = {}
+    holding = threading.Event()
 
     def first_numba_call():  # numba's own order: the context's lock, then the compiler's
         with making:
+            holding.set()
             time.sleep(0.2)
             got["compiler lock"] = global_compiler_lock._lock.acquire(timeout=5)
             if got["compiler lock"]:
@@ -324,7 +326,7 @@ def test_a_quiet_moment_waits_for_a_thread_making_numbas_context():
 
     person = threading.Thread(target=first_numba_call)
     person.start()
-    time.sleep(0.05)  # the person's thread holds the context's lock
+    assert holding.wait(60)  # the person's thread holds the context's lock
     with alone(global_compiler_lock) as quiet:
         got["context lock"] = making.acquire(timeout=5)  # what refresh() then asks for
         if got["context lock"]:
