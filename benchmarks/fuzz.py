@@ -1,0 +1,108 @@
+"""The differential fuzzer over many seeds: random diagrams in python-control's idiom run by
+``control.input_output_response`` and by ``controlkit.input_output_response``, with the
+counts of how they compared (issue 33, item 6).
+
+    python benchmarks/fuzz.py --count 1000 --seed 0
+    python benchmarks/fuzz.py --count 1 --seed 25 --show      # one case, described
+
+Prints the number of diagrams, how many answered equally, how many differed and why, how
+many raised the same error as python-control (and with the same message), how many raised
+another one (or answered where python-control raised), and how many python-control let
+diverge where controlkit refused (by design); then every seed that was not equal, with
+its diagram and call, so that a reader can reproduce it with ``--show``. The diagrams and
+the comparison are tests/fuzz_diagrams.py's (the test suite runs a fixed set of seeds).
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import os
+import re
+import signal
+import sys
+import time
+from pathlib import Path
+
+os.environ.setdefault("CONTROLKIT_MODULES", "never")  # the generic driver, as the tests
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+
+import fuzz_diagrams as fuzz  # noqa: E402
+
+
+def _reason(detail: str) -> str:
+    """A verdict's detail without its numbers and names: what kind of difference it is."""
+    detail = re.sub(r"\('[^']*'\)", "", detail)  # messages of exceptions
+    detail = re.sub(r"\d+(\.\d+)?(e[-+]?\d+)?", "N", detail)
+    return detail
+
+
+class TooLong(Exception):
+    """A case that ran longer than --limit seconds (counted apart, not compared)."""
+
+
+def _too_long(signum, frame):
+    raise TooLong
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--count", type=int, default=200, help="number of diagrams")
+    parser.add_argument("--seed", type=int, default=0, help="first seed")
+    parser.add_argument("--hazards", type=float, default=0.15,
+                        help="share of blocks drawn from the hazard templates (0 to 1)")
+    parser.add_argument("--show", action="store_true", help="describe every case run")
+    parser.add_argument("--limit", type=int, default=300,
+                        help="seconds a case may take before it is counted as too long")
+    args = parser.parse_args(argv)
+    verdicts, reasons, messages = collections.Counter(), collections.Counter(), 0
+    kinds, fell_back, not_equal = collections.Counter(), 0, []
+    started = time.perf_counter()
+    for seed in range(args.seed, args.seed + args.count):
+        case = fuzz.make_case(seed, hazard_rate=args.hazards)
+        signal.signal(signal.SIGALRM, _too_long)
+        signal.alarm(args.limit)
+        try:
+            verdict = fuzz.compare(case)
+        except TooLong:
+            verdict = fuzz.Verdict("too long", f"over {args.limit} s")
+        finally:
+            signal.alarm(0)
+        verdicts[verdict.verdict] += 1
+        kinds[case.kind] += 1
+        fell_back += verdict.fell_back
+        if verdict.verdict == "same error" and "message" not in verdict.detail:
+            messages += 1
+        if verdict.verdict != "equal":
+            reasons[(verdict.verdict, _reason(verdict.detail))] += 1
+            not_equal.append(f"  {verdict.verdict}: {verdict.detail}\n    {case.describe()}")
+        if args.show:
+            print(f"{case.describe()}\n  -> {verdict.verdict} {verdict.detail}")
+        done = seed - args.seed + 1
+        if done % 50 == 0:
+            print(f"... {done} diagrams, {time.perf_counter() - started:.0f} s",
+                  file=sys.stderr, flush=True)
+    seconds = time.perf_counter() - started
+    print(f"diagrams: {args.count} (seeds {args.seed}..{args.seed + args.count - 1}; "
+          + ", ".join(f"{kinds[k]} {k}" for k in fuzz.KINDS) + f") in {seconds:.0f} s")
+    print(f"equal: {verdicts['equal']}")
+    print(f"differing: {verdicts['differ']}")
+    print(f"errors that match python-control's: {verdicts['same error']} "
+          f"({messages} with the same message)")
+    print(f"errors that don't: {verdicts['other error']}")
+    print(f"diverged (python-control returns non-finite numbers, controlkit refuses them): "
+          f"{verdicts['diverged']}")
+    print(f"runs where a block fell back from the fast engine (warning): {fell_back}")
+    if verdicts["too long"]:
+        print(f"too long to compare (over {args.limit} s): {verdicts['too long']}")
+    if reasons:
+        print("why, by kind:")
+        for (verdict, reason), count in reasons.most_common():
+            print(f"  {count:4d}  {verdict}: {reason}")
+        print("cases:")
+        print("\n".join(not_equal))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
