@@ -7,9 +7,10 @@ counts of how they compared (issue 33, item 6).
 
 Prints the number of diagrams, how many answered equally, how many differed and why, how
 many raised the same error as python-control (and with the same message), how many raised
-another one (or answered where python-control raised), and how many python-control let
-diverge where controlkit refused (by design); then every seed that was not equal, with
-its diagram and call, so that a reader can reproduce it with ``--show``. The diagrams and
+another one (or answered where python-control raised), how many python-control let
+diverge where controlkit refused (by design), how many killed their process (judged in
+child processes, 50 seeds each, so the run goes on); then every seed that was not equal,
+with its diagram and call, so that a reader can reproduce it with ``--show``. The diagrams and
 the comparison are tests/fuzz_diagrams.py's (the test suite runs a fixed set of seeds).
 """
 
@@ -19,7 +20,6 @@ import argparse
 import collections
 import os
 import re
-import signal
 import sys
 import time
 from pathlib import Path
@@ -37,14 +37,6 @@ def _reason(detail: str) -> str:
     return detail
 
 
-class TooLong(Exception):
-    """A case that ran longer than --limit seconds (counted apart, not compared)."""
-
-
-def _too_long(signum, frame):
-    raise TooLong
-
-
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--count", type=int, default=200, help="number of diagrams")
@@ -58,30 +50,24 @@ def main(argv=None) -> int:
     verdicts, reasons, messages = collections.Counter(), collections.Counter(), 0
     kinds, fell_back, not_equal = collections.Counter(), 0, []
     started = time.perf_counter()
-    for seed in range(args.seed, args.seed + args.count):
-        case = fuzz.make_case(seed, hazard_rate=args.hazards)
-        signal.signal(signal.SIGALRM, _too_long)
-        signal.alarm(args.limit)
-        try:
-            verdict = fuzz.compare(case)
-        except TooLong:
-            verdict = fuzz.Verdict("too long", f"over {args.limit} s")
-        finally:
-            signal.alarm(0)
-        verdicts[verdict.verdict] += 1
-        kinds[case.kind] += 1
-        fell_back += verdict.fell_back
-        if verdict.verdict == "same error" and "message" not in verdict.detail:
-            messages += 1
-        if verdict.verdict != "equal":
-            reasons[(verdict.verdict, _reason(verdict.detail))] += 1
-            not_equal.append(f"  {verdict.verdict}: {verdict.detail}\n    {case.describe()}")
-        if args.show:
-            print(f"{case.describe()}\n  -> {verdict.verdict} {verdict.detail}")
-        done = seed - args.seed + 1
-        if done % 50 == 0:
-            print(f"... {done} diagrams, {time.perf_counter() - started:.0f} s",
-                  file=sys.stderr, flush=True)
+    end = args.seed + args.count
+    for first in range(args.seed, end, 50):  # judged in child processes, 50 at a time
+        judged = fuzz.judged_apart(first, min(50, end - first), args.hazards, args.limit)
+        for seed, verdict in sorted(judged.items()):
+            case = fuzz.make_case(seed, hazard_rate=args.hazards)
+            verdicts[verdict.verdict] += 1
+            kinds[case.kind] += 1
+            fell_back += verdict.fell_back
+            if verdict.verdict == "same error" and "message" not in verdict.detail:
+                messages += 1
+            if verdict.verdict != "equal":
+                reasons[(verdict.verdict, _reason(verdict.detail))] += 1
+                not_equal.append(f"  {verdict.verdict}: {verdict.detail}\n"
+                                 f"    {case.describe()}")
+            if args.show:
+                print(f"{case.describe()}\n  -> {verdict.verdict} {verdict.detail}")
+        print(f"... {min(first + 50, end) - args.seed} diagrams, "
+              f"{time.perf_counter() - started:.0f} s", file=sys.stderr, flush=True)
     seconds = time.perf_counter() - started
     print(f"diagrams: {args.count} (seeds {args.seed}..{args.seed + args.count - 1}; "
           + ", ".join(f"{kinds[k]} {k}" for k in fuzz.KINDS) + f") in {seconds:.0f} s")
@@ -93,8 +79,8 @@ def main(argv=None) -> int:
     print(f"diverged (python-control returns non-finite numbers, controlkit refuses them): "
           f"{verdicts['diverged']}")
     print(f"runs where a block fell back from the fast engine (warning): {fell_back}")
-    if verdicts["too long"]:
-        print(f"too long to compare (over {args.limit} s): {verdicts['too long']}")
+    print(f"crashed (the process died): {verdicts['crashed']}")
+    print(f"too long to compare (over {args.limit} s): {verdicts['too long']}")
     if reasons:
         print("why, by kind:")
         for (verdict, reason), count in reasons.most_common():

@@ -33,7 +33,15 @@ how much);
 differ); ``other error`` (python-control raises and controlkit raises another type or
 answers, or controlkit raises where python-control answers); ``diverged`` (python-control
 returns non-finite numbers and controlkit refuses them with a ``FloatingPointError``, as
-controlkit does by design).
+controlkit does by design). :func:`judged_apart` runs the seeds in a child process, so
+that a run which kills its process (compiled code reading far outside an array) is the
+verdict ``crashed`` and the seeds after it are still judged; with a time limit, a case
+over it is ``too long``.
+
+    python tests/fuzz_diagrams.py FIRST COUNT RESULTS [HAZARD_RATE [LIMIT]]
+
+judges seeds FIRST .. FIRST+COUNT-1 and appends one JSON line per seed to the file
+RESULTS (the child process of :func:`judged_apart`).
 
 Tolerances: discrete runs to 1e-12 of each signal's size (at least 1), continuous and
 mixed ones to 1e-9 (docs/sampled-data.md: "to 1e-9" for RK45, RK23, DOP853).
@@ -44,9 +52,16 @@ from __future__ import annotations
 import contextlib
 import functools
 import io
+import json
 import math
+import os
+import signal
+import subprocess
+import sys
+import tempfile
 import warnings
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import control as ct
 import numpy as np
@@ -58,7 +73,8 @@ TS = 0.05
 #: Largest difference allowed, relative to each signal's size (at least 1).
 TOLERANCE = {"discrete": 1e-12, "continuous": 1e-9, "mixed": 1e-9}
 KINDS = ("discrete", "continuous", "mixed")
-VERDICTS = ("equal", "differ", "same error", "other error", "diverged")
+VERDICTS = ("equal", "differ", "same error", "other error", "diverged", "crashed",
+            "too long")
 
 
 # ============================================================================ the blocks
@@ -995,3 +1011,66 @@ def compare(case) -> Verdict:
 def _name(error) -> str:
     text = str(error).splitlines()[0] if str(error) else ""
     return f"{type(error).__name__}({text[:160]!r})"
+
+
+# ============================================================================ many, apart
+
+class _TooLong(Exception):
+    pass
+
+
+def _alarm(signum, frame):
+    raise _TooLong
+
+
+def _judge_into(first, count, results, hazard_rate=0.15, limit=0) -> None:
+    """Judge the seeds and append ``{"seed", "verdict", "detail", "fell_back"}`` lines to
+    the file ``results``, one as soon as each seed is judged."""
+    signal.signal(signal.SIGALRM, _alarm)
+    for seed in range(first, first + count):
+        signal.alarm(limit)
+        try:
+            verdict = compare(make_case(seed, hazard_rate))
+        except _TooLong:
+            verdict = Verdict("too long", f"over {limit} s")
+        finally:
+            signal.alarm(0)
+        with open(results, "a") as file:
+            file.write(json.dumps({"seed": seed, **vars(verdict)}) + "\n")
+        if (seed - first + 1) % 50 == 0:
+            print(f"... {seed - first + 1} diagrams", file=sys.stderr, flush=True)
+
+
+def judged_apart(first, count, hazard_rate=0.15, limit=0):
+    """``{seed: Verdict}`` for ``count`` seeds from ``first``, judged in a child process
+    (a crash is the verdict ``crashed`` of its seed, and a new child goes on after it);
+    ``limit`` seconds per case (0: none)."""
+    verdicts, seed, end = {}, first, first + count
+    env = {**os.environ, "CONTROLKIT_MODULES": os.environ.get("CONTROLKIT_MODULES", "never")}
+    with tempfile.TemporaryDirectory() as folder:
+        results = Path(folder) / "verdicts.jsonl"
+        while seed < end:
+            child = subprocess.run([sys.executable, __file__, str(seed), str(end - seed),
+                                    str(results), str(hazard_rate), str(limit)], env=env,
+                                   stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                                   text=True)
+            lines = results.read_text().splitlines() if results.exists() else []
+            for line in lines:
+                row = json.loads(line)
+                judged = row.pop("seed")
+                verdicts[judged] = Verdict(**row)
+            seed = max(verdicts, default=first - 1) + 1
+            if seed < end:  # the child died while it judged this seed
+                how = (f"killed by {signal.Signals(-child.returncode).name}"
+                       if child.returncode < 0 else f"exit status {child.returncode}")
+                tail = " ".join(child.stderr.strip().splitlines()[-1:])[:300]
+                verdicts[seed] = Verdict("crashed", f"the process was {how} ({tail})")
+                seed += 1
+    return verdicts
+
+
+if __name__ == "__main__":
+    first_, count_, results_ = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3]
+    options = [float(sys.argv[4])] if len(sys.argv) > 4 else []
+    options += [int(sys.argv[5])] if len(sys.argv) > 5 else []
+    _judge_into(first_, count_, results_, *options)

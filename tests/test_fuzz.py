@@ -9,6 +9,8 @@ that fails names its diagram and call: ``python benchmarks/fuzz.py --count 1 --s
 """
 
 import re
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,6 +22,7 @@ from fuzz_diagrams import (
     PLANTS,
     Run,
     compare,
+    judged_apart,
     make_case,
 )
 
@@ -32,23 +35,57 @@ MORE = range(60, 1060, 100)
 ACCEPTED = ("equal", "same error", "diverged")
 
 
+@pytest.fixture(scope="module")
+def default_verdicts():
+    # judged in one child process: a crash of compiled code fails its seed, not the session
+    return judged_apart(SEEDS.start, len(SEEDS))
+
+
 @pytest.mark.parametrize("seed", SEEDS)
-def test_a_random_diagram_answers_as_python_control(seed):
-    case = make_case(seed)
-    verdict = compare(case)
-    assert verdict.verdict in ACCEPTED, f"{case.describe()}\n{verdict.verdict}: {verdict.detail}"
+def test_a_random_diagram_answers_as_python_control(seed, default_verdicts):
+    verdict = default_verdicts[seed]
+    assert verdict.verdict in ACCEPTED, \
+        f"{make_case(seed).describe()}\n{verdict.verdict}: {verdict.detail}"
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("first", MORE)
 def test_a_thousand_more_random_diagrams_answer_as_python_control(first):
-    failed = []
-    for seed in range(first, first + 100):
-        case = make_case(seed)
-        verdict = compare(case)
-        if verdict.verdict not in ACCEPTED:
-            failed.append(f"{case.describe()}\n  {verdict.verdict}: {verdict.detail}")
+    failed = [f"{make_case(seed).describe()}\n  {verdict.verdict}: {verdict.detail}"
+              for seed, verdict in judged_apart(first, 100).items()
+              if verdict.verdict not in ACCEPTED]
     assert not failed, f"{len(failed)} of 100:\n" + "\n".join(failed)
+
+
+#: What the child runs instead of fuzz_diagrams.py: its judging of seed 1 dies as compiled
+#: code reading far outside an array does (SIGSEGV); the other seeds are judged as usual.
+CRASHING_CHILD = """
+import os, signal, sys
+sys.path.insert(0, {tests!r})
+import fuzz_diagrams
+compare = fuzz_diagrams.compare
+fuzz_diagrams.compare = lambda case: (
+    os.kill(os.getpid(), signal.SIGSEGV) if case.seed == 1 else compare(case))
+a = sys.argv  # this script, fuzz_diagrams.py, first, count, results, hazard rate, limit
+fuzz_diagrams._judge_into(int(a[2]), int(a[3]), a[4], float(a[5]), int(a[6]))
+"""
+
+
+def test_a_crash_of_the_process_is_the_verdict_of_its_seed_and_the_next_seeds_go_on(
+        tmp_path, monkeypatch):
+    import fuzz_diagrams
+
+    child = tmp_path / "crashing_child.py"
+    child.write_text(CRASHING_CHILD.format(tests=str(Path(__file__).parent)))
+    python = tmp_path / "python"
+    python.write_text(f'#!/bin/sh\nexec "{sys.executable}" "{child}" "$@"\n')
+    python.chmod(0o755)
+    monkeypatch.setattr(fuzz_diagrams.sys, "executable", str(python))
+    verdicts = judged_apart(0, 3)
+    assert sorted(verdicts) == [0, 1, 2]
+    assert verdicts[1].verdict == "crashed" and "killed by SIGSEGV" in verdicts[1].detail
+    assert verdicts[0].verdict not in ("crashed", "too long")
+    assert verdicts[2].verdict not in ("crashed", "too long")
 
 
 def test_the_default_seeds_cover_every_kind_structure_and_most_templates():

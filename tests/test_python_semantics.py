@@ -100,6 +100,38 @@ def test_an_index_that_leaves_its_table_during_the_run_raises_index_error(update
         controlkit.input_output_response(block, T, 0.0, 0.0)
 
 
+FAR_OFF_THE_TABLE = textwrap.dedent("""
+    import control as ct
+    import numpy as np
+    import controlkit
+
+    GAIN_TABLE = [1.0, 0.8, 0.6, 0.5]
+
+    def scheduled(t, x, u, params):
+        return [-GAIN_TABLE[int(abs(x[0]) * 2)] * x[0] + u[0]]
+
+    block = ct.nlsys(scheduled, None, inputs=1, outputs=1, states=1, dt=0.1,
+                     name="scheduled")
+    try:
+        controlkit.input_output_response(block, np.arange(51) * 0.1, -1e9, 0.0)
+    except IndexError as error:
+        print("IndexError:", error)
+""")
+
+
+def test_an_index_far_off_its_table_raises_index_error_not_a_crash(tmp_path):
+    # the input drives the state to -1e9 in one step: index 2e9 of a table of 4, which
+    # compiled code without bounds checks reads far outside its memory (found by
+    # tests/fuzz_diagrams.py, seed 525: SIGSEGV). In a process of its own
+    script = tmp_path / "far_off.py"
+    script.write_text(FAR_OFF_THE_TABLE)
+    result = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                            cwd=tmp_path, timeout=600)
+    assert result.returncode == 0, f"the run ended with status {result.returncode}: " \
+                                   f"{result.stderr[-1500:]}"
+    assert result.stdout.strip() == "IndexError: list index out of range"
+
+
 def count(t, x, u, params):
     return [x[0] + 1]
 
