@@ -1042,31 +1042,57 @@ def _judge_into(first, count, results, hazard_rate=0.15, limit=0) -> None:
 
 
 def judged_apart(first, count, hazard_rate=0.15, limit=0):
-    """``{seed: Verdict}`` for ``count`` seeds from ``first``, judged in a child process
-    (a crash is the verdict ``crashed`` of its seed, and a new child goes on after it);
-    ``limit`` seconds per case (0: none)."""
+    """``{seed: Verdict}`` for ``count`` seeds from ``first``, judged in a child process.
+
+    A seed whose run kills the child (a crash of compiled code) is ``crashed``, and a new
+    child goes on after it. With ``limit`` seconds, a case over it is ``too long``: the
+    child's alarm stops Python code; a compiled loop that never returns (the alarm cannot
+    stop it) is killed once no verdict has come for twice that, plus half a minute.
+    """
     verdicts, seed, end = {}, first, first + count
     env = {**os.environ, "CONTROLKIT_MODULES": os.environ.get("CONTROLKIT_MODULES", "never")}
     with tempfile.TemporaryDirectory() as folder:
-        results = Path(folder) / "verdicts.jsonl"
+        results, errors = Path(folder) / "verdicts.jsonl", Path(folder) / "stderr.txt"
         while seed < end:
-            child = subprocess.run([sys.executable, __file__, str(seed), str(end - seed),
-                                    str(results), str(hazard_rate), str(limit)], env=env,
-                                   stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                                   text=True)
-            lines = results.read_text().splitlines() if results.exists() else []
-            for line in lines:
+            with open(errors, "w") as stderr:
+                child = subprocess.Popen([sys.executable, __file__, str(seed), str(end - seed),
+                                          str(results), str(hazard_rate), str(limit)],
+                                         env=env, stdout=subprocess.DEVNULL, stderr=stderr)
+                hung = _wait_for_the_child(child, results, 2 * limit + 30 if limit else 0)
+            for line in results.read_text().splitlines() if results.exists() else []:
                 row = json.loads(line)
                 judged = row.pop("seed")
                 verdicts[judged] = Verdict(**row)
             seed = max(verdicts, default=first - 1) + 1
-            if seed < end:  # the child died while it judged this seed
-                how = (f"killed by {signal.Signals(-child.returncode).name}"
-                       if child.returncode < 0 else f"exit status {child.returncode}")
-                tail = " ".join(child.stderr.strip().splitlines()[-1:])[:300]
-                verdicts[seed] = Verdict("crashed", f"the process was {how} ({tail})")
+            if seed < end:  # the child died, or was stopped, while it judged this seed
+                if hung:
+                    verdicts[seed] = Verdict("too long", f"no answer in {2 * limit + 30} s "
+                                                         f"(stopped: a loop that never ends)")
+                else:
+                    how = (f"killed by {signal.Signals(-child.returncode).name}"
+                           if child.returncode < 0 else f"exit status {child.returncode}")
+                    tail = " ".join(errors.read_text().strip().splitlines()[-1:])[:300]
+                    verdicts[seed] = Verdict("crashed", f"the process was {how} ({tail})")
                 seed += 1
     return verdicts
+
+
+def _wait_for_the_child(child, results, patience) -> bool:
+    """Wait for ``child`` to end; with ``patience`` seconds, kill it once no verdict has
+    come for that long, and say so (True)."""
+    import time
+
+    seen, since = -1, time.monotonic()
+    while child.poll() is None:
+        judged = results.stat().st_size if results.exists() else 0
+        if judged != seen:
+            seen, since = judged, time.monotonic()
+        elif patience and time.monotonic() - since > patience:
+            child.kill()
+            child.wait()
+            return True
+        time.sleep(0.05)
+    return False
 
 
 if __name__ == "__main__":

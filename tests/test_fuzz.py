@@ -33,12 +33,15 @@ MORE = range(60, 1060, 100)
 #: What the drop-in may answer: python-control's numbers, python-control's exception, or
 #: a refusal of the non-finite numbers python-control lets through.
 ACCEPTED = ("equal", "same error", "diverged")
+#: Seconds a case may take (each takes well under one once its templates are compiled):
+#: beyond, a run that never ends is stopped and its seed fails as "too long"
+LIMIT = 300
 
 
 @pytest.fixture(scope="module")
 def default_verdicts():
     # judged in one child process: a crash of compiled code fails its seed, not the session
-    return judged_apart(SEEDS.start, len(SEEDS))
+    return judged_apart(SEEDS.start, len(SEEDS), limit=LIMIT)
 
 
 @pytest.mark.parametrize("seed", SEEDS)
@@ -52,7 +55,7 @@ def test_a_random_diagram_answers_as_python_control(seed, default_verdicts):
 @pytest.mark.parametrize("first", MORE)
 def test_a_thousand_more_random_diagrams_answer_as_python_control(first):
     failed = [f"{make_case(seed).describe()}\n  {verdict.verdict}: {verdict.detail}"
-              for seed, verdict in judged_apart(first, 100).items()
+              for seed, verdict in judged_apart(first, 100, limit=LIMIT).items()
               if verdict.verdict not in ACCEPTED]
     assert not failed, f"{len(failed)} of 100:\n" + "\n".join(failed)
 

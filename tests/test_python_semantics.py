@@ -378,6 +378,45 @@ def test_a_square_root_of_a_negative_in_a_continuous_block_is_pythons_error():
     assert "'tank'" in str(raised.value)
 
 
+DRAINED_BELOW_ZERO = textwrap.dedent("""
+    import math
+    import control as ct
+    import numpy as np
+    import controlkit
+
+    def tank(t, x, u, params):
+        return [(u[0] - math.sqrt(x[0])) / 2.0]
+
+    block = ct.nlsys(tank, None, inputs=1, outputs=1, states=1, name="tank")
+    T = np.linspace(0.0, 5.0, 40)
+    try:
+        controlkit.input_output_response(block, T, -np.sin(T), 0.0)
+    except ValueError as error:
+        print("ValueError:", error)
+""")
+
+
+def test_a_continuous_run_whose_first_step_leaves_the_domain_raises_and_ends(tmp_path):
+    # an empty tank drained from t = 0: python-control's first RK45 stage takes a square
+    # root of a negative level and raises; compiled, every retried step meets the NaN
+    # again and the run never ends (found by tests/fuzz_diagrams.py, seed 795). In a
+    # process of its own, given far more than the second python-control takes
+    T = np.linspace(0.0, 5.0, 40)
+    block = ct.nlsys(lambda t, x, u, params: [(u[0] - math.sqrt(x[0])) / 2.0], None,
+                     inputs=1, outputs=1, states=1, name="tank")
+    error = python_control_error(block, T, -np.sin(T), 0.0)
+    assert type(error) is ValueError and str(error) == "math domain error"
+    script = tmp_path / "drained.py"  # a file: the engine compiles functions it can read
+    script.write_text(DRAINED_BELOW_ZERO)
+    try:
+        result = subprocess.run([sys.executable, str(script)], text=True,
+                                capture_output=True, timeout=300, cwd=tmp_path)
+    except subprocess.TimeoutExpired:
+        pytest.fail("the run did not end in 300 s")
+    assert result.stdout.strip().startswith("ValueError:") and \
+        "math domain error" in result.stdout, result.stderr[-1500:]
+
+
 def test_a_numpy_division_by_zero_gives_inf_as_python_control():
     # 1 / x[0] divides numpy floats: python-control's output is inf there (a
     # RuntimeWarning), not a ZeroDivisionError
