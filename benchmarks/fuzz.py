@@ -30,11 +30,21 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 import fuzz_diagrams as fuzz  # noqa: E402
 
 
-def _reason(detail: str) -> str:
-    """A verdict's detail without its numbers and names: what kind of difference it is."""
-    detail = re.sub(r"\('[^']*'\)", "", detail)  # messages of exceptions
+def _reason(verdict: str, detail: str) -> str:
+    """What kind of difference a verdict's detail is: the exception types and who raised
+    them, or the arrays that differ, without numbers and messages."""
+    types = re.findall(r"\b([A-Z]\w*(?:Error|Exception|Interrupt))\(", detail)
+    if verdict == "same error":
+        return detail.split(",")[0] + (", another message" if "message" in detail else "")
+    if verdict == "other error":
+        if detail.startswith("controlkit raises"):
+            return f"controlkit raises {types[0]}, python-control answers"
+        theirs = "answers" if detail.endswith("controlkit answers") else types[-1]
+        return f"python-control raises {types[0]}, controlkit {theirs}"
+    if verdict == "crashed":
+        return detail.split(" (")[0]
     detail = re.sub(r"\d+(\.\d+)?(e[-+]?\d+)?", "N", detail)
-    return detail
+    return re.sub(r"\(tolerance N\)", "", detail)
 
 
 def main(argv=None) -> int:
@@ -61,7 +71,7 @@ def main(argv=None) -> int:
             if verdict.verdict == "same error" and "message" not in verdict.detail:
                 messages += 1
             if verdict.verdict != "equal":
-                reasons[(verdict.verdict, _reason(verdict.detail))] += 1
+                reasons[(verdict.verdict, _reason(verdict.verdict, verdict.detail))] += 1
                 not_equal.append(f"  {verdict.verdict}: {verdict.detail}\n"
                                  f"    {case.describe()}")
             if args.show:

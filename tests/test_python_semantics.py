@@ -198,6 +198,42 @@ def test_a_print_in_a_user_function_prints_as_often_as_python_and_through_sys_st
     np.testing.assert_array_equal(ours.outputs, ref.outputs)
 
 
+def squash(t, x, u, params):
+    return [x[0] + np.tanh(u[0])]
+
+
+def coulomb_friction(t, x, u, params):
+    k, c, mu = params["k"], params["c"], params["mu"]
+    return [x[1], u[0] - k * x[0] - c * x[1] - mu * np.tanh(x[1] / 0.05)]
+
+
+def test_np_tanh_in_a_compiled_function_is_numpys_to_the_last_bit():
+    # numpy's tanh is not the C library's (numba's): np.tanh(0.7) is 1 ulp below
+    # math.tanh(0.7), and about 30 % of arguments differ, by up to 3 ulp
+    block = ct.nlsys(squash, None, inputs=1, outputs=1, states=1, dt=1, name="squash")
+    T = np.arange(4.0)
+    U = [0.0, 0.7, 0.7, 0.7]
+    ref = ct.input_output_response(block, T, U, 0.0)
+    assert ref.outputs[2] == np.tanh(0.7)  # numpy's, whatever the platform's C library says
+    ours = controlkit.input_output_response(block, T, U, 0.0)
+    np.testing.assert_array_equal(ours.outputs, ref.outputs)
+
+
+def test_a_smoothed_friction_matches_python_control_at_tight_tolerances():
+    # found by tests/fuzz_diagrams.py (seed 280): the last-bit differences of np.tanh move
+    # RK45's step sizes, and the answers part by 2e-5 at rtol=1e-6 (with math.tanh in the
+    # same function they agree bit for bit)
+    block = ct.nlsys(coulomb_friction, lambda t, x, u, params: x[0], inputs=1, outputs=1,
+                     states=2, name="mass", params={"k": 4.85, "c": 1.31, "mu": 0.171})
+    T = np.linspace(0.0, 6.0, 61)
+    U = np.sin(2.0 * T)
+    tight = {"rtol": 1e-6, "atol": 1e-9}
+    ref = ct.input_output_response(block, T, U, 0.0, solve_ivp_kwargs=tight)
+    ours = controlkit.input_output_response(block, T, U, 0.0, solve_ivp_kwargs=tight)
+    np.testing.assert_allclose(ours.outputs, ref.outputs, rtol=0,
+                               atol=1e-9 * max(1.0, np.abs(ref.outputs).max()))
+
+
 # ======================================================================================
 # Everything python-control runs, runs
 # ======================================================================================
