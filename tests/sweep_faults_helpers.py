@@ -5,6 +5,9 @@ a script that runs one sweep in a process of its own (to be interrupted or kille
 
 runs ``square`` over ``x = 0 .. RUNS-1`` (each run pausing PAUSE s) with two workers and
 prints the table as JSON; with ``--hog`` it runs ``hog`` instead (runs that never end).
+With the environment variable ``CONTROLKIT_TEST_GATE=FILE:N`` the runs ``x >= N`` wait
+until FILE exists: a test holds a sweep at a chosen row for as long as it needs, whatever
+the machine's load, instead of hoping that its pauses last long enough.
 """
 
 import json
@@ -16,6 +19,8 @@ from pathlib import Path
 
 #: Where runs of the script write their pid when they start (unset: nowhere).
 PID_FOLDER = "CONTROLKIT_TEST_PID_FOLDER"
+#: ``FILE:N``: the runs ``x >= N`` of ``square`` wait until FILE exists (unset: none wait).
+GATE = "CONTROLKIT_TEST_GATE"
 
 
 def _note_pid(x, folder=None) -> None:
@@ -26,9 +31,18 @@ def _note_pid(x, folder=None) -> None:
         os.replace(tmp, Path(folder) / f"{x}.pid")
 
 
+def _wait_at_the_gate(x) -> None:
+    gate = os.environ.get(GATE)
+    if gate:
+        path, first_held = gate.rsplit(":", 1)
+        while x >= int(first_held) and not Path(path).exists():
+            time.sleep(0.01)
+
+
 def square(x, pause=0.0):
-    """y = x^2, after ``pause`` s."""
+    """y = x^2, after ``pause`` s (and after the gate opens, see :data:`GATE`)."""
     _note_pid(x)
+    _wait_at_the_gate(x)
     time.sleep(pause)
     return {"y": x * x}
 

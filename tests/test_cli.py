@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from processes import wait_for
 
 from controlkit.cli import main
 from controlkit.outputs import export
@@ -122,7 +123,6 @@ def test_interrupted_run_keeps_finished_files_and_says_what_is_missing(tmp_path)
     import json
     import os
     import signal
-    import time
 
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(
         [str(Path(__file__).resolve().parent.parent), os.environ.get("PYTHONPATH", "")])}
@@ -130,11 +130,9 @@ def test_interrupted_run_keeps_finished_files_and_says_what_is_missing(tmp_path)
                              "--horizon", "40000", "--out", str(tmp_path)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     folder = tmp_path / "spacecraft"
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline:  # interrupt while the second case is being written
-        if (folder / "ideal.csv").exists() and any(folder.glob(".without_mec.csv*")):
-            break
-        time.sleep(0.02)
+    # interrupt while the second case is being written (its partial file exists)
+    wait_for(lambda: (folder / "ideal.csv").exists() and any(folder.glob(".without_mec.csv*")),
+             120, "the second case's partial file")
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130

@@ -1,0 +1,563 @@
+"""The drop-in answers as python-control does, or says why not (issue 33, "Must show").
+
+One test per case of the issue's "Compiled code that silently differs from Python" and
+"Crashes and unclear errors" lists, and the differences tests/fuzz_diagrams.py found. Each
+runs python-control on the same system first and asserts what it does (its numbers, its
+exception and message), then asserts that ``controlkit.input_output_response`` does the
+same, through the public drop-ins only (``controlkit.input_output_response``,
+``controlkit.interconnect``, ``controlkit.explain``). Where python-control's own message
+names neither the block nor the time, the test asks for both (the issue's "errors say what
+happened, where").
+
+The time grids are exact binary fractions (multiples of 0.25 s), so that the time an error
+names is the time python-control was at, digit for digit.
+"""
+
+import math
+import os
+import re
+import signal
+import subprocess
+import sys
+import textwrap
+import warnings
+from pathlib import Path
+
+import control as ct
+import numpy as np
+import pytest
+from processes import wait_for
+
+import controlkit
+
+DT = 0.25
+
+
+def python_control_error(sys_, T, U, X0, **kwargs):
+    """The exception python-control raises for this call (the test fails if none)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # its RuntimeWarnings on the way
+        try:
+            ct.input_output_response(sys_, T, U, X0, **kwargs)
+        except Exception as error:  # noqa: BLE001 - returned to be compared
+            return error
+    raise AssertionError("python-control did not raise")
+
+
+def names_the_time(message, t) -> bool:
+    """Whether ``message`` gives the time ``t`` (as 0.75, 0.750 or 7.5e-01)."""
+    numbers = re.findall(r"[-+]?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?", message)
+    return any(math.isclose(float(n), t, rel_tol=1e-12, abs_tol=1e-15) for n in numbers)
+
+
+def time_of_the_failing_call(function, sys_args, T, U, X0, **nlsys):
+    """The time of python-control's call of ``function`` that raised: python-control runs
+    a copy of the block whose function notes each call's time first."""
+    seen = []
+
+    def noting(t, x, u, params):
+        seen.append(t)
+        return function(t, x, u, params)
+
+    update, output = sys_args
+    spy = ct.nlsys(noting if update is function else update,
+                   noting if output is function else output, **nlsys)
+    with pytest.raises(Exception):  # noqa: B017, PT011 - its type is checked by the caller
+        ct.input_output_response(spy, T, U, X0)
+    return float(seen[-1])
+
+
+# ======================================================================================
+# Compiled code that silently differs from Python
+# ======================================================================================
+
+GAINS_LIST = [1.0, 2.0, 3.0]
+GAINS_ARRAY = np.array([1.0, 2.0, 3.0])
+
+
+def scheduled_on_a_list(t, x, u, params):
+    gain = GAINS_LIST[int(x[0] * 2)]  # a gain table scheduled on the state
+    return [x[0] + 0.1 * gain]
+
+
+def scheduled_on_an_array(t, x, u, params):
+    gain = GAINS_ARRAY[int(x[0] * 2)]
+    return [x[0] + 0.1 * gain]
+
+
+@pytest.mark.parametrize(("update", "message"), [
+    (scheduled_on_a_list, "list index out of range"),
+    (scheduled_on_an_array, "index 3 is out of bounds for axis 0 with size 3"),
+], ids=["list", "array"])
+def test_an_index_that_leaves_its_table_during_the_run_raises_index_error(update, message):
+    # the state climbs to 1.5 after a few steps: index 3 of a table of 3. The run's start
+    # (and any trial point below x = 1.5) indexes inside the table
+    block = ct.nlsys(update, None, inputs=0, outputs=1, states=1, dt=DT, name="scheduled")
+    T = np.arange(30) * DT
+    error = python_control_error(block, T, 0.0, 0.0)
+    assert type(error) is IndexError and str(error) == message
+    with pytest.raises(IndexError, match=re.escape(message)):
+        controlkit.input_output_response(block, T, 0.0, 0.0)
+
+
+FAR_OFF_THE_TABLE = textwrap.dedent("""
+    import control as ct
+    import numpy as np
+    import controlkit
+
+    GAIN_TABLE = [1.0, 0.8, 0.6, 0.5]
+
+    def scheduled(t, x, u, params):
+        return [-GAIN_TABLE[int(abs(x[0]) * 2)] * x[0] + u[0]]
+
+    block = ct.nlsys(scheduled, None, inputs=1, outputs=1, states=1, dt=0.1,
+                     name="scheduled")
+    try:
+        controlkit.input_output_response(block, np.arange(51) * 0.1, -1e9, 0.0)
+    except IndexError as error:
+        print("IndexError:", error)
+""")
+
+
+def test_an_index_far_off_its_table_raises_index_error_not_a_crash(tmp_path):
+    # the input drives the state to -1e9 in one step: index 2e9 of a table of 4, which
+    # compiled code without bounds checks reads far outside its memory (found by
+    # tests/fuzz_diagrams.py, seed 525: SIGSEGV). In a process of its own
+    script = tmp_path / "far_off.py"
+    script.write_text(FAR_OFF_THE_TABLE)
+    result = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                            cwd=tmp_path, timeout=600)
+    assert result.returncode == 0, f"the run ended with status {result.returncode}: " \
+                                   f"{result.stderr[-1500:]}"
+    assert result.stdout.strip() == "IndexError: list index out of range"
+
+
+def count(t, x, u, params):
+    return [x[0] + 1]
+
+
+def powers_of_three(t, x, u, params):
+    return 3 ** int(x[0])  # a Python int: exact past 64 bits
+
+
+def test_integer_arithmetic_past_64_bits_gives_pythons_number():
+    block = ct.nlsys(count, powers_of_three, inputs=0, outputs=1, states=1, dt=1,
+                     name="powers")
+    T = np.arange(50.0)
+    ref = ct.input_output_response(block, T, 0.0, 0.0)
+    assert int(ref.outputs[0, 45]) == 3 ** 45  # python-control keeps Python's integers
+    ours = controlkit.input_output_response(block, T, 0.0, 0.0)
+    # exact, whether compiled or sent to the Python tier (explain then says why)
+    assert [float(v) for v in np.ravel(ours.outputs)] == [float(v) for v in
+                                                          np.ravel(ref.outputs)]
+
+
+def quantized_sum(t, x, u, params):
+    return [x[0] + round(float(u[0]), 1)]  # Python's round: 0.35 -> 0.3, 0.45 -> 0.5
+
+
+def test_round_with_digits_rounds_as_python_does():
+    # 0.35 is stored as 0.34999...: Python rounds it to 0.3 (numpy's np.round gives 0.4);
+    # 0.45 is 0.45000...01: Python gives 0.5 (numpy 0.4). At t = 0 the input is 0
+    block = ct.nlsys(quantized_sum, None, inputs=1, outputs=1, states=1, dt=1, name="adc")
+    T = np.arange(5.0)
+    U = [0.0, 0.35, 0.45, 0.35, 0.0]
+    ref = ct.input_output_response(block, T, U, 0.0)
+    np.testing.assert_array_equal(ref.outputs, [0.0, 0.0, 0.3, 0.8, 1.1])
+    ours = controlkit.input_output_response(block, T, U, 0.0)
+    np.testing.assert_array_equal(ours.outputs, ref.outputs)
+
+
+def one_value_for_two_states(t, x, u, params):
+    return x[0] + u[0]  # the second state forgotten
+
+
+def test_a_discrete_update_returning_one_value_for_two_states_raises():
+    block = ct.nlsys(one_value_for_two_states, None, inputs=1, outputs=2, states=2, dt=1,
+                     name="two_states")
+    T = np.arange(3.0)
+    error = python_control_error(block, T, 1.0, [0.0, 0.0])
+    assert type(error) is ValueError and "inhomogeneous" in str(error)
+    with pytest.raises(ValueError, match=r"two_states|inhomogeneous"):
+        controlkit.input_output_response(block, T, 1.0, [0.0, 0.0])
+
+
+def noisy_update(t, x, u, params):
+    print(f"update at t = {t}")
+    return [0.5 * x[0] + u[0]]
+
+
+def test_a_print_in_a_user_function_prints_as_often_as_python_and_through_sys_stdout(capsys):
+    block = ct.nlsys(noisy_update, None, inputs=1, outputs=1, states=1, dt=1, name="noisy")
+    T = np.arange(3.0)
+    ref = ct.input_output_response(block, T, 1.0, 0.0)
+    printed = capsys.readouterr().out
+    assert printed == "update at t = 0.0\nupdate at t = 1.0\nupdate at t = 2.0\n"
+    ours = controlkit.input_output_response(block, T, 1.0, 0.0)
+    assert capsys.readouterr().out == printed  # no trial calls; not past sys.stdout
+    np.testing.assert_array_equal(ours.outputs, ref.outputs)
+
+
+def squash(t, x, u, params):
+    return [x[0] + np.tanh(u[0])]
+
+
+def coulomb_friction(t, x, u, params):
+    k, c, mu = params["k"], params["c"], params["mu"]
+    return [x[1], u[0] - k * x[0] - c * x[1] - mu * np.tanh(x[1] / 0.05)]
+
+
+def test_np_tanh_in_a_compiled_function_is_numpys_to_the_last_bit():
+    # numpy's tanh is not the C library's (numba's): np.tanh(0.7) is 1 ulp below
+    # math.tanh(0.7), and about 30 % of arguments differ, by up to 3 ulp
+    block = ct.nlsys(squash, None, inputs=1, outputs=1, states=1, dt=1, name="squash")
+    T = np.arange(4.0)
+    U = [0.0, 0.7, 0.7, 0.7]
+    ref = ct.input_output_response(block, T, U, 0.0)
+    assert ref.outputs[2] == np.tanh(0.7)  # numpy's, whatever the platform's C library says
+    ours = controlkit.input_output_response(block, T, U, 0.0)
+    np.testing.assert_array_equal(ours.outputs, ref.outputs)
+
+
+def test_a_smoothed_friction_matches_python_control_at_tight_tolerances():
+    # found by tests/fuzz_diagrams.py (seed 280): the last-bit differences of np.tanh move
+    # RK45's step sizes, and the answers part by 2e-5 at rtol=1e-6 (with math.tanh in the
+    # same function they agree bit for bit)
+    block = ct.nlsys(coulomb_friction, lambda t, x, u, params: x[0], inputs=1, outputs=1,
+                     states=2, name="mass", params={"k": 4.85, "c": 1.31, "mu": 0.171})
+    T = np.linspace(0.0, 6.0, 61)
+    U = np.sin(2.0 * T)
+    tight = {"rtol": 1e-6, "atol": 1e-9}
+    ref = ct.input_output_response(block, T, U, 0.0, solve_ivp_kwargs=tight)
+    ours = controlkit.input_output_response(block, T, U, 0.0, solve_ivp_kwargs=tight)
+    np.testing.assert_allclose(ours.outputs, ref.outputs, rtol=0,
+                               atol=1e-9 * max(1.0, np.abs(ref.outputs).max()))
+
+
+# ======================================================================================
+# Everything python-control runs, runs
+# ======================================================================================
+
+def two_gains():
+    first = ct.ss([], [], [], [[2.0]], inputs="u", outputs="v", name="first")
+    second = ct.ss([], [], [], [[3.0]], inputs="v", outputs="y", name="second")
+    return ct.interconnect([first, second], inputs="u", outputs="y", name="gains")
+
+
+STATIC = {
+    "summing junction": lambda: ct.summing_junction(["a", "-b"], "c", name="sum"),
+    "ss of a D only": lambda: ct.ss([], [], [], [[2.0]]),
+    "interconnect of gains": two_gains,
+    "static nlsys": lambda: ct.nlsys(None, lambda t, x, u, params: np.tanh(u), inputs=1,
+                                     outputs=1, name="tanh"),
+    "discrete gain": lambda: ct.ss([], [], [], [[0.5]], dt=DT, name="half"),
+}
+
+
+@pytest.mark.parametrize("name", list(STATIC))
+def test_a_purely_static_system_runs(name):
+    system = STATIC[name]()
+    T = np.arange(5) * DT
+    U = np.vstack([np.sin(T + k) for k in range(system.ninputs)])
+    ref = ct.input_output_response(system, T, U, [])
+    for _ in range(2):  # the second call finds the first one's compiled code
+        ours = controlkit.input_output_response(system, T, U, [])
+        np.testing.assert_array_equal(ours.time, ref.time)
+        np.testing.assert_allclose(ours.outputs, ref.outputs, rtol=1e-12, atol=0)
+
+
+def lag(t, x, u, params):
+    return -x + u
+
+
+@pytest.mark.parametrize("system", [
+    ct.nlsys(lag, None, inputs=1, outputs=1, states=1, name="lag"),
+    ct.interconnect([ct.tf([1.0], [1.0, 1.0], inputs="u", outputs="v", name="first"),
+                     ct.tf([2.0], [1.0, 3.0], inputs="v", outputs="y", name="second")],
+                    inputs="u", outputs="y", name="two_lags"),
+], ids=["nlsys", "interconnect"])
+def test_evaluation_times_none_returns_the_solvers_own_points(system):
+    T = np.linspace(0.0, 2.0, 5)
+    ref = ct.input_output_response(system, T, 1.0, 0.0, evaluation_times=None)
+    assert ref.time.size != T.size  # the solver's steps, not T
+    ours = controlkit.input_output_response(system, T, 1.0, 0.0, evaluation_times=None)
+    assert ours.time.shape == ref.time.shape
+    np.testing.assert_allclose(ours.time, ref.time, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(ours.outputs, ref.outputs, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize(("noutputs", "ninputs"), [(1, 1), (3, 2)])
+def test_non_uniform_time_points_of_a_static_system(noutputs, ninputs):
+    # python-control's own test_nonuniform_timepts, its static cases
+    system = ct.ss([], np.zeros((0, ninputs)), np.zeros((noutputs, 0)),
+                   np.arange(1.0, 1.0 + noutputs * ninputs).reshape(noutputs, ninputs))
+    T = [0, 2, 4, 8, 10]
+    U = np.outer(np.ones(ninputs), [1, 3, 1, -7, 1])
+    for evaluation_times in ("T", [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10]):
+        ref = ct.input_output_response(system, T, U, squeeze=False,
+                                       evaluation_times=evaluation_times)
+        ours = controlkit.input_output_response(system, T, U, squeeze=False,
+                                                evaluation_times=evaluation_times)
+        np.testing.assert_array_equal(ours.time, ref.time)
+        np.testing.assert_allclose(ours.outputs, ref.outputs, rtol=1e-12, atol=1e-12)
+
+
+def test_a_system_with_states_and_dt_none_runs_as_continuous():
+    # python-control reads dt=None alone as continuous (kwargs_test.py's system)
+    system = ct.ss([[-1, 1], [0, -1]], [[0], [1]], [[1, 0]], 0, dt=None)
+    ref = ct.input_output_response(system, [0, 1, 2], [1, 1, 1])
+    ours = controlkit.input_output_response(system, [0, 1, 2], [1, 1, 1])
+    np.testing.assert_allclose(ours.outputs, ref.outputs, rtol=0, atol=1e-9)
+
+
+def predator_prey(t, x, u, params):  # python-control's iosys_test.py predprey
+    r, d, b, k, a, c = 2.0, 0.7, 0.3, 10.0, 8.0, 4.0
+    H, L = x[0], x[1]
+    return np.array([r * H * (1 - H / k) - (a * H * L) / (c + H),
+                     b * (a * H * L) / (c + H) - d * L])
+
+
+@pytest.mark.parametrize(("system", "U", "X0", "sizes"), [
+    # test_find_size: sizes from U (two inputs) and X0 (two states)
+    (ct.nlsys(lambda t, x, u, params: -x + u, lambda t, x, u, params: x[:1]),
+     [0, 1], [0, 0], (2, 1, 2)),
+    # test_nonlinear_iosys: a lone nlsys of its update only
+    (ct.nlsys(predator_prey), 0, [0.5, 0.5], (1, 2, 2)),
+], ids=["find_size", "predator_prey"])
+def test_a_lone_system_of_unknown_sizes_runs(system, U, X0, sizes):
+    T = np.linspace(0.0, 1.0, 50)
+    ref = ct.input_output_response(system, T, U, X0)
+    assert (ref.ninputs, ref.noutputs, ref.nstates) == sizes
+    ours = controlkit.input_output_response(system, T, U, X0)
+    assert (ours.ninputs, ours.noutputs, ours.nstates) == sizes
+    assert (ours.y.shape, ours.x.shape) == (ref.y.shape, ref.x.shape)
+    np.testing.assert_allclose(ours.y, ref.y, rtol=0, atol=1e-9)
+
+
+# ======================================================================================
+# Errors say what happened, where
+# ======================================================================================
+
+def tank(t, x, u, params):
+    # h+ = h + Ts (q - c sqrt(h)) / A: drained below zero by a negative inflow (at 0.75 s)
+    return [x[0] + DT * (u[0] - params["c"] * math.sqrt(x[0])) / params["A"]]
+
+
+def decibels(t, x, u, params):
+    return 20 * math.log10(x[0])  # a level meter, undefined at 0
+
+
+def fall(t, x, u, params):
+    return [x[0] - 0.25]
+
+
+def hold_until_empty(t, x, u, params):
+    if x[0] > 0.3:  # the else branch forgotten: None once x <= 0.3
+        return [x[0] - 0.25]
+
+
+def ratio(t, x, u, params):
+    return params["k"] / float(x[0])  # Python floats: ZeroDivisionError at x = 0
+
+
+@pytest.mark.parametrize(("update", "output", "X0", "U", "error", "message"), [
+    (tank, None, 1.0, -0.8, ValueError, "math domain error"),
+    (fall, decibels, 0.75, 0.0, ValueError, "math domain error"),
+    (fall, ratio, 0.75, 0.0, ZeroDivisionError, "float division by zero"),
+], ids=["sqrt of a negative", "log of 0", "1/x at 0"])
+def test_a_math_error_is_pythons_naming_the_block_and_the_time(update, output, X0, U, error,
+                                                                 message):
+    sizes = dict(inputs=1, outputs=1, states=1, dt=DT, name="meter", params={"c": 1.0,
+                                                                            "A": 1.0, "k": 2.0})
+    block = ct.nlsys(update, output, **sizes)
+    T = np.arange(12) * DT
+    ref = python_control_error(block, T, U, X0)
+    assert type(ref) is error and str(ref) == message
+    failing = output if output is not None else update
+    t = time_of_the_failing_call(failing, (update, output), T, U, X0, **sizes)
+    with pytest.raises(error, match=re.escape(message)) as raised:
+        controlkit.input_output_response(block, T, U, X0)
+    text = str(raised.value)
+    assert "'meter'" in text and names_the_time(text, t), (text, t)
+    assert "diverged" not in text and "gain too high" not in text
+
+
+def test_an_update_returning_none_is_named_not_called_a_divergence():
+    # x = 0.25 at t = 0.75: the update returns None; python-control stores it as the next
+    # state, and the next call (t = 1) fails comparing None, naming neither
+    block = ct.nlsys(hold_until_empty, None, inputs=0, outputs=1, states=1, dt=DT,
+                     name="emptying")
+    T = np.arange(8) * DT
+    error = python_control_error(block, T, 0.0, 1.0)
+    assert type(error) is TypeError and "'NoneType'" in str(error)
+    with pytest.raises(TypeError) as raised:
+        controlkit.input_output_response(block, T, 0.0, 1.0)
+    text = str(raised.value)
+    assert "'emptying'" in text and "None" in text, text
+    assert names_the_time(text, 0.75) or names_the_time(text, 1.0), text
+    assert "diverged" not in text and "gain too high" not in text
+
+
+def test_a_square_root_of_a_negative_in_a_continuous_block_is_pythons_error():
+    # the tank drains to its equilibrium h = (q / c)^2 = 0.01; an RK45 stage tries a level
+    # below zero and math.sqrt raises in python-control. Compiled, the stage's NaN is
+    # taken for a large error and the step retried: a plausible answer, silently
+    def draining(t, x, u, params):
+        return [u[0] - math.sqrt(x[0])]
+
+    block = ct.nlsys(draining, None, inputs=1, outputs=1, states=1, name="tank")
+    T = np.linspace(0.0, 5.0, 51)
+    ref = python_control_error(block, T, 0.1, 1.0)
+    assert type(ref) is ValueError and str(ref) == "math domain error"
+    with pytest.raises(ValueError, match="math domain error") as raised:
+        controlkit.input_output_response(block, T, 0.1, 1.0)
+    assert "'tank'" in str(raised.value)
+
+
+DRAINED_BELOW_ZERO = textwrap.dedent("""
+    import math
+    import control as ct
+    import numpy as np
+    import controlkit
+
+    def tank(t, x, u, params):
+        return [(u[0] - math.sqrt(x[0])) / 2.0]
+
+    block = ct.nlsys(tank, None, inputs=1, outputs=1, states=1, name="tank")
+    T = np.linspace(0.0, 5.0, 40)
+    try:
+        controlkit.input_output_response(block, T, -np.sin(T), 0.0)
+    except ValueError as error:
+        print("ValueError:", error)
+""")
+
+
+def test_a_continuous_run_whose_first_step_leaves_the_domain_raises_and_ends(tmp_path):
+    # an empty tank drained from t = 0: python-control's first RK45 stage takes a square
+    # root of a negative level and raises; compiled, every retried step meets the NaN
+    # again and the run never ends (found by tests/fuzz_diagrams.py, seed 795). In a
+    # process of its own, given far more than the second python-control takes
+    T = np.linspace(0.0, 5.0, 40)
+    block = ct.nlsys(lambda t, x, u, params: [(u[0] - math.sqrt(x[0])) / 2.0], None,
+                     inputs=1, outputs=1, states=1, name="tank")
+    error = python_control_error(block, T, -np.sin(T), 0.0)
+    assert type(error) is ValueError and str(error) == "math domain error"
+    script = tmp_path / "drained.py"  # a file: the engine compiles functions it can read
+    script.write_text(DRAINED_BELOW_ZERO)
+    try:
+        result = subprocess.run([sys.executable, str(script)], text=True,
+                                capture_output=True, timeout=300, cwd=tmp_path)
+    except subprocess.TimeoutExpired:
+        pytest.fail("the run did not end in 300 s")
+    assert result.stdout.strip().startswith("ValueError:") and \
+        "math domain error" in result.stdout, result.stderr[-1500:]
+
+
+def test_a_numpy_division_by_zero_gives_inf_as_python_control():
+    # 1 / x[0] divides numpy floats: python-control's output is inf there (a
+    # RuntimeWarning), not a ZeroDivisionError
+    def speed(t, x, u, params):
+        return 1 / x[0]
+
+    block = ct.nlsys(fall, speed, inputs=0, outputs=1, states=1, dt=DT, name="speed")
+    T = np.arange(6) * DT
+    with pytest.warns(RuntimeWarning, match="divide by zero"):
+        ref = ct.input_output_response(block, T, 0.0, 0.75)
+    assert ref.outputs[0, 3] == np.inf
+    ours = controlkit.input_output_response(block, T, 0.0, 0.75)
+    np.testing.assert_array_equal(ours.outputs, ref.outputs)
+
+
+def three_for_two(t, x, u, params):
+    return [u[0], 2 * u[0], 3 * u[0]]
+
+
+def test_a_wrong_output_size_is_pythons_message_with_the_blocks_name():
+    wide = ct.nlsys(None, three_for_two, inputs=1, outputs=2, name="wide")
+    error = python_control_error(wide, np.arange(3.0), 1.0, [])
+    assert type(error) is RuntimeError and str(error) == (
+        "inconsistent size of outputs; system specified 2, output function returned 3")
+    with pytest.raises(RuntimeError, match=r"inconsistent size of outputs; system specified "
+                                           r"2, output function returned 3"):
+        controlkit.input_output_response(wide, np.arange(3.0), 1.0, [])
+
+
+def test_a_wrong_output_size_inside_a_diagram_names_the_block():
+    # python-control's message here is numpy's ("could not broadcast input array from
+    # shape (3,) into shape (2,)"), which names no block
+    wide = ct.nlsys(None, three_for_two, inputs=1, outputs=2, name="wide")
+    follower = ct.nlsys(lag, None, inputs="u", outputs="y", states=1, name="follower")
+    loop = ct.interconnect([wide, follower], connections=[["follower.u", "wide.y[0]"]],
+                           inplist=["wide.u[0]"], outlist=["follower.y"], name="loop")
+    T = np.linspace(0.0, 1.0, 5)
+    error = python_control_error(loop, T, 1.0, 0.0)
+    assert type(error) is ValueError and "could not broadcast" in str(error)
+    with pytest.raises(ValueError) as raised:
+        controlkit.input_output_response(loop, T, 1.0, 0.0)
+    text = str(raised.value)
+    assert "'wide'" in text and re.search(r"\b2\b", text) and re.search(r"\b3\b", text), text
+
+
+@pytest.mark.parametrize("dt", [0, DT], ids=["continuous", "discrete"])
+@pytest.mark.parametrize("where", [2, -1], ids=["inside", "last"])
+def test_nan_in_the_time_points_is_a_clear_value_error(dt, where):
+    block = ct.nlsys(lambda t, x, u, params: 0.5 * x + u if dt else -x + u, None, inputs=1,
+                     outputs=1, states=1, dt=dt, name="block")
+    T = np.arange(5) * DT
+    T[where] = np.nan
+    python_control_error(block, T, 1.0, 0.0)  # it refuses too, in words of its solver
+    with pytest.raises(ValueError, match=r"(?i)(\bT\b|timepts|time points).*(nan|finite)"):
+        controlkit.input_output_response(block, T, 1.0, 0.0)
+
+
+# ======================================================================================
+# Ctrl-C
+# ======================================================================================
+
+LONG_RUN = textwrap.dedent("""
+    import control as ct
+    import controlkit
+
+    def lag(t, x, u, params):
+        return -x + u
+
+    block = ct.nlsys(lag, None, inputs=1, outputs=1, states=1, name="lag")
+    # compiled and loaded first: the run below is the compiled loop alone
+    controlkit.input_output_response(block, [0.0, 1.0], 1.0, 0.0,
+                                     solve_ivp_kwargs={"max_step": 0.01})
+    print("started", flush=True)
+    # about 10^8 steps (some minutes): far longer than the test waits
+    controlkit.input_output_response(block, [0.0, 100.0], 1.0, 0.0,
+                                     solve_ivp_kwargs={"max_step": 1e-6})
+    print("finished", flush=True)
+""")
+
+
+def cpu_seconds(pid) -> float:
+    """User and system CPU time of ``pid`` (from /proc)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")
+def test_ctrl_c_stops_a_long_compiled_run_with_keyboard_interrupt(tmp_path):
+    script = tmp_path / "long_run.py"
+    script.write_text(LONG_RUN)
+    process = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    try:
+        assert process.stdout.readline() == "started\n", process.stderr.read()
+        # the compiled loop is running once the process has spent a CPU second after the
+        # line (the call's preparation takes milliseconds): a condition, not a delay
+        at_start = cpu_seconds(process.pid)
+        wait_for(lambda: cpu_seconds(process.pid) > at_start + 1.0, 120,
+                 "the long run to be under way")
+        process.send_signal(signal.SIGINT)
+        # stopped well before the run's own end (minutes), however busy the machine
+        out, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.communicate()
+    assert "finished" not in out
+    assert process.returncode != 0 and "KeyboardInterrupt" in err, err[-2000:]
