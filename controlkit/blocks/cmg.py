@@ -61,7 +61,7 @@ class Inertias:
 
     Examples
     --------
-    >>> round(Inertias().I1, 4), round(Inertias().I2, 4)
+    >>> round(float(Inertias().I1), 4), round(float(Inertias().I2), 4)
     (0.0167, 0.1303)
     """
 

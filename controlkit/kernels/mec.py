@@ -108,10 +108,10 @@ def tuner_frozen(e, p):
     --------
     >>> import numpy as np
     >>> p = np.zeros(TUNER.size); p[TUNER.slice("psi")] = 0.1
-    >>> tuner_frozen((0.05, 0.2), p)
+    >>> tuple(map(bool, tuner_frozen((0.05, 0.2), p)))
     (True, False)
     >>> p[TUNER.joint] = 1.0
-    >>> tuner_frozen((0.05, 0.2), p)
+    >>> tuple(map(bool, tuner_frozen((0.05, 0.2), p)))
     (False, False)
     """
     below0 = abs(e[0]) < p[TUNER.psi]
@@ -210,7 +210,7 @@ def normalised_row(x, p, h_j, j):
     >>> p = TUNER.pack(F=[1.0, 1.0], a=[0.5, 0.5], lambda_=1.0, kappa=1.0, psi=[0.0, 0.0],
     ...                feedthrough=0.0, joint=0.0, safeguard=1.0, p_min=0.0, p_max=1.0,
     ...                deadzone=0.0, rho=0.9, Ts=0.1)
-    >>> normalised_row(x, p, 0.0, 0)  # eta = M mu - F (h - M h) = 10, |xi| = 5
+    >>> tuple(map(float, normalised_row(x, p, 0.0, 0)))  # eta = M mu - F (h - M h) = 10, |xi| = 5
     (0.6, 0.8, 2.0, 5.0)
     """
     xi0, xi1 = x[TUNER_STATE.Mxi1 + 2 * j], x[TUNER_STATE.Mxi1 + 2 * j + 1]
@@ -241,10 +241,10 @@ def safeguard_dead_zone(x, src, h, p):
     >>> p = TUNER.pack(F=[1.0, 1.0], a=[0.5, 0.5], lambda_=1.0, kappa=1.0, psi=[0.0, 0.0],
     ...                feedthrough=0.0, joint=0.0, safeguard=1.0, p_min=0.0, p_max=1.0,
     ...                deadzone=0.5, rho=0.9, Ts=0.1)
-    >>> safeguard_dead_zone(x, x, (0.0, 0.0), p)  # errors: |2 - 1.2| = 0.8, |0.1 - 0| = 0.1
+    >>> tuple(map(bool, safeguard_dead_zone(x, x, (0.0, 0.0), p)))  # |2 - 1.2|, |0.1 - 0|
     (False, True)
     >>> p[TUNER.joint] = 1.0
-    >>> safeguard_dead_zone(x, x, (0.0, 0.0), p)
+    >>> tuple(map(bool, safeguard_dead_zone(x, x, (0.0, 0.0), p)))
     (False, False)
     """
     inside = [True, True]

@@ -211,7 +211,7 @@ def scenario_runner(scenario):
     parameters = inspect.signature(scenario.run).parameters.values()
     accepted = {p.name for p in parameters
                 if p.kind not in (p.VAR_KEYWORD, p.VAR_POSITIONAL)} - {
-        "case", "horizon", "progress", "engine"}
+        "case", "horizon", "progress", "engine", "compile"}
     accepted |= set(getattr(scenario, "RUN_KEYWORDS", ()))
 
     def check(options):

@@ -463,9 +463,10 @@ def machine(t_eval_at, m, y_eval_at, floats_at, floats_size, stages_at, n, ints_
     >>> t_eval, y_eval = np.zeros(0), np.zeros((0, 2))
     >>> def at(array):
     ...     return np.uintp(array.ctypes.data)
-    >>> if _jit.available():
-    ...     row = store.step_machine()(at(t_eval), 0, at(y_eval), at(work.floats),
-    ...                                work.floats.size, at(work.stages), 2, at(work.ints))
+    >>> if _jit.available():  # (called from Python, through its C entry)
+    ...     row = store.step_machine().ctypes(at(t_eval), 0, at(y_eval), at(work.floats),
+    ...                                       work.floats.size, at(work.stages), 2,
+    ...                                       at(work.ints))
     ... else:
     ...     row = machine_on_arrays(t_eval, y_eval, *work)
     >>> int(row), float(work.floats[T_REQUEST]), stage_input(work).tolist()
