@@ -312,10 +312,13 @@ def _many(sys, T, U, X0, runs, engine, options, compile):
             for r, error in enumerate(errors):
                 if error is not None:
                     raise type(error)(f"run {r}: {error}") from error
-            return TimeResponseList([
+            listed = TimeResponseList([
                 response(sys, resp.t, resp.y, resp.x, resp.u,
                          **result_flags(dict(options, params=params_list[r])))
                 for r, resp in enumerate(responses)])
+            for mine, theirs in zip(listed, responses, strict=True):
+                mine.engine_mode = theirs.engine_mode
+            return listed
     return TimeResponseList([
         input_output_response(sys, T, U, X0s[r] if X0s is not None else X0, engine=engine,
                               compile=compile, **dict(options, params=p))

@@ -94,9 +94,6 @@ def test_help_lists_every_case(capsys):
         assert case in text
 
 
-@pytest.mark.xfail(strict=True, reason="engine: progress is now reported within a case, "
-                                       "and the CLI prints 'controlkit: interrupted;' on "
-                                       "the progress line left open")
 def test_the_interrupted_message_starts_its_own_line(tmp_path, monkeypatch, capsys):
     # Ctrl-C while a case's progress line is open (a run reports its progress as it goes)
     import dataclasses
@@ -116,9 +113,6 @@ def test_the_interrupted_message_starts_its_own_line(tmp_path, monkeypatch, caps
     assert err.strip().splitlines()[-1].startswith("controlkit: interrupted;")
 
 
-@pytest.mark.xfail(strict=False, reason="engine: as above, when Ctrl-C comes while the "
-                                        "second case's progress line is open (it depends "
-                                        "on the clock)")
 def test_interrupted_run_keeps_finished_files_and_says_what_is_missing(tmp_path):
     import json
     import os

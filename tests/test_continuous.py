@@ -46,9 +46,6 @@ def test_continuous_diagram_equals_python_control(name, method):
     np.testing.assert_array_equal(ours.time, ref.time)
 
 
-@pytest.mark.xfail(strict=True, reason="engine: compile=True on a continuous run that ends "
-                                       "in its first piece runs as Python, and every later "
-                                       "call too (the check never completes)")
 def test_compile_true_runs_a_short_continuous_diagram_compiled():
     loop, T, X0, U = CONTINUOUS["car_pi"]()
     U = np.broadcast_to(U, (loop.ninputs, T.size))

@@ -53,11 +53,7 @@ def test_default_reading_row_equals_the_proposed_case():
     assert row["diverged"] is False
 
 
-@pytest.fixture(params=["as Python", pytest.param("compiled after a piece", marks=(
-    pytest.mark.xfail(strict=True, reason="engine: a compiled piece that stops is run again "
-                                          "as Python, which lets numpy's overflow warnings "
-                                          "out"))),
-])
+@pytest.fixture(params=["as Python", "compiled after a piece"])
 def way(request, monkeypatch):
     """The way the run goes, made certain (the engine's rule decides it by the clock):
     as Python throughout, or compiled after its first piece."""

@@ -42,7 +42,6 @@ def test_runs_over_initial_states_equal_runs_of_their_own(which, compile):
             assert alone.engine_mode == "compiled"
 
 
-@pytest.mark.xfail(strict=True, reason="engine: many runs' responses carry no engine_mode")
 def test_many_runs_say_how_they_ran():
     loop, T, x0, U, params = cruise(steps=60)
     states = np.array([x0, np.asarray(x0, dtype=float) * 0.5])

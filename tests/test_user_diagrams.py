@@ -120,12 +120,7 @@ def stiff_loop():
     return ct.interconnect([sample_nlsys(stiff, TS), gain], inputs="r", outputs="y")
 
 
-@pytest.mark.parametrize("which", [
-    "python-control",
-    pytest.param("fast", marks=pytest.mark.xfail(
-        strict=True, reason="engine: a sampled block's blow-up is said as 'the loop "
-                            "diverged', not SamplingError with the remedy")),
-])
+@pytest.mark.parametrize("which", ["python-control", "fast"])
 def test_sampled_block_that_blows_up_is_named_with_the_remedy(which):
     loop = stiff_loop()
     T = np.arange(400) * TS

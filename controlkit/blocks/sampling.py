@@ -26,8 +26,11 @@ _rk4_step = python_function(rk4_step)
 METHODS = ("rk4", "solve_ivp")
 
 
-class SamplingError(ValueError):
+class SamplingError(ValueError, FloatingPointError):
     """A sampled block blew up inside a sample (the message names it and what to do).
+
+    Also a ``FloatingPointError``, as a loop that diverged is (its cause may be either):
+    ``time`` holds the sample's start, for studies that record when a run diverged.
 
     Examples
     --------
@@ -203,7 +206,9 @@ class SampledSystem(ct.NonlinearIOSystem):
             for i in range(self.substeps):
                 x_next = _rk4_step(rhs, t + i * h, x, u, None, h, work, np.empty(x.size))
                 if not np.isfinite(x_next).all():
-                    raise SamplingError(blowup_message(self.name, t, Ts, self.substeps))
+                    error = SamplingError(blowup_message(self.name, t, Ts, self.substeps))
+                    error.time = float(t)
+                    raise error
                 x = x_next
             return x
         sol = scipy.integrate.solve_ivp(

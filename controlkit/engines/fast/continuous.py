@@ -280,7 +280,7 @@ def _switch(runner, job, run, pieces):
     python = run.snapshot()
     n1 = int(run.ctrl[NEXT_TIME])
     results = [a[:, n0:n1].copy() for a in (run.Y, run.X, run.Uo)]
-    if run.status[1] != -1 or run.done():  # Python stopped, or finished, in this piece
+    if run.status[1] != -1:  # Python stopped in this piece: it says why
         return
     run.restore(saved)
     try:

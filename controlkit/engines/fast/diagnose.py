@@ -104,10 +104,12 @@ def diverged(job, t, x) -> FloatingPointError:
                                f"non-finite")
 
 
-def sampled_block_blew_up(job, t, x, u, k):
+def sampled_block_blew_up(job, t, x, u, k, after=None):
     """A sampled block (RK4 inside a sample) whose state became non-finite says so in
     its own words (:class:`controlkit.blocks.sampling.SamplingError`), from the finite
-    state ``x`` at the step before; nothing when none did.
+    state ``x`` at the step before; nothing when none did. ``after`` is the state at the
+    next step: only the block whose state went non-finite first is asked (another's
+    blow-up is the loop diverging).
 
     Examples
     --------
@@ -121,7 +123,10 @@ def sampled_block_blew_up(job, t, x, u, k):
     ui, _ = signals_at(job, t, x, u, k)
     if not np.isfinite(ui).all():
         return
+    first = None if after is None else int(np.argmax(~np.isfinite(after)))
     for b in job.blocks:
+        if first is not None and not b.x0 <= first < b.x0 + b.system.nstates:
+            continue
         if b.kernel.rk4 is not None and b.system.nstates:
             s = b.system
             with np.errstate(all="ignore"):

@@ -158,14 +158,24 @@ def _piece(runner, T, x, U, Y, X, k0, k1):
     job = runner.job
     if status[0] >= 0:
         k = int(status[0])
+        _blown_up(job, T, X, U, k, X[:, k])
         explain_failure(job, T[k], X[:, k], U[:, k], status[1])
     if not np.isfinite(x1).all():
-        bad = np.nonzero(~np.isfinite(np.column_stack([X[:, k0:k1], x1])).all(axis=0))[0]
-        k = k0 + int(bad[0]) if bad.size else k1
-        if k >= 1 and np.isfinite(X[:, k - 1]).all():  # a sampled block says so itself
-            sampled_block_blew_up(job, T[k - 1], X[:, k - 1], U[:, k - 1], k - 1)
+        k = _blown_up(job, T, X, U, k1, x1)
         raise diverged(job, T[min(k, T.size - 1)], x1)
     return x1
+
+
+def _blown_up(job, T, X, U, k, x):
+    """The first step whose state is non-finite, up to step ``k`` (whose state is ``x``):
+    a sampled block that blew up there from a finite state says so itself (raises)."""
+    states = np.column_stack([X[:, :k], x])
+    bad = np.nonzero(~np.isfinite(states).all(axis=0))[0]
+    first = int(bad[0]) if bad.size else k
+    if bad.size and first >= 1:
+        sampled_block_blew_up(job, T[first - 1], X[:, first - 1], U[:, first - 1],
+                              first - 1, states[:, first])
+    return first
 
 
 def _replay(runner, T, x, U, Y, X, status, k0, k1):
@@ -177,8 +187,7 @@ def _replay(runner, T, x, U, Y, X, status, k0, k1):
     runner.compiled = None
     runner.why_python = "compiled code stopped where Python did not"
     status[:] = -1
-    return runner.python.functions().run_discrete(T, x, U, runner.python.P, Y, X, status,
-                                                  k0, k1)
+    return _run(runner.python, (T, x, U, runner.python.P, Y, X, status, k0, k1))
 
 
 def _switch(runner, job, T, x, U, Y, X, k, n, pieces):
@@ -188,8 +197,7 @@ def _switch(runner, job, T, x, U, Y, X, k, n, pieces):
     if k1 <= k:
         return k, x
     status = np.full(2, -1, dtype=np.int64)
-    x_python = runner.python.functions().run_discrete(T, x, U, runner.python.P, Y, X,
-                                                      status, k, k1)
+    x_python = _run(runner.python, (T, x, U, runner.python.P, Y, X, status, k, k1))
     Yp, Xp = Y[:, k:k1].copy(), X[:, k:k1].copy()
     if status[0] >= 0:  # Python stopped in this piece: said by the piece run again
         runner.decided = True

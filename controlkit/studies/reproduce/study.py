@@ -49,7 +49,7 @@ class ProgressLine:
 
     def __init__(self, label: str, stream=None, *, tick: float | None | str = "auto"):
         self.label, self.stream = label, stream or sys.stderr
-        self.start, self.fraction = time.perf_counter(), 0.0
+        self.start, self.fraction, self._drawn = time.perf_counter(), 0.0, False
         self._lock, self._stop = threading.Lock(), threading.Event()
         if tick == "auto":
             tick = TICK if _is_terminal(self.stream) else None
@@ -69,12 +69,17 @@ class ProgressLine:
                 self._stop.set()
 
     def close(self) -> None:
-        """Stop redrawing (the case ended, finished or not)."""
+        """Stop redrawing (the case ended, finished or not), and end the line if it is
+        open, so that what is printed next (an error, "interrupted") starts a line."""
         with self._lock:
+            if not self._stop.is_set() and self._drawn:
+                self.stream.write("\n")
+                self.stream.flush()
             self._stop.set()
 
     def _draw(self):
         elapsed = time.perf_counter() - self.start
+        self._drawn = True
         self.stream.write(f"\r  {self.label}: {100 * self.fraction:5.1f} %  "
                           f"({elapsed:6.1f} s)")
         self.stream.flush()
@@ -158,9 +163,9 @@ def _run_study(s, cases, folder, horizon, stride, engine, log, pool, options, un
                     write_csv(folder / csv_name, s.csv_columns(columns), stride=step)
                     metrics = s.metrics(columns)
             except Exception as error:  # the case's own failure: recorded, the run goes on
-                progress.close()
+                progress.close()  # (ends its line)
                 message = _describe(error)
-                log.write(f"\n  {s.name}/{case} failed: {message}\n")
+                log.write(f"  {s.name}/{case} failed: {message}\n")
                 study_metrics[case] = {"error": message}
                 done(case, status="failed", error=message)
                 if raise_errors and not isinstance(error, CASE_FAILURES):
