@@ -240,8 +240,12 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
     from .sampled_data import SampledDataSystem
 
     if isinstance(sys, SampledDataSystem):
+        if t_eval is None:
+            raise ValueError("evaluation_times=None (the solver's own steps) has no meaning "
+                             "for a sampled-data diagram, integrated between its instants: "
+                             "give the times, or 'T'")
         return _sampled_data_response(sys, T, U, X0, engine, options, compile)
-    if engine == "fast":
+    if engine == "fast" and t_eval is not None:  # (None: python-control's solver's steps)
         fast = _fast_response(sys, T, U, X0, options, "python-control", stacklevel=3,
                               advice=" (controlkit.explain(sys) lists every block's tier)",
                               compile=compile)

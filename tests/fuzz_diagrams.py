@@ -949,9 +949,10 @@ def _differences(case, ref, got) -> list[str]:
     legacy_ref, legacy_got = tuple(ref), tuple(got)  # t, y[, x] as the user unpacks them
     if len(legacy_ref) != len(legacy_got):
         found.append(f"unpacks to {len(legacy_got)} values, python-control {len(legacy_ref)}")
-    for name in ("output_labels", "state_labels", "input_labels"):
-        if list(getattr(got, name)) != list(getattr(ref, name)):
-            found.append(f"{name} {list(getattr(got, name))} vs {list(getattr(ref, name))}")
+    for name in ("output_labels", "state_labels", "input_labels"):  # (None: sizes unknown)
+        ours, theirs = list(getattr(got, name) or []), list(getattr(ref, name) or [])
+        if ours != theirs:
+            found.append(f"{name} {ours} vs {theirs}")
     pairs = [("time", got.time, ref.time), ("outputs", got.outputs, ref.outputs),
              ("states", got.states, ref.states), ("inputs", got.inputs, ref.inputs)]
     unpacked = zip(legacy_got, legacy_ref, strict=False)  # a length apart is named above

@@ -202,6 +202,10 @@ def python_control_arguments(sys, T, U, X0, options):
     from ..compat import inputs_and_state
 
     T = np.atleast_1d(np.asarray(T, dtype=float))
+    if not np.isfinite(T).all():
+        where = int(np.argmax(~np.isfinite(T)))
+        raise ValueError(f"T (timepts) must hold finite time points; got {T[where]} at "
+                         f"index {where}")
     kwargs = dict(options.get("solve_ivp_kwargs") or {})
     method = options.get("solve_ivp_method") or options.get("method") or kwargs.pop(
         "method", None) or "RK45"

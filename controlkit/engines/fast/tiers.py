@@ -125,7 +125,15 @@ def _python_kernels(block, local, reason):
 
 def _user_kernels(block, local, compiled):
     """A user's ``nlsys``: its functions as Python kernels, or compiled from their source
-    for the types of its parameters (their values packed into ``p`` at run time)."""
+    for the types of its parameters (their values packed into ``p`` at run time). One
+    whose function has effects outside itself (a ``print``) is refused: python-control
+    runs the diagram, so that it is called as many times, in the same order."""
+    for fn in (block.outfcn, block.updfcn if block.nstates else None):
+        effect = source.side_effect(fn) if fn is not None else None
+        if effect is not None:
+            raise UnsupportedSystem(f"block {block.name!r}: {effect}, which python-control "
+                                    f"calls as many times as it sweeps the diagram: "
+                                    f"python-control runs it")
     output = (usercode.UserKernel(block.outfcn, local, block.name, "output",
                                   block.noutputs) if block.outfcn is not None else None)
     update = (usercode.UserKernel(block.updfcn, local, block.name, "update", block.nstates)

@@ -39,11 +39,12 @@ with its parts :mod:`.outside` (names and objects read from outside) and :mod:`.
 """
 
 from .bindings import PARAMS, RUNTIME, Frozen
-from .plan import Plan, plan_function, reads_input, used_params
+from .plan import Plan, plan_function, reads_input, side_effect, used_params
 from .reading import PARAM_READ, NotCompilable, call_target, function_node
 from .rewrites import copy_tree, walk
 from .values import NUMERIC_MODULES
 
 __all__ = ["NUMERIC_MODULES", "PARAMS", "PARAM_READ", "RUNTIME", "Frozen", "NotCompilable",
+           "side_effect",
            "Plan", "call_target", "copy_tree", "function_node", "plan_function",
            "reads_input", "used_params", "walk"]

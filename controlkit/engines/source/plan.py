@@ -10,7 +10,7 @@ import weakref
 from dataclasses import dataclass, field
 
 from .bindings import PARAMS, RUNTIME, Frozen, _bind, _binding_key, _input_name
-from .reading import NotCompilable, _definition, call_target
+from .reading import MUTATORS, SIDE_EFFECTS, NotCompilable, _definition, call_target
 from .rewrites import walk
 from .translator import _Translator
 from .values import _same, _same_items, _same_sequence, _snapshot
@@ -282,3 +282,38 @@ def reads_input(fn):
 
 #: :func:`reads_input`'s answers, by code object and binding.
 _READS_INPUT: dict = {}
+
+
+def side_effect(fn) -> str | None:
+    """What ``fn`` does outside itself, as its source says (a ``print``, a file, a change
+    to an object from outside), or None. Such a function's calls are seen, so a diagram
+    holding one runs as python-control runs it: its calls, as many and in the order
+    python-control makes them.
+
+    Examples
+    --------
+    >>> def noisy(t, x, u, params):
+    ...     print(t)
+    ...     return x
+    >>> side_effect(noisy)
+    'it calls print()'
+    >>> side_effect(lambda t, x, u, params: 2 * x) is None
+    True
+    """
+    try:
+        target, _, _ = call_target(fn)
+        _, body = _definition(target.__code__)
+    except NotCompilable:
+        return None
+    local = {n.id for n in walk(ast.Module(body, [])) if isinstance(n, ast.Name)
+             and isinstance(n.ctx, ast.Store)} | set(target.__code__.co_varnames)
+    for node in walk(ast.Module(body, [])):
+        if not isinstance(node, ast.Call):
+            continue
+        f = node.func
+        if isinstance(f, ast.Name) and f.id in SIDE_EFFECTS and f.id not in local:
+            return f"it calls {f.id}()"
+        if isinstance(f, ast.Attribute) and f.attr in MUTATORS \
+                and isinstance(f.value, ast.Name) and f.value.id not in local:
+            return f"it changes an object from outside ({f.value.id}.{f.attr})"
+    return None

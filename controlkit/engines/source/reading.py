@@ -240,3 +240,12 @@ def call_target(fn):
         return call, [fn], {}
     raise NotCompilable(f"it is a {type(fn).__name__}, not a Python function")
 
+
+#: Builtins with effects outside the function (what compiled code cannot do as Python).
+SIDE_EFFECTS = {"print": "which prints", "open": "which reads or writes files",
+                 "input": "which reads the keyboard", "exec": "which runs code",
+                 "eval": "which runs code", "breakpoint": "which stops in the debugger"}
+#: Methods that change the object they are called on.
+MUTATORS = {"append", "extend", "insert", "pop", "remove", "clear", "update", "add",
+             "discard", "setdefault", "popitem", "write", "writelines", "sort", "reverse",
+             "fill", "put", "resize", "itemset"}

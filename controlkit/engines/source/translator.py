@@ -14,7 +14,7 @@ import types
 from .bindings import PARAMS, RUNTIME
 from .helpers import _HelperCalls
 from .outside import _OutsideReads
-from .reading import PARAM_READ
+from .reading import MUTATORS, PARAM_READ, SIDE_EFFECTS
 from .rewrites import _store_counts, _stored_names, _string_items, _Unroll, walk
 from .values import _MISSING, _UNKNOWN, _global, _is_plain
 
@@ -235,14 +235,14 @@ class _Translator(_OutsideReads, _HelperCalls, ast.NodeTransformer):
         """Calls whose compiled meaning is not Python's: the function then runs as Python."""
         f = node.func
         name = f.id if isinstance(f, ast.Name) and f.id not in self.local else None
-        if name in _SIDE_EFFECTS:
-            self._problem(f"it calls {name}(), {_SIDE_EFFECTS[name]} (compiled code would "
+        if name in SIDE_EFFECTS:
+            self._problem(f"it calls {name}(), {SIDE_EFFECTS[name]} (compiled code would "
                           f"do it at other moments, or not at all)")
         elif name == "round" and (len(node.args) > 1 or node.keywords):
             self._problem("it rounds to digits (round(x, n)): compiled code rounds some "
                           "halves otherwise than Python (round(0.35, 1) gives 0.4, Python "
                           "0.3)")
-        elif isinstance(f, ast.Attribute) and f.attr in _MUTATORS \
+        elif isinstance(f, ast.Attribute) and f.attr in MUTATORS \
                 and isinstance(f.value, ast.Name) and f.value.id not in self.local:
             self._problem(f"it changes an object from outside ({f.value.id}.{f.attr}): a "
                           f"side effect compiled code would not have")
@@ -306,16 +306,6 @@ class _Translator(_OutsideReads, _HelperCalls, ast.NodeTransformer):
                              f"compiled")
                 return node
         return self.generic_visit(node)
-
-
-#: Builtins with effects outside the function (what compiled code cannot do as Python).
-_SIDE_EFFECTS = {"print": "which prints", "open": "which reads or writes files",
-                 "input": "which reads the keyboard", "exec": "which runs code",
-                 "eval": "which runs code", "breakpoint": "which stops in the debugger"}
-#: Methods that change the object they are called on.
-_MUTATORS = {"append", "extend", "insert", "pop", "remove", "clear", "update", "add",
-             "discard", "setdefault", "popitem", "write", "writelines", "sort", "reverse",
-             "fill", "put", "resize", "itemset"}
 
 
 def _integer(node, ints=frozenset()) -> bool:

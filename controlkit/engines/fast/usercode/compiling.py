@@ -50,7 +50,7 @@ class UserKernel:
     >>> k(0.0, np.ones(2), np.zeros(0), None, np.empty(1))
     Traceback (most recent call last):
     ...
-    ValueError: block 'gain': its output function returned 2 values at t = 0 s, the block ...
+    controlkit.engines.fast.usercode.compiling.SizeError: inconsistent size of outputs; ...
     """
 
     def __init__(self, fn, values, block, role, size, n_x=0, n_u=0):
@@ -64,16 +64,17 @@ class UserKernel:
         try:
             result = self.fn(t, x, u, self.params)
         except Exception as error:  # Python's own error, told where it happened
-            error.add_note(f"(in block {self.block!r}, its {what}, at t = {t:g} s)")
+            _told_where(error, f"in block {self.block!r}, its {what}, at t = {t:g} s")
             raise
         if result is None:
             raise TypeError(f"block {self.block!r}: its {what} returned None at t = {t:g} "
                             f"s (a return statement missing?); it must return its "
                             f"{out.size} {unit}")
         value = np.asarray(result, dtype=float).reshape(-1)
-        if value.size != out.size:
-            raise ValueError(f"block {self.block!r}: its {what} returned {value.size} "
-                             f"values at t = {t:g} s, the block has {out.size} {unit}")
+        if value.size != out.size:  # python-control's words (for a lone system), and where
+            raise SizeError(f"inconsistent size of {unit}; system specified {out.size}, "
+                            f"{what} returned {value.size} (block {self.block!r}, at "
+                            f"t = {t:g} s)")
         out[:] = value
         return out
 
@@ -120,6 +121,35 @@ class UserKernel:
         return module.kernel
 
 
+class SizeError(RuntimeError, ValueError):
+    """A user's function returned more or fewer values than its block declares: a
+    ``RuntimeError`` as python-control raises for a lone system, and a ``ValueError`` as
+    numpy's inside an interconnect.
+
+    Examples
+    --------
+    >>> isinstance(SizeError("inconsistent size"), ValueError)
+    True
+    """
+
+
+#: Errors whose message is their one argument, which Python prints as it is: the block and
+#: the time are written into it (a note would not show in ``str(error)``).
+_PLAIN_MESSAGES = (ArithmeticError, ValueError, IndexError, TypeError, AttributeError,
+                   NameError, AssertionError, RuntimeError)
+
+
+def _told_where(error, where):
+    """``error``, its message followed by ``(where)``: the same type, Python's own words."""
+    plain = type(error).__str__ is BaseException.__str__ or isinstance(error, _PLAIN_MESSAGES)
+    if plain and len(error.args) == 1 and isinstance(error.args[0], str) \
+            and not isinstance(error, KeyError | UnicodeError | OSError):
+        error.args = (f"{error.args[0]} ({where})",)
+    else:
+        error.add_note(f"({where})")
+    return error
+
+
 def block_layout(kernels, values) -> ParamLayout:
     """The packed parameters shared by a block's user functions (NotCompilable if a
     value cannot be packed).
@@ -134,4 +164,4 @@ def block_layout(kernels, values) -> ParamLayout:
     return ParamLayout.of([k.plan() for k in kernels], values)
 
 
-__all__ = ["UserKernel", "block_layout"]
+__all__ = ["SizeError", "UserKernel", "block_layout"]
