@@ -469,6 +469,25 @@ def test_a_numpy_division_by_zero_gives_inf_as_python_control():
     np.testing.assert_array_equal(ours.outputs, ref.outputs)
 
 
+def test_an_output_not_finite_at_the_engines_trial_points_still_reads_its_input():
+    # log(u - 2) is NaN wherever the engine probes a block for feedthrough (|u| <= 1): NaN
+    # there says nothing of u, and the block must still read this step's input (before a
+    # fix it read the previous one, and the run stopped on a NaN at t = 0)
+    # a function whose source cannot be read (typed at a console: made by eval here), so
+    # the engine probes it
+    log_margin = eval("lambda t, x, u, params: np.log(u[0] - 2.0)")  # noqa: S307
+    margin = ct.nlsys(None, log_margin, inputs="u", outputs="w", dt=DT, name="margin")
+    hold = ct.nlsys(lambda t, x, u, params: u, None, inputs="w", outputs="y", states=1,
+                    dt=DT, name="hold")
+    loop = ct.interconnect([margin, hold], inputs="u", outputs="y")
+    T = np.arange(6) * DT
+    U = 3.0 + T
+    ref = ct.input_output_response(loop, T, U, [0.0])
+    ours = controlkit.input_output_response(loop, T, U, [0.0])
+    np.testing.assert_array_equal(ours.outputs, ref.outputs)
+    assert ours.outputs[2] == math.log(1.25)  # hold: u(0.25 s) - 2 = 1.25, a step late
+
+
 def three_for_two(t, x, u, params):
     return [u[0], 2 * u[0], 3 * u[0]]
 

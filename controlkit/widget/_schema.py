@@ -61,6 +61,7 @@ _HINTS = Record({}, {
     "notes": Mapping(NAME, Text()),
     "sums": Mapping(NAME, Mapping(NAME, _SIGN, 50)),
     "title": Optional(Text()),
+    "outputs": Items(NAME, LIMITS["signals"]),  # the declared outputs drawn as arrows
 }, what="an object of drawing hints")
 
 
