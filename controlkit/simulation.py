@@ -222,6 +222,9 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
 
     T, U, X0, return_x, t_eval = timeresp_arguments(kwargs, timepts, inputs, initial_state,
                                                     return_states, evaluation_times)
+    unknown = {k: v for k, v in kwargs.items() if k not in ("solve_ivp_method", "method")}
+    if unknown:  # python-control's words, before any run (its own refuses them so)
+        raise TypeError("unrecognized keyword(s): ", str(unknown))
     options = dict(params=params, ignore_errors=ignore_errors, transpose=transpose,
                    return_states=return_x, squeeze=squeeze, evaluation_times=t_eval,
                    solve_ivp_kwargs=dict(solve_ivp_kwargs or {}), **kwargs)

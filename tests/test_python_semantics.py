@@ -581,3 +581,15 @@ def test_ctrl_c_stops_a_long_compiled_run_with_keyboard_interrupt(tmp_path):
             process.communicate()
     assert "finished" not in out
     assert process.returncode != 0 and "KeyboardInterrupt" in err, err[-2000:]
+
+
+@pytest.mark.parametrize("dt", [None, 0, DT], ids=["unspecified", "continuous", "discrete"])
+def test_an_unknown_keyword_is_refused_as_python_control_refuses_it(dt):
+    # python-control's own kwargs_test asks it of input_output_response
+    block = ct.ss([[-1, 1], [0, -1]], [[0], [1]], [[1, 0]], 0, dt=dt)
+    T = [0.0, 0.25, 0.5]
+    error = python_control_error(block, T, [1.0, 1.0, 1.0], 0.0, unknown=None)
+    assert type(error) is TypeError and "unrecognized keyword" in str(error)
+    with pytest.raises(TypeError) as raised:
+        controlkit.input_output_response(block, T, [1.0, 1.0, 1.0], 0.0, unknown=None)
+    assert str(raised.value) == str(error)
