@@ -55,12 +55,12 @@ for notebook in sorted((HERE.parent / "notebooks").glob("*.ipynb")):
 def _keep_constant_descriptions_whole(app, what, name, obj, options, lines):
     """Undo napoleon's reading of ``#:`` comments as ``type: description``.
 
-    For a module constant, napoleon takes the text before the first colon of its
+    For a module constant (or a property), napoleon takes the text before the first colon of its
     comment as the constant's type ("Wheel axes v1, v2 (Table 2): the z wheel has
     failed" became "the z wheel has failed. Type: Wheel axes ..."). Our comments never
     give a type that way, so the two parts are joined again.
     """
-    if what not in ("data", "attribute"):
+    if what not in ("data", "attribute", "property"):
         return
     typed = [i for i, line in enumerate(lines) if line.startswith(":type: ")]
     if len(typed) != 1:
