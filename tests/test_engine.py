@@ -214,3 +214,29 @@ def test_a_compiled_module_is_kept_and_found_under_numba_cache_dir(tmp_path):
     assert "data saved to" not in outs[1] and "data loaded from" in outs[1]
     assert not list((tmp_path / "store").glob("__pycache__/*.nbi"))  # it went there instead
     assert list((tmp_path / "numba").rglob("diagram_*.nbi"))
+
+
+@pytest.mark.skipif(not _jit.available(), reason="numba not installed")
+def test_the_rule_counts_the_earlier_python_runs_of_a_module(monkeypatch):
+    # a run of 4 s as Python does not pay for a compile; the same module after 100 s of
+    # earlier runs as Python in this process does (a notebook cell run again and again)
+    from controlkit.engines.fast import run
+
+    loop = cmg_scenario.build_loop("thesis")
+    monkeypatch.setattr(run, "compile_estimate", lambda job: 5.0)  # what the store says
+    monkeypatch.setattr(run, "PYTHON_SECONDS", {})
+    monkeypatch.setattr(run, "_TWINS", {})  # as in a process that has not compiled it
+    monkeypatch.setattr(run, "_COMPILED", {})
+    monkeypatch.setattr(run.Job, "is_compiled", lambda job: False)  # nor kept in the store
+    first = run.Runner(loop, None, None)
+    assert first.decide(1.0, 1 / 4) is None  # 3 s to go, against 5 s to compile
+    assert "a short run: about 4 s as Python, against about 5" in first.why_python
+    first.finished(4.0)
+    assert run.PYTHON_SECONDS == {first.python.source: 4.0}
+    run.PYTHON_SECONDS[first.python.source] = 100.0
+    again = run.Runner(loop, None, None)
+    chosen = again.decide(1.0, 1 / 4)
+    assert chosen is not None and chosen.compiled
+    forced = run.Runner(loop, None, False)  # compile=False runs are not counted
+    forced.finished(50.0)
+    assert run.PYTHON_SECONDS[first.python.source] == 100.0

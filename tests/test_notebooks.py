@@ -1,5 +1,6 @@
 """Every notebook runs top to bottom, worked solutions included (short horizons:
-CONTROLKIT_QUICK=1), and ends with exercises whose solutions are folded away."""
+CONTROLKIT_QUICK=1; under the ``slow`` marker, as tests/test_docs.py runs them all at the
+papers' horizons), and ends with exercises whose solutions are folded away."""
 
 import json
 import re
@@ -42,6 +43,9 @@ def test_notebook_ends_with_exercises_and_folded_worked_solutions(path):
         assert "assert " in source  # a worked solution checks its answer
 
 
+@pytest.mark.slow  # the documentation's build runs every notebook at the papers' horizons in
+# a fresh environment and fails on a failing cell (tests/test_docs.py); this in-process run
+# at short horizons is the quick check while writing one (``-m slow``)
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
 def test_notebook_runs_without_error(path, monkeypatch, tmp_path):
     monkeypatch.setenv("CONTROLKIT_QUICK", "1")

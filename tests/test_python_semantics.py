@@ -593,3 +593,24 @@ def test_an_unknown_keyword_is_refused_as_python_control_refuses_it(dt):
     with pytest.raises(TypeError) as raised:
         controlkit.input_output_response(block, T, [1.0, 1.0, 1.0], 0.0, unknown=None)
     assert str(raised.value) == str(error)
+
+
+class Terminated(KeyboardInterrupt):
+    """What a command raises on ``kill PID`` (``controlkit reproduce``'s own kind)."""
+
+
+def test_a_stopped_run_raises_the_interrupt_it_was_stopped_by_with_what_was_computed():
+    # the run hands back the very exception that stopped it, its kind kept (the command
+    # exits 143 on a kill, 130 on Ctrl-C), carrying the response so far
+    def stop_at_one(t, x, u, params):
+        if t >= 50.0:
+            raise Terminated("terminated (SIGTERM)")
+        return 0.5 * x + u
+
+    block = ct.nlsys(stop_at_one, None, inputs=1, outputs=1, states=1, dt=DT, name="b")
+    loop = ct.interconnect([block], inputs="u[0]", outputs="y[0]")
+    T = np.arange(1000) * DT
+    with pytest.raises(Terminated, match="SIGTERM") as raised:
+        controlkit.input_output_response(loop, T, 1.0, 0.0)
+    kept = raised.value.response.time  # the pieces finished before t = 50 s
+    assert 0 < kept.size <= 200 and np.array_equal(kept, T[:kept.size])

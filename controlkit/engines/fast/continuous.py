@@ -228,10 +228,10 @@ def run_continuous(sys, T, U, X0, *, params=None, t_eval=None, method="RK45",
             runner.last_snapshot = run.snapshot()
         try:
             run.piece(runner.job, pieces.next())
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as stop:
             n = int(run.ctrl[NEXT_TIME])
-            raise interrupted(base_response(sys, t_eval[:n], run.Y[:, :n], run.X[:, :n],
-                                            run.Uo[:, :n])) from None
+            raise interrupted(stop, base_response(sys, t_eval[:n], run.Y[:, :n],
+                                                  run.X[:, :n], run.Uo[:, :n])) from None
         except NotCompiled as why:  # numba's compile failed: the run is Python's
             run.restore(runner.last_snapshot)
             runner.python_from_now(str(why))
@@ -250,6 +250,7 @@ def run_continuous(sys, T, U, X0, *, params=None, t_eval=None, method="RK45",
         if progress is not None:
             progress(run.fraction())
     _failed(runner.job, run)
+    runner.finished(now() - start)
     resp = base_response(sys, t_eval, run.Y, run.X, run.Uo)
     resp.engine_mode = "compiled" if runner.compiled else "python"
     if record_every != 1 or on_chunk is not None:

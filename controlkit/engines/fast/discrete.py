@@ -94,12 +94,12 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
             began = now()
             try:
                 x = _piece(runner, Tc, x, Uc, Yb, Xb, k, k1)
-            except KeyboardInterrupt:
+            except KeyboardInterrupt as stop:
                 if streamed:  # the samples kept so far, this chunk's too
                     mine = (kept >= c0) & (kept < c0 + k)
                     Y[:, mine], X[:, mine] = Yb[:, kept[mine] - c0], Xb[:, kept[mine] - c0]
                 n = int(np.count_nonzero(kept < c0 + k))
-                raise interrupted(base_response(
+                raise interrupted(stop, base_response(
                     sys, np.asarray(T[kept[:n]], dtype=float), Y[:, :n], X[:, :n],
                     U[:, kept[:n]])) from None
             pieces.took(k1 - k, now() - began)
@@ -124,6 +124,7 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
         progress(1.0)
     resp = base_response(sys, T[kept] if streamed else np.asarray(T, dtype=float), Y, X,
                          U[:, kept] if streamed else U)
+    runner.finished(now() - start)
     resp.engine_mode = "compiled" if runner.compiled else "python"
     return resp
 

@@ -53,19 +53,22 @@ class Pieces:
             self.size = int(min(max(rate * PIECE_SECONDS, 16), self.size * 8))
 
 
-def interrupted(response_so_far):
-    """The ``KeyboardInterrupt`` raised when Ctrl-C stops a run, carrying what was
-    computed (``.response``).
+def interrupted(stop, response_so_far):
+    """The ``KeyboardInterrupt`` ``stop`` that ended a run, carrying what was computed
+    (``.response``). The same exception, its kind kept: a command that handles ``kill
+    PID`` as a subclass of it (``controlkit reproduce``) still sees that kind.
 
     Examples
     --------
-    >>> interrupted("so far").response
-    'so far'
+    >>> error = interrupted(KeyboardInterrupt(), "so far")
+    >>> error.response, str(error)[:20]
+    ('so far', 'the run was stopped;')
     """
-    error = KeyboardInterrupt("the run was stopped; what was computed is on this "
-                              "exception's `response`")
-    error.response = response_so_far
-    return error
+    stop.response = response_so_far
+    if not stop.args:
+        stop.args = ("the run was stopped; what was computed is on this exception's "
+                     "`response`",)
+    return stop
 
 
 def now() -> float:

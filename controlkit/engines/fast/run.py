@@ -14,7 +14,8 @@ runs its module one of two ways, as Simulink runs a model in normal or accelerat
 :class:`Runner` decides, for each call, by :data:`RULE`: compiled when asked
 (``compile=True``), when the module is compiled already (in this process, or kept in
 the store), or when the run, timed on its first tenth of a second as Python, would take
-longer as Python than loading numba and compiling takes; as Python otherwise, or when
+longer as Python, together with the earlier runs of the same module in this process,
+than loading numba and compiling takes; as Python otherwise, or when
 asked (``compile=False``), or when a block cannot be compiled (:func:`explain` says
 which and why). The compile happens then, in the call, and says so when it takes
 seconds. A compiled module is first run beside Python on one piece of the run: if
@@ -45,8 +46,9 @@ from .tiers import BlockTier, NotCompiled, _resolve, as_interconnect, blocks_of
 #: How the engine chooses between running a diagram as Python and compiled (see
 #: the module's description); ``explain`` and the docs quote it.
 RULE = ("compiled when asked (compile=True), when the diagram's module is compiled "
-        "already, or when the run would take longer as Python than compiling it takes "
-        "(timed on its first tenth of a second); else as Python")
+        "already, or when the run, with the earlier runs of the same module in this "
+        "process, would take longer as Python than compiling it takes (timed on its "
+        "first tenth of a second); else as Python")
 #: Compiling pays when the rest of the run as Python would take this many times longer
 #: than loading numba and compiling (a margin for the estimates).
 PAYS = 1.5
@@ -66,6 +68,9 @@ CHECKED: set[str] = set()
 LOAD_SECONDS = 0.05
 #: Modules whose compiled numbers differed from Python's, by text: why (explain says it).
 DIFFERS: dict[str, str] = {}
+#: Seconds the runs of a module (by text) took as Python in this process: a diagram run
+#: again and again (a notebook's cell, a loop over gains) compiles once they would pay.
+PYTHON_SECONDS: dict[str, float] = {}
 
 
 @dataclass
@@ -320,7 +325,11 @@ class Runner:
         if done >= 1.0:
             return None
         rest = elapsed * (1.0 - done) / max(done, 1e-9)
-        if rest <= PAYS * NUMBA_START_SECONDS:  # (not even worth numba's start)
+        before = PYTHON_SECONDS.get(self.python.source, 0.0)
+        # what compiling can save: this run's rest, and as much again for the runs to come
+        # when earlier ones of the same module took that long (a sunk cost that predicts)
+        saved = rest + before
+        if saved <= PAYS * NUMBA_START_SECONDS:  # (not even worth numba's start)
             self.why_python = f"a short run (about {elapsed + rest:.2g} s as Python)"
             return None
         candidate = compiled_job(self.sys, self.params)
@@ -330,12 +339,20 @@ class Runner:
         kept = candidate.source in _COMPILED or candidate.is_compiled()
         cost = (0.0 if _jit._NUMBA else NUMBA_START_SECONDS) + (
             LOAD_SECONDS if kept else compile_estimate(candidate))
-        if rest > PAYS * cost:
+        if saved > PAYS * cost:
             _TWINS[self.python.source] = candidate.source
             return candidate
-        self.why_python = (f"a short run: about {elapsed + rest:.2g} s as Python, against "
-                           f"about {cost:.2g} s to compile")
+        earlier = f" ({before:.2g} s in earlier runs of it)" if before else ""
+        self.why_python = (f"a short run: about {elapsed + rest:.2g} s as Python{earlier}, "
+                           f"against about {cost:.2g} s to compile")
         return None
+
+    def finished(self, seconds: float) -> None:
+        """A run that took ``seconds`` ended: counted for its module when it ran as Python
+        by the rule (``compile=None``)."""
+        if self.compiled is None and self.asked is None:
+            source = self.python.source
+            PYTHON_SECONDS[source] = PYTHON_SECONDS.get(source, 0.0) + seconds
 
     def differs(self, job, why: str) -> None:
         """The compiled module cannot be trusted (its numbers differ from Python's, or it
