@@ -20,7 +20,10 @@ Workman, *Digital Control of Dynamic Systems*, ch. 4; Astrom & Wittenmark,
 
 from __future__ import annotations
 
+import math
+
 import control as ct
+import numpy as np
 
 #: Relative tolerance when a rate is checked to be an integer multiple of the shortest.
 RATE_TOLERANCE = 1e-9
@@ -208,6 +211,20 @@ def sample_instants(sys, T0, Tf):
     >>> sample_instants(interconnect([plant, gain]), 0.0, 1.2).tolist()
     [0.0, 0.5, 1.0]
     """
-    from .engines.fast.loops import instants  # the one rule of the instants
+    return sample_times(sys.base_period, T0, Tf)
 
-    return instants(sys.base_period, T0, Tf)
+
+def sample_times(base_period, T0, Tf):
+    """The discrete instants ``T0 + k h`` up to ``Tf`` (``[T0]`` when ``h`` is 0).
+
+    Examples
+    --------
+    >>> sample_times(0.5, 0.0, 1.2).tolist(), sample_times(0.0, 0.0, 5.0).tolist()
+    ([0.0, 0.5, 1.0], [0.0])
+    """
+    h = float(base_period or 0.0)
+    if not h:
+        return np.array([float(T0)])
+    count = math.floor((Tf - T0) / h * (1 + 1e-12)) + 1
+    return T0 + np.arange(count) * h
+

@@ -9,6 +9,7 @@ from __future__ import annotations
 import control as ct
 import numpy as np
 
+from ..sampled_data import sample_times
 from .contract import chunk_bounds, recorded_indices, response
 
 
@@ -115,7 +116,7 @@ def simulate_sampled_data(sys, T, X0, U, *, params=None, t_eval=None, method="RK
     T = np.asarray(T, dtype=float)
     t_eval = T if t_eval is None else np.asarray(t_eval, dtype=float)
     evaluator = _Sweep(sys, params)
-    instants = loops.instants(sys.base_period, T[0], T[-1])
+    instants = sample_times(sys.base_period, T[0], T[-1])
     eval_instant = loops.instant_of(t_eval, instants, sys.base_period)
     m, nx = t_eval.size, sys.nstates
     Y, X, Uo = np.zeros((sys.noutputs, m)), np.zeros((nx, m)), np.zeros((sys.ninputs, m))

@@ -15,6 +15,7 @@ from __future__ import annotations
 import control as ct
 import numpy as np
 
+from ...sampled_data import sample_times
 from ..contract import UnsupportedSystem, recorded_indices
 from ..contract import response as base_response
 from . import loops, rk, store
@@ -83,7 +84,7 @@ class _Run:
 
     def __init__(self, sys, plan, T, U, X0, t_eval, method, solver):
         self.sys, self.T, self.U, self.t_eval = sys, T, U, t_eval
-        self.instants = loops.instants(getattr(sys, "base_period", 0.0), T[0], T[-1])
+        self.instants = sample_times(getattr(sys, "base_period", 0.0), T[0], T[-1])
         h = float(getattr(sys, "base_period", 0.0) or 0.0)
         self.eval_instant = loops.instant_of(t_eval, self.instants, h)
         m, nc = t_eval.size, plan.continuous.size

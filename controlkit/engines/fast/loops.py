@@ -56,21 +56,6 @@ INSTANT_TOLERANCE = 1e-9
 NEXT_TIME, INSTANT, UNDER_WAY, BUDGET, SPENT = range(5)
 
 
-def instants(base_period, T0, Tf):
-    """The discrete instants ``T0 + k h`` up to ``Tf`` (``[T0]`` when ``h`` is 0).
-
-    Examples
-    --------
-    >>> instants(0.5, 0.0, 1.2).tolist(), instants(0.0, 0.0, 5.0).tolist()
-    ([0.0, 0.5, 1.0], [0.0])
-    """
-    h = float(base_period or 0.0)
-    if not h:
-        return np.array([float(T0)])
-    count = math.floor((Tf - T0) / h * (1 + 1e-12)) + 1
-    return T0 + np.arange(count) * h
-
-
 def instant_of(t_eval, times, h):
     """For each evaluation time, the index of the instant of ``times`` it is on, else -1
     (within :data:`INSTANT_TOLERANCE` of the period, so that rounding never moves a
@@ -78,7 +63,8 @@ def instant_of(t_eval, times, h):
 
     Examples
     --------
-    >>> instant_of(np.array([0.0, 0.25, 0.5 + 1e-13]), instants(0.5, 0.0, 1.0), 0.5).tolist()
+    >>> from controlkit.sampled_data import sample_times
+    >>> instant_of(np.array([0.0, 0.25, 0.5 + 1e-13]), sample_times(0.5, 0.0, 1.0), 0.5).tolist()
     [0, -1, 1]
     """
     t_eval = np.asarray(t_eval, dtype=float)
