@@ -542,8 +542,9 @@ LONG_RUN = textwrap.dedent("""
         return -x + u
 
     block = ct.nlsys(lag, None, inputs=1, outputs=1, states=1, name="lag")
-    # compiled and loaded first: the run below is the compiled loop alone
-    controlkit.input_output_response(block, [0.0, 1.0], 1.0, 0.0,
+    # compiled first (compile=True: a short run would run as Python): the run below is
+    # the compiled loop alone (Ctrl-C inside a compile waits for LLVM to return)
+    controlkit.input_output_response(block, [0.0, 1.0], 1.0, 0.0, compile=True,
                                      solve_ivp_kwargs={"max_step": 0.01})
     print("started", flush=True)
     # about 10^8 steps (some minutes): far longer than the test waits
