@@ -41,15 +41,14 @@ def assert_same(loop, T, X0, compile=None):
     return ref, fast
 
 
-@pytest.mark.parametrize("case, seconds", [
-    ("ideal", 500), ("without_mec", 500), ("mec_fixed", 500), ("proposed", 2000),
-    ("proposed_literal", 2000)])
-def test_spacecraft_scenarios_match_python_control(case, seconds):
-    # compiled (as the rule chooses for the papers' horizons), to the bit; the tuned loops
-    # over 2000 s, in which FRIT moves K, the others over 500 s (python-control's path
-    # takes about 1 ms a step on these blocks: the test's time is mostly its)
+@pytest.mark.parametrize("case", [
+    "ideal", "without_mec", "mec_fixed", "proposed", "proposed_literal"])
+def test_spacecraft_scenarios_match_python_control_over_500_s(case):
+    # compiled (as the rule chooses for the papers' horizons), to the bit, over 500 s: the
+    # slew and FRIT's first moves of K (|K| reaches 0.03 by then); python-control's path
+    # takes about 1 ms a step on these blocks, so the test's time is mostly its
     loop = scenario.build_loop(case, h0=H0)
-    assert_same(loop, np.arange(seconds * 10 + 1) * 0.1, start(loop), compile=True)
+    assert_same(loop, np.arange(5001) * 0.1, start(loop), compile=True)
 
 
 @pytest.mark.parametrize("case", list(cmg_scenario.CASES))
