@@ -3,10 +3,11 @@
 For diagrams of ``tests/continuous_diagrams.py``, each over a short horizon (100 s) and a
 long one (10^5 s, 1001 evaluation times each), three ways:
 
-- ``controlkit.input_output_response``: the first call in a fresh process (the disk cache
-  as it is: a user's second session), the first call of the same diagram built again in
-  that running process as a newly wired one (its own module not compiled yet: the generic
-  driver) and the median of later calls;
+- ``controlkit.input_output_response``: the first call in a fresh process (the store as
+  it is: a user's second session), the first call of the same diagram built again in
+  that running process as a newly wired one (a block renamed: its module never
+  compiled, so the engine's rule decides between Python and compiling it now) and the
+  median of later calls (``compile=True``: the diagram's module, compiled);
 - ``control.input_output_response`` (python-control; a sampled-data diagram, which it
   cannot run, is timed on controlkit's plain-Python reference instead);
 - "just jit the right-hand side": scipy's ``solve_ivp`` calling the diagram's compiled
@@ -18,9 +19,8 @@ in one call, against python-control's time per run.
 
 Run: ``python benchmarks/bench_continuous.py [--budget 60] [--only ROW ...] [--notebook]``
 (about 10-20 minutes for all; a row is ``diagram`` or ``diagram:horizon``, ``many`` the
-1000 runs; ``--notebook``: each row's process as a notebook's, numba's start in a thread,
-2 s between the import and the first call, and before the later calls and the new
-wiring).
+1000 runs; ``--notebook``: 2 s between the import and the first call, and before the
+later calls and the new wiring, as a person takes between cells).
 The machine is shared: compare the ratios, measured in the same process.
 """
 
@@ -94,13 +94,14 @@ def _jit_rhs(loop, T, X0, U):
     """solve_ivp with the diagram's compiled right-hand side (states only)."""
     import scipy.integrate
 
-    from controlkit.engines.fast import loader
+    from controlkit import _jit
+    from controlkit.engines.fast import store
     from controlkit.engines.fast.run import prepare
 
-    job = prepare(loop)
+    job = prepare(loop, compiled=True)
     plan = job.plan
-    module = loader.load(job.source)
-    rhs = module.rhs
+    module = store.import_module(store.module_file(job.source, "diagram"), job.kernels())
+    rhs = _jit.dispatcher(module.rhs)  # the module's right-hand side, compiled alone
     nx = loop.nstates
     args = ((), np.array(X0, dtype=float), np.empty(nx), plan.continuous, T, U,
             np.empty((U.shape[0], 1)), job.P, np.zeros(plan.ny), np.zeros(plan.nu),
@@ -127,9 +128,11 @@ def child(name, horizon_label, budget, pause=0.0):
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # a fallback to python-control would not be ours
         first, _ = _timed(controlkit.input_output_response, loop, T, U, X0)
-        time.sleep(pause)  # the next cell (a notebook loads the blocks' entries meanwhile)
+        time.sleep(pause)  # the next cell
+        controlkit.input_output_response(loop, T, U, X0, compile=True)  # compiled once
         warm = statistics.median(
-            _timed(controlkit.input_output_response, loop, T, U, X0)[0] for _ in range(5))
+            _timed(controlkit.input_output_response, loop, T, U, X0, compile=True)[0]
+            for _ in range(5))
         time.sleep(pause)  # the person wires the blocks anew in the next cell
         rewired = _new_wiring(name, horizon_label)
     ref, mark = _reference(loop, T, X0, U, budget)
@@ -141,19 +144,15 @@ def child(name, horizon_label, budget, pause=0.0):
 def _new_wiring(name, horizon_label):
     """The first call of a newly wired diagram of known blocks in a running session: the
     diagram built again with a block renamed, so that its module was never compiled (the
-    generic driver runs while a background process compiles the module, and a long run
-    moves to the module once it is compiled: :mod:`controlkit.engines.fast.switching`).
-    The compile is waited for before the next measurement."""
+    engine's rule runs it as Python, or compiles it first when the run, timed on its
+    first tenth of a second, would take longer as Python)."""
     import uuid
 
     import controlkit
-    from controlkit.engines.fast import switching
 
     loop, T, X0, U = _case(name, HORIZONS[horizon_label])
     loop.syslist[0].name += f"_{uuid.uuid4().hex[:8]}"  # the block names are in the module
-    took = _timed(controlkit.input_output_response, loop, T, U, X0)[0]
-    switching.wait_for_compiles()
-    return took
+    return _timed(controlkit.input_output_response, loop, T, U, X0)[0]
 
 
 def many(budget):
@@ -167,14 +166,14 @@ def many(budget):
     rng = np.random.default_rng(0)
     draws = [{"kp": float(rng.uniform(0.2, 1.0)), "ki": float(rng.uniform(0.05, 0.3))}
              for _ in range(1000)]
-    controlkit.input_output_response(loop, T, U, X0, params=draws[:2])  # compile once
+    controlkit.input_output_response(loop, T, U, X0, params=draws[:2], compile=True)
     out = {}
     for threads in (1, 2):
         import numba
 
         numba.set_num_threads(threads)
         out[f"ours_{threads}"] = _timed(controlkit.input_output_response, loop, T, U, X0,
-                                        params=draws)[0]
+                                        params=draws, compile=True)[0]
     per_run, _ = _timed(lambda: [ct.input_output_response(loop, T, U, X0, params=p)
                                  for p in draws[:20]])
     out["python_control"] = per_run / 20 * 1000
@@ -188,9 +187,8 @@ def main(argv=None) -> int:
     parser.add_argument("--only", nargs="+", metavar="ROW",
                         help="rows to run, as diagram or diagram:horizon (short, long)")
     parser.add_argument("--notebook", action="store_true",
-                        help="each row as in a notebook: numba's start in a thread "
-                             "(CONTROLKIT_WARMUP=1) and 2 s between the import and the "
-                             "first call")
+                        help="each row as in a notebook: 2 s between the import and the "
+                             "first call, and between the later cells")
     parser.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     parser.add_argument("--pause", type=float, default=0.0, help=argparse.SUPPRESS)
     parser.add_argument("--many", action="store_true", help=argparse.SUPPRESS)
@@ -202,10 +200,9 @@ def main(argv=None) -> int:
     if args.many:
         print(json.dumps(many(args.budget)))
         return 0
-    env = {"PYTHONPATH": str(TESTS)}
-    import os
+    from timing import checkout_env
 
-    env = dict(os.environ, **env, CONTROLKIT_WARMUP="1" if args.notebook else "0")
+    env = checkout_env()
     print("| diagram | horizon | first call | new wiring | warm call | python-control "
           "| ratio first | ratio new wiring | ratio warm | jit rhs (solve_ivp) "
           "| ratio vs jit rhs |")

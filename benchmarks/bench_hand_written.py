@@ -9,11 +9,12 @@ hand (no diagram, no kernels, no parameter vector: the equations inlined):
 - ``servo``: a DC motor's angle and speed, sampled exactly (``ct.sample_system``, zoh),
   under a discrete PI whose voltage a user ``nlsys`` saturates at 12 V.
 
-For each: the nanoseconds per step of ``controlkit.input_output_response`` (warm: the
-diagram's own module already compiled, the median of 5 calls over 10^6 steps), of the
-diagram's generated loop alone (on arrays made once), and of the hand-written loop over the
-same arrays; the ratios (the goal of issue 21: the generated loop within 3x of the one
-written by hand), and the largest difference of the outputs.
+For each: the nanoseconds per step of ``controlkit.input_output_response(...,
+compile=True)`` (warm: the diagram's module compiled, the median of 5 calls over 10^6
+steps), of the diagram's compiled module alone (its entry point ``run_discrete`` on arrays
+made once), and of the hand-written loop over the same arrays; the ratios (the goal of
+issue 21: the generated loop within 3x of the one written by hand), and the largest
+difference of the outputs.
 
 Run: ``python benchmarks/bench_hand_written.py`` (about a minute). The machine is shared:
 compare the ratios, measured in the same process.
@@ -22,12 +23,10 @@ compare the ratios, measured in the same process.
 from __future__ import annotations
 
 import math
-import os
 import sys
 from pathlib import Path
 
 import control as ct
-import numba
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -35,7 +34,9 @@ import cruise  # noqa: E402  (this folder's modules)
 from timing import median_seconds  # noqa: E402
 
 import controlkit  # noqa: E402
+from controlkit import _jit  # noqa: E402
 
+numba = _jit.numba_module()
 STEPS = 1_000_000
 
 
@@ -113,35 +114,37 @@ def servo_by_hand(r, Am, Bm, Ap, Bp, Cp, Dp, v_max):
 
 
 def loop_alone(loop, T, U, X0):
-    """A call of the diagram's generated loop alone: no argument checks, no response object.
+    """A call of the diagram's compiled module alone: no argument checks, no pieces, no
+    response object.
 
     ``controlkit.input_output_response`` adds to it what a user's call needs (``T`` checked,
     output and state arrays filled, a ``TimeResponseData`` that copies them): the time of
     that is the difference of the two columns.
     """
-    from controlkit.engines.fast.run import discrete_loop, prepare
+    from controlkit.engines.fast.run import prepare
 
-    job = prepare(loop)
-    run = discrete_loop(job)
-    U = np.ascontiguousarray(np.broadcast_to(np.atleast_2d(U), (loop.ninputs, T.size)))
+    job = prepare(loop, compiled=True)
+    U = np.ascontiguousarray(np.broadcast_to(np.atleast_2d(U), (loop.ninputs, T.size)),
+                             dtype=float)
     Y, X = np.empty((loop.noutputs, T.size)), np.empty((loop.nstates, T.size))
-    status = np.full(3, -1, dtype=np.int64)
-    X0 = np.asarray(X0, dtype=float)
-    return lambda: run(T, X0, U, job.P, Y, X, status, 0, T.size)
+    status = np.full(2, -1, dtype=np.int64)
+    args = (T, np.asarray(X0, dtype=float), U, job.P, Y, X, status, 0, T.size)
+    run = job.entry("run_discrete", args)
+    return lambda: run(*args)
 
 
 def main() -> int:
-    os.environ.setdefault("CONTROLKIT_MODULES", "now")  # the diagram's own module, compiled
     rows = []
     # --- cruise
     loop, _, X0, _ = cruise.loop(dt=0.1)
     T = np.arange(STEPS) * 0.1
     theta = np.deg2rad(np.clip(4.0 * (T - 10.0), 0.0, 4.0))
     U = np.vstack([20.0 * np.ones_like(T), 4.0 * np.ones_like(T), theta])
-    ours = controlkit.input_output_response(loop, T, U, X0)  # compiles what it needs
+    ours = controlkit.input_output_response(loop, T, U, X0, compile=True)  # compiles once
     hand = cruise_by_hand(U, X0[0], X0[1], 0.1)
     rows.append(("cruise (2 states, 2 user nlsys)",
-                 median_seconds(lambda: controlkit.input_output_response(loop, T, U, X0)),
+                 median_seconds(lambda: controlkit.input_output_response(loop, T, U, X0,
+                                                                         compile=True)),
                  median_seconds(loop_alone(loop, T, U, X0)),
                  median_seconds(lambda: cruise_by_hand(U, X0[0], X0[1], 0.1)),
                  float(np.abs(ours.outputs - hand).max())))
@@ -149,13 +152,13 @@ def main() -> int:
     loop, motor, pi = servo()
     T = np.arange(STEPS) * 0.01
     r = np.where(T % 4.0 < 2.0, 1.0, -1.0)
-    ours = controlkit.input_output_response(loop, T, r, np.zeros(3))
+    ours = controlkit.input_output_response(loop, T, r, np.zeros(3), compile=True)
     args = (r, motor.A, motor.B[:, 0].copy(), pi.A[0, 0], pi.B[0, 0], pi.C[0, 0], pi.D[0, 0],
             12.0)
     hand = servo_by_hand(*args)
     rows.append(("servo (3 states, LTI + user nlsys)",
-                 median_seconds(lambda: controlkit.input_output_response(loop, T, r,
-                                                                           np.zeros(3))),
+                 median_seconds(lambda: controlkit.input_output_response(
+                     loop, T, r, np.zeros(3), compile=True)),
                  median_seconds(loop_alone(loop, T, r, np.zeros(3))),
                  median_seconds(lambda: servo_by_hand(*args)),
                  float(np.abs(ours.outputs - hand).max())))

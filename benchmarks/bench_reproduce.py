@@ -18,9 +18,10 @@ same run, interleaved:
 - with ``--baseline DIR``, **(base)**: the command (b) run from another checkout of
   controlkit (e.g. ``git worktree add /tmp/main main``), with the same disk caches.
 
-One untimed run of each first fills the numba cache (and has the CMG loop compiled in the
-background). Ratios are the results to quote: the machine may be shared, and everything is
-measured under the same load; the load average is printed with them.
+Two untimed runs of each first fill the store (the loops the engine's rule compiles,
+and a baseline's background compiles). Ratios are the results to quote: the machine may
+be shared, and everything is measured under the same load; the load average is printed
+with them.
 """
 
 from __future__ import annotations
@@ -61,8 +62,8 @@ def main(argv=None) -> None:
     if args.baseline:
         runs["(base)"] = lambda: wall(command, root=args.baseline.resolve())
         wall(command, root=args.baseline.resolve())  # warm
-    wall(command)  # warm the numba cache
-    wall(command)  # ... and load what the first run compiled in the background
+    wall(command)  # fill the store
+    wall(command)  # ... and what an older engine compiled in the background
     times = {name: [] for name in runs}
     loads = []
     for _ in range(args.repeats):

@@ -13,18 +13,18 @@ compile
     a compiled ``run``), each imported in a fresh process with its own numba cache:
     ``no integrator`` (the floor: 1000 Euler steps), ``machine linked`` (``run`` calls
     ``rk.solve_interval`` with ``rk.machine``, whose code numba then links and
-    optimizes into ``run``), ``machine by pointer`` (``run`` receives
-    ``rk.machine_function()`` and calls the machine through it), ``machine+rhs by
-    pointer`` (the right-hand side is a first-class function too: ``run`` is then the
-    same for every diagram with the same type of ``args``). For each: the first call
-    with an empty cache ("cold"), the first call of a *new* diagram once rk's functions
-    are cached, and the first call in a second process (all loaded from the cache). Each
-    design runs with its own numba cache folder (``NUMBA_CACHE_DIR``), so "cold" includes
-    compiling the integrator.
+    optimizes into ``run``), ``machine by pointer`` (``run`` receives the step machine
+    compiled once and kept in the store, ``store.step_machine()``, and calls it through
+    its address: what the engine does). For each: the first call with an empty cache
+    ("cold"), the first call of a *new* diagram once rk's functions are cached, and the
+    first call in a second process (all loaded from the cache). Each design runs with
+    its own numba cache folder (``NUMBA_CACHE_DIR``) and store (``CONTROLKIT_CACHE_DIR``),
+    so "cold" includes compiling the integrator. (A third design, the right-hand side a
+    first-class function too, was measured and dropped: see README.md.)
 runtime
     Nanoseconds per accepted step on a 2-state and a 10-state nonlinear problem over a
-    1e5 s horizon: ours (exact and loop arithmetic; machine linked or by pointer;
-    right-hand side direct or by pointer), scipy's ``solve_ivp`` with the same
+    1e5 s horizon: ours (exact and loop arithmetic; machine linked or by pointer),
+    scipy's ``solve_ivp`` with the same
     right-hand side in Python and with the numba-compiled one (python-control's "just
     jit the right-hand side"), both measured per step on a 1e3 s horizon, and a plain
     fixed-step RK4 loop making as many evaluations as our run. The problems are
@@ -64,8 +64,9 @@ def rhs(t, y, args, out):
 #: The first lines of every generated module (the right-hand side pasted in at {rhs}).
 HEADER = '''
 import numpy as np
-import numba
-from controlkit.engines.fast import rk
+from controlkit import _jit
+numba = _jit.numba_module()
+from controlkit.engines.fast import rk, store
 {rhs}
 
 @numba.njit(cache=True)
@@ -81,7 +82,7 @@ PROBLEM = '''    y0 = np.array([2.0, 0.0])
 SOLVE = '''    y_end = np.empty(y0.shape[0])
     return rk.solve_interval({machine}, rhs, args, {{index}}, 0.0, 20.0, y0, 1e-3,
                              np.full(y0.shape[0], 1e-6), np.inf, 0.0, t_eval, 0, True,
-                             y_eval, y_end, work, True)
+                             y_eval, y_end, work, True, 0, False)
 
 
 def first_call():
@@ -93,14 +94,8 @@ LINKED_TEMPLATE = (HEADER + "def run(y0, t_eval, y_eval, work):\n" + ARGS
 
 POINTER_TEMPLATE = (HEADER + "def run(machine, y0, t_eval, y_eval, work):\n" + ARGS
                     + SOLVE.format(machine="machine") + PROBLEM
-                    + "    return run(rk.machine_function(), y0, t_eval, y_eval, work), "
+                    + "    return run(store.step_machine(), y0, t_eval, y_eval, work), "
                       "y_eval[-1]\n")
-
-BOTH_POINTERS_TEMPLATE = (
-    HEADER + "def run(machine, rhs, args, y0, t_eval, y_eval, work):\n"
-    + SOLVE.format(machine="machine") + ARGS + PROBLEM
-    + "    return run(rk.machine_function(), rk.first_class(rhs, args), args, y0, t_eval, "
-      "y_eval,\n               work), y_eval[-1]\n")
 
 BASELINE_TEMPLATE = HEADER + '''def run(y0, t_eval, y_eval, work):
     """No integrator: 1000 explicit Euler steps (the floor of a diagram's compile time)."""
@@ -128,7 +123,6 @@ DESIGNS = {
     "no integrator (floor)": BASELINE_TEMPLATE,
     "machine linked": LINKED_TEMPLATE,
     "machine by pointer": POINTER_TEMPLATE,
-    "machine+rhs by pointer": BOTH_POINTERS_TEMPLATE,
 }
 
 DRIVER = '''
@@ -152,7 +146,8 @@ print(json.dumps({{"import_numba_rk": imported - start, "import_module": loaded 
 
 def run_driver(gen_dir, module, cache_dir):
     """Import ``module`` from ``gen_dir`` in a fresh process and time its first call."""
-    environment = dict(os.environ, NUMBA_CACHE_DIR=cache_dir)
+    environment = dict(os.environ, NUMBA_CACHE_DIR=cache_dir,
+                       CONTROLKIT_CACHE_DIR=os.path.join(cache_dir, "store"))
     script = DRIVER.format(root=ROOT, gen=gen_dir, module=module)
     output = subprocess.run([PYTHON, "-c", script], capture_output=True, text=True,
                             env=environment, check=True).stdout
@@ -211,9 +206,10 @@ def bench_compile(repeats=3, methods=("RK45",)):
 
 def _compiled_callers():
     """The compiled loops the runtime benchmark times (compiled here, not cached)."""
-    import numba
-
+    from controlkit import _jit
     from controlkit.engines.fast import rk
+
+    numba = _jit.numba_module()
 
     @numba.njit
     def rk4_fixed(rhs, args, y0, t0, h, steps, work):
@@ -243,14 +239,16 @@ def _compiled_callers():
                work, exact):
         """The machine called directly (its code compiled into this caller)."""
         return rk.solve_interval(rk.machine, rhs, args, method, 0.0, t1, y0, 1e-3, atol,
-                                 np.inf, 0.0, t_eval, 0, True, y_eval, y_end, work, exact)
+                                 np.inf, 0.0, t_eval, 0, True, y_eval, y_end, work, exact,
+                                 0, False)
 
     @numba.njit
     def by_pointer(machine_function, rhs, args, method, t1, y0, atol, t_eval, y_eval, y_end,
                    work, exact):
-        """The machine (and maybe the right-hand side) called through pointers."""
+        """The machine called through its address (the engine's way)."""
         return rk.solve_interval(machine_function, rhs, args, method, 0.0, t1, y0, 1e-3, atol,
-                                 np.inf, 0.0, t_eval, 0, True, y_eval, y_end, work, exact)
+                                 np.inf, 0.0, t_eval, 0, True, y_eval, y_end, work, exact,
+                                 0, False)
 
     return rk4_fixed, linked, by_pointer
 
@@ -267,7 +265,7 @@ def bench_runtime(repeats=5, horizon=1e5, scipy_horizon=1e3):
     import rk_problems as P
     import scipy.integrate
 
-    from controlkit.engines.fast import rk
+    from controlkit.engines.fast import rk, store
 
     rk4_fixed, linked, by_pointer = _compiled_callers()
     problems = P.make_problems()
@@ -275,7 +273,7 @@ def bench_runtime(repeats=5, horizon=1e5, scipy_horizon=1e3):
         "van_der_pol (2 states)": problems["van_der_pol"],
         "chain10 (10 states)": problems["chain10"],
     }
-    machine_pointer = rk.machine_function()
+    machine_pointer = store.step_machine()
     rows = []
     for label, problem in cases.items():
         for method in ("RK45", "DOP853", "RK23"):
@@ -287,11 +285,9 @@ def bench_runtime(repeats=5, horizon=1e5, scipy_horizon=1e3):
             y_end = np.zeros(n)
             atol = np.full(n, 1e-6)
             work = rk.make_workspace(n, 0, t_eval.shape[0])
-            rhs_pointer = rk.first_class(problem.rhs, args)
             variants = {
                 "exact, linked": (linked, machine_pointer, problem.rhs, True),
                 "exact, machine by pointer": (by_pointer, machine_pointer, problem.rhs, True),
-                "exact, both by pointer": (by_pointer, machine_pointer, rhs_pointer, True),
                 "loops, linked": (linked, machine_pointer, problem.rhs, False),
                 "loops, machine by pointer": (by_pointer, machine_pointer, problem.rhs, False),
             }

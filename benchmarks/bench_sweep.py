@@ -1,57 +1,106 @@
-"""Sweep throughput: runs per second on 1 and 2 workers, and a 200-run study's wall time.
+"""Sweep throughput: a robustness sweep in the caller, on 1 worker and on 2.
 
-    python benchmarks/bench_sweep.py [--runs 24] [--study-samples 67]
+    python benchmarks/bench_sweep.py [--runs 48] [--horizon 2000] [--rounds 3]
+                                     [--before DIR]
 
-Each run is one 20 000 s spacecraft case (``without_mec``, ``mec_fixed``, ``proposed`` in
-turn) with drawn model errors, through :func:`controlkit.studies.robustness.study`.
-Ratios are measured in one process, one after the other, so a loaded machine shifts both;
-the loops are compiled and cached once before anything is timed.
+Each run is one spacecraft case (``without_mec``, ``mec_fixed``, ``proposed`` in turn)
+over ``--horizon`` seconds with drawn model errors, through
+:func:`controlkit.studies.robustness.study` (which compiles the cases' loops in the
+caller before the workers start, and the workers load them). Each measurement is a fresh
+process (as ``controlkit sweep`` is): the time of the ``study`` call (the warm-up, the
+pool's start and the runs) and the process's wall time (imports and exit too), in the
+caller (``executor="serial"``), on 1 worker process and on 2; with ``--before DIR``
+another checkout measured the same way, interleaved, each with its own store. The
+speed-up is the 1-worker time over the 2-worker time, within one round (the machine is
+shared: a loaded machine shifts both).
 """
 
 from __future__ import annotations
 
 import argparse
-import os
+import json
+import statistics
+import sys
 import time
+from pathlib import Path
 
-from controlkit.studies import robustness
-from controlkit.studies.spacecraft import robustness as sc_robustness
+from timing import checkout_env, load, run_child
 
 CASES = ["without_mec", "mec_fixed", "proposed"]
+SETUPS = {"in the caller": ("serial", None), "1 worker": ("processes", 1),
+          "2 workers": ("processes", 2)}
 
 
-def timed(samples, workers, executor="processes"):
+def child(samples, horizon, executor, workers):
+    from controlkit.studies import robustness
+
     started = time.perf_counter()
     table, _ = robustness.study("spacecraft", samples=samples, seed=1, cases=CASES,
-                                           executor=executor, workers=workers,
-                                           progress=False)
+                                horizon=horizon, executor=executor, workers=workers,
+                                progress=False)
     elapsed = time.perf_counter() - started
     assert (table["error"] == "").all(), table["error"].unique()
-    return len(table), elapsed
+    return {"runs": len(table), "study_s": elapsed}
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--runs", type=int, default=120,
-                        help="runs per throughput measurement (a multiple of 3)")
-    parser.add_argument("--study-samples", type=int, default=67,
-                        help="draws of the timed study (x 3 cases; 67 -> 201 runs)")
+    parser.add_argument("--runs", type=int, default=48, help="runs (a multiple of 3)")
+    parser.add_argument("--horizon", type=float, default=2000.0,
+                        help="simulated seconds per run (a multiple of 0.1; 20 000 is the "
+                             "paper's)")
+    parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--before", metavar="DIR", help="another checkout, timed beside")
+    parser.add_argument("--after", metavar="DIR",
+                        help="the checkout timed as 'after' (default: the installed one)")
+    parser.add_argument("--store", help="this checkout's store (default: the user's)")
+    parser.add_argument("--before-store", default=str(Path.home() / ".cache" / "controlkit"
+                                                      / "bench-before"))
+    parser.add_argument("--child", nargs=4, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
-    sc_robustness.warm(CASES)
-    samples = max(1, args.runs // len(CASES))
-    print(f"machine: {os.cpu_count()} CPUs; {samples * len(CASES)} runs of 20 000 s each")
-    n, serial = timed(samples, None, executor="serial")
-    print(f"(s) in this process     : {n / serial:6.2f} runs/s  ({serial:6.1f} s)")
-    rates = {}
-    for workers in (1, 2):
-        n, elapsed = timed(samples, workers)
-        rates[workers] = n / elapsed
-        print(f"({workers}) {workers} worker process(es): {rates[workers]:6.2f} runs/s  "
-              f"({elapsed:6.1f} s, includes starting the workers)")
-    print(f"speed-up 2 workers / 1 worker: {rates[2] / rates[1]:.2f}x")
-    n, elapsed = timed(args.study_samples, 2)
-    print(f"study of {n} runs on 2 workers: {elapsed:.1f} s")
+    if args.child:
+        samples, horizon, executor, workers = args.child
+        print(json.dumps(child(int(samples), float(horizon), executor,
+                               None if workers == "-" else int(workers))))
+        return 0
+    if args.runs < 3 or args.runs % 3:
+        parser.error(f"--runs must be a positive multiple of 3, got {args.runs}")
+    versions = {"after": (Path(args.after).resolve() if args.after else None, args.store)}
+    if args.before:
+        versions = {"before": (Path(args.before).resolve(), args.before_store), **versions}
+    samples = args.runs // len(CASES)
+    results = {}
+    for _ in range(args.rounds):
+        for who, (tree, store) in versions.items():
+            for setup, (executor, workers) in SETUPS.items():
+                out, wall, _ = run_child(
+                    [__file__, "--child", samples, args.horizon, executor, workers or "-"],
+                    checkout_env(tree, store))
+                out.update(wall=wall, load=load())
+                results.setdefault((who, setup), []).append(out)
+                print(f"# {who} {setup}: {json.dumps(out)}", file=sys.stderr, flush=True)
+    print(f"\n{args.runs} spacecraft runs of {args.horizon:g} s, {args.rounds} round(s): "
+          f"the study call (runs/s), and the process's wall time; medians")
+    print("| engine | in the caller | 1 worker | 2 workers | 2 workers / 1 worker "
+          "(study call; each round) | same, wall | load |")
+    print("|---|---|---|---|---|---|---|")
+    for who in versions:
+        cells, loads = [], []
+        for setup in SETUPS:
+            runs = results[(who, setup)]
+            loads += [r["load"] for r in runs]
+            study = statistics.median(r["study_s"] for r in runs)
+            wall = statistics.median(r["wall"] for r in runs)
+            cells.append(f"{study:.1f} s ({args.runs / study:.1f} runs/s), wall {wall:.1f} s")
+        one, two = results[(who, "1 worker")], results[(who, "2 workers")]
+        speedups = [a["study_s"] / b["study_s"] for a, b in zip(one, two, strict=True)]
+        walls = [a["wall"] / b["wall"] for a, b in zip(one, two, strict=True)]
+        print(f"| {who} | " + " | ".join(cells)
+              + f" | {statistics.median(speedups):.2f}x "
+                f"({', '.join(f'{s:.2f}' for s in speedups)}) | "
+                f"{statistics.median(walls):.2f}x | {min(loads)}-{max(loads)} |")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

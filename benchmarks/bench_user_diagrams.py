@@ -9,24 +9,23 @@ functions only) and the seven of ``tests/idiom_diagrams.py`` (functions written 
 python-control's examples and course notebooks write them: helpers handed ``params``,
 ``map(params.get, ...)``, scalar ``np.clip``, a partial, a callable object, a decorated
 function, ...) are simulated (a) by ``control.input_output_response`` and (b) by the fast
-engine (``controlkit.simulation.simulate(..., engine="fast")``, warm caches). It prints how
-many blocks are compiled, microseconds per step and the ratio a/b. Then:
+engine compiled (``controlkit.simulation.simulate(..., engine="fast", compile=True)``,
+warm: the module compiled by a first call). It prints how many blocks can be compiled,
+microseconds per step and the ratio a/b. Then:
 
 - new parameter values in one process: two diagrams called with five new values of a
   parameter (200 steps each), each call timed against python-control's;
 - the latency of a first call (200 steps) in a fresh process, against python-control's time
   for the same call in that process:
 
-  - new wiring: blocks seen before (their kernels cached on disk), wired in a way not seen
-    before (the loop is generated and compiled);
-  - new user block: a user ``nlsys`` whose function was never compiled (its kernel is
-    compiled);
+  - new wiring: blocks seen before, wired in a way not seen before (a new module);
+  - new user block: a user ``nlsys`` whose function was never compiled;
   - new parameter value: a user block compiled by an earlier process, called with a
     parameter value never used before.
 
-A loop not compiled yet runs as Python for short runs
-(``controlkit.engines.fast.loader.COMPILE_AFTER_STEPS``); the column "+ loop compiled" is
-what compiling it costs on top, paid by the first long run.
+The first call runs as the engine's rule decides (a short run: as Python); the column
+"compile=True" is the same call asking for the compiled module (compiling it, or loading
+it from the store), what a long run pays once.
 
 The machine is shared: compare the ratios, measured in the same run.
 """
@@ -48,6 +47,7 @@ sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 
 from idiom_diagrams import DIAGRAMS as IDIOM_DIAGRAMS  # noqa: E402
 from idiom_diagrams import cruise  # noqa: E402
+from timing import checkout_env  # noqa: E402  (this folder's module)
 from user_diagrams import DIAGRAMS  # noqa: E402
 
 from controlkit.engines import fast as engine  # noqa: E402
@@ -76,8 +76,10 @@ def per_step():
         compiled = sum(r.tier == "compiled" for r in rows)
         a = best(ct.input_output_response, loop, T, U, X0, params=params, repeat=1) / T.size
         loop, T, X0, U, params = build(steps=50000)
-        simulate(loop, T[:10], X0=X0, U=U[..., :10], params=params, engine="fast")  # warm
-        b = best(simulate, loop, T, X0, U, params=params, engine="fast") / T.size
+        simulate(loop, T[:10], X0=X0, U=U[..., :10], params=params, engine="fast",
+                 compile=True)  # compiled once
+        b = best(simulate, loop, T, X0=X0, U=U, params=params, engine="fast",
+                 compile=True) / T.size
         print(f"{name:45s} {f'{compiled}/{len(rows)}':>8s} {a * 1e6:19.1f} {b * 1e6:9.3f} "
               f"{a / b:7.0f}")
 
@@ -90,11 +92,11 @@ def new_values():
     for name, build, key in (("user nlsys with params", tank_with_params, "leak"),
                              ("cruise control", cruise, "kaw")):
         loop, T, X0, U, params = build(steps=200)
-        simulate(loop, T, X0=X0, U=U, params=params, engine="fast")  # compiled once
+        simulate(loop, T, X0=X0, U=U, params=params, engine="fast", compile=True)  # once
         fast, ref = [], []
         for value in (0.5, 0.75, 1.0, 1.25, 1.75):
             values = {**params, key: value}
-            fast.append(best(simulate, loop, T, X0, U, params=values, engine="fast",
+            fast.append(best(simulate, loop, T, X0=X0, U=U, params=values, engine="fast",
                              repeat=1))
             ref.append(best(ct.input_output_response, loop, T, U, X0, params=values,
                             repeat=1))
@@ -126,17 +128,15 @@ LATENCY = textwrap.dedent('''
         loop = ct.interconnect([plant, loop.syslist[1]], inputs="level_ref",
                                outputs=["level", "q"])
     from controlkit.engines import fast as engine
-    from controlkit.engines.fast import loader
     t0 = time.perf_counter()
-    simulate(loop, T, X0, U, params=params, engine="fast")
+    simulate(loop, T, X0=X0, U=U, params=params, engine="fast")
     fast = time.perf_counter() - t0
     assert {{r.tier for r in engine.explain(loop, params)}} == {{"compiled"}}
-    loader.COMPILE_AFTER_STEPS = 0  # what a long run pays on top: the loop compiled
-    t0 = time.perf_counter()
-    simulate(loop, T, X0, U, params=params, engine="fast")
+    t0 = time.perf_counter()  # what a long run pays once: the module compiled (or loaded)
+    simulate(loop, T, X0=X0, U=U, params=params, engine="fast", compile=True)
     compiled = time.perf_counter() - t0
     t0 = time.perf_counter()
-    simulate(loop, T, X0, U, params=params)
+    simulate(loop, T, X0=X0, U=U, params=params)
     ref = time.perf_counter() - t0
     print(fast, compiled, ref)
 ''')
@@ -153,7 +153,7 @@ USER_BLOCK = textwrap.dedent('''
 
 
 def latency(tmp: Path):
-    print(f"\n{'first call, 200 steps':28s} {'fast (s)':>9s} {'+ loop compiled (s)':>20s} "
+    print(f"\n{'first call, 200 steps':28s} {'fast (s)':>9s} {'compile=True (s)':>20s} "
           f"{'python-control (s)':>19s}")
     rng = np.random.default_rng()
     for case in ("wiring", "user block", "warm-up", "value"):
@@ -165,7 +165,7 @@ def latency(tmp: Path):
                               leak=float(rng.uniform(0.2, 0.4)))
         out = subprocess.run([sys.executable, "-c", code, case.split()[0].replace(
             "warm-up", "value")], check=True, capture_output=True, text=True,
-            env=os.environ).stdout
+            env=checkout_env()).stdout
         fast, compiled, ref = (float(v) for v in out.split()[-3:])
         if case != "warm-up":  # the value case after a process that compiled the block
             label = "new parameter value" if case == "value" else "new " + case

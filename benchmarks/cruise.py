@@ -5,15 +5,14 @@ The vehicle and the anti-windup PI controller of python-control's
 ``f(t, x, u, params)`` reading a ``params`` dict with ``params.get``, a helper handed
 ``params``, ``np.clip`` on scalars. :func:`loop` builds the loop continuous, or discrete at
 ``dt`` (the vehicle sampled under zero-order hold, the PI discrete), and optionally rewired
-with a low-pass filter on the measured speed.
+with a low-pass filter on the measured speed. The continuous loop imports python-control
+only (a script timing python-control alone can build it).
 """
 
 from math import copysign, sin
 
 import control as ct
 import numpy as np
-
-from controlkit.blocks.sampling import sample_nlsys
 
 
 def motor_torque(omega, params={}):  # noqa: B006 - the example's own signature
@@ -70,10 +69,13 @@ def filter_update(t, x, u, params={}):  # noqa: B006
     return [a * x[0] + (1 - a) * u[0]]
 
 
-def loop(dt=None, filtered=False):
+def loop(dt=None, filtered=False, points=20_000, horizon=None):
     """The loop: continuous (``dt=None``) or discrete at ``dt``; with a speed filter.
 
-    Returns ``(loop, T, X0, U)`` for 20 000 time points (0.01 s apart: 200 s).
+    Returns ``(loop, T, X0, U)`` for ``points`` time points, ``dt`` apart (0.01 s for the
+    continuous loop), or spread evenly over ``horizon`` seconds when it is given
+    (python-control's example: 301 points over 30 s). The road climbs a 4 degree hill
+    from t = 10 s.
     """
     vehicle = ct.nlsys(vehicle_update, None, inputs=["u", "gear", "theta"], outputs="v",
                        states="v", name="vehicle")
@@ -86,6 +88,8 @@ def loop(dt=None, filtered=False):
             blocks.append(ct.nlsys(filter_rate, lambda t, x, u, p: x[0], inputs="v",
                                    outputs="vf", states="xf", name="filter"))
     else:
+        from controlkit.blocks.sampling import sample_nlsys
+
         pi = ct.nlsys(pi_update, pi_output, inputs=[measured, "vref"], outputs="u",
                       states="z", dt=dt, params={"dt": dt}, name="pi")
         blocks = [sample_nlsys(vehicle, dt), pi]
@@ -95,8 +99,10 @@ def loop(dt=None, filtered=False):
                                    name="filter"))
     sys = ct.interconnect(blocks, inputs=["vref", "gear", "theta"], outputs=["v", "u"],
                           name="cruise_filtered" if filtered else "cruise")
-    step = dt or 0.01
-    T = np.arange(20_000) * step
+    if horizon is None:
+        T = np.arange(points) * (dt or 0.01)
+    else:
+        T = np.linspace(0.0, horizon, points)
     theta = np.deg2rad(np.clip(4.0 * (T - 10.0), 0.0, 4.0))  # a hill from t = 10 s
     U = np.vstack([20.0 * np.ones_like(T), 4.0 * np.ones_like(T), theta])
     X0 = np.array([18.0, 0.0] + ([18.0] if filtered else []))

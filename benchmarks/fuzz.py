@@ -18,13 +18,11 @@ from __future__ import annotations
 
 import argparse
 import collections
-import os
 import re
 import sys
 import time
 from pathlib import Path
 
-os.environ.setdefault("CONTROLKIT_MODULES", "never")  # the generic driver, as the tests
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
 import fuzz_diagrams as fuzz  # noqa: E402

@@ -4,8 +4,9 @@ integration (benchmarks/README.md, "Compiled Runge-Kutta").
 Van der Pol with ``2 tanh(y0)`` (a limit cycle): ours compiled with ``math.tanh`` (libm)
 against scipy with the same Python function, and against scipy with ``numpy.tanh``
 (numpy's own implementation, 1 ulp off libm for ~25% of arguments on this machine).
-Also: our exact arithmetic against plain loops (``exact=False``). Run from the
-repository root (a few seconds)::
+Also: our exact arithmetic against plain loops (``exact=False``). Ours is the integrator
+compiled as a diagram's module calls it (``compiled_rk.py``). Run from the repository
+root (a few seconds once the step machine is in the store)::
 
     python benchmarks/rk_ulp_effect.py
 """
@@ -14,9 +15,9 @@ import math
 
 import numpy as np
 import scipy.integrate
+from compiled_rk import solve_ivp  # this folder's module
 
 from controlkit._jit import jit
-from controlkit.engines.fast import rk
 
 
 @jit
@@ -35,7 +36,7 @@ def numpy_fun(t, y):
 def same_fun(t, y):
     """The compiled model's own Python code."""
     out = np.empty(2)
-    getattr(vdp_tanh, "py_func", vdp_tanh)(t, y, None, out)
+    vdp_tanh.py_func(t, y, None, out)
     return out
 
 
@@ -50,8 +51,8 @@ if __name__ == "__main__":
         for method in ("RK45", "DOP853"):
             for rtol, atol in ((1e-3, 1e-6), (1e-8, 1e-10)):
                 common = {"method": method, "t_eval": T, "rtol": rtol, "atol": atol}
-                ours = rk.solve_ivp(vdp_tanh, (0.0, horizon), [2.0, 0.0], args=args, **common)
-                loops = rk.solve_ivp(vdp_tanh, (0.0, horizon), [2.0, 0.0], args=args,
+                ours = solve_ivp(vdp_tanh, (0.0, horizon), [2.0, 0.0], args=args, **common)
+                loops = solve_ivp(vdp_tanh, (0.0, horizon), [2.0, 0.0], args=args,
                                      exact=False, **common)
                 same = scipy.integrate.solve_ivp(same_fun, (0.0, horizon), [2.0, 0.0], **common)
                 numpy = scipy.integrate.solve_ivp(numpy_fun, (0.0, horizon), [2.0, 0.0],
