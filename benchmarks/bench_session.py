@@ -38,7 +38,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from timing import checkout_env, load, run_child
+from timing import add_checkout_arguments, checkout_env, load, run_child
 
 KPS = (0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
 REWIRED_KPS = (0.45, 0.55, 0.65, 0.75)
@@ -96,12 +96,7 @@ def main(argv=None) -> int:
                         help="a pause between the cells, as a person works")
     parser.add_argument("--pause", type=float, default=2.0,
                         help="seconds between the cells with --notebook (default 2)")
-    parser.add_argument("--before", metavar="DIR", help="another checkout, timed beside")
-    parser.add_argument("--after", metavar="DIR",
-                        help="the checkout timed as 'after' (default: the installed one)")
-    parser.add_argument("--store", help="this checkout's store (default: the user's)")
-    parser.add_argument("--before-store", default=str(Path.home() / ".cache" / "controlkit"
-                                                      / "bench-before"))
+    add_checkout_arguments(parser)
     parser.add_argument("--rounds", type=int, default=1)
     parser.add_argument("--child", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)

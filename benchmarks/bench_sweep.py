@@ -24,7 +24,7 @@ import sys
 import time
 from pathlib import Path
 
-from timing import checkout_env, load, run_child
+from timing import add_checkout_arguments, checkout_env, load, run_child
 
 CASES = ["without_mec", "mec_fixed", "proposed"]
 SETUPS = {"in the caller": ("serial", None), "1 worker": ("processes", 1),
@@ -50,12 +50,7 @@ def main(argv=None):
                         help="simulated seconds per run (a multiple of 0.1; 20 000 is the "
                              "paper's)")
     parser.add_argument("--rounds", type=int, default=3)
-    parser.add_argument("--before", metavar="DIR", help="another checkout, timed beside")
-    parser.add_argument("--after", metavar="DIR",
-                        help="the checkout timed as 'after' (default: the installed one)")
-    parser.add_argument("--store", help="this checkout's store (default: the user's)")
-    parser.add_argument("--before-store", default=str(Path.home() / ".cache" / "controlkit"
-                                                      / "bench-before"))
+    add_checkout_arguments(parser)
     parser.add_argument("--child", nargs=4, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.child:

@@ -44,6 +44,17 @@ def checkout_env(checkout=None, store=None, **extra) -> dict:
     return env
 
 
+def add_checkout_arguments(parser) -> None:
+    """The options naming the two checkouts timed and their stores: ``--before``,
+    ``--after``, ``--store``, ``--before-store`` (read by :func:`checkout_env`'s callers)."""
+    parser.add_argument("--before", metavar="DIR", help="another checkout, timed beside")
+    parser.add_argument("--after", metavar="DIR",
+                        help="the checkout timed as 'after' (default: the installed one)")
+    parser.add_argument("--store", help="this checkout's store (default: the user's)")
+    parser.add_argument("--before-store", default=str(Path.home() / ".cache" / "controlkit"
+                                                      / "bench-before"))
+
+
 def run_child(args, env, timeout=3600) -> tuple[dict, float, str]:
     """Run ``python args`` with ``env``: its last stdout line read as JSON, its wall time
     in seconds, and its stderr."""

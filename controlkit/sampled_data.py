@@ -227,4 +227,3 @@ def sample_times(base_period, T0, Tf):
         return np.array([float(T0)])
     count = math.floor((Tf - T0) / h * (1 + 1e-12)) + 1
     return T0 + np.arange(count) * h
-
