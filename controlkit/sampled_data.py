@@ -188,7 +188,7 @@ def _rates(systems):
                          f"give them their period (dt=Ts) to join continuous blocks or "
                          f"blocks of other periods")
     shortest = min(discrete, key=lambda s: s.dt)
-    off = [s for s in discrete if not _is_multiple(s.dt, shortest.dt)]
+    off = [s for s in discrete if not is_multiple(s.dt, shortest.dt)]
     if off:
         listed = ", ".join(f"{s.name!r} at {s.dt:g} s" for s in off)
         raise ValueError(f"the sampling periods must be integer multiples of the shortest "
@@ -196,7 +196,15 @@ def _rates(systems):
     return {s.name: s.dt for s in discrete}
 
 
-def _is_multiple(period, base):
+def is_multiple(period, base) -> bool:
+    """Whether ``period`` is an integer multiple of ``base``, to :data:`RATE_TOLERANCE`
+    (the one rule of the rates, here and in :mod:`controlkit.analysis`).
+
+    Examples
+    --------
+    >>> is_multiple(0.3, 0.1), is_multiple(0.25, 0.1)
+    (True, False)
+    """
     ratio = period / base
     return abs(ratio - round(ratio)) <= RATE_TOLERANCE * max(1.0, ratio)
 

@@ -22,8 +22,7 @@ import control as ct
 import numpy as np
 import scipy.linalg
 
-#: Relative tolerance when a period is checked to be an integer multiple of the shortest.
-RATE_TOLERANCE = 1e-9
+from ..sampled_data import is_multiple
 
 
 @dataclass
@@ -173,7 +172,7 @@ def base_and_frame(flat) -> tuple[float, int, dict]:
     every = {}
     for leaf in flat.discrete():
         ratio = leaf.period / base
-        if abs(ratio - round(ratio)) > RATE_TOLERANCE * max(1.0, ratio):
+        if not is_multiple(leaf.period, base):
             raise ValueError(f"the sampling periods must be integer multiples of the "
                              f"shortest ({base:g} s); block {leaf.name!r} runs at "
                              f"{leaf.period:g} s")
