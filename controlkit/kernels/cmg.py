@@ -12,6 +12,7 @@ import math
 import numpy as np
 
 from .._jit import jit
+from .common import copy_into
 from .layout import layout
 
 #: Angles and rates of rotor 1, gimbal 2 and gimbal 4: the plant's state and outputs.
@@ -241,7 +242,7 @@ def smc_output(t, x, u, p, out):
     [0.0, 0.0, 1.0, 1.0, 1.0, 1.0]
     """
     a = SMC_OUTPUTS.a1
-    out[a:a + _N_ESTIMATES] = x
+    copy_into(x, out[a:a + _N_ESTIMATES])
     if all_zero(u, _N_MEASURED):
         out[SMC_OUTPUTS.T1_cmd] = 0.0
         out[SMC_OUTPUTS.T2_cmd] = 0.0
@@ -269,8 +270,7 @@ def smc_update(t, x, u, p, out):
     [0.001764, 0.0, 0.0, 0.0]
     """
     if all_zero(u, _N_MEASURED):
-        out[:] = x
-        return out
+        return copy_into(x, out)
     law = smc_equations(x, u, p)
     for i in range(_N_ESTIMATES):
         out[i] = x[i] + p[SMC.Ts] * law[2 + i]

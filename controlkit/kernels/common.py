@@ -9,6 +9,37 @@ from __future__ import annotations
 from .._jit import jit
 from .layout import layout
 
+
+def _copy_python(src, out):
+    out[:] = src
+    return out
+
+
+@jit(inline=True, python=_copy_python)
+def copy_into(src, out):
+    """``out[:] = src`` for two vectors of one size (``ValueError`` if they differ).
+
+    Compiled code copies element by element: for a slice assignment numba compiles its
+    shape-mismatch message (string formatting) the first time a process meets one, 2-3 s
+    of a diagram's first compile (numba 0.6x); Python runs the slice assignment.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> copy_into(np.array([1.0, 2.0]), np.empty(2)).tolist()
+    [1.0, 2.0]
+    >>> copy_into(np.ones(3), np.empty(2))
+    Traceback (most recent call last):
+    ...
+    ValueError: could not broadcast input array from shape (3,) into shape (2,)
+    """
+    if src.size != out.size:
+        raise ValueError("copy_into: the two vectors differ in size")
+    for i in range(out.size):
+        out[i] = src[i]
+    return out
+
+
 #: Parameters of the discrete integrator: its sampling period.
 INTEGRATOR = layout("integrator parameters", Ts=1)
 #: Parameters of the low-pass filter: its pole ``a = exp(-Ts / tau)``.
@@ -25,8 +56,7 @@ def state_output(t, x, u, p, out):
     >>> state_output(0.0, np.array([1.0, 2.0]), np.zeros(0), np.zeros(0), np.empty(2)).tolist()
     [1.0, 2.0]
     """
-    out[:] = x
-    return out
+    return copy_into(x, out)
 
 
 @jit
@@ -40,8 +70,7 @@ def identity_output(t, x, u, p, out):
     ...                 np.empty(2)).tolist()
     [1.0, 2.0]
     """
-    out[:] = u
-    return out
+    return copy_into(u, out)
 
 
 @jit
@@ -58,8 +87,7 @@ def constant_output(t, x, u, p, out):
     >>> constant_output(0.0, np.zeros(0), np.zeros(0), gain.kernels.params, np.empty(4)).tolist()
     [0.5, 0.0, 0.0, 0.5]
     """
-    out[:] = p
-    return out
+    return copy_into(p, out)
 
 
 @jit

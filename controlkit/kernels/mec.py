@@ -12,6 +12,7 @@ import math
 import numpy as np
 
 from .._jit import jit
+from .common import copy_into
 from .layout import layout
 
 #: Inputs of the compensator, in order: ``mu_n, hn, h, K`` (``K`` row-major).
@@ -140,8 +141,7 @@ def tuner_update(t, x, u, p, out):
     """
     S = TUNER_STATE
     lam, kappa = p[TUNER.lambda_], p[TUNER.kappa]
-    out[:] = x
-    xn = out
+    xn = copy_into(x, out)
     mu0, mu1 = u[TUNER_INPUTS.mu], u[TUNER_INPUTS.mu + 1]
     h0, h1 = u[TUNER_INPUTS.h], u[TUNER_INPUTS.h + 1]
     hn0, hn1 = u[TUNER_INPUTS.hn], u[TUNER_INPUTS.hn + 1]
@@ -343,5 +343,4 @@ def tuner_output(t, x, u, p, out):
     >>> K.tolist()
     [0.25, 0.0, 0.0, 0.25]
     """
-    out[:] = x[TUNER_STATE.K:TUNER_STATE.K + 4]
-    return out
+    return copy_into(x[TUNER_STATE.K:TUNER_STATE.K + 4], out)
