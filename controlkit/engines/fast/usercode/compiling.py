@@ -115,7 +115,8 @@ class UserKernel:
         if not isinstance(module.kernel, _jit.Jitted):  # (once a process)
             for name, value in list(vars(module).items()):
                 if isinstance(value, FunctionType) and value.__module__ == module.__name__:
-                    options = (dict(boundscheck=True, error_model="numpy") if name == "kernel"
+                    options = (dict(boundscheck=True, error_model="numpy", cache=True)
+                               if name == "kernel"
                                else dict(inline="always", error_model="numpy"))
                     setattr(module, name, _jit.Jitted(value, options))
         return module.kernel
