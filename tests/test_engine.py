@@ -239,3 +239,20 @@ def test_the_rule_counts_the_earlier_python_runs_of_a_module(monkeypatch):
     forced = run.Runner(loop, None, False)  # compile=False runs are not counted
     forced.finished(50.0)
     assert run.PYTHON_SECONDS[first.python.source] == 100.0
+
+
+def test_the_compile_estimate_reads_the_store_s_times_of_its_own_kind(monkeypatch, tmp_path):
+    # a continuous module compiles several times longer per block than a discrete one:
+    # each kind is estimated from the records of its own entry point
+    from controlkit.engines.fast import run, store
+
+    monkeypatch.setattr(store, "CACHE_DIR", tmp_path)
+    monkeypatch.setattr(store, "_TIMES", {})
+    for text, seconds, entry in (("A = 1\n", 2.0, "run_discrete"),
+                                 ("A = 2\n", 40.0, "run_continuous")):
+        store.write_record(store.module_file(text, "diagram"), seconds=seconds, blocks=4,
+                           entry=entry)
+    assert store.compile_times("run_discrete") == [0.5]
+    assert store.compile_times("run_continuous") == [10.0]
+    job = run.prepare(cmg_scenario.build_loop("thesis"))  # discrete, 4 blocks
+    assert job.plan.mode == "discrete" and run.compile_estimate(job) == 2.0

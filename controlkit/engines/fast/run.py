@@ -49,9 +49,12 @@ RULE = ("compiled when asked (compile=True), when the diagram's module is compil
         "already, or when the run, with the earlier runs of the same module in this "
         "process, would take longer as Python than compiling it takes (timed on its "
         "first tenth of a second); else as Python")
-#: Compiling pays when the rest of the run as Python would take this many times longer
-#: than loading numba and compiling (a margin for the estimates).
-PAYS = 1.5
+#: Compiling pays when the rest of the run as Python, with the earlier runs of the same
+#: module, would take this many times longer than loading numba and compiling: 1, the
+#: ski-rental rule (a session that goes on pays at most twice what the best choice made
+#: in hindsight would have; a module's compile is now 1-2 s, and the estimate is this
+#: store's own measured times).
+PAYS = 1.0
 #: numba's own start in a process (imports and first use), about: what a run pays before
 #: its first compiled step even when its module is kept compiled.
 NUMBA_START_SECONDS = 0.4
@@ -222,7 +225,8 @@ def prepare(sys, params=None, *, compiled=False) -> Job:
 
 def compile_estimate(job) -> float:
     """About how long compiling ``job``'s module takes, in seconds: the median time per
-    block of the modules compiled in this store before (:func:`.store.compile_times`),
+    block of the modules of its kind (discrete, or continuous and sampled-data) compiled
+    in this store before (:func:`.store.compile_times`),
     else :data:`COMPILE_SECONDS`; plus the step machine's when it is needed and not
     compiled yet.
 
@@ -232,12 +236,13 @@ def compile_estimate(job) -> float:
     >>> compile_estimate(prepare(cmg_loop())) > 0
     True
     """
-    measured = store.compile_times()
+    continuous = bool(job.plan.continuous.size or _held_logic(job.sys))
+    measured = store.compile_times("run_continuous" if continuous else "run_discrete")
     if measured:
         seconds = float(np.median(measured)) * len(job.blocks)
     else:
         seconds = COMPILE_SECONDS[0] + COMPILE_SECONDS[1] * len(job.blocks)
-    if (job.plan.continuous.size or _held_logic(job.sys)) and not store.machine_kept():
+    if continuous and not store.machine_kept():
         seconds += store.MACHINE_COMPILE_SECONDS
     return seconds
 

@@ -280,35 +280,39 @@ def compile_entry(function, args, path: Path, blocks: int = 1):
     dispatcher.compile(tuple(numba.typeof(a) for a in args))
     seconds = time.perf_counter() - start
     if record(path) is None and path.suffix == ".py":
-        write_record(path, seconds=round(seconds, 3), blocks=blocks)
+        write_record(path, seconds=round(seconds, 3), blocks=blocks,
+                     entry=getattr(function, "__name__", ""))
         _TIMES.clear()
     return dispatcher, seconds
 
 
-#: Compile times per block read from the store's records (once a process, and after a
-#: compile).
-_TIMES: list = []
+#: Compile times per block read from the store's records, by entry point (once a
+#: process, and after a compile).
+_TIMES: dict = {}
 
 
-def compile_times() -> list[float]:
-    """Seconds per block of the diagrams' modules compiled in this store (the latest 50).
+def compile_times(entry: str) -> list[float]:
+    """Seconds per block of the diagrams' modules whose entry point ``entry`` was compiled
+    in this store (the latest 50): a continuous run's entry (the integrator's loop
+    around the blocks) compiles several times longer per block than a discrete one's.
 
     Examples
     --------
-    >>> all(t > 0 for t in compile_times())
+    >>> all(t > 0 for t in compile_times("run_discrete"))
     True
     """
     if not _TIMES:
         try:
-            paths = sorted(folder().glob("diagram_*.json"), key=os.path.getmtime)[-50:]
+            paths = sorted(folder().glob("diagram_*.json"), key=os.path.getmtime)
         except (StoreRefused, OSError):
             paths = []
         for path in paths:
             kept = record(path.with_suffix(".py"))
             if kept and kept.get("seconds", 0) > 0 and kept.get("blocks", 0) > 0:
-                _TIMES.append(kept["seconds"] / kept["blocks"])
-        _TIMES.append(None)  # read (an empty store included)
-    return [t for t in _TIMES if t is not None]
+                _TIMES.setdefault(kept.get("entry", ""), []).append(
+                    kept["seconds"] / kept["blocks"])
+        _TIMES[None] = []  # read (an empty store included)
+    return _TIMES.get(entry, [])[-50:]
 
 
 def machine_kept() -> bool:
