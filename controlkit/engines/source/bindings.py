@@ -49,7 +49,7 @@ def _bind(fn, positional, keywords):
     """Each argument name of ``fn`` -> its binding, as Python would bind the call, or
     the reason it cannot be bound."""
     try:
-        arguments, _ = _definition(fn.__code__)
+        arguments, _ = _definition(fn.__code__, copy=False)
     except NotCompilable as why:
         return str(why)
     if arguments.vararg is not None or arguments.kwarg is not None:

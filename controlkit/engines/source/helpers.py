@@ -121,7 +121,7 @@ class _HelperCalls:
             self._problem(f"it uses {getattr(value, '__qualname__', value)!r} as a value")
             return None
         try:
-            arguments, _ = _definition(fn.__code__)
+            arguments, _ = _definition(fn.__code__, copy=False)
         except NotCompilable as why:
             self._problem(f"{fn.__qualname__}: {why}")
             return None

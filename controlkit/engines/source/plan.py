@@ -162,7 +162,7 @@ def plan_function(fn):
     bindings = _bind(target, call, {k: Frozen(v) for k, v in keywords.items()})
     if isinstance(bindings, str):
         raise NotCompilable(bindings)
-    _definition(target.__code__)  # no source: NotCompilable, nothing is known
+    _definition(target.__code__, copy=False)  # no source: NotCompilable, nothing is known
     plan = build.plan(target, bindings, name="user")
     plan.input_name = _input_name(bindings)
     plan.call = (target, list(bound), dict(keywords))
@@ -269,7 +269,7 @@ def reads_input(fn):
     key = (target.__code__, len(bound), tuple(sorted(keywords)))
     if key not in _READS_INPUT:
         try:
-            _, body = _definition(target.__code__)
+            _, body = _definition(target.__code__, copy=False)
         except NotCompilable:
             return None
         call = [Frozen(v) for v in bound] + [RUNTIME, RUNTIME, RUNTIME, PARAMS]
@@ -302,7 +302,7 @@ def side_effect(fn) -> str | None:
     """
     try:
         target, _, _ = call_target(fn)
-        _, body = _definition(target.__code__)
+        _, body = _definition(target.__code__, copy=False)
     except NotCompilable:
         return None
     local = {n.id for n in walk(ast.Module(body, [])) if isinstance(n, ast.Name)

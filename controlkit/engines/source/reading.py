@@ -60,13 +60,14 @@ def _lambda_body(code):
 _PARSED: dict = {}
 
 
-def _definition(code):
-    """``(arguments, body)`` of the def or lambda whose code is ``code``, a fresh tree.
+def _definition(code, copy=True):
+    """``(arguments, body)`` of the def or lambda whose code is ``code``, a fresh tree
+    (``copy=False``: the tree kept, for a caller that only reads it).
 
     The source is found from the code object itself, never through ``__wrapped__``
     (``inspect.getsource`` of a decorated function gives the function it wraps). It is
-    read and parsed once per code object, and each plan is handed a copy of the tree
-    (:func:`.rewrites.copy_tree`, as fast as parsing the text again).
+    read and parsed once per code object, and each plan, which rewrites its tree, is
+    handed a copy (:func:`.rewrites.copy_tree`, as fast as parsing the text again).
     """
     hit = _PARSED.get(code)
     if hit is None:
@@ -81,7 +82,7 @@ def _definition(code):
         _PARSED[code] = hit
     if isinstance(hit, NotCompilable):
         raise NotCompilable(str(hit))
-    return copy_tree(hit[0]), copy_tree(hit[1])
+    return (copy_tree(hit[0]), copy_tree(hit[1])) if copy else hit
 
 
 def _parse_definition(code):
