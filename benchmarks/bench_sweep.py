@@ -64,6 +64,12 @@ def main(argv=None):
     if args.before:
         versions = {"before": (Path(args.before).resolve(), args.before_store), **versions}
     samples = args.runs // len(CASES)
+    for who, (tree, store) in versions.items():  # untimed: each store holds its loops
+        # compiled (a store is cold after any edit or fresh checkout of engines/ or kernels/:
+        # its key holds their names, sizes and dates), so no setup pays a compile
+        _, wall, _ = run_child([__file__, "--child", 1, args.horizon, "serial", "-"],
+                               checkout_env(tree, store))
+        print(f"# {who}: store warmed ({wall:.1f} s)", file=sys.stderr, flush=True)
     results = {}
     for _ in range(args.rounds):
         for who, (tree, store) in versions.items():

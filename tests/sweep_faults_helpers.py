@@ -47,6 +47,13 @@ def square(x, pause=0.0):
     return {"y": x * x}
 
 
+def imported_before(x):
+    """Which modules a worker had imported when its first run began (the sweep's function
+    module is imported by then, whatever preloads)."""
+    return {"numba": "numba" in sys.modules, "processes": "controlkit._workers.processes"
+            in sys.modules, "pid": os.getpid()}
+
+
 def hog(x):
     """Never ends, and holds the GIL while it goes (a long loop in C, like a compiled
     simulation): a thread of the same process cannot run meanwhile."""

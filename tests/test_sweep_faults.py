@@ -19,7 +19,7 @@ from pathlib import Path
 
 import pytest
 from processes import children_of, session_processes, wait_for
-from sweep_faults_helpers import GATE, PID_FOLDER, misbehave, sleepy, square
+from sweep_faults_helpers import GATE, PID_FOLDER, imported_before, misbehave, sleepy, square
 
 from controlkit import _lock
 from controlkit import sweep as sweep_module
@@ -714,3 +714,16 @@ def test_a_generator_as_grid_values_is_refused():
     with pytest.raises(ValueError, match=r"grid\['x'\] is a generator, which can be read only "
                                          r"once .* give a list"):
         sweep(_lambda_function, grid={"x": (v for v in [1, 2])}, progress=False)
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="no forkserver on Windows")
+def test_process_workers_start_from_a_forkserver_that_imported_numba_once():
+    # each worker used to import python-control, scipy, numba... itself (1.5-2 s each);
+    # the sweep now starts the forkserver with them imported, and workers are forked from it
+    from controlkit import _jit
+
+    table = sweep(imported_before, grid={"x": [0, 1, 2, 3]}, executor="processes",
+                  workers=2)
+    assert table["pid"].nunique() >= 1 and (table["pid"] != os.getpid()).all()
+    assert table["processes"].all()
+    assert table["numba"].all() == _jit.available()

@@ -17,7 +17,14 @@ from .. import _checks
 from .._store import RunStore
 from .._workers import ProcessRunner, ThreadRunner
 from ..outputs.export import json_default
-from .executors import _check_executor, _connect, _on_executor, _sendable, process_context
+from .executors import (
+    _check_executor,
+    _connect,
+    _on_executor,
+    _sendable,
+    prestart,
+    process_context,
+)
 from .points import plan
 from .rows import _call, _call_elsewhere, _failed_row, _pandas, _row
 
@@ -279,7 +286,12 @@ def _make(function, todo, rows, run_store, kind, executor, workers, client, time
     todo_by_index = {r.index: r for r in todo}
     n = workers or os.cpu_count() or 1
     cluster = None
+    in_processes = kind in ("processes", "threads", "serial") and not (
+        kind in ("serial", "threads") and timeout is None)
     try:
+        if in_processes:
+            context = process_context()
+            prestart(context, function)  # the workers' imports, once, beside the warm-up
         if warmup is not None:
             warmup()
         if kind == "serial" and timeout is None:
@@ -287,9 +299,10 @@ def _make(function, todo, rows, run_store, kind, executor, workers, client, time
                 record(_call(function, run))
         elif kind == "threads" and timeout is None:
             ThreadRunner(_call, function, n).map(todo, record)
-        elif kind in ("processes", "threads", "serial"):
-            ProcessRunner(_call_elsewhere, _failed_row, function, 1 if kind == "serial" else n,
-                          process_context(), timeout).map(todo, record)
+        elif in_processes:
+            runner = ProcessRunner(_call_elsewhere, _failed_row, function,
+                                   1 if kind == "serial" else n, context, timeout)
+            runner.map(todo, record)
         else:
             pool = executor
             if kind == "dask":
@@ -306,5 +319,3 @@ def _make(function, todo, rows, run_store, kind, executor, workers, client, time
         if cluster is not None:
             client.close()
             cluster.close()
-
-
