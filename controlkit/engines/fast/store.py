@@ -151,21 +151,24 @@ def _writable_by_others(info) -> bool:
 #: the engine's, the kernels' and what they call.
 SOURCES = {"machine": ("_jit.py", "engines/fast/rk/*.py"),
            "other": ("_jit.py", "compat.py", "engines/**/*.py", "kernels/*.py")}
-#: Digests of those files by kind, with the (name, size, date) they were made from.
+#: Digests of those files by kind (made once a process).
 _OWN_SOURCE: dict = {}
 
 
 def _own_source(kind: str) -> str:
     """A digest of the source files of controlkit's that a module of ``kind`` can hold,
-    by name, size and date (an edit, or another version, changes it)."""
-    root = Path(__file__).resolve().parents[2]
-    patterns = SOURCES.get(kind, SOURCES["other"])
-    stamps = sorted((str(p.relative_to(root)), p.stat().st_size, p.stat().st_mtime_ns)
-                    for pattern in patterns for p in root.glob(pattern))
-    kept = _OWN_SOURCE.get(kind)
-    if kept is None or kept[0] != stamps:
-        kept = _OWN_SOURCE[kind] = (stamps, hashlib.sha256(repr(stamps).encode()).hexdigest())
-    return kept[1]
+    by name and content: an edit, or another version, changes it; a fresh checkout or a
+    reinstall of the same files does not. Made once a process, as the code it stands
+    for was imported once (a file edited during a session is not the code that runs)."""
+    if kind not in _OWN_SOURCE:
+        root = Path(__file__).resolve().parents[2]
+        patterns = SOURCES.get(kind, SOURCES["other"])
+        digest = hashlib.sha256()
+        for path in sorted({p for pattern in patterns for p in root.glob(pattern)}):
+            digest.update(f"{path.relative_to(root)}\0".encode())
+            digest.update(hashlib.sha256(path.read_bytes()).digest())
+        _OWN_SOURCE[kind] = digest.hexdigest()
+    return _OWN_SOURCE[kind]
 
 
 def name_of(text: str, kind: str) -> str:
