@@ -4,6 +4,8 @@ import os
 import shutil
 from pathlib import Path
 
+from nbclient.output_widget import OutputWidget
+
 HERE = Path(__file__).parent
 project = "controlkit"
 author = "the controlkit developers"
@@ -47,6 +49,14 @@ nb_execution_raise_on_error = False
 nb_execution_show_tb = True
 # a cell's printed lines in one box, as in Jupyter (not one box per flush of the stream)
 nb_merge_streams = True
+# A slider's cell (ipywidgets' interact) draws into an Output widget. nbclient, standing in for
+# the browser, sends each output it collects there back to the kernel, on the socket where it
+# waits for the cell's reply; on a busy machine that send can take the reply's wake-up (zmq's
+# edge-triggered descriptor, jupyter/nbclient#312), and the cell waits out the whole
+# nb_execution_timeout before the build goes on: 300 s lost, with nothing reported. The
+# pages show no slider (those cells' output is removed) and the kernel needs no copy of what
+# the widget shows, so nothing is sent back.
+OutputWidget.sync_state = lambda self: None
 (HERE / "notebooks").mkdir(exist_ok=True)
 for notebook in sorted((HERE.parent / "notebooks").glob("*.ipynb")):
     shutil.copy(notebook, HERE / "notebooks" / notebook.name)
