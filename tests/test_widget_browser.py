@@ -126,9 +126,14 @@ def test_rewire_fig3_with_the_mouse_misses_the_requirement(voila, tmp_path):
             editor.locator("[data-testid=delete-block]").click()
             node.wait_for(state="detached", timeout=10_000)
             problems = editor.locator("[data-testid=problems]")
-            assert problems.inner_text() == ("unconnected input: linearizer.mu of block "
-                                             "'linearizer' has no driver (python-control "
-                                             "reads it as 0)")
+            # the kernel checks the new wiring and answers: wait for its words (on a busy
+            # machine the deletion is drawn well before they arrive)
+            unconnected = ("unconnected input: linearizer.mu of block 'linearizer' has no "
+                           "driver (python-control reads it as 0)")
+            page.wait_for_function("([el, t]) => el.innerText === t",
+                                   arg=[problems.element_handle(), unconnected],
+                                   timeout=30_000)
+            assert problems.inner_text() == unconnected
 
             # drag a wire from the controller's mu_n to the linearizer's mu
             source = editor.locator(".react-flow__handle[data-port='controller.mu_n']")
@@ -141,7 +146,7 @@ def test_rewire_fig3_with_the_mouse_misses_the_requirement(voila, tmp_path):
             page.mouse.up()
             page.wait_for_function(
                 "el => el.innerText === 'wiring: no problems'",
-                arg=problems.element_handle(), timeout=10_000)
+                arg=problems.element_handle(), timeout=30_000)
 
             # run again: the requirement is missed, and the page says by how much
             editor.locator("[data-testid=run]").click()
