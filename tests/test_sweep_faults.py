@@ -724,6 +724,6 @@ def test_process_workers_start_from_a_forkserver_that_imported_numba_once():
 
     table = sweep(imported_before, grid={"x": [0, 1, 2, 3]}, executor="processes",
                   workers=2)
-    assert table["pid"].nunique() >= 1 and (table["pid"] != os.getpid()).all()
+    assert (table["pid"] != os.getpid()).all()  # the runs were made in workers
     assert table["processes"].all()
     assert table["numba"].all() == _jit.available()
