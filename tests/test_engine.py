@@ -242,17 +242,55 @@ def test_the_rule_counts_the_earlier_python_runs_of_a_module(monkeypatch):
 
 
 def test_the_compile_estimate_reads_the_store_s_times_of_its_own_kind(monkeypatch, tmp_path):
-    # a continuous module compiles several times longer per block than a discrete one:
-    # each kind is estimated from the records of its own entry point
+    # a continuous module's functions and a discrete one's entry are estimated each from
+    # the records of their own kind (records of an older engine's continuous entry,
+    # "run_continuous", which compiled its loop with every diagram, are not read)
     from controlkit.engines.fast import run, store
 
     monkeypatch.setattr(store, "CACHE_DIR", tmp_path)
     monkeypatch.setattr(store, "_TIMES", {})
     for text, seconds, entry in (("A = 1\n", 2.0, "run_discrete"),
-                                 ("A = 2\n", 40.0, "run_continuous")):
+                                 ("A = 2\n", 40.0, "run_continuous"),
+                                 ("A = 3\n", 6.0, "continuous")):
         store.write_record(store.module_file(text, "diagram"), seconds=seconds, blocks=4,
                            entry=entry)
     assert store.compile_times("run_discrete") == [0.5]
-    assert store.compile_times("run_continuous") == [10.0]
+    assert store.compile_times("continuous") == [1.5]
     job = run.prepare(cmg_scenario.build_loop("thesis"))  # discrete, 4 blocks
     assert job.plan.mode == "discrete" and run.compile_estimate(job) == 2.0
+    # a continuous one, in a store where the step machine and the loop are not compiled yet
+    monkeypatch.setattr(store, "_MACHINE", [])
+    monkeypatch.setattr(store, "_LOOPS", {})
+    job = run.prepare(_lag_loop("lag"))  # 2 blocks
+    assert run.compile_estimate(job) == 2 * 1.5 + store.MACHINE_COMPILE_SECONDS \
+        + store.LOOP_COMPILE_SECONDS
+
+
+def _lag_loop(name, pole=-1.0):
+    """A continuous loop of two blocks: a first-order lag closed by a gain."""
+    lag = ct.ss([[pole]], [[1.0]], [[1.0]], [[0.0]], name=name, inputs="e", outputs="y")
+    gain = ct.ss([], [], [], [[2.0, -2.0]], name="k", inputs=["r", "y"], outputs="e")
+    return ct.interconnect([lag, gain], inputs="r", outputs="y")
+
+
+@pytest.mark.skipif(not _jit.available(), reason="numba not installed")
+def test_continuous_diagrams_share_one_compiled_loop_and_compile_only_their_functions():
+    # the instants' loop is compiled once for every diagram (numba's first-class
+    # functions): a new wiring compiles its four functions, kept with their own record
+    import controlkit
+    from controlkit.engines.fast import run, store
+
+    T = np.linspace(0.0, 5.0, 51)
+    loops = []
+    for name, pole in (("lag_a", -1.0), ("lag_b", -3.0)):
+        loop = _lag_loop(name, pole)
+        compiled = controlkit.input_output_response(loop, T, np.ones(T.size), compile=True)
+        python = controlkit.input_output_response(loop, T, np.ones(T.size), compile=False)
+        assert compiled.engine_mode == "compiled" and python.engine_mode == "python"
+        np.testing.assert_array_equal(compiled.outputs, python.outputs)
+        loops.append(dict(store._LOOPS))
+        source = run.prepare(loop, compiled=True).source
+        assert store.record(store.module_file(source, "diagram"))["entry"] == "continuous"
+    assert loops[0] == loops[1] and len(loops[0]) >= 1  # the second compiled no loop
+
+

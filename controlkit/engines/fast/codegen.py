@@ -7,10 +7,12 @@ blocks whose output reads only their state first, then the feedthrough blocks in
 dependency order. :func:`generate` writes that order out as the four functions of an
 evaluator (:mod:`.loops`) with every index a literal and every kernel pasted in by numba
 (``inline="always"``), and two entry points that hand them to the loops of
-:mod:`.loops` (a discrete diagram whose blocks all fire at every step has its step
-written out in ``run_discrete``'s own loop instead, :func:`_step`). The module is
-compiled per wiring (a second or two) and cached on disk; the parameters stay values at
-run time (``P``), so a new value never recompiles.
+:mod:`.loops`: ``run_discrete``, compiled with the discrete loop pasted in (a discrete
+diagram whose blocks all fire at every step has its step written out in its own loop
+instead, :func:`_step`), and ``run_continuous``, which makes the run's arrays and hands
+the four functions to the instants' loop, compiled once for every diagram
+(:func:`.store.instants_loop`). A wiring compiles in a second or two and is cached on
+disk; the parameters stay values at run time (``P``), so a new value never recompiles.
 """
 
 from __future__ import annotations
@@ -441,7 +443,8 @@ def _generate(plan, held_logic):
     def function(signature, lines):
         return [f"def {signature}:", *["    " + line for line in lines], "", ""]
 
-    def evaluator(signature, lines):  # pasted by numba into the entry points that call it
+    def evaluator(signature, lines):  # pasted into run_discrete; compiled on their own for
+        # the instants' loop
         return ["@jit(inline=True)", *function(signature, lines)]
 
     text = [
@@ -453,9 +456,7 @@ def _generate(plan, held_logic):
         "import numpy as np",
         "",
         "from controlkit._jit import jit",
-        "from controlkit.engines.fast.loops import continuous_run, discrete_run, "
-        "rhs_template",
-        "from controlkit.engines.fast.rk import solve_interval",
+        "from controlkit.engines.fast.loops import discrete_run, rhs_template",
         "from controlkit.kernels.common import rk4_step",
         "",
         "",
@@ -471,18 +472,19 @@ def _generate(plan, held_logic):
                        "status, k0, k1, ys, ui, held, xn, scratch)"]), "return x"]),
     ]
     # every diagram has both entry points: a static one, or one of several rates, runs
-    # through the instants' loop too
+    # through the instants' loop too. This one runs as Python (its arrays made, the loop
+    # called): the loop is handed in, as Python or compiled once for every diagram
     text += function(
         "run_continuous(instants, fire0, k1, t_final, T, U, t_eval, eval_instant, ctrl, "
         "Y, X, Uo, x, held, P, method, rtol, atol, max_step, first_step, exact, status, "
-        "work, y_eval, yc, machine)", [
+        "work, y_eval, yc, machine, loop)", [
             *buffers, f"xt = np.empty({nx})", f"dx = np.zeros({nx})",
             (f"cidx = np.array({cidx!r}, dtype=np.int64)" if cidx
              else "cidx = np.zeros(0, dtype=np.int64)"),
             "ubuf = np.empty((U.shape[0], 1))",
             "args = ((), x, xt, cidx, T, U, ubuf, P, ys, ui, held, dx)",
-            "continuous_run(evaluate, update, outputs, rhs, solve_interval, machine, (), "
-            "args, (instants, fire0, k1, t_final, T, U, t_eval, eval_instant), "
+            "loop(evaluate, update, outputs, rhs, machine, args, "
+            "(instants, fire0, k1, t_final, T, U, t_eval, eval_instant), "
             "(Y, X, Uo), (x, P, held), (ys, ui, xn, scratch, xt, cidx, yc, y_eval, "
             "ubuf, work), (method, rtol, atol, max_step, first_step, exact), ctrl, "
             "status)"])

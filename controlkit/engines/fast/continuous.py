@@ -18,7 +18,7 @@ import numpy as np
 from ...sampled_data import sample_times
 from ..contract import UnsupportedSystem, recorded_indices
 from ..contract import response as base_response
-from . import loops, rk, store
+from . import loops, rk
 from .diagnose import explain_failure
 from .loops import BUDGET, INSTANT, INTEGRATOR_FAILED, NEXT_TIME, UNDER_WAY
 from .pieces import Pieces, interrupted, now, quiet_numbers, same_numbers
@@ -136,12 +136,11 @@ class _Run:
                 self.t_eval, self.eval_instant, self.ctrl, self.Y, self.X, self.Uo, self.x,
                 self.held, job.P, rk.METHOD_INDEX[self.method], rtol, atol, max_step,
                 first_step, True, self.status, self.work, self.y_eval, self.yc)
-        if job.compiled:  # (the integrator's step machine, compiled once, is an argument)
-            args = (*args, store.step_machine())
-            job.entry("run_continuous", args)(*args)
+        if job.compiled:
+            job.run_continuous(args)
         else:
             with quiet_numbers():
-                job.functions().run_continuous(*args, None)
+                job.functions().run_continuous(*args, None, loops.instants_loop)
 
     def _stiff(self, job, ns, rtol, atol, max_step, first_step):
         plan, nx = job.plan, self.sys.nstates
@@ -208,9 +207,12 @@ def run_continuous(sys, T, U, X0, *, params=None, t_eval=None, method="RK45",
     >>> run_continuous(loop, T, np.ones((1, 3)), np.zeros(1)).outputs.round(5)
     array([0.     , 0.39349, 0.63211])
     """
-    T = np.ascontiguousarray(T, dtype=float)
+    # arrays of one type whatever the caller's (a read-only one copied): the compiled
+    # loop takes one type of each
+    T = np.require(T, dtype=float, requirements=["C", "W"])
     U = np.require(U, dtype=float, requirements=["C", "W"])
-    t_eval = T if t_eval is None else np.ascontiguousarray(t_eval, dtype=float)
+    t_eval = T if t_eval is None else np.require(t_eval, dtype=float,
+                                                 requirements=["C", "W"])
     if t_eval.size and (t_eval[0] < T[0] or t_eval[-1] > T[-1]):
         raise ValueError("Values in `t_eval` are not within `t_span`.")
     if np.any(np.diff(t_eval) <= 0):

@@ -37,7 +37,7 @@ import numpy as np
 
 from ... import _jit
 from ..contract import UnsupportedSystem
-from . import reuse, store
+from . import loops, reuse, store
 from .codegen import evaluation_order, generate
 from .pieces import PIECE_SECONDS
 from .plan import Plan, make_plan
@@ -105,6 +105,7 @@ class Job:
     source: str
     compiled: bool
     _python: object = field(default=None, repr=False)
+    _continuous: object = field(default=None, repr=False)
 
     @property
     def blocks(self):
@@ -153,6 +154,48 @@ class Job:
                 DIFFERS[self.source] = f"numba could not compile it ({_first_line(error)})"
                 raise NotCompiled(DIFFERS[self.source]) from error
         return entries[name]
+
+    def run_continuous(self, args):
+        """Run the module's ``run_continuous`` on ``args`` compiled: its four functions
+        compiled for the instants' loop (loaded from the store, or compiled now, saying so
+        when that takes seconds), handed to the loop compiled once for every diagram
+        (:func:`.store.instants_loop`)."""
+        if self._continuous is None:
+            path = store.module_file(self.source, "diagram")
+            self._continuous = [store.import_module(path, self.kernels()), path, None]
+        module = self._continuous[0]
+        module.run_continuous(*args, store.step_machine(), self._compiled_loop)
+
+    def _compiled_loop(self, evaluate, update, outputs, rhs, machine, rhs_args, times,
+                       results, state, buffers, solver, ctrl, status):
+        rest = (machine, rhs_args, times, results, state, buffers, solver, ctrl, status)
+        if self._continuous[2] is None:  # (a run's arrays are of the same types every run)
+            self._continuous[2] = self._loop_and_functions((evaluate, update, outputs, rhs),
+                                                           rest)
+        loop, functions = self._continuous[2]
+        loop(*functions, *rest)
+
+    def _loop_and_functions(self, evaluator, rest):
+        _, rhs_args, _, results, state, buffers, _, _, _ = rest
+        numba = _jit.numba_module()
+        signatures, function_types = loops.evaluator_signatures(numba, rhs_args, results,
+                                                                state, buffers)
+        entries = _COMPILED.setdefault(self.source, {})
+        path = self._continuous[1]
+        if signatures not in entries:
+            if store.record(path) is None:
+                expected = compile_estimate(self)
+                if expected >= 2.0:
+                    store._say(f"compiling the diagram {self.sys.name!r} (about "
+                               f"{expected:.0f} s, once: later runs load it)")
+            try:
+                entries[signatures] = store.compile_functions(evaluator, signatures, path,
+                                                              blocks=len(self.blocks))
+            except Exception as error:  # noqa: BLE001 - numba's: the diagram runs as Python
+                DIFFERS[self.source] = f"numba could not compile it ({_first_line(error)})"
+                raise NotCompiled(DIFFERS[self.source]) from error
+        loop = store.instants_loop((*function_types, *(numba.typeof(a) for a in rest)))
+        return loop, entries[signatures]
 
     def is_compiled(self) -> bool:
         """Whether its module is compiled already (in this process, or in the store)."""
@@ -237,13 +280,15 @@ def compile_estimate(job) -> float:
     True
     """
     continuous = bool(job.plan.continuous.size or _held_logic(job.sys))
-    measured = store.compile_times("run_continuous" if continuous else "run_discrete")
+    measured = store.compile_times("continuous" if continuous else "run_discrete")
     if measured:
         seconds = float(np.median(measured)) * len(job.blocks)
     else:
         seconds = COMPILE_SECONDS[0] + COMPILE_SECONDS[1] * len(job.blocks)
     if continuous and not store.machine_kept():
         seconds += store.MACHINE_COMPILE_SECONDS
+    if continuous and not store.loop_kept():
+        seconds += store.LOOP_COMPILE_SECONDS
     return seconds
 
 
