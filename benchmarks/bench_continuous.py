@@ -95,15 +95,16 @@ def _jit_rhs(loop, T, X0, U):
     import scipy.integrate
 
     from controlkit import _jit
-    from controlkit.engines.fast import store
+    from controlkit.engines.fast import loops, store
     from controlkit.engines.fast.run import prepare
 
     job = prepare(loop, compiled=True)
     plan = job.plan
     module = store.import_module(store.module_file(job.source, "diagram"), job.kernels())
-    rhs = _jit.dispatcher(module.rhs)  # the module's right-hand side, compiled alone
+    rhs = _jit.dispatcher(loops.diagram_rhs)  # the diagram's right-hand side, compiled alone
     nx = loop.nstates
-    args = ((), np.array(X0, dtype=float), np.empty(nx), plan.continuous, T, U,
+    args = (module.evaluate, module.derivatives, (), np.array(X0, dtype=float),
+            np.empty(nx), plan.continuous, T, U,
             np.empty((U.shape[0], 1)), job.P, np.zeros(plan.ny), np.zeros(plan.nu),
             np.zeros(plan.ny), np.zeros(nx))
 

@@ -127,9 +127,10 @@ def simulate_sampled_data(sys, T, X0, U, *, params=None, t_eval=None, method="RK
     xt, yc, y_eval = np.zeros(nx), np.zeros(cidx.size), np.zeros((m, cidx.size))
     rtol, atol, max_step, first_step = solver_options(cidx.size,
                                                       **(solve_ivp_kwargs or {}))
-    args = (evaluator, x, xt, cidx, T, U, ubuf, None, ys, ui, held, np.zeros(nx))
+    args = (evaluator.evaluate, evaluator.derivatives, evaluator, x, xt, cidx, T, U, ubuf,
+            None, ys, ui, held, np.zeros(nx))
     loops.continuous_run(
-        evaluator.evaluate, evaluator.update, evaluator.outputs, evaluator.rhs,
+        evaluator.evaluate, evaluator.update, evaluator.outputs, loops.diagram_rhs,
         loops.scipy_interval, None, evaluator, args,
         (instants, 0, instants.size, float(T[-1]), T, U, t_eval, eval_instant), (Y, X, Uo),
         (x, None, held), (ys, ui, np.zeros(nx), None, xt, cidx, yc, y_eval, ubuf,
@@ -189,7 +190,3 @@ class _Sweep:
             if not every and s.nstates:
                 dx[xi] = s.dynamics(t, x[xi], ui[ui_], local)
 
-    def rhs(self, t, y, args, out):
-        from .fast.loops import rhs_template
-
-        rhs_template(self.evaluate, self.derivatives, t, y, args, out)

@@ -456,7 +456,7 @@ def _generate(plan, held_logic):
         "import numpy as np",
         "",
         "from controlkit._jit import jit",
-        "from controlkit.engines.fast.loops import discrete_run, rhs_template",
+        "from controlkit.engines.fast.loops import discrete_run",
         "from controlkit.kernels.common import rk4_step",
         "",
         "",
@@ -464,8 +464,6 @@ def _generate(plan, held_logic):
         *evaluator("outputs(ys, ui, Y, j, plan)", outputs),
         *evaluator("update(t, x, ui, P, xn, k, plan, scratch)", update or ["pass"]),
         *evaluator("derivatives(t, x, ui, P, dx, plan)", derivatives),
-        *evaluator("rhs(t, y, args, out)",
-                   ["rhs_template(evaluate, derivatives, t, y, args, out)"]),
         *function("run_discrete(T, X0, U, P, Y, X, status, k0, k1)", [
             "x = X0.copy()", *buffers, f"held = np.zeros({ny})",
             *(step or ["discrete_run(evaluate, update, outputs, (), T, x, U, P, Y, X, "
@@ -483,7 +481,7 @@ def _generate(plan, held_logic):
              else "cidx = np.zeros(0, dtype=np.int64)"),
             "ubuf = np.empty((U.shape[0], 1))",
             "args = ((), x, xt, cidx, T, U, ubuf, P, ys, ui, held, dx)",
-            "loop(evaluate, update, outputs, rhs, machine, args, "
+            "loop(evaluate, update, outputs, derivatives, machine, args, "
             "(instants, fire0, k1, t_final, T, U, t_eval, eval_instant), "
             "(Y, X, Uo), (x, P, held), (ys, ui, xn, scratch, xt, cidx, yc, y_eval, "
             "ubuf, work), (method, rtol, atol, max_step, first_step, exact), ctrl, "

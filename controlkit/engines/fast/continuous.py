@@ -153,9 +153,10 @@ class _Run:
                 np.zeros(nx))
         with quiet_numbers():
             loops.continuous_run(
-                ns.evaluate, ns.update, ns.outputs, ns.rhs, loops.scipy_interval, None, (),
-                args, (self.instants, 0, self.instants.size, float(self.T[-1]), self.T,
-                       self.U, self.t_eval, self.eval_instant), (self.Y, self.X, self.Uo),
+                ns.evaluate, ns.update, ns.outputs, loops.diagram_rhs, loops.scipy_interval,
+                None, (), (ns.evaluate, ns.derivatives, *args),
+                (self.instants, 0, self.instants.size, float(self.T[-1]), self.T, self.U,
+                 self.t_eval, self.eval_instant), (self.Y, self.X, self.Uo),
                 (self.x, job.P, self.held), buffers,
                 (self.method, rtol, atol, max_step, first_step, True), self.ctrl,
                 self.status)

@@ -148,13 +148,14 @@ def _record(evaluate, outputs, plan, t, x, T, U, ubuf, P, ys, ui, held, j, Y, X,
 
 
 @jit(inline=True)
-def rhs_template(evaluate, derivatives, t, y, args, out):
+def diagram_rhs(t, y, args, out):
     """The continuous states' derivatives at ``(t, y)``: the integrator's right-hand side.
 
-    ``args = (plan, x, xt, cidx, T, U, ubuf, P, ys, ui, held, dx)``: the full state
-    ``x`` gives the held discrete states, ``y`` the continuous ones (at ``cidx``).
+    ``args = (evaluate, derivatives, plan, x, xt, cidx, T, U, ubuf, P, ys, ui, held,
+    dx)``: the diagram's evaluator; the full state ``x`` gives the held discrete states,
+    ``y`` the continuous ones (at ``cidx``).
     """
-    plan, x, xt, cidx, T, U, ubuf, P, ys, ui, held, dx = args
+    evaluate, derivatives, plan, x, xt, cidx, T, U, ubuf, P, ys, ui, held, dx = args
     for i in range(x.shape[0]):
         xt[i] = x[i]
     for q in range(cidx.shape[0]):
@@ -283,8 +284,8 @@ def continuous_run(evaluate, update, outputs, rhs, integrate, machine, plan, rhs
 
 
 @jit(inline=True)
-def instants_loop(evaluate, update, outputs, rhs, machine, rhs_args, times, results, state,
-                  buffers, solver, ctrl, status):
+def instants_loop(evaluate, update, outputs, derivatives, machine, rhs_args, times, results,
+                  state, buffers, solver, ctrl, status):
     """:func:`continuous_run` integrated by the engine's Runge-Kutta methods
     (:func:`controlkit.engines.fast.rk.solve_interval`): what a diagram's module calls.
 
@@ -293,13 +294,14 @@ def instants_loop(evaluate, update, outputs, rhs, machine, rhs_args, times, resu
     :func:`evaluator_signatures` gives: a new diagram compiles its own four functions,
     not the loop. As Python, it is this function.
     """
-    continuous_run(evaluate, update, outputs, rhs, solve_interval, machine, (), rhs_args,
-                   times, results, state, buffers, solver, ctrl, status)
+    continuous_run(evaluate, update, outputs, diagram_rhs, solve_interval, machine, (),
+                   (evaluate, derivatives) + rhs_args, times, results, state, buffers,
+                   solver, ctrl, status)
 
 
 def evaluator_signatures(numba, rhs_args, results, state, buffers):
-    """The numba signatures of ``evaluate``, ``update``, ``outputs`` and ``rhs`` as
-    :func:`instants_loop` calls them with these arrays (the times are floats, the
+    """The numba signatures of ``evaluate``, ``update``, ``outputs`` and ``derivatives``
+    as :func:`instants_loop` calls them with these arrays (the times are floats, the
     indexes integers, ``plan`` the empty tuple), and the types of its arguments with the
     four functions as numba's ``FunctionType`` of each.
 
@@ -321,11 +323,11 @@ def evaluator_signatures(numba, rhs_args, results, state, buffers):
     types, typeof = numba.types, numba.typeof
     f8, i8, plan = types.float64, types.int64, typeof(())
     x, P, held = (typeof(a) for a in state)
-    ys, ui, xn, scratch, _, _, yc, _, ubuf, _ = (typeof(a) for a in buffers)
+    ys, ui, xn, scratch, _, _, _, _, ubuf, _ = (typeof(a) for a in buffers)
     signatures = (i8(f8, x, ubuf, i8, P, ys, ui, held, i8, plan),  # evaluate
                   types.none(f8, x, ui, P, xn, i8, plan, scratch),  # update
                   types.none(ys, ui, typeof(results[0]), i8, plan),  # outputs
-                  types.none(f8, yc, typeof(rhs_args), yc))  # rhs
+                  types.none(f8, x, ui, P, typeof(rhs_args[-1]), plan))  # derivatives
     return signatures, tuple(types.FunctionType(s) for s in signatures)
 
 

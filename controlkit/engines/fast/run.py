@@ -166,12 +166,12 @@ class Job:
         module = self._continuous[0]
         module.run_continuous(*args, store.step_machine(), self._compiled_loop)
 
-    def _compiled_loop(self, evaluate, update, outputs, rhs, machine, rhs_args, times,
+    def _compiled_loop(self, evaluate, update, outputs, derivatives, machine, rhs_args, times,
                        results, state, buffers, solver, ctrl, status):
         rest = (machine, rhs_args, times, results, state, buffers, solver, ctrl, status)
         if self._continuous[2] is None:  # (a run's arrays are of the same types every run)
-            self._continuous[2] = self._loop_and_functions((evaluate, update, outputs, rhs),
-                                                           rest)
+            self._continuous[2] = self._loop_and_functions(
+                (evaluate, update, outputs, derivatives), rest)
         loop, functions = self._continuous[2]
         loop(*functions, *rest)
 

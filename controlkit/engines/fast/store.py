@@ -25,6 +25,7 @@ home that is shared or read-only, or to keep a course's compiled diagrams with i
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import importlib.util
 import json
@@ -32,6 +33,7 @@ import os
 import stat
 import sys as pysys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -311,8 +313,10 @@ def compile_functions(functions, signatures, path: Path, blocks: int = 1,
     """
     numba = _jit.numba_module()
     start = time.perf_counter()
-    compiled = tuple(numba.njit(signature, cache=True, nogil=True)(_jit.python_function(f))
-                     for f, signature in zip(functions, signatures, strict=True))
+    with first_class_functions(numba):
+        compiled = tuple(numba.njit(signature, cache=True, nogil=True)(
+            _jit.python_function(f)) for f, signature in zip(functions, signatures,
+                                                             strict=True))
     if record(path) is None and path.suffix == ".py":
         write_record(path, seconds=round(time.perf_counter() - start, 3), blocks=blocks,
                      entry=entry)
@@ -412,9 +416,9 @@ _LOOP_TEXT = '''\
 from controlkit.engines.fast.loops import instants_loop as _loop
 
 
-def instants_loop(evaluate, update, outputs, rhs, machine, rhs_args, times, results, state,
-                  buffers, solver, ctrl, status):
-    _loop(evaluate, update, outputs, rhs, machine, rhs_args, times, results, state,
+def instants_loop(evaluate, update, outputs, derivatives, machine, rhs_args, times, results,
+                  state, buffers, solver, ctrl, status):
+    _loop(evaluate, update, outputs, derivatives, machine, rhs_args, times, results, state,
           buffers, solver, ctrl, status)
 '''
 
@@ -449,12 +453,39 @@ def instants_loop(argument_types):
             _say(f"compiling the integrator's loop (once after an install or an upgrade: "
                  f"about {LOOP_COMPILE_SECONDS:.0f} s)")
         start = time.perf_counter()
-        compiled = numba.njit(numba.types.none(*argument_types), cache=True,
-                              nogil=True)(function)
+        with first_class_functions(numba):
+            compiled = numba.njit(numba.types.none(*argument_types), cache=True,
+                                  nogil=True)(function)
         if record(path) is None:
             write_record(path, seconds=round(time.perf_counter() - start, 3))
         _LOOPS[argument_types] = compiled
     return _LOOPS[argument_types]
+
+
+@contextlib.contextmanager
+def first_class_functions(numba):
+    """numba's warning that its first-class functions are experimental, kept from the
+    user while the loop and a diagram's functions compile: they are how one compiled loop
+    serves every diagram (a public part of numba, checked by ``tests/test_engine.py`` with
+    the numba installed); the warning is about our choice, not the user's code.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> if _jit.available():
+    ...     numba = _jit.numba_module()
+    ...     with warnings.catch_warnings(record=True) as seen:
+    ...         warnings.simplefilter("always")
+    ...         with first_class_functions(numba):
+    ...             warnings.warn("experimental", numba.NumbaExperimentalFeatureWarning)
+    ...     len(seen)
+    ... else:
+    ...     0
+    0
+    """
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", numba.NumbaExperimentalFeatureWarning)
+        yield
 
 
 def loop_kept() -> bool:
