@@ -224,6 +224,7 @@ def test_the_rule_counts_the_earlier_python_runs_of_a_module(monkeypatch):
     loop = cmg_scenario.build_loop("thesis")
     monkeypatch.setattr(run, "compile_estimate", lambda job: 5.0)  # what the store says
     monkeypatch.setattr(run, "PYTHON_SECONDS", {})
+    monkeypatch.setattr(run, "PYTHON_RUNS", {})
     monkeypatch.setattr(run, "_TWINS", {})  # as in a process that has not compiled it
     monkeypatch.setattr(run, "_COMPILED", {})
     monkeypatch.setattr(run.Job, "is_compiled", lambda job: False)  # nor kept in the store
@@ -233,12 +234,37 @@ def test_the_rule_counts_the_earlier_python_runs_of_a_module(monkeypatch):
     first.finished(4.0)
     assert run.PYTHON_SECONDS == {first.python.source: 4.0}
     run.PYTHON_SECONDS[first.python.source] = 100.0
+    run.PYTHON_RUNS[first.python.source] = 1000  # short runs: not compiled from the start
     again = run.Runner(loop, None, None)
+    assert again.compiled is None
     chosen = again.decide(1.0, 1 / 4)
     assert chosen is not None and chosen.compiled
     forced = run.Runner(loop, None, False)  # compile=False runs are not counted
     forced.finished(50.0)
     assert run.PYTHON_SECONDS[first.python.source] == 100.0
+
+
+@pytest.mark.skipif(not _jit.available(), reason="numba not installed")
+def test_a_run_compiles_from_its_start_when_earlier_runs_paid_and_the_call_stays_short(
+        monkeypatch):
+    # a run that ends in its first piece never reaches the rule's mid-run question: it
+    # compiles from its start once the earlier runs of its module took longer than the
+    # compile, unless the compile is longer than two of those runs (python-control's
+    # call, about: the call that compiles would be slower than python-control's)
+    from controlkit.engines.fast import run
+
+    loop = cmg_scenario.build_loop("thesis")
+    monkeypatch.setattr(run, "_cost", lambda job: 1.5)  # numba's start and the compile
+    monkeypatch.setattr(run, "_TWINS", {})
+    source = run.prepare(loop).source
+    for before, runs, compiled in ((1.2, 1, False),   # not paid yet
+                                   (2.0, 2, True),    # paid; a run of 1 s: 1.5 <= 2 x 1
+                                   (2.0, 20, False)):  # paid; runs of 0.1 s: too short
+        monkeypatch.setattr(run, "PYTHON_SECONDS", {source: before})
+        monkeypatch.setattr(run, "PYTHON_RUNS", {source: runs})
+        runner = run.Runner(loop, None, None)
+        assert (runner.compiled is not None) == compiled, (before, runs)
+        assert runner.decided == compiled
 
 
 def test_the_compile_estimate_reads_the_store_s_times_of_its_own_kind(monkeypatch, tmp_path):

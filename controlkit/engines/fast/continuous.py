@@ -30,6 +30,9 @@ EXPLICIT_METHODS = ("RK23", "RK45", "DOP853")
 STIFF_METHODS = ("LSODA", "BDF", "Radau")
 #: The ``solve_ivp`` options the engine takes; any other sends the run to python-control.
 SOLVER_OPTIONS = ("rtol", "atol", "max_step", "first_step")
+#: Evaluations of the right-hand side in the piece a newly compiled module is checked on
+#: (run both ways): a short one, so that a run that fits in one piece does not run twice.
+CHECK_EVALUATIONS = 32
 #: How close a compiled piece must come to the same piece run as Python (relative): the
 #: kernels' last bits (libm against Python's math) move the step sizes a little.
 CONTINUOUS_RTOL = 1e-7
@@ -279,7 +282,7 @@ def _switch(runner, job, run, pieces):
     """Compile ``job`` and run the next piece both ways: compiled from then on if they
     agree, else Python."""
     saved = run.snapshot()
-    budget = pieces.next()
+    budget = min(pieces.next(), CHECK_EVALUATIONS)
     n0 = int(run.ctrl[NEXT_TIME])
     run.piece(runner.python, budget)
     python = run.snapshot()

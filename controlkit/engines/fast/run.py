@@ -74,6 +74,13 @@ DIFFERS: dict[str, str] = {}
 #: Seconds the runs of a module (by text) took as Python in this process: a diagram run
 #: again and again (a notebook's cell, a loop over gains) compiles once they would pay.
 PYTHON_SECONDS: dict[str, float] = {}
+#: How many runs :data:`PYTHON_SECONDS` counts, by module.
+PYTHON_RUNS: dict[str, int] = {}
+#: python-control takes at least this many times as long as the engine's Python run of a
+#: diagram (measured on the benchmark rows: 2.1-10.6x): a run is compiled from its start
+#: only if compiling takes no longer than this many of its runs, so that the call that
+#: compiles is not slower than python-control's.
+PYTHON_CONTROL_SLOWER = 2.0
 
 
 @dataclass
@@ -318,6 +325,14 @@ def compiled_job(sys, params):
     return job
 
 
+def _cost(candidate) -> float:
+    """Seconds before the compiled job ``candidate`` can run: numba's start if it has not
+    started, and loading the module if it is kept compiled, else compiling it."""
+    kept = candidate.source in _COMPILED or candidate.is_compiled()
+    return (0.0 if _jit._NUMBA else NUMBA_START_SECONDS) + (
+        LOAD_SECONDS if kept else compile_estimate(candidate))
+
+
 class Runner:
     """How one call runs: its mode now and the rule that may change it between pieces.
 
@@ -351,6 +366,26 @@ class Runner:
             elif compile or candidate.source in _COMPILED:
                 self.compiled, self.decided = candidate, True
                 _TWINS[self.python.source] = candidate.source
+        elif compile is None:
+            self._compile_if_earlier_runs_paid()
+
+    def _compile_if_earlier_runs_paid(self) -> None:
+        """Compiled from the start when the earlier runs of this module in this process
+        took, as Python, longer than compiling it takes (the rule, for runs that end in
+        their first piece, before :meth:`decide` is asked), and compiling takes no longer
+        than :data:`PYTHON_CONTROL_SLOWER` of those runs (python-control's call, about)."""
+        source = self.python.source
+        before = PYTHON_SECONDS.get(source, 0.0)
+        if before <= PAYS * NUMBA_START_SECONDS:
+            return
+        candidate = compiled_job(self.sys, self.params)
+        if isinstance(candidate, str):
+            return
+        cost = _cost(candidate)
+        typical = before / max(PYTHON_RUNS.get(source, 1), 1)
+        if before > PAYS * cost and cost <= PYTHON_CONTROL_SLOWER * typical:
+            self.compiled, self.decided = candidate, True
+            _TWINS[source] = candidate.source
 
     def check_first(self) -> Job | None:
         """The compiled job, taken back, when it runs first in this process and must be
@@ -386,9 +421,7 @@ class Runner:
         if isinstance(candidate, str):
             self.why_python = candidate
             return None
-        kept = candidate.source in _COMPILED or candidate.is_compiled()
-        cost = (0.0 if _jit._NUMBA else NUMBA_START_SECONDS) + (
-            LOAD_SECONDS if kept else compile_estimate(candidate))
+        cost = _cost(candidate)
         if saved > PAYS * cost:
             _TWINS[self.python.source] = candidate.source
             return candidate
@@ -403,6 +436,7 @@ class Runner:
         if self.compiled is None and self.asked is None:
             source = self.python.source
             PYTHON_SECONDS[source] = PYTHON_SECONDS.get(source, 0.0) + seconds
+            PYTHON_RUNS[source] = PYTHON_RUNS.get(source, 0) + 1
 
     def differs(self, job, why: str) -> None:
         """The compiled module cannot be trusted (its numbers differ from Python's, or it
