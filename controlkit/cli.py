@@ -309,8 +309,8 @@ def _main(argv) -> int:
     sub.add_parser(
         "warmup", help="compile ahead of a lecture: the integrator and the papers' diagrams",
         description="Compile, once, what the course's runs need compiled and keep it in the "
-                    "store (CONTROLKIT_CACHE_DIR): the integrator's step machine and every "
-                    "case of the papers' studies. After an install or an upgrade this takes "
+                    "store (CONTROLKIT_CACHE_DIR): the integrator (its step machine and loop) and "
+                    "every case of the papers' studies. After an install or an upgrade this takes "
                     "a few minutes; run it before class so that no run waits for a compile.")
     args = parser.parse_args(argv)
     try:
@@ -379,14 +379,15 @@ def _main(argv) -> int:
 
 
 def _warmup() -> int:
-    """``controlkit warmup``: the step machine, then each study's cases, compiled."""
+    """``controlkit warmup``: the integrator, then each study's cases, compiled."""
     import time
 
     from .engines.fast import store
+    from .engines.fast.continuous import compile_integrator
 
     started = time.perf_counter()
-    print("controlkit warmup: the integrator's step machine", flush=True)
-    store.step_machine()
+    print("controlkit warmup: the integrator (its step machine and loop)", flush=True)
+    compile_integrator()
     for name, study in STUDIES.items():
         spec = study.robustness
         if spec is None:

@@ -255,13 +255,14 @@ def test_a_run_compiles_from_its_start_when_earlier_runs_paid_and_the_call_stays
 
     loop = cmg_scenario.build_loop("thesis")
     monkeypatch.setattr(run, "_cost", lambda job: 1.5)  # numba's start and the compile
-    monkeypatch.setattr(run, "_TWINS", {})
     source = run.prepare(loop).source
     for before, runs, compiled in ((1.2, 1, False),   # not paid yet
                                    (2.0, 2, True),    # paid; a run of 1 s: 1.5 <= 2 x 1
                                    (2.0, 20, False)):  # paid; runs of 0.1 s: too short
         monkeypatch.setattr(run, "PYTHON_SECONDS", {source: before})
         monkeypatch.setattr(run, "PYTHON_RUNS", {source: runs})
+        monkeypatch.setattr(run, "_TWINS", {})  # as in a process that has not compiled it
+        monkeypatch.setattr(run, "_COMPILED", {})
         runner = run.Runner(loop, None, None)
         assert (runner.compiled is not None) == compiled, (before, runs)
         assert runner.decided == compiled

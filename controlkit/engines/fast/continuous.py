@@ -15,10 +15,11 @@ from __future__ import annotations
 import control as ct
 import numpy as np
 
+from ... import _jit
 from ...sampled_data import sample_times
 from ..contract import UnsupportedSystem, recorded_indices
 from ..contract import response as base_response
-from . import loops, rk
+from . import loops, rk, store
 from .diagnose import explain_failure
 from .loops import BUDGET, INSTANT, INTEGRATOR_FAILED, NEXT_TIME, UNDER_WAY
 from .pieces import Pieces, interrupted, now, quiet_numbers, same_numbers
@@ -140,7 +141,7 @@ class _Run:
                 self.held, job.P, rk.METHOD_INDEX[self.method], rtol, atol, max_step,
                 first_step, True, self.status, self.work, self.y_eval, self.yc)
         if job.compiled:
-            job.run_continuous(args)
+            _run_compiled(job, args)
         else:
             with quiet_numbers():
                 job.functions().run_continuous(*args, None, loops.instants_loop)
@@ -267,6 +268,49 @@ def run_continuous(sys, T, U, X0, *, params=None, t_eval=None, method="RK45",
         resp = base_response(sys, t_eval[kept], run.Y[:, kept], run.X[:, kept],
                              run.Uo[:, kept])
     return resp
+
+
+def _run_compiled(job, args):
+    """``job``'s module's ``run_continuous`` on ``args``, compiled: its four functions
+    compiled for the instants' loop (:meth:`.run.Job.compiled_once`), handed to the loop
+    compiled once for every diagram (:func:`.store.instants_loop`)."""
+    if job.continuous is None:
+        job.continuous = [store.import_module(store.module_file(job.source, "diagram"),
+                                              job.kernels()), None]
+    module = job.continuous[0]
+
+    def loop(evaluate, update, outputs, derivatives, *rest):
+        if job.continuous[1] is None:  # (a run's arrays are of the same types every run)
+            numba = _jit.numba_module()
+            _, rhs_args, _, results, state, buffers, _, _, _ = rest
+            signatures, types = loops.evaluator_signatures(numba, rhs_args, results, state,
+                                                           buffers)
+            functions = job.compiled_once(signatures, lambda path: store.compile_functions(
+                (evaluate, update, outputs, derivatives), signatures, path,
+                blocks=len(job.blocks)))
+            types = (*types, *(numba.typeof(a) for a in rest))
+            job.continuous[1] = (store.instants_loop(types), functions)
+        compiled_loop, functions = job.continuous[1]
+        compiled_loop(*functions, *rest)
+
+    module.run_continuous(*args, store.step_machine(), loop)
+
+
+def compile_integrator() -> str:
+    """Compile (or load) what every compiled continuous run needs, the integrator's step
+    machine and the instants' loop (:func:`.store.instants_loop`), by running a
+    first-order lag compiled; returns how it ran (``"compiled"``, or ``"python"`` where
+    nothing can be compiled). For ``controlkit warmup``.
+
+    Examples
+    --------
+    >>> compile_integrator() in ("compiled", "python")
+    True
+    """
+    lag = ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], name="lag", inputs="u", outputs="y")
+    loop = ct.interconnect([lag], inputs="u", outputs="y", name="controlkit_warmup")
+    T = np.linspace(0.0, 1.0, 3)
+    return run_continuous(loop, T, np.ones((1, 3)), np.zeros(1), compile=True).engine_mode
 
 
 def _python_from_here(runner, run, pieces):

@@ -37,7 +37,7 @@ import numpy as np
 
 from ... import _jit
 from ..contract import UnsupportedSystem
-from . import loops, reuse, store
+from . import reuse, store
 from .codegen import evaluation_order, generate
 from .pieces import PIECE_SECONDS
 from .plan import Plan, make_plan
@@ -112,7 +112,8 @@ class Job:
     source: str
     compiled: bool
     _python: object = field(default=None, repr=False)
-    _continuous: object = field(default=None, repr=False)
+    #: The compiled continuous run's module, loop and functions (:mod:`.continuous`).
+    continuous: object = field(default=None, repr=False)
 
     @property
     def blocks(self):
@@ -144,65 +145,28 @@ class Job:
     def entry(self, name: str, args):
         """The compiled entry point ``name`` for the types of ``args``: loaded from the
         store, or compiled now (saying so when that takes seconds)."""
+        return self.compiled_once(name, lambda path: store.compile_entry(
+            getattr(store.import_module(path, self.kernels()), name), args, path,
+            blocks=len(self.blocks))[0])
+
+    def compiled_once(self, key, compile_it):
+        """``compile_it(path)`` (``path``: the module's file in the store), once a process
+        per ``key``: saying so when the estimate is seconds; when numba fails, the module
+        runs as Python from then on (:class:`NotCompiled`, why kept for ``explain``)."""
         entries = _COMPILED.setdefault(self.source, {})
-        if name not in entries:
+        if key not in entries:
             path = store.module_file(self.source, "diagram")
-            module = store.import_module(path, self.kernels())
-            kept = store.record(path) is not None
-            if not kept:
-                expected = compile_estimate(self)
-                if expected >= 2.0:
-                    store._say(f"compiling the diagram {self.sys.name!r} (about "
-                               f"{expected:.0f} s, once: later runs load it)")
-            try:
-                entries[name], seconds = store.compile_entry(getattr(module, name), args,
-                                                             path, blocks=len(self.blocks))
-            except Exception as error:  # noqa: BLE001 - numba's: the diagram runs as Python
-                DIFFERS[self.source] = f"numba could not compile it ({_first_line(error)})"
-                raise NotCompiled(DIFFERS[self.source]) from error
-        return entries[name]
-
-    def run_continuous(self, args):
-        """Run the module's ``run_continuous`` on ``args`` compiled: its four functions
-        compiled for the instants' loop (loaded from the store, or compiled now, saying so
-        when that takes seconds), handed to the loop compiled once for every diagram
-        (:func:`.store.instants_loop`)."""
-        if self._continuous is None:
-            path = store.module_file(self.source, "diagram")
-            self._continuous = [store.import_module(path, self.kernels()), path, None]
-        module = self._continuous[0]
-        module.run_continuous(*args, store.step_machine(), self._compiled_loop)
-
-    def _compiled_loop(self, evaluate, update, outputs, derivatives, machine, rhs_args, times,
-                       results, state, buffers, solver, ctrl, status):
-        rest = (machine, rhs_args, times, results, state, buffers, solver, ctrl, status)
-        if self._continuous[2] is None:  # (a run's arrays are of the same types every run)
-            self._continuous[2] = self._loop_and_functions(
-                (evaluate, update, outputs, derivatives), rest)
-        loop, functions = self._continuous[2]
-        loop(*functions, *rest)
-
-    def _loop_and_functions(self, evaluator, rest):
-        _, rhs_args, _, results, state, buffers, _, _, _ = rest
-        numba = _jit.numba_module()
-        signatures, function_types = loops.evaluator_signatures(numba, rhs_args, results,
-                                                                state, buffers)
-        entries = _COMPILED.setdefault(self.source, {})
-        path = self._continuous[1]
-        if signatures not in entries:
             if store.record(path) is None:
                 expected = compile_estimate(self)
                 if expected >= 2.0:
                     store._say(f"compiling the diagram {self.sys.name!r} (about "
                                f"{expected:.0f} s, once: later runs load it)")
             try:
-                entries[signatures] = store.compile_functions(evaluator, signatures, path,
-                                                              blocks=len(self.blocks))
+                entries[key] = compile_it(path)
             except Exception as error:  # noqa: BLE001 - numba's: the diagram runs as Python
                 DIFFERS[self.source] = f"numba could not compile it ({_first_line(error)})"
                 raise NotCompiled(DIFFERS[self.source]) from error
-        loop = store.instants_loop((*function_types, *(numba.typeof(a) for a in rest)))
-        return loop, entries[signatures]
+        return entries[key]
 
     def is_compiled(self) -> bool:
         """Whether its module is compiled already (in this process, or in the store)."""
@@ -276,9 +240,9 @@ def prepare(sys, params=None, *, compiled=False) -> Job:
 def compile_estimate(job) -> float:
     """About how long compiling ``job``'s module takes, in seconds: the median time per
     block of the modules of its kind (discrete, or continuous and sampled-data) compiled
-    in this store before (:func:`.store.compile_times`),
-    else :data:`COMPILE_SECONDS`; plus the step machine's when it is needed and not
-    compiled yet.
+    in this store before (:func:`.store.compile_times`), else :data:`COMPILE_SECONDS`;
+    plus the integrator's when it is needed and not compiled yet
+    (:func:`.store.integrator_to_compile`).
 
     Examples
     --------
@@ -292,11 +256,7 @@ def compile_estimate(job) -> float:
         seconds = float(np.median(measured)) * len(job.blocks)
     else:
         seconds = COMPILE_SECONDS[0] + COMPILE_SECONDS[1] * len(job.blocks)
-    if continuous and not store.machine_kept():
-        seconds += store.MACHINE_COMPILE_SECONDS
-    if continuous and not store.loop_kept():
-        seconds += store.LOOP_COMPILE_SECONDS
-    return seconds
+    return seconds + (store.integrator_to_compile() if continuous else 0.0)
 
 
 def compiled_job(sys, params):

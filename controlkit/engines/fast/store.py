@@ -313,7 +313,7 @@ def compile_functions(functions, signatures, path: Path, blocks: int = 1,
     """
     numba = _jit.numba_module()
     start = time.perf_counter()
-    with first_class_functions(numba):
+    with _first_class_functions(numba):
         compiled = tuple(numba.njit(signature, cache=True, nogil=True)(
             _jit.python_function(f)) for f, signature in zip(functions, signatures,
                                                              strict=True))
@@ -351,18 +351,6 @@ def compile_times(entry: str) -> list[float]:
                     kept["seconds"] / kept["blocks"])
         _TIMES[None] = []  # read (an empty store included)
     return _TIMES.get(entry, [])[-50:]
-
-
-def machine_kept() -> bool:
-    """Whether the step machine is compiled (in this process, or in the store).
-
-    Examples
-    --------
-    >>> isinstance(machine_kept(), bool)
-    True
-    """
-    return bool(_MACHINE) or record(folder() / f"{name_of(_MACHINE_TEXT, 'machine')}.py") \
-        is not None
 
 
 _MACHINE: list = []
@@ -453,7 +441,7 @@ def instants_loop(argument_types):
             _say(f"compiling the integrator's loop (once after an install or an upgrade: "
                  f"about {LOOP_COMPILE_SECONDS:.0f} s)")
         start = time.perf_counter()
-        with first_class_functions(numba):
+        with _first_class_functions(numba):
             compiled = numba.njit(numba.types.none(*argument_types), cache=True,
                                   nogil=True)(function)
         if record(path) is None:
@@ -463,46 +451,35 @@ def instants_loop(argument_types):
 
 
 @contextlib.contextmanager
-def first_class_functions(numba):
+def _first_class_functions(numba):
     """numba's warning that its first-class functions are experimental, kept from the
     user while the loop and a diagram's functions compile: they are how one compiled loop
-    serves every diagram (a public part of numba, checked by ``tests/test_engine.py`` with
-    the numba installed); the warning is about our choice, not the user's code.
-
-    Examples
-    --------
-    >>> import warnings
-    >>> if _jit.available():
-    ...     numba = _jit.numba_module()
-    ...     with warnings.catch_warnings(record=True) as seen:
-    ...         warnings.simplefilter("always")
-    ...         with first_class_functions(numba):
-    ...             warnings.warn("experimental", numba.NumbaExperimentalFeatureWarning)
-    ...     len(seen)
-    ... else:
-    ...     0
-    0
-    """
+    serves every diagram (a public part of numba, checked by ``tests/test_engine.py``);
+    the warning is about our choice, not the user's code."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", numba.NumbaExperimentalFeatureWarning)
         yield
 
 
-def loop_kept() -> bool:
-    """Whether the instants' loop is compiled (in this process, or in the store).
-
-    Examples
-    --------
-    >>> isinstance(loop_kept(), bool)
-    True
-    """
-    return bool(_LOOPS) or record(folder() / f"{name_of(_LOOP_TEXT, 'loop')}.py") \
-        is not None
-
-
 #: About how long the instants' loop takes to compile (measured: 5-13 s on a 2-core
 #: machine).
 LOOP_COMPILE_SECONDS = 8.0
+
+
+def integrator_to_compile() -> float:
+    """About how long compiling what every continuous run needs and is not compiled yet
+    (in this process, or in the store) takes: the step machine, the instants' loop.
+
+    Examples
+    --------
+    >>> integrator_to_compile() in (0.0, MACHINE_COMPILE_SECONDS, LOOP_COMPILE_SECONDS,
+    ...                             MACHINE_COMPILE_SECONDS + LOOP_COMPILE_SECONDS)
+    True
+    """
+    return sum(seconds for done, text, kind, seconds in (
+        (_MACHINE, _MACHINE_TEXT, "machine", MACHINE_COMPILE_SECONDS),
+        (_LOOPS, _LOOP_TEXT, "loop", LOOP_COMPILE_SECONDS))
+        if not done and record(folder() / f"{name_of(text, kind)}.py") is None)
 
 
 #: About how long the step machine takes to compile (measured: 30 s on a 2-core machine).
