@@ -25,8 +25,8 @@ Compiled, the discrete loop is pasted into its caller (``inline="always"``) with
 evaluator as a compile-time constant; the instants' loop (:func:`instants_loop`) is
 compiled once for every diagram and takes the evaluator's functions as numba's
 first-class functions (a call through an address each), so that a new wiring compiles
-only its own functions: 1-3 s, where pasting the loop into each diagram's module took
-7-15 s.
+only its own functions: 0.4-3 s, where pasting the loop into each diagram's module took
+6-15 s.
 
 Semantics (:mod:`controlkit.sampled_data`): at each instant the signals are evaluated
 (firing discrete blocks fresh, the others held), the evaluation times on the instant are
