@@ -147,7 +147,7 @@ class Job:
         store, or compiled now (saying so when that takes seconds)."""
         return self.compiled_once(name, lambda path: store.compile_entry(
             getattr(store.import_module(path, self.kernels()), name), args, path,
-            blocks=len(self.blocks))[0])
+            blocks=len(self.blocks)))
 
     def compiled_once(self, key, compile_it):
         """``compile_it(path)`` (``path``: the module's file in the store), once a process

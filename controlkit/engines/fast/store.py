@@ -268,13 +268,13 @@ def write_record(path: Path, **values) -> None:
 def compile_entry(function, args, path: Path, blocks: int = 1):
     """``function`` compiled by numba for the types of ``args`` and kept in ``path``'s
     cache (loaded from it when it is there); the compile's record is written after a
-    compile. Returns the compiled function and the seconds it took (load or compile).
+    compile. Returns the compiled function.
 
     Examples
     --------
     >>> path = module_file("def double(x):\\n    return 2 * x\\n", "diagram")
     >>> if _jit.available():
-    ...     fn, seconds = compile_entry(import_module(path).double, (1.0,), path)
+    ...     fn = compile_entry(import_module(path).double, (1.0,), path)
     ...     float(fn(2.0))
     ... else:
     ...     4.0
@@ -284,12 +284,16 @@ def compile_entry(function, args, path: Path, blocks: int = 1):
     dispatcher = numba.njit(cache=True, nogil=True)(function)
     start = time.perf_counter()
     dispatcher.compile(tuple(numba.typeof(a) for a in args))
-    seconds = time.perf_counter() - start
+    _record_compile(path, time.perf_counter() - start, blocks,
+                    getattr(function, "__name__", ""))
+    return dispatcher
+
+
+def _record_compile(path: Path, seconds: float, blocks: int, entry: str) -> None:
+    """The record of a diagram module's first compile (read by :func:`compile_times`)."""
     if record(path) is None and path.suffix == ".py":
-        write_record(path, seconds=round(seconds, 3), blocks=blocks,
-                     entry=getattr(function, "__name__", ""))
+        write_record(path, seconds=round(seconds, 3), blocks=blocks, entry=entry)
         _TIMES.clear()
-    return dispatcher, seconds
 
 
 def compile_functions(functions, signatures, path: Path, blocks: int = 1,
@@ -317,10 +321,7 @@ def compile_functions(functions, signatures, path: Path, blocks: int = 1,
         compiled = tuple(numba.njit(signature, cache=True, nogil=True)(
             _jit.python_function(f)) for f, signature in zip(functions, signatures,
                                                              strict=True))
-    if record(path) is None and path.suffix == ".py":
-        write_record(path, seconds=round(time.perf_counter() - start, 3), blocks=blocks,
-                     entry=entry)
-        _TIMES.clear()
+    _record_compile(path, time.perf_counter() - start, blocks, entry)
     return compiled
 
 
@@ -384,17 +385,29 @@ def step_machine():
     """
     if not _MACHINE:
         numba = _jit.numba_module()
-        path = module_file(_MACHINE_TEXT, "machine")
-        function = import_module(path).machine
-        if record(path) is None:
-            _say(f"compiling the integrator's step machine (once after an install or an "
-                 f"upgrade: about {MACHINE_COMPILE_SECONDS:.0f} s)")
-        start = time.perf_counter()
-        compiled = numba.cfunc(MACHINE_SIGNATURE, cache=True, nogil=True)(function)
-        if record(path) is None:
-            write_record(path, seconds=round(time.perf_counter() - start, 3))
-        _MACHINE.append(compiled)
+        _MACHINE.append(_kept_once(
+            _MACHINE_TEXT, "machine", "the integrator's step machine",
+            MACHINE_COMPILE_SECONDS,
+            lambda module: numba.cfunc(MACHINE_SIGNATURE, cache=True,
+                                       nogil=True)(module.machine)))
     return _MACHINE[0]
+
+
+def _kept_once(text: str, kind: str, what: str, seconds: float, compile_it):
+    """``compile_it(module)`` of the store module ``text``: loaded from numba's cache, or
+    compiled now (after an install or an upgrade), saying so first and recording it
+    after."""
+    path = module_file(text, kind)
+    module = import_module(path)
+    compiled_before = record(path) is not None
+    if not compiled_before:
+        _say(f"compiling {what} (once after an install or an upgrade: about "
+             f"{seconds:.0f} s)")
+    start = time.perf_counter()
+    compiled = compile_it(module)
+    if not compiled_before:
+        write_record(path, seconds=round(time.perf_counter() - start, 3))
+    return compiled
 
 
 _LOOPS: dict = {}
@@ -435,18 +448,14 @@ def instants_loop(argument_types):
     """
     if argument_types not in _LOOPS:
         numba = _jit.numba_module()
-        path = module_file(_LOOP_TEXT, "loop")
-        function = import_module(path).instants_loop
-        if record(path) is None:
-            _say(f"compiling the integrator's loop (once after an install or an upgrade: "
-                 f"about {LOOP_COMPILE_SECONDS:.0f} s)")
-        start = time.perf_counter()
-        with _first_class_functions(numba):
-            compiled = numba.njit(numba.types.none(*argument_types), cache=True,
-                                  nogil=True)(function)
-        if record(path) is None:
-            write_record(path, seconds=round(time.perf_counter() - start, 3))
-        _LOOPS[argument_types] = compiled
+
+        def compile_it(module):
+            with _first_class_functions(numba):
+                return numba.njit(numba.types.none(*argument_types), cache=True,
+                                  nogil=True)(module.instants_loop)
+
+        _LOOPS[argument_types] = _kept_once(_LOOP_TEXT, "loop", "the integrator's loop",
+                                            LOOP_COMPILE_SECONDS, compile_it)
     return _LOOPS[argument_types]
 
 
