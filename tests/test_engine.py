@@ -268,6 +268,35 @@ def test_a_run_compiles_from_its_start_when_earlier_runs_paid_and_the_call_stays
         assert runner.decided == compiled
 
 
+@pytest.mark.skipif(not _jit.available(), reason="numba not installed")
+def test_runs_as_python_make_numba_s_start_in_steps_when_start_and_compile_overflow_a_call(
+        monkeypatch):
+    # earlier runs paid for numba's start and the compile, but both in one call would be
+    # slower than python-control's (two runs, about): each run as Python makes the next
+    # step of the start when one more step fits in a run's time, and then one compiles
+    from controlkit.engines.fast import run
+
+    loop = cmg_scenario.build_loop("thesis")
+    source = run.prepare(loop).source
+    monkeypatch.setattr(run, "compile_estimate", lambda job: 0.75)
+    monkeypatch.setattr(run.Job, "is_compiled", lambda job: False)
+    for typical, made_then_compiled in ((0.4, [[0], [0, 1], "compiled"]),
+                                        (0.2, [[0], [0], [0]])):  # 0.25 s > a run
+        made = []
+        monkeypatch.setattr(run, "NUMBA_START", tuple(
+            (seconds, lambda step=step: step in made, lambda step=step: made.append(step))
+            for step, seconds in enumerate((0.15, 0.25))))
+        for expected in made_then_compiled:
+            monkeypatch.setattr(run, "PYTHON_SECONDS", {source: 8 * typical})
+            monkeypatch.setattr(run, "PYTHON_RUNS", {source: 8})
+            monkeypatch.setattr(run, "_TWINS", {})
+            monkeypatch.setattr(run, "_COMPILED", {})
+            runner = run.Runner(loop, None, None)
+            assert (runner.compiled is not None) == (expected == "compiled"), typical
+            if expected != "compiled":
+                assert made == expected, typical
+
+
 def test_the_compile_estimate_reads_the_store_s_times_of_its_own_kind(monkeypatch, tmp_path):
     # a continuous module's functions and a discrete one's entry are estimated each from
     # the records of their own kind (records of an older engine's continuous entry,

@@ -11,15 +11,15 @@ runs its module one of two ways, as Simulink runs a model in normal or accelerat
   kernels, LTI blocks, users' functions translated), kept in the store
   (:mod:`.store`) so that any later run of the wiring loads it in milliseconds.
 
-:class:`Runner` decides, for each call, by :data:`RULE`: compiled when asked
-(``compile=True``), when the module is compiled already (in this process, or kept in
-the store), or when the run, timed on its first tenth of a second as Python, would take
-longer as Python, together with the earlier runs of the same module in this process,
-than loading numba and compiling takes; as Python otherwise, or when
-asked (``compile=False``), or when a block cannot be compiled (:func:`explain` says
-which and why). The compile happens then, in the call, and says so when it takes
-seconds. A compiled module is first run beside Python on one piece of the run: if
-their numbers differ, the run goes on as Python and :func:`explain` says where.
+:class:`Runner` decides each call by :data:`RULE`: compiled when asked (``compile=True``),
+when the module is compiled already (in this process, or kept in the store), or when the
+run (timed on its first tenth of a second as Python) and the earlier runs of the module
+in this process would take longer as Python than numba's start and the compile; as
+Python otherwise, when asked (``compile=False``), or when a block cannot be compiled
+(:func:`explain` says why). The compile happens in the call, said when it takes seconds,
+and a call that compiles stays under python-control's time (when numba's start and the
+compile do not fit in one call, a run as Python makes the start). A compiled module is
+first run beside Python on one piece: if their numbers differ, the run goes on as Python.
 
 Runs go in pieces of about a tenth of a second (:data:`PIECE_SECONDS`): between two
 pieces the run reports its progress, Ctrl-C stops it (``KeyboardInterrupt``, the
@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 
 import control as ct
 import numpy as np
@@ -55,9 +56,14 @@ RULE = ("compiled when asked (compile=True), when the diagram's module is compil
 #: in hindsight would have; a module's compile is now 1-2 s, and the estimate is this
 #: store's own measured times).
 PAYS = 1.0
-#: numba's own start in a process (imports and first use), about: what a run pays before
-#: its first compiled step even when its module is kept compiled.
+#: numba's own start in a process, about: what a run pays before its first compiled step
+#: even when its module is kept compiled.
 NUMBA_START_SECONDS = 0.4
+#: Its two steps, ``(seconds, done, make)``: the import, the first use (numba fills its
+#: tables: loading the step machine kept in the store). See :class:`Runner`.
+NUMBA_START = ((0.15, lambda: bool(_jit._NUMBA), _jit.numba_module),
+               (0.25, lambda: bool(store._MACHINE or any(_COMPILED.values())
+                                   or store.integrator_to_compile()), store.step_machine))
 #: About how long a new diagram's module takes to compile before one was measured in this
 #: store: seconds, plus seconds per block (measured on a 2-core machine: 1.5-30 s).
 COMPILE_SECONDS = (2.0, 1.0)
@@ -139,7 +145,7 @@ class Job:
             namespace = dict(self.kernels())
             exec(compile(self.source, f"<controlkit diagram {self.sys.name!r}>", "exec"),
                  namespace)
-            self._python = _Namespace(namespace)
+            self._python = SimpleNamespace(**namespace)
         return self._python
 
     def entry(self, name: str, args):
@@ -184,11 +190,6 @@ def _first_line(error) -> str:
     lines = [line.strip() for line in str(error).splitlines() if line.strip()]
     useful = [line for line in lines if not line.startswith(("Failed in", "During:"))]
     return f"{type(error).__name__}: {(useful or lines or [''])[0][:200]}"
-
-
-class _Namespace:
-    def __init__(self, names):
-        self.__dict__.update(names)
 
 
 def _pasted(fn):
@@ -289,7 +290,7 @@ def _cost(candidate) -> float:
     """Seconds before the compiled job ``candidate`` can run: numba's start if it has not
     started, and loading the module if it is kept compiled, else compiling it."""
     kept = candidate.source in _COMPILED or candidate.is_compiled()
-    return (0.0 if _jit._NUMBA else NUMBA_START_SECONDS) + (
+    return sum(seconds for seconds, done, _ in NUMBA_START if not done()) + (
         LOAD_SECONDS if kept else compile_estimate(candidate))
 
 
@@ -333,7 +334,8 @@ class Runner:
         """Compiled from the start when the earlier runs of this module in this process
         took, as Python, longer than compiling it takes (the rule, for runs that end in
         their first piece, before :meth:`decide` is asked), and compiling takes no longer
-        than :data:`PYTHON_CONTROL_SLOWER` of those runs (python-control's call, about)."""
+        than :data:`PYTHON_CONTROL_SLOWER` of those runs (python-control's call, about);
+        when it would with numba started, and starting it fits, this run starts it."""
         source = self.python.source
         before = PYTHON_SECONDS.get(source, 0.0)
         if before <= PAYS * NUMBA_START_SECONDS:
@@ -343,9 +345,17 @@ class Runner:
             return
         cost = _cost(candidate)
         typical = before / max(PYTHON_RUNS.get(source, 1), 1)
-        if before > PAYS * cost and cost <= PYTHON_CONTROL_SLOWER * typical:
+        if before <= PAYS * cost:
+            return
+        if cost <= PYTHON_CONTROL_SLOWER * typical:
             self.compiled, self.decided = candidate, True
             _TWINS[source] = candidate.source
+            return
+        # numba's start and the compile do not fit in one call under python-control's
+        # time: this run (as Python) makes the next step of the start, if it fits
+        step = next((step for step in NUMBA_START if not step[1]()), None)
+        if step and step[0] <= (PYTHON_CONTROL_SLOWER - 1.0) * typical:
+            step[2]()
 
     def check_first(self) -> Job | None:
         """The compiled job, taken back, when it runs first in this process and must be

@@ -284,8 +284,7 @@ def compile_entry(function, args, path: Path, blocks: int = 1):
     dispatcher = numba.njit(cache=True, nogil=True)(function)
     start = time.perf_counter()
     dispatcher.compile(tuple(numba.typeof(a) for a in args))
-    _record_compile(path, time.perf_counter() - start, blocks,
-                    getattr(function, "__name__", ""))
+    _record_compile(path, time.perf_counter() - start, blocks, function.__name__)
     return dispatcher
 
 
@@ -298,10 +297,11 @@ def _record_compile(path: Path, seconds: float, blocks: int, entry: str) -> None
 
 def compile_functions(functions, signatures, path: Path, blocks: int = 1,
                       entry: str = "continuous"):
-    """Each of ``functions`` (of the module at ``path``) compiled by numba for its one
-    signature and kept in ``path``'s cache (loaded from it when it is there): a
-    diagram's evaluator as the instants' loop takes it. The compile's record is
-    written after a compile (``entry`` names the kind). Returns the compiled functions.
+    """Each of ``functions`` (of the module at ``path``) compiled for its one signature
+    as a C function (:func:`numba.cfunc`: the loop calls it by its address, and no
+    Python wrapper is built, a fifth of a compile) and kept in ``path``'s cache (loaded
+    from it when there): a diagram's evaluator as the instants' loop takes it. The
+    compile's record is written after one (``entry`` names the kind). Returns them.
 
     Examples
     --------
@@ -318,7 +318,7 @@ def compile_functions(functions, signatures, path: Path, blocks: int = 1,
     numba = _jit.numba_module()
     start = time.perf_counter()
     with _first_class_functions(numba):
-        compiled = tuple(numba.njit(signature, cache=True, nogil=True)(
+        compiled = tuple(numba.cfunc(signature, cache=True, nogil=True)(
             _jit.python_function(f)) for f, signature in zip(functions, signatures,
                                                              strict=True))
     _record_compile(path, time.perf_counter() - start, blocks, entry)
