@@ -284,7 +284,8 @@ def test_runs_as_python_make_numba_s_start_in_steps_when_start_and_compile_overf
                                         (0.2, [[0], [0], [0]])):  # 0.25 s > a run
         made = []
         monkeypatch.setattr(run, "NUMBA_START", tuple(
-            (seconds, lambda step=step: step in made, lambda step=step: made.append(step))
+            (seconds, lambda step=step, made=made: step in made,
+             lambda step=step, made=made: made.append(step))
             for step, seconds in enumerate((0.15, 0.25))))
         for expected in made_then_compiled:
             monkeypatch.setattr(run, "PYTHON_SECONDS", {source: 8 * typical})
