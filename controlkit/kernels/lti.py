@@ -34,19 +34,33 @@ def pack(A, B, C, D) -> np.ndarray:
 
 
 @jit(inline=True)
-def _affine(p, first, second, rows, x, u, out):
+def _times(p, first, rows, cols, v, into):
+    """``into = F v`` with ``F`` (``rows`` x ``cols``) at ``p[first:]``, row-major, summed as
+    numpy's ``F @ v`` sums: its BLAS's dot product for one row, its matrix-vector product
+    for more (numba's ``numpy.dot`` calls the same kernels; a plain loop sums in another
+    order and differs in the last bits), a product where each row has one term."""
+    if cols == 1:
+        for i in range(rows):
+            into[i] = p[first + i] * v[0]
+    elif cols == 0:
+        for i in range(rows):
+            into[i] = 0.0
+    elif rows == 1:
+        into[0] = np.dot(p[first:first + cols], v)
+    elif rows > 1:
+        np.dot(p[first:first + rows * cols].reshape((rows, cols)), v, into)
+
+
+@jit(inline=True)
+def _affine(p, first, second, rows, x, u, out, gu):
     """``out = F x + G u`` with ``F`` (``rows`` x n) at ``p[first:]`` and ``G`` (``rows`` x m)
-    at ``p[second:]``, row-major: the two products summed as numpy's ``F @ x + G @ u`` does,
-    so the engine and python-control's LTI path give the same numbers."""
-    n, m = x.shape[0], u.shape[0]
+    at ``p[second:]``: the two products made as numpy's ``F @ x`` and ``G @ u``
+    (:func:`_times`, ``gu`` holding the second) and added, as python-control's LTI blocks
+    do (``A @ x + B @ u``), so that the engine and python-control give the same numbers."""
+    _times(p, first, rows, x.shape[0], x, out)
+    _times(p, second, rows, u.shape[0], u, gu)
     for i in range(rows):
-        fx = 0.0
-        for j in range(n):
-            fx += p[first + i * n + j] * x[j]
-        gu = 0.0
-        for j in range(m):
-            gu += p[second + i * m + j] * u[j]
-        out[i] = fx + gu
+        out[i] += gu[i]
     return out
 
 
@@ -62,7 +76,7 @@ def lti_output(t, x, u, p, out):
     """
     n, m, q = int(p[_N]), int(p[_M]), int(p[_Q])
     c0 = _HEAD + n * n + n * m
-    return _affine(p, c0, c0 + q * n, q, x, u, out)
+    return _affine(p, c0, c0 + q * n, q, x, u, out, np.empty(q))
 
 
 @jit(inline=True)
@@ -76,4 +90,4 @@ def lti_update(t, x, u, p, out):
     [2.5]
     """
     n = int(p[_N])
-    return _affine(p, _HEAD, _HEAD + n * n, n, x, u, out)
+    return _affine(p, _HEAD, _HEAD + n * n, n, x, u, out, np.empty(n))

@@ -77,16 +77,14 @@ def _terms(ptr, cols, gain, r, name):
 LTI_TERMS_WRITTEN_OUT = 256
 
 
-def _lti_sums(kernel, row, ref):
+def _lti_sums(plan, kernel, row, ref):
     """The right-hand sides of an LTI block's outputs (``kernel`` is
     :func:`~controlkit.kernels.lti.lti_output`) or next state (``lti_update``), one per
     row, with every index a literal (``ref(array, i)`` names ``x[i]`` or ``ui[i]``); None
-    for another kernel or a large block.
+    for another kernel, a large block, or one whose sums numpy's BLAS could order
+    otherwise (:func:`_exact_terms`: the kernel then makes them as numpy does).
 
-    The sums run in the kernel's order (``F x`` from 0.0, then ``G u`` from 0.0, added), so
-    the numbers are the kernel's to the bit; written out, a small block costs a few
-    nanoseconds a step instead of ~10 (runtime sizes read from ``P``, loops not unrolled).
-    """
+    Written out, a small block costs a few nanoseconds a step instead of ~10."""
     n, m, q = row.NX, row.NU, row.NY
     if kernel is lti.lti_output:
         first = row.P0 + 3 + n * n + n * m  # C, then D (see lti.pack)
@@ -96,7 +94,10 @@ def _lti_sums(kernel, row, ref):
         second, count = first + n * n, n
     else:
         return None
-    if count * (n + m) > LTI_TERMS_WRITTEN_OUT:
+    P = plan.parameters()
+    if count * (n + m) > LTI_TERMS_WRITTEN_OUT or not all(
+            _exact_terms(P[start + i * size:start + (i + 1) * size])
+            for start, size in ((first, n), (second, m)) for i in range(count)):
         return None
     sums = []
     for i in range(count):
@@ -107,9 +108,18 @@ def _lti_sums(kernel, row, ref):
     return sums
 
 
-def _lti_lines(kernel, row, out, start, ref=lambda array, i: f"{array}[{i}]"):
+def _exact_terms(coefficients) -> bool:
+    """Whether the sum of ``coefficients`` times any values, term by term from 0.0, is
+    numpy's ``row @ values`` to the bit whatever order its BLAS sums in and whichever
+    products it fuses (``fma``): one nonzero term, or two exact ones (coefficients of
+    magnitude 1, as a summing junction's)."""
+    nonzero = coefficients[coefficients != 0.0]
+    return nonzero.size <= 1 or nonzero.size == 2 and bool(np.all(np.abs(nonzero) == 1.0))
+
+
+def _lti_lines(plan, kernel, row, out, start, ref=lambda array, i: f"{array}[{i}]"):
     """:func:`_lti_sums` assigned to ``out[start:]`` (None where that is None)."""
-    sums = _lti_sums(kernel, row, ref)
+    sums = _lti_sums(plan, kernel, row, ref)
     return None if sums is None else [f"{out}[{start + i}] = {e}" for i, e in enumerate(sums)]
 
 
@@ -164,7 +174,7 @@ def _step(plan, rows, names, evaluate, ref, loads, args, view):
             lines += _rk4_lines(names[row.UPD], row, float(plan.h[b]), view)
             back += range(first, first + row.NX)
             continue
-        sums = _lti_sums(plan.kernels[row.UPD], row, ref)
+        sums = _lti_sums(plan, plan.kernels[row.UPD], row, ref)
         if sums is None:
             lines.append(f"{names[row.UPD]}(t, {args(b, ('xn', row.X0), row.NX)})")
             back += range(row.X0, row.X0 + row.NX)
@@ -290,7 +300,8 @@ def generate(plan, held_logic):
            plan.h.tobytes(), plan.continuous.tobytes(),
            *(a.tobytes() for a in (*plan.inputs, *plan.outputs)),
            plan.ny, plan.nu, tuple(map(kernel_identity, plan.kernels)), plan.sys.noutputs,
-           plan.sys.nstates, tuple(s.name for s in plan.sys.syslist))
+           plan.sys.nstates, tuple(s.name for s in plan.sys.syslist),
+           (plan.parameters() == 0.0).tobytes(), (abs(plan.parameters()) == 1.0).tobytes())
     if key not in _GENERATED:  # a diagram called again writes the same text (0.1 ms)
         if len(_GENERATED) >= 1024:
             _GENERATED.clear()
@@ -336,8 +347,8 @@ def _generate(plan, held_logic):
         """The lines of block ``b``'s outputs written out (None: its kernel is called)."""
         row = rows[b]
         if held:  # inside a branch: into the array only
-            return _lti_lines(plan.kernels[row.OUT], row, "ys", row.Y0, ref)
-        sums = _lti_sums(plan.kernels[row.OUT], row, ref)
+            return _lti_lines(plan, plan.kernels[row.OUT], row, "ys", row.Y0, ref)
+        sums = _lti_sums(plan, plan.kernels[row.OUT], row, ref)
         if sums is None:
             return None
         lines = []
@@ -422,7 +433,7 @@ def _generate(plan, held_logic):
             continue
         lines = []
         if row.KIND == DISCRETE:
-            lines += (_lti_lines(plan.kernels[row.UPD], row, "xn", row.X0)
+            lines += (_lti_lines(plan, plan.kernels[row.UPD], row, "xn", row.X0)
                       or [f"{names[row.UPD]}(t, {args(b, ('xn', row.X0), row.NX)})"])
         else:
             lines += _rk4_lines(names[row.UPD], row, float(plan.h[b]), view)
@@ -432,7 +443,7 @@ def _generate(plan, held_logic):
             update += lines
 
     derivatives = [line for b, row in enumerate(rows) if row.KIND == CONTINUOUS
-                   for line in (_lti_lines(plan.kernels[row.UPD], row, "dx", row.X0) or [
+                   for line in (_lti_lines(plan, plan.kernels[row.UPD], row, "dx", row.X0) or [
                        f"{names[row.UPD]}(t, {args(b, ('dx', row.X0), row.NX)})"])] or ["pass"]
 
     widest = max([1, *(row.NX for row in rows)])
