@@ -52,15 +52,21 @@ def _times(p, first, rows, cols, v, into):
 
 
 @jit(inline=True)
-def _affine(p, first, second, rows, x, u, out, gu):
+def _affine(p, first, second, rows, x, u, out):
     """``out = F x + G u`` with ``F`` (``rows`` x n) at ``p[first:]`` and ``G`` (``rows`` x m)
     at ``p[second:]``: the two products made as numpy's ``F @ x`` and ``G @ u``
-    (:func:`_times`, ``gu`` holding the second) and added, as python-control's LTI blocks
-    do (``A @ x + B @ u``), so that the engine and python-control give the same numbers."""
+    (:func:`_times`) and added, as python-control's LTI blocks do (``A @ x + B @ u``), so
+    that the engine and python-control give the same numbers."""
+    m = u.shape[0]
     _times(p, first, rows, x.shape[0], x, out)
-    _times(p, second, rows, u.shape[0], u, gu)
-    for i in range(rows):
-        out[i] += gu[i]
+    if m <= 1:  # one product a row, or none (0.0 added, as numpy adds its zeros)
+        for i in range(rows):
+            out[i] += p[second + i] * u[0] if m else 0.0
+    else:
+        gu = np.empty(rows)
+        _times(p, second, rows, m, u, gu)
+        for i in range(rows):
+            out[i] += gu[i]
     return out
 
 
@@ -76,7 +82,7 @@ def lti_output(t, x, u, p, out):
     """
     n, m, q = int(p[_N]), int(p[_M]), int(p[_Q])
     c0 = _HEAD + n * n + n * m
-    return _affine(p, c0, c0 + q * n, q, x, u, out, np.empty(q))
+    return _affine(p, c0, c0 + q * n, q, x, u, out)
 
 
 @jit(inline=True)
@@ -90,4 +96,4 @@ def lti_update(t, x, u, p, out):
     [2.5]
     """
     n = int(p[_N])
-    return _affine(p, _HEAD, _HEAD + n * n, n, x, u, out, np.empty(n))
+    return _affine(p, _HEAD, _HEAD + n * n, n, x, u, out)
