@@ -2,7 +2,7 @@
 
 python-control steps an interconnect by sweeping every block's output function until
 the signals stop changing. For a diagram whose blocks declare their feedthrough the
-order in which outputs can be computed is known in advance (:func:`evaluation_order`):
+order in which outputs can be computed is known in advance (:func:`.plan.evaluation_order`):
 blocks whose output reads only their state first, then the feedthrough blocks in
 dependency order. :func:`generate` writes that order out as the four functions of an
 evaluator (:mod:`.loops`) with every index a literal and every kernel pasted in by numba
@@ -21,47 +21,7 @@ import numpy as np
 
 from ... import _jit
 from ...kernels import lti
-from ..contract import UnsupportedSystem
-from .plan import CONTINUOUS, DISCRETE, SAMPLED
-
-
-def evaluation_order(sys, blocks):
-    """State-only outputs first, then feedthrough blocks in dependency order.
-
-    Raises
-    ------
-    UnsupportedSystem
-        Naming the blocks of an algebraic loop.
-
-    Examples
-    --------
-    >>> from controlkit.engines.fast.tiers import blocks_of
-    >>> from controlkit.studies.cmg.diagrams import cmg_loop
-    >>> loop = cmg_loop()
-    >>> [loop.syslist[i].name for i in evaluation_order(loop, blocks_of(loop))]
-    ['reference', 'cmg', 'smc', 'saturation']
-    """
-    owner = np.empty(sum(b.system.noutputs for b in blocks), dtype=int)
-    for b in blocks:
-        owner[b.y0:b.y0 + b.system.noutputs] = b.index
-    needs = {}
-    for b in blocks:
-        rows = sys.connect_map[b.u0:b.u0 + b.system.ninputs]
-        needs[b.index] = {int(owner[j]) for j in np.nonzero(rows.any(axis=0))[0]}
-    order = [b.index for b in blocks if not b.kernel.feedthrough]
-    done = set(order)
-    pending = [b.index for b in blocks if b.kernel.feedthrough]
-    while pending:
-        ready = [i for i in pending if needs[i] <= done]
-        if not ready:
-            names = [sys.syslist[i].name for i in pending]
-            raise UnsupportedSystem(f"algebraic loop through blocks {names}")
-        for i in ready:
-            order.append(i)
-            done.add(i)
-            pending.remove(i)
-    return order
-
+from .plan import CONTINUOUS, DISCRETE, SAMPLED, exact_inputs, exact_rows, exact_sum
 
 
 def _terms(ptr, cols, gain, r, name):
@@ -82,7 +42,7 @@ def _lti_sums(plan, kernel, row, ref):
     :func:`~controlkit.kernels.lti.lti_output`) or next state (``lti_update``), one per
     row, with every index a literal (``ref(array, i)`` names ``x[i]`` or ``ui[i]``); None
     for another kernel, a large block, or one whose sums numpy's BLAS could order
-    otherwise (:func:`_exact_terms`: the kernel then makes them as numpy does).
+    otherwise (:func:`.plan.exact_sum`: the kernel then makes them as numpy does).
 
     Written out, a small block costs a few nanoseconds a step instead of ~10."""
     n, m, q = row.NX, row.NU, row.NY
@@ -96,7 +56,7 @@ def _lti_sums(plan, kernel, row, ref):
         return None
     P = plan.parameters()
     if count * (n + m) > LTI_TERMS_WRITTEN_OUT or not all(
-            _exact_terms(P[start + i * size:start + (i + 1) * size])
+            exact_sum(P[start + i * size:start + (i + 1) * size])
             for start, size in ((first, n), (second, m)) for i in range(count)):
         return None
     sums = []
@@ -106,15 +66,6 @@ def _lti_sums(plan, kernel, row, ref):
                      for j in range(m))
         sums.append(f"(0.0{fx}) + (0.0{gu})")
     return sums
-
-
-def _exact_terms(coefficients) -> bool:
-    """Whether the sum of ``coefficients`` times any values, term by term from 0.0, is
-    numpy's ``row @ values`` to the bit whatever order its BLAS sums in and whichever
-    products it fuses (``fma``): one nonzero term, or two exact ones (coefficients of
-    magnitude 1, as a summing junction's)."""
-    nonzero = coefficients[coefficients != 0.0]
-    return nonzero.size <= 1 or nonzero.size == 2 and bool(np.all(np.abs(nonzero) == 1.0))
 
 
 def _lti_lines(plan, kernel, row, out, start, ref=lambda array, i: f"{array}[{i}]"):
@@ -189,13 +140,40 @@ def _step(plan, rows, names, evaluate, ref, loads, args, view):
 
 def _output_lines(plan, column, ref):
     """The diagram's outputs at column ``column`` of ``Y``, read through ``ref(array, i)``
-    (``ys`` for a block's output, ``ui`` for a diagram input)."""
+    (``ys`` for a block's output, ``ui`` for a diagram input); a row whose sum is not
+    exact in any order is made as python-control makes it (:func:`_maps`)."""
     optr, ocols, ogain = plan.outputs
-    ny = plan.ny
-    return [f"Y[{r}, {column}] = " + _terms(optr, ocols, ogain, r,
-                                            lambda c: ref("ys", c) if c < ny
-                                            else ref("ui", c - ny))
+    ny, exact = plan.ny, exact_rows(plan.sys.output_map)
+    return [f"Y[{r}, {column}] = " + (_terms(optr, ocols, ogain, r,
+                                             lambda c: ref("ys", c) if c < ny
+                                             else ref("ui", c - ny)) if exact[r] else
+                                      f"{_product('_OUTPUT_MAP', plan.sys.output_map)}("
+                                      f"np.concatenate((ys, ui)))[{r}]")
             for r in range(plan.sys.noutputs)]
+
+
+def _product(name, matrix) -> str:
+    """The call that makes ``matrix @ v`` as numpy makes it, ``matrix`` being the module's
+    constant ``name``: a dot product for one row, the matrix-vector product for more."""
+    return f"{name}[0].dot" if np.shape(matrix)[0] == 1 else f"{name}.dot"
+
+
+def _maps(plan) -> list[str]:
+    """The module's constants python-control's maps are (``_CONNECT``, ``_INPUT_MAP``,
+    ``_OUTPUT_MAP``), where a row of one is not exact in any order: python-control
+    makes every block's inputs as ``connect_map @ outputs + input_map @ u`` and the
+    diagram's outputs as ``output_map @ [outputs, inputs]``, and numpy's BLAS sums a row
+    in an order that depends on the whole matrix. Numbers only (``repr`` of floats)."""
+    sys = plan.sys
+    lines = []
+    for name, matrix, rows in (("_CONNECT", sys.connect_map, exact_inputs(sys)),
+                               ("_INPUT_MAP", sys.input_map, exact_inputs(sys)),
+                               ("_OUTPUT_MAP", sys.output_map, exact_rows(sys.output_map))):
+        if not all(rows):
+            array = np.ascontiguousarray(matrix, dtype=float)
+            lines.append(f"{name} = np.array({array.tolist()!r}, dtype=np.float64)"
+                         f".reshape({array.shape!r})")
+    return lines
 
 
 #: A discrete step holds this many states in locals at most (a larger diagram's step
@@ -334,11 +312,15 @@ def _generate(plan, held_logic):
             known[("x", i)] = f"_x{i}"
         return known.get((array, i), f"{array}[{i}]")
 
+    exact = exact_inputs(plan.sys)
+
     def gather(b):
         lines = []
         for r in range(rows[b].U0, rows[b].U0 + rows[b].NU):
-            value = _terms(ptr, cols, gain, r, lambda c: ref("ys", c) if c < ny
-                           else f"U[{c - ny}, col]")
+            value = (_terms(ptr, cols, gain, r, lambda c: ref("ys", c) if c < ny
+                            else f"U[{c - ny}, col]") if exact[r] else
+                     f"{_product('_CONNECT', plan.sys.connect_map)}(ys)[{r}] + "
+                     f"{_product('_INPUT_MAP', plan.sys.input_map)}(U[:, col].copy())[{r}]")
             lines += [f"_u{r} = {value}", f"ui[{r}] = _u{r}"]
             known[("ui", r)] = f"_u{r}"
         return lines
@@ -469,6 +451,8 @@ def _generate(plan, held_logic):
         "from controlkit._jit import jit",
         "from controlkit.engines.fast.loops import discrete_run",
         "from controlkit.kernels.common import rk4_step",
+        "",
+        *_maps(plan),
         "",
         "",
         *evaluator("evaluate(t, x, U, col, P, ys, ui, held, k, plan)", evaluate),

@@ -27,6 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..contract import UnsupportedSystem
+
 #: Block kinds, by number in the plan's table.
 KINDS = ("static", "discrete", "sampled", "continuous")
 STATIC, DISCRETE, SAMPLED, CONTINUOUS = range(4)
@@ -134,6 +136,88 @@ def _sparse_rows(matrix):
             np.array(gain, dtype=float))
 
 
+def evaluation_order(sys, blocks):
+    """State-only outputs first, then feedthrough blocks in dependency order.
+
+    Raises
+    ------
+    UnsupportedSystem
+        Naming the blocks of an algebraic loop.
+
+    Examples
+    --------
+    >>> from controlkit.engines.fast.tiers import blocks_of
+    >>> from controlkit.studies.cmg.diagrams import cmg_loop
+    >>> loop = cmg_loop()
+    >>> [loop.syslist[i].name for i in evaluation_order(loop, blocks_of(loop))]
+    ['reference', 'cmg', 'smc', 'saturation']
+    """
+    owner = np.empty(sum(b.system.noutputs for b in blocks), dtype=int)
+    for b in blocks:
+        owner[b.y0:b.y0 + b.system.noutputs] = b.index
+    needs = {}
+    for b in blocks:
+        rows = sys.connect_map[b.u0:b.u0 + b.system.ninputs]
+        needs[b.index] = {int(owner[j]) for j in np.nonzero(rows.any(axis=0))[0]}
+    order = [b.index for b in blocks if not b.kernel.feedthrough]
+    done = set(order)
+    pending = [b.index for b in blocks if b.kernel.feedthrough]
+    while pending:
+        ready = [i for i in pending if needs[i] <= done]
+        if not ready:
+            names = [sys.syslist[i].name for i in pending]
+            raise UnsupportedSystem(f"algebraic loop through blocks {names}")
+        for i in ready:
+            order.append(i)
+            done.add(i)
+            pending.remove(i)
+    return order
+
+def exact_sum(coefficients) -> bool:
+    """Whether ``coefficients @ v`` summed term by term from 0.0 is numpy's to the bit for
+    any ``v``, whatever order its BLAS sums a row in and whichever products it fuses
+    (``fma``): one nonzero term, or two exact ones (of magnitude 1, as a junction's).
+
+    Examples
+    --------
+    >>> [exact_sum(np.array(c)) for c in ([0.0, 2.5], [1.0, -1.0], [0.5, 0.25])]
+    [True, True, False]
+    """
+    nonzero = coefficients[coefficients != 0.0]
+    return nonzero.size <= 1 or nonzero.size == 2 and bool(np.all(np.abs(nonzero) == 1.0))
+
+
+def exact_rows(matrix) -> list[bool]:
+    """:func:`exact_sum` of each row of ``matrix``.
+
+    Examples
+    --------
+    >>> exact_rows(np.array([[1.0, 1.0, 0.0], [0.5, 0.5, 0.5]]))
+    [True, False]
+    """
+    return [exact_sum(np.asarray(row, dtype=float)) for row in np.atleast_2d(matrix)]
+
+
+def exact_inputs(sys) -> list[bool]:
+    """Whether each block input of ``sys`` written out as the sum of its terms is
+    python-control's ``connect_map @ outputs + input_map @ u`` to the bit: both parts
+    :func:`exact_sum`, and the second one term at most when the first has any (so that
+    the parts are added last, as python-control adds them).
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> a, b = (ct.ss([], [], [], [[1.0]], name=n, inputs="u", outputs="y") for n in "ab")
+    >>> exact_inputs(ct.interconnect([a, b], connections=[["b.u", "a.y"]],
+    ...                              inplist=["a.u"], outlist=["b.y"]))
+    [True, True]
+    """
+    nonzero = np.count_nonzero
+    return [bool(exact_sum(c) and exact_sum(i) and (nonzero(i) <= 1 or not nonzero(c)))
+            for c, i in zip(np.asarray(sys.connect_map, dtype=float),
+                            np.asarray(sys.input_map, dtype=float), strict=True)]
+
+
 def _kind(block, kernel, diagram_dt) -> int:
     """A block's kind; one of unspecified timebase (``dt = None``) with states takes the
     diagram's, as python-control does (integrated in a continuous diagram)."""
@@ -155,7 +239,6 @@ def make_plan(sys, blocks, order) -> Plan:
     --------
     >>> import control as ct
     >>> from controlkit.engines.fast.tiers import blocks_of
-    >>> from controlkit.engines.fast.codegen import evaluation_order
     >>> gain = ct.ss([], [], [], [[2.0]], name="k", inputs="e", outputs="u")
     >>> plant = ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], name="p", inputs="u",
     ...               outputs="y")

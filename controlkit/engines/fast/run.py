@@ -39,9 +39,9 @@ import numpy as np
 from ... import _jit
 from ..contract import UnsupportedSystem
 from . import reuse, store
-from .codegen import evaluation_order, generate
+from .codegen import generate
 from .pieces import PIECE_SECONDS
-from .plan import Plan, make_plan
+from .plan import Plan, evaluation_order, make_plan
 from .tiers import BlockTier, NotCompiled, _resolve, as_interconnect, blocks_of
 
 #: How the engine chooses between running a diagram as Python and compiled (see
