@@ -173,7 +173,8 @@ def _maps(plan) -> list[str]:
             array = np.ascontiguousarray(matrix, dtype=float)
             lines.append(f"{name} = np.array({array.tolist()!r}, dtype=np.float64)"
                          f".reshape({array.shape!r})")
-    return lines
+    return (["# python-control's maps: sums not exact in any order are made as it makes them"]
+            + lines if lines else [])
 
 
 #: A discrete step holds this many states in locals at most (a larger diagram's step
