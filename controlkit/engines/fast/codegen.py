@@ -21,7 +21,7 @@ import numpy as np
 
 from ... import _jit
 from ...kernels import lti
-from .plan import CONTINUOUS, DISCRETE, SAMPLED, exact_inputs, exact_rows, exact_sum
+from .plan import CONTINUOUS, DISCRETE, SAMPLED, exact_sum
 
 
 def _terms(ptr, cols, gain, r, name):
@@ -37,12 +37,13 @@ def _terms(ptr, cols, gain, r, name):
 LTI_TERMS_WRITTEN_OUT = 256
 
 
-def _lti_sums(plan, kernel, row, ref):
+def _lti_sums(P, kernel, row, ref):
     """The right-hand sides of an LTI block's outputs (``kernel`` is
-    :func:`~controlkit.kernels.lti.lti_output`) or next state (``lti_update``), one per
-    row, with every index a literal (``ref(array, i)`` names ``x[i]`` or ``ui[i]``); None
-    for another kernel, a large block, or one whose sums numpy's BLAS could order
-    otherwise (:func:`.plan.exact_sum`: the kernel then makes them as numpy does).
+    :func:`~controlkit.kernels.lti.lti_output`) or next state (``lti_update``) with the
+    plan's parameters ``P``, one per row, with every index a literal (``ref(array, i)``
+    names ``x[i]`` or ``ui[i]``); None for another kernel, a large block, or one whose
+    sums numpy's BLAS could order otherwise (:func:`.plan.exact_sum`: the kernel then
+    makes them as numpy does).
 
     Written out, a small block costs a few nanoseconds a step instead of ~10."""
     n, m, q = row.NX, row.NU, row.NY
@@ -54,7 +55,6 @@ def _lti_sums(plan, kernel, row, ref):
         second, count = first + n * n, n
     else:
         return None
-    P = plan.parameters()
     if count * (n + m) > LTI_TERMS_WRITTEN_OUT or not all(
             exact_sum(P[start + i * size:start + (i + 1) * size])
             for start, size in ((first, n), (second, m)) for i in range(count)):
@@ -68,13 +68,13 @@ def _lti_sums(plan, kernel, row, ref):
     return sums
 
 
-def _lti_lines(plan, kernel, row, out, start, ref=lambda array, i: f"{array}[{i}]"):
+def _lti_lines(P, kernel, row, out, start, ref=lambda array, i: f"{array}[{i}]"):
     """:func:`_lti_sums` assigned to ``out[start:]`` (None where that is None)."""
-    sums = _lti_sums(plan, kernel, row, ref)
+    sums = _lti_sums(P, kernel, row, ref)
     return None if sums is None else [f"{out}[{start + i}] = {e}" for i, e in enumerate(sums)]
 
 
-def _step(plan, rows, names, evaluate, ref, loads, args, view):
+def _step(plan, P, rows, names, evaluate, ref, loads, args, view):
     """The loop of ``run_discrete`` for a discrete diagram whose blocks all fire at every
     step (python-control's discrete simulation), each step written out in the loop.
 
@@ -125,7 +125,7 @@ def _step(plan, rows, names, evaluate, ref, loads, args, view):
             lines += _rk4_lines(names[row.UPD], row, float(plan.h[b]), view)
             back += range(first, first + row.NX)
             continue
-        sums = _lti_sums(plan, plan.kernels[row.UPD], row, ref)
+        sums = _lti_sums(P, plan.kernels[row.UPD], row, ref)
         if sums is None:
             lines.append(f"{names[row.UPD]}(t, {args(b, ('xn', row.X0), row.NX)})")
             back += range(row.X0, row.X0 + row.NX)
@@ -143,7 +143,7 @@ def _output_lines(plan, column, ref):
     (``ys`` for a block's output, ``ui`` for a diagram input); a row whose sum is not
     exact in any order is made as python-control makes it (:func:`_maps`)."""
     optr, ocols, ogain = plan.outputs
-    ny, exact = plan.ny, exact_rows(plan.sys.output_map)
+    ny, exact = plan.ny, plan.outputs_exact
     return [f"Y[{r}, {column}] = " + (_terms(optr, ocols, ogain, r,
                                              lambda c: ref("ys", c) if c < ny
                                              else ref("ui", c - ny)) if exact[r] else
@@ -166,9 +166,9 @@ def _maps(plan) -> list[str]:
     in an order that depends on the whole matrix. Numbers only (``repr`` of floats)."""
     sys = plan.sys
     lines = []
-    for name, matrix, rows in (("_CONNECT", sys.connect_map, exact_inputs(sys)),
-                               ("_INPUT_MAP", sys.input_map, exact_inputs(sys)),
-                               ("_OUTPUT_MAP", sys.output_map, exact_rows(sys.output_map))):
+    for name, matrix, rows in (("_CONNECT", sys.connect_map, plan.inputs_exact),
+                               ("_INPUT_MAP", sys.input_map, plan.inputs_exact),
+                               ("_OUTPUT_MAP", sys.output_map, plan.outputs_exact)):
         if not all(rows):
             array = np.ascontiguousarray(matrix, dtype=float)
             lines.append(f"{name} = np.array({array.tolist()!r}, dtype=np.float64)"
@@ -275,16 +275,17 @@ def generate(plan, held_logic):
     >>> [line[:22] for line in source.splitlines() if line.startswith("def run")]
     ['def run_discrete(T, X0', 'def run_continuous(ins']
     """
+    P = plan.parameters()  # (which LTI blocks are written out depends on its zeros)
     key = (held_logic, plan.table.tobytes(), plan.order.tobytes(),
            plan.h.tobytes(), plan.continuous.tobytes(),
            *(a.tobytes() for a in (*plan.inputs, *plan.outputs)),
            plan.ny, plan.nu, tuple(map(kernel_identity, plan.kernels)), plan.sys.noutputs,
            plan.sys.nstates, tuple(s.name for s in plan.sys.syslist),
-           (plan.parameters() == 0.0).tobytes(), (abs(plan.parameters()) == 1.0).tobytes())
+           (P == 0.0).tobytes(), (abs(P) == 1.0).tobytes())
     if key not in _GENERATED:  # a diagram called again writes the same text (0.1 ms)
         if len(_GENERATED) >= 1024:
             _GENERATED.clear()
-        _GENERATED[key] = _generate(plan, held_logic)
+        _GENERATED[key] = _generate(plan, held_logic, P)
     return _GENERATED[key]
 
 
@@ -292,7 +293,7 @@ def generate(plan, held_logic):
 _GENERATED: dict = {}
 
 
-def _generate(plan, held_logic):
+def _generate(plan, held_logic, P):
     rows, ny = plan.rows(), plan.ny
     names = [f"kernel_{i}" for i in range(len(plan.kernels))]
     identities = [kernel_identity(fn) for fn in plan.kernels]
@@ -313,7 +314,7 @@ def _generate(plan, held_logic):
             known[("x", i)] = f"_x{i}"
         return known.get((array, i), f"{array}[{i}]")
 
-    exact = exact_inputs(plan.sys)
+    exact = plan.inputs_exact
 
     def gather(b):
         lines = []
@@ -330,8 +331,8 @@ def _generate(plan, held_logic):
         """The lines of block ``b``'s outputs written out (None: its kernel is called)."""
         row = rows[b]
         if held:  # inside a branch: into the array only
-            return _lti_lines(plan, plan.kernels[row.OUT], row, "ys", row.Y0, ref)
-        sums = _lti_sums(plan, plan.kernels[row.OUT], row, ref)
+            return _lti_lines(P, plan.kernels[row.OUT], row, "ys", row.Y0, ref)
+        sums = _lti_sums(P, plan.kernels[row.OUT], row, ref)
         if sums is None:
             return None
         lines = []
@@ -393,7 +394,8 @@ def _generate(plan, held_logic):
         if not row.FT:
             evaluate += gather(b)
     evaluate += checks()  # after the last copies: 77 -> 32 ns a step in that servo loop
-    step = None if held_logic else _step(plan, rows, names, evaluate, ref, loads, args, view)
+    step = None if held_logic else _step(plan, P, rows, names, evaluate, ref, loads, args,
+                                         view)
     evaluate.append("return -1")
 
     outputs = _output_lines(plan, "j", lambda array, i: f"{array}[{i}]") or ["pass"]
@@ -416,7 +418,7 @@ def _generate(plan, held_logic):
             continue
         lines = []
         if row.KIND == DISCRETE:
-            lines += (_lti_lines(plan, plan.kernels[row.UPD], row, "xn", row.X0)
+            lines += (_lti_lines(P, plan.kernels[row.UPD], row, "xn", row.X0)
                       or [f"{names[row.UPD]}(t, {args(b, ('xn', row.X0), row.NX)})"])
         else:
             lines += _rk4_lines(names[row.UPD], row, float(plan.h[b]), view)
@@ -426,7 +428,7 @@ def _generate(plan, held_logic):
             update += lines
 
     derivatives = [line for b, row in enumerate(rows) if row.KIND == CONTINUOUS
-                   for line in (_lti_lines(plan, plan.kernels[row.UPD], row, "dx", row.X0) or [
+                   for line in (_lti_lines(P, plan.kernels[row.UPD], row, "dx", row.X0) or [
                        f"{names[row.UPD]}(t, {args(b, ('dx', row.X0), row.NX)})"])] or ["pass"]
 
     widest = max([1, *(row.NX for row in rows)])

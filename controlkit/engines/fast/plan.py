@@ -22,6 +22,7 @@ A block is one of four kinds (:data:`KINDS`), by its timebase:
 
 from __future__ import annotations
 
+import functools
 from collections import namedtuple
 from dataclasses import dataclass
 
@@ -118,6 +119,16 @@ class Plan:
         """The table's rows as :class:`TableRow` of plain ints, in block order."""
         return [TableRow(*map(int, row)) for row in self.table]
 
+    @functools.cached_property
+    def inputs_exact(self) -> list[bool]:
+        """:func:`exact_inputs` of the diagram: which block inputs are written out."""
+        return exact_inputs(self.sys)
+
+    @functools.cached_property
+    def outputs_exact(self) -> list[bool]:
+        """:func:`exact_rows` of its output map: which of its outputs are written out."""
+        return exact_rows(self.sys.output_map)
+
     def parameters(self) -> np.ndarray:
         """The stacked parameter vector ``P`` (each block's packed ``p``, in order)."""
         return np.concatenate([b.kernel.params for b in self.blocks] + [np.zeros(0)])
@@ -172,6 +183,7 @@ def evaluation_order(sys, blocks):
             done.add(i)
             pending.remove(i)
     return order
+
 
 def exact_sum(coefficients) -> bool:
     """Whether ``coefficients @ v`` summed term by term from 0.0 is numpy's to the bit for
