@@ -113,6 +113,22 @@ def test_sums_of_three_signals_give_python_control_s_numbers_to_the_bit():
         assert ours.y.tobytes() == ref.y.tobytes() and ours.x.tobytes() == ref.x.tobytes()
 
 
+@pytest.mark.parametrize("compile", [False, True])
+def test_an_infinite_connection_gain_is_written_as_a_number(compile):
+    # a gain's repr is written into the module's text; an infinity's ("inf") named
+    # nothing, and the run died of a NameError instead of saying the loop diverged
+    lag = ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], name="a", inputs="u", outputs="y")
+    plant = ct.nlsys(lambda t, x, u, params: -x + u, lambda t, x, u, params: x, states=1,
+                     name="q", inputs="u", outputs="y")
+    loop = ct.interconnect([lag, plant], connections=[["q.u", ("a", "y", float("inf"))]],
+                           inplist=["a.u"], outlist=["q.y"], inputs="r", outputs="y")
+    T = np.linspace(0.0, 3.0, 31)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # (q's lambda runs as Python when compile=True)
+        with pytest.raises(FloatingPointError, match=r"\['a', 'q'\] became non-finite"):
+            controlkit.input_output_response(loop, T, np.ones(31), compile=compile)
+
+
 def test_compile_true_runs_a_short_continuous_diagram_compiled():
     loop, T, X0, U = CONTINUOUS["car_pi"]()
     U = np.broadcast_to(U, (loop.ninputs, T.size))

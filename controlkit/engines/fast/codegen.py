@@ -17,6 +17,8 @@ disk; the parameters stay values at run time (``P``), so a new value never recom
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ... import _jit
@@ -24,11 +26,20 @@ from ...kernels import lti
 from .plan import CONTINUOUS, DISCRETE, SAMPLED, exact_sum
 
 
+def _number(value) -> str:
+    """``value`` (a float) as a literal of the module's text: its ``repr`` (exact), or
+    numpy's name for an infinity or a NaN (whose ``repr`` names nothing)."""
+    value = float(value)
+    if math.isfinite(value):
+        return repr(value)
+    return "np.nan" if math.isnan(value) else ("np.inf" if value > 0 else "-np.inf")
+
+
 def _terms(ptr, cols, gain, r, name):
     terms = []
     for q in range(ptr[r], ptr[r + 1]):
         g, ref = gain[q], name(cols[q])
-        terms.append(ref if g == 1.0 else f"{g!r} * {ref}")
+        terms.append(ref if g == 1.0 else f"{_number(g)} * {ref}")
     return " + ".join(terms) if terms else "0.0"
 
 
@@ -171,7 +182,8 @@ def _maps(plan) -> list[str]:
                                ("_OUTPUT_MAP", sys.output_map, plan.outputs_exact)):
         if not all(rows):
             array = np.ascontiguousarray(matrix, dtype=float)
-            lines.append(f"{name} = np.array({array.tolist()!r}, dtype=np.float64)"
+            values = ", ".join(_number(v) for v in array.ravel())
+            lines.append(f"{name} = np.array([{values}], dtype=np.float64)"
                          f".reshape({array.shape!r})")
     return (["# python-control's maps: sums not exact in any order are made as it makes them"]
             + lines if lines else [])
