@@ -6,6 +6,8 @@
 
 from __future__ import annotations
 
+import sys as _sys
+import time
 import warnings
 from collections.abc import Callable
 
@@ -13,16 +15,10 @@ import control as ct
 import numpy as np
 from control.timeresp import TimeResponseList
 
-from . import _checks, engines
-from .blocks.contract import check_initial_state
-from .engines.contract import (
-    UnsupportedSystem,
-    check_arguments,
-    python_control_arguments,
-    response,
-    result_flags,
-)
-from .engines.params import check_params
+from . import engines
+
+# The engines' modules are imported by the functions that use them: a call that
+# python-control runs alone (see input_output_response) imports none of them.
 
 
 def initial_state(sys, /, **by_block) -> np.ndarray:
@@ -56,6 +52,9 @@ def initial_state(sys, /, **by_block) -> np.ndarray:
     ...
     ValueError: initial state of block 'plant' must be a unit quaternion ... got norm 2; ...
     """
+    from . import _checks
+    from .blocks.contract import check_initial_state
+
     subsystems = getattr(sys, "syslist", [sys])
     names = {s.name for s in subsystems}
     unknown = set(by_block) - names
@@ -149,6 +148,9 @@ def simulate(
     """
     if isinstance(chunks, bool) or not isinstance(chunks, int | np.integer) or chunks < 1:
         raise ValueError(f"chunks must be an integer >= 1, got {chunks!r}")
+    from .engines.contract import UnsupportedSystem, check_arguments
+    from .engines.params import check_params
+
     backend = engines.backend(engine)
     T, X0, U = check_arguments(sys, T, X0, U)
     check_params(sys, params)
@@ -177,7 +179,10 @@ def input_output_response(sys, timepts=None, inputs=0.0, initial_state=0.0, para
     :class:`control.TimeResponseData`: a user switches by changing one import. Where the
     diagram can run on the fast engine (:mod:`controlkit.engines.fast`) it does, with the
     same numbers; otherwise python-control runs it, with a warning naming the block and
-    why (:func:`controlkit.engines.fast.explain`). A diagram of continuous and discrete
+    why (:func:`controlkit.engines.fast.explain`). Until the engine has started in the
+    process, a run too short for its start (about 25 ms) to pay is python-control's own
+    (:func:`controlkit.engines.fast_start_pays`; ``engine_mode`` ``"python-control"``), so
+    that no call is slower than python-control's. A diagram of continuous and discrete
     blocks (:func:`controlkit.interconnect`), which python-control cannot simulate, runs
     with the semantics described in :mod:`controlkit.sampled_data`.
 
@@ -194,8 +199,8 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
         How the fast engine runs the diagram's module (:mod:`controlkit.engines.fast.run`):
         ``None`` (default) as Python unless the run is long enough for compiling to pay
         (or the diagram is compiled already), ``True`` compiled (compiling it now, once:
-        later runs load it), ``False`` as Python. ``explain(sys)`` says which blocks can
-        be compiled.
+        later runs load it), ``False`` as Python; ``True`` and ``False`` start the engine
+        whatever the run's length. ``explain(sys)`` says which blocks can be compiled.
 
     Returns
     -------
@@ -240,26 +245,44 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
     runs = _runs(sys, X0, params)
     if runs is not None:
         return _many(sys, T, U, X0, runs, engine, options, compile)
-    from .sampled_data import SampledDataSystem
-
-    if isinstance(sys, SampledDataSystem):
+    mixed = _sys.modules.get("controlkit.sampled_data")  # (not imported: no such diagram)
+    if mixed is not None and isinstance(sys, mixed.SampledDataSystem):
         if t_eval is None:
             raise ValueError("evaluation_times=None (the solver's own steps) has no meaning "
                              "for a sampled-data diagram, integrated between its instants: "
                              "give the times, or 'T'")
         return _sampled_data_response(sys, T, U, X0, engine, options, compile)
     if engine == "fast" and t_eval is not None:  # (None: python-control's solver's steps)
+        if compile is None and not engines.fast_start_pays(sys, np.size(T), _LONGEST[0]):
+            return _python_control(sys, T, U, X0, options)
         fast = _fast_response(sys, T, U, X0, options, "python-control", stacklevel=3,
                               advice=" (controlkit.explain(sys) lists every block's tier)",
                               compile=compile)
         if fast is not None:
             return fast
-    return ct.input_output_response(sys, T, U, X0, **options)
+    return _python_control(sys, T, U, X0, options)
+
+
+#: The longest run :func:`input_output_response` left to python-control in this process,
+#: seconds (:func:`controlkit.engines.fast_start_pays` reads it).
+_LONGEST = [0.0]
+
+
+def _python_control(sys, T, U, X0, options):
+    """python-control's own run, timed for :data:`_LONGEST`; ``engine_mode``
+    ``"python-control"``."""
+    start = time.perf_counter()
+    resp = ct.input_output_response(sys, T, U, X0, **options)
+    _LONGEST[0] = max(_LONGEST[0], time.perf_counter() - start)
+    resp.engine_mode = "python-control"
+    return resp
 
 
 def _fast_response(sys, T, U, X0, options, instead, *, stacklevel, advice="", compile=None):
     """The fast backend's response, or None after a warning that names why it cannot run
     ``sys`` and what runs ``instead`` (``stacklevel`` as seen from this function)."""
+    from .engines.contract import UnsupportedSystem
+
     try:
         return engines.backend("fast").response(sys, T, U, X0, compile=compile, **options)
     except UnsupportedSystem as reason:
@@ -298,6 +321,13 @@ def _runs(sys, X0, params):
 
 def _many(sys, T, U, X0, runs, engine, options, compile):
     """Many runs of ``sys``: one compiled call over all cores where it can be."""
+    from .engines.contract import (
+        UnsupportedSystem,
+        python_control_arguments,
+        response,
+        result_flags,
+    )
+
     X0s, params_list = runs
     options = dict(options, params=None)
     if engine == "fast":
@@ -335,6 +365,7 @@ def _many(sys, T, U, X0, runs, engine, options, compile):
 def _sampled_data_response(sys, T, U, X0, engine, options, compile):
     """A sampled-data diagram: on the fast engine where it can be, else the reference."""
     from .engines import reference
+    from .engines.contract import python_control_arguments, response, result_flags
 
     arguments = python_control_arguments(sys, T, U, X0, options)
     if engine == "fast":

@@ -351,3 +351,65 @@ def test_continuous_diagrams_share_one_compiled_loop_and_compile_only_their_func
     assert loops[0] == loops[1] and len(loops[0]) >= 1  # the second compiled no loop
 
 
+
+
+_FRESH_SCRIPT = """
+import sys, time
+import control as ct
+import numpy as np
+import controlkit
+
+def loop():
+    plant = ct.tf([1.0], [2.0, 1.0], name="plant", inputs="u", outputs="y")
+    pi = ct.tf([1.5, 0.8], [1.0, 0.0], name="pi", inputs="e", outputs="u")
+    error = ct.summing_junction(["r", "-y"], "e", name="error")
+    return ct.interconnect([plant, pi, error], inputs="r", outputs=["y", "u"])
+
+def slow(t, x, u, params):  # few points, but long in python-control
+    deadline = time.perf_counter() + 0.002
+    while time.perf_counter() < deadline:
+        pass
+    return -x + u
+
+def run(sys_, points, **options):
+    T = np.linspace(0.0, 10.0, points)
+    mine = controlkit.input_output_response(sys_, T, 1.0, **options)
+    theirs = ct.input_output_response(sys_, T, 1.0)
+    assert np.array_equal(mine.outputs, theirs.outputs)
+    return f"{mine.engine_mode}:{'controlkit.engines.fast' in sys.modules}"
+
+decay = ct.nlsys(slow, None, inputs=1, states=1, outputs=1, name="decay")
+print("RESULT", run(loop(), 101), run(decay, 11), run(decay, 11), run(loop(), 101))
+print("RESULT", run(loop(), 101, compile=False))
+"""
+
+
+def test_a_fresh_script_s_short_runs_are_python_control_s_own_until_the_engine_pays():
+    # a fresh process: a 101-point PI loop (about 20 ms in python-control) is left to
+    # python-control, engine unimported (its start, about 25 ms, would make the call
+    # slower); a 11-point run python-control took over 50 ms on starts it on the next
+    # call, and from then on every run is the engine's. compile=False starts it at once.
+    run = [sys.executable, "-c", _FRESH_SCRIPT]
+    out = subprocess.run(run, capture_output=True, text=True, check=True).stdout
+    results = [line.split()[1:] for line in out.splitlines() if line.startswith("RESULT")]
+    assert results[0] == ["python-control:False", "python-control:False", "python:True",
+                          "python:True"], out
+    out = subprocess.run([*run[:2], _FRESH_SCRIPT.replace(
+        'print("RESULT", run(loop(), 101), run(decay, 11), run(decay, 11), run(loop(), 101))'
+        '\n', "")], capture_output=True, text=True, check=True).stdout
+    assert [line.split()[1:] for line in out.splitlines()] == [["python:True"]], out
+
+
+def test_the_engine_s_start_pays_by_the_run_s_size_or_python_control_s_longest_run():
+    import control as ct
+
+    from controlkit import engines
+
+    loop = ct.interconnect([ct.tf([1], [1, 1], name="p", inputs="u", outputs="y"),
+                            ct.tf([2], [1], name="k", inputs="y", outputs="z")],
+                           inputs="u", outputs="z")
+    # 35 us a point and block at least, against 50 ms (25 ms of start, twice): 715 points
+    assert engines.fast_start_pays(loop, 800) and engines.fast_start_pays(loop, 10, 0.06)
+    if "controlkit.engines.fast" not in sys.modules:  # (this process started it already)
+        assert not engines.fast_start_pays(loop, 700)
+        assert not engines.fast_start_pays(loop, 10, 0.04)

@@ -46,6 +46,8 @@ def _dropin(*args, **kwargs):
     if getattr(_inside, "active", False):  # controlkit running python-control itself
         return _original(*args, **kwargs)
     import controlkit
+    import controlkit.engines.fast  # noqa: F401 - started: else a short run, as most are
+    # here, would be python-control's own (fast_start_pays) and nothing of ours tested
 
     _inside.active = True
     try:

@@ -16,6 +16,7 @@ To add a backend: write its module in this package, following :mod:`.reference`
 from __future__ import annotations
 
 import importlib
+import sys as _sys
 
 #: Backend name to its module (imported when first used: numba loads only when asked for).
 BACKENDS = {
@@ -42,3 +43,45 @@ def backend(name: str):
     if name not in BACKENDS:
         raise ValueError(f"engine must be one of {ENGINES}, got {name!r}")
     return importlib.import_module(BACKENDS[name])
+
+
+#: python-control takes at least this many times as long as the fast engine's Python run
+#: of a diagram (measured on the benchmark rows: 2.1-10.6x).
+PYTHON_CONTROL_SLOWER = 2.0
+#: The fast engine's start in a process: importing its modules (about 16 ms) and reading
+#: the functions of a first diagram's blocks (about 2 ms each), measured on a 2-core
+#: machine.
+FAST_START_SECONDS = 0.025
+#: python-control's time per output point and per block of a diagram, at least: 35-130 us
+#: measured on the continuous benchmark rows, 80 us on a discrete one.
+PYTHON_CONTROL_POINT_SECONDS = 35e-6
+
+
+def fast_start_pays(sys, points: int, longest: float = 0.0) -> bool:
+    """Whether a call of :func:`controlkit.input_output_response` on ``sys`` starts the
+    fast engine, rather than leave the run to python-control.
+
+    Always once the engine has started in this process (its modules imported, by a
+    call or by the user). Before that, only when the engine's start pays in this very
+    call: when python-control would take longer than the start and the engine's own run,
+    ``FAST_START_SECONDS * PYTHON_CONTROL_SLOWER / (PYTHON_CONTROL_SLOWER - 1)`` (50 ms).
+    python-control's time is estimated from the run's size, ``points`` times the blocks
+    times :data:`PYTHON_CONTROL_POINT_SECONDS` (its least measured: an estimate that errs
+    towards python-control), or ``longest``, the longest run python-control made in this
+    process (a stiff run of few points). So a short script is never slower than
+    python-control's own, and a long run starts the engine in its first call.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> loop = ct.interconnect([ct.tf([1], [1, 1], name="p", inputs="u", outputs="y")],
+    ...                        inputs="u", outputs="y")
+    >>> fast_start_pays(loop, 100_000)  # about 3.5 s in python-control
+    True
+    """
+    if "controlkit.engines.fast" in _sys.modules:
+        return True
+    blocks = len(getattr(sys, "syslist", None) or [sys])
+    expected = max(points * blocks * PYTHON_CONTROL_POINT_SECONDS, longest)
+    slower = PYTHON_CONTROL_SLOWER
+    return expected > FAST_START_SECONDS * slower / (slower - 1.0)

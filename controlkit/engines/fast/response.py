@@ -47,7 +47,9 @@ def response(sys, T, U, X0, *, compile=None, **options) -> ct.TimeResponseData:
         for name, value in flags.items():
             setattr(resp, name, value)
         return resp
-    return base_response(given, resp.t, resp.y, resp.x, resp.u, **flags)
+    relabelled = base_response(given, resp.t, resp.y, resp.x, resp.u, **flags)
+    relabelled.engine_mode = resp.engine_mode
+    return relabelled
 
 
 def interpolated(T, U, times):

@@ -37,6 +37,7 @@ import control as ct
 import numpy as np
 
 from ... import _jit
+from .. import PYTHON_CONTROL_SLOWER
 from ..contract import UnsupportedSystem
 from . import reuse, store
 from .codegen import generate
@@ -82,11 +83,6 @@ DIFFERS: dict[str, str] = {}
 PYTHON_SECONDS: dict[str, float] = {}
 #: How many runs :data:`PYTHON_SECONDS` counts, by module.
 PYTHON_RUNS: dict[str, int] = {}
-#: python-control takes at least this many times as long as the engine's Python run of a
-#: diagram (measured on the benchmark rows: 2.1-10.6x): a run is compiled from its start
-#: only if compiling takes no longer than this many of its runs, so that the call that
-#: compiles is not slower than python-control's.
-PYTHON_CONTROL_SLOWER = 2.0
 
 
 @dataclass
@@ -334,7 +330,8 @@ class Runner:
         """Compiled from the start when the earlier runs of this module in this process
         took, as Python, longer than compiling it takes (the rule, for runs that end in
         their first piece, before :meth:`decide` is asked), and compiling takes no longer
-        than :data:`PYTHON_CONTROL_SLOWER` of those runs (python-control's call, about);
+        than :data:`~controlkit.engines.PYTHON_CONTROL_SLOWER` of those runs
+        (python-control's call, about: so the call that compiles is not slower than it);
         when it would with numba started, and starting it fits, this run starts it."""
         source = self.python.source
         before = PYTHON_SECONDS.get(source, 0.0)
