@@ -520,6 +520,10 @@ def section_first(args, versions, names):
     print(f"\nload average (1 min): {min(loads)}-{max(loads)}")
 
 
+#: A call's ``engine_mode``, as one letter.
+LETTERS = {"python": "p", "compiled": "c", "python-control": "r"}
+
+
 def section_rebuilt(args, versions, names):
     if not args.from_log:
         _fill_stores("rebuilt", versions, names)
@@ -539,12 +543,14 @@ def section_rebuilt(args, versions, names):
             runs = results[(name, who)]
             calls = [_med(r["calls"][i][0] for r in runs) for i in range(5)]
             ratios = [_med(r["ref_s"] / r["calls"][i][0] for r in runs) for i in range(5)]
-            modes = "".join(r["calls"][i][1][0] for i in range(5) for r in runs[-1:])
+            modes = "".join(LETTERS.get(r["calls"][i][1], "?") for i in range(5)
+                            for r in runs[-1:])
             cells.append(", ".join(f"{c * 1e3:.1f} ms {x:.1f}x" for c, x in
                                    zip(calls, ratios, strict=True)) + f" [{modes}]")
         print(f"| {name} | {ref * 1e3:.1f} ms | " + " | ".join(cells) + " |")
     loads = [r["load"] for runs in results.values() for r in runs]
-    print(f"\n[p]ython / [c]ompiled / [?] (an engine that does not say); load average "
+    print(f"\n[p]ython / [c]ompiled / [r]: python-control's own run / [?] (an engine that "
+          f"does not say); load average "
           f"(1 min): {min(loads)}-{max(loads)}")
 
 

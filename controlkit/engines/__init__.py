@@ -11,6 +11,9 @@ that cannot run a system raises :class:`.contract.UnsupportedSystem` with the re
 
 To add a backend: write its module in this package, following :mod:`.reference`
 (the simplest), and add one entry to :data:`BACKENDS`.
+
+:func:`fast_start_pays` is the rule by which :func:`controlkit.input_output_response`
+starts the fast engine in a process, or leaves a short run to python-control.
 """
 
 from __future__ import annotations
