@@ -255,6 +255,7 @@ def test_a_run_compiles_from_its_start_when_earlier_runs_paid_and_the_call_stays
 
     loop = cmg_scenario.build_loop("thesis")
     monkeypatch.setattr(run, "_cost", lambda job: 1.5)  # numba's start and the compile
+    monkeypatch.setattr(run, "NUMBA_START", ((0.15, lambda: True, None),))  # (started)
     source = run.prepare(loop).source
     for before, runs, compiled in ((1.2, 1, False),   # not paid yet
                                    (2.0, 2, True),    # paid; a run of 1 s: 1.5 <= 2 x 1
@@ -271,17 +272,22 @@ def test_a_run_compiles_from_its_start_when_earlier_runs_paid_and_the_call_stays
 @pytest.mark.skipif(not _jit.available(), reason="numba not installed")
 def test_runs_as_python_make_numba_s_start_in_steps_when_start_and_compile_overflow_a_call(
         monkeypatch):
-    # earlier runs paid for numba's start and the compile, but both in one call would be
-    # slower than python-control's (two runs, about): each run as Python makes the next
-    # step of the start when one more step fits in a run's time, and then one compiles
+    # earlier runs paid for numba's start and the compile: runs as Python make the start
+    # first, each the steps that fit in a run's time (python-control's call is two runs,
+    # about), and a later run compiles; never the start and the compile in one call (the
+    # continuous cruise cell: 0.4 s runs, a compile estimated at 0.53 s that took 0.8-1.55)
     from controlkit.engines.fast import run
 
     loop = cmg_scenario.build_loop("thesis")
     source = run.prepare(loop).source
-    monkeypatch.setattr(run, "compile_estimate", lambda job: 0.75)
     monkeypatch.setattr(run.Job, "is_compiled", lambda job: False)
-    for typical, made_then_compiled in ((0.4, [[0], [0, 1], "compiled"]),
-                                        (0.2, [[0], [0], [0]])):  # 0.25 s > a run
+    for typical, estimate, made_then_compiled in (
+            (0.4, 0.75, [[0, 1], "compiled"]),
+            (0.3, 0.53, [[0], [0, 1], "compiled"]),  # import, then first use
+            (0.41, 0.53, [[0, 1], "compiled"]),
+            (0.2, 0.3, [[0], [0], [0]]),  # first use's 0.25 s > a run's 0.2
+            (0.4, 0.9, [[0, 1], [0, 1]])):  # the compile would not fit in a call
+        monkeypatch.setattr(run, "compile_estimate", lambda job, estimate=estimate: estimate)
         made = []
         monkeypatch.setattr(run, "NUMBA_START", tuple(
             (seconds, lambda step=step, made=made: step in made,
