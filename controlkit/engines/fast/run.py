@@ -17,9 +17,9 @@ run (timed on its first tenth of a second as Python) and the earlier runs of the
 in this process would take longer as Python than numba's start and the compile; as
 Python otherwise, when asked (``compile=False``), or when a block cannot be compiled
 (:func:`explain` says why). The compile happens in the call, said when it takes seconds,
-and a call that compiles stays under python-control's time (when numba's start and the
-compile do not fit in one call, a run as Python makes the start). A compiled module is
-first run beside Python on one piece: if their numbers differ, the run goes on as Python.
+and a call that compiles stays under python-control's time (numba's start is made by runs
+as Python before it). A compiled module is first run beside Python on one piece: if their
+numbers differ, the run goes on as Python.
 
 Runs go in pieces of about a tenth of a second (:data:`PIECE_SECONDS`): between two
 pieces the run reports its progress, Ctrl-C stops it (``KeyboardInterrupt``, the
@@ -330,9 +330,8 @@ class Runner:
         """Compiled from the start when the earlier runs of this module in this process
         took, as Python, longer than compiling it takes (the rule, for runs that end in
         their first piece, before :meth:`decide` is asked), and compiling takes no longer
-        than :data:`~controlkit.engines.PYTHON_CONTROL_SLOWER` of those runs
-        (python-control's call, about: so the call that compiles is not slower than it)
-        and numba has started; else this run makes the steps of numba's start that fit."""
+        than :data:`~controlkit.engines.PYTHON_CONTROL_SLOWER` of those runs (about
+        python-control's call) and numba has started; else it makes the start's steps."""
         source = self.python.source
         before = PYTHON_SECONDS.get(source, 0.0)
         if before <= PAYS * NUMBA_START_SECONDS:
@@ -349,9 +348,8 @@ class Runner:
             self.compiled, self.decided = candidate, True
             _TWINS[source] = candidate.source
             return
-        # numba's start is made first, by runs as Python, each the steps that fit in the
-        # time it saves on python-control's: a call that started numba and compiled left
-        # no room for the compile's own spread (0.55-1.5 s for the same four functions)
+        # numba's start first, by runs as Python (the steps that fit in what each saves): a
+        # call that also started numba had no room for the compile's spread (0.55-1.5 s)
         room = (PYTHON_CONTROL_SLOWER - 1.0) * typical
         for seconds, _, make in steps:
             if seconds > room:
