@@ -358,8 +358,7 @@ def test_continuous_diagrams_share_one_compiled_loop_and_compile_only_their_func
 
 
 
-
-_FRESH_SCRIPT = """
+_FRESH_SETUP = """
 import sys, time
 import control as ct
 import numpy as np
@@ -385,9 +384,15 @@ def run(sys_, points, **options):
     return f"{mine.engine_mode}:{'controlkit.engines.fast' in sys.modules}"
 
 decay = ct.nlsys(slow, None, inputs=1, states=1, outputs=1, name="decay")
-print("RESULT", run(loop(), 101), run(decay, 11), run(decay, 11), run(loop(), 101))
-print("RESULT", run(loop(), 101, compile=False))
 """
+
+
+def _fresh_script(last_line):
+    """The RESULT line a fresh interpreter prints after :data:`_FRESH_SETUP`."""
+    done = subprocess.run([sys.executable, "-c", _FRESH_SETUP + last_line],
+                          capture_output=True, text=True, check=True)
+    return [line.split()[1:] for line in done.stdout.splitlines()
+            if line.startswith("RESULT")]
 
 
 def test_a_fresh_script_s_short_runs_are_python_control_s_own_until_the_engine_pays():
@@ -395,15 +400,11 @@ def test_a_fresh_script_s_short_runs_are_python_control_s_own_until_the_engine_p
     # python-control, engine unimported (its start, about 25 ms, would make the call
     # slower); a 11-point run python-control took over 50 ms on starts it on the next
     # call, and from then on every run is the engine's. compile=False starts it at once.
-    run = [sys.executable, "-c", _FRESH_SCRIPT]
-    out = subprocess.run(run, capture_output=True, text=True, check=True).stdout
-    results = [line.split()[1:] for line in out.splitlines() if line.startswith("RESULT")]
-    assert results[0] == ["python-control:False", "python-control:False", "python:True",
-                          "python:True"], out
-    out = subprocess.run([*run[:2], _FRESH_SCRIPT.replace(
-        'print("RESULT", run(loop(), 101), run(decay, 11), run(decay, 11), run(loop(), 101))'
-        '\n', "")], capture_output=True, text=True, check=True).stdout
-    assert [line.split()[1:] for line in out.splitlines()] == [["python:True"]], out
+    assert _fresh_script('print("RESULT", run(loop(), 101), run(decay, 11), run(decay, 11), '
+                         'run(loop(), 101))') == [
+        ["python-control:False", "python-control:False", "python:True", "python:True"]]
+    assert _fresh_script('print("RESULT", run(loop(), 101, compile=False))') == [
+        ["python:True"]]
 
 
 def test_the_engine_s_start_pays_by_the_run_s_size_or_python_control_s_longest_run():
