@@ -624,23 +624,32 @@ def test_plain_python_equals_scipy():
 
 
 def test_tableaux_are_scipy_s():
-    """The coefficients are scipy's doubles (transcribed, not imported)."""
-    from scipy.integrate._ivp import dop853_coefficients as d
-    from scipy.integrate._ivp import rk as scipy_rk
+    """The coefficients are scipy's own (read from its method classes), laid out as the
+    machine reads them: DOP853's 16 rows are the 12 stages, the weights as the step's last
+    stage, and the dense output's three extra stages."""
+    import scipy.integrate
 
     for name, ours in rk.METHODS.items():
-        theirs = getattr(scipy_rk, name)
+        theirs = getattr(scipy.integrate, name)
         S = theirs.n_stages
         assert ours.n_stages == S and ours.estimator_order == theirs.error_estimator_order
         assert np.array_equal(ours.C[:S], theirs.C)
         assert np.array_equal(ours.A[:S, : theirs.A.shape[1]], theirs.A)
         assert np.array_equal(ours.B, theirs.B)
+        assert not ours.A[:S].any(axis=0)[S - 1 :].any()  # strictly lower triangular
+        for array in (ours.C, ours.A, ours.B, ours.E, ours.E_low, ours.dense):
+            assert array.dtype == np.float64 and array.flags.c_contiguous
         if name == "DOP853":
+            assert ours.n_rows == 16 and ours.A.shape == (16, 16) and ours.C[S] == 1.0
+            assert np.array_equal(ours.A[S, :S], theirs.B) and not ours.A[S, S:].any()
+            assert np.array_equal(ours.A[S + 1 :], theirs.A_EXTRA)
+            assert np.array_equal(ours.C[S + 1 :], theirs.C_EXTRA)
             assert np.array_equal(ours.E, theirs.E5) and np.array_equal(ours.E_low, theirs.E3)
-            assert np.array_equal(ours.dense, d.D) and np.array_equal(ours.A, d.A)
-            assert np.array_equal(ours.C, d.C)
+            assert np.array_equal(ours.dense, theirs.D)
         else:
+            assert ours.n_rows == S + 1 and ours.A.shape == (S, S)
             assert np.array_equal(ours.E, theirs.E) and np.array_equal(ours.dense, theirs.P)
+            assert ours.E_low.shape == (S + 1,) and not ours.E_low.any()
         with warnings.catch_warnings():
             warnings.simplefilter("error")
             assert ours.error_exponent == -1 / (theirs.error_estimator_order + 1)

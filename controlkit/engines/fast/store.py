@@ -1,16 +1,16 @@
 """The store: one folder of the user's where compiled code is kept, found by its content.
 
-A diagram runs compiled from its own module (:mod:`.codegen`): a text that numba
-compiles once and keeps, in its own ``__pycache__`` beside the module, so that any later
-run of the same wiring, in this process or another, loads it in milliseconds. The user
-functions compiled for it (:mod:`.usercode`) and the integrator's step machine
-(:func:`step_machine`) are modules of the store too. Each module's file name is a digest
-of its text, of controlkit's own source files (so an edit of any of them, a new version,
-makes new modules, never a stale one) and of the versions of Python and numpy: a name
-says what the module holds, files are written whole (a temporary file renamed) and never
-changed, and nothing in the store has to be deleted by hand. After its first compile a
-module gets a record (``<name>.json``: how long the compile took), by which the engine
-knows that it is compiled.
+A diagram runs compiled from its own module (:mod:`.codegen`): a text that numba compiles
+once and keeps, in its own ``__pycache__`` beside the module, so that any later run of the
+same wiring, in this process or another, loads it in milliseconds. The user functions
+compiled for it (:mod:`.usercode`) and the integrator's step machine (:func:`step_machine`)
+are modules of the store too. Each module's file name is a digest of its text, of
+controlkit's own source files (so an edit of any of them, a new version, makes new modules,
+never a stale one) and of the versions of Python, numpy and scipy (the machine holds
+scipy's Runge-Kutta coefficients): a name says what the module holds, files are written
+whole (a temporary file renamed) and never changed, and nothing in the store has to be
+deleted by hand. After its first compile a module gets a record (``<name>.json``: how long
+the compile took), by which the engine knows that it is compiled.
 
 Code is imported from the store, so it is used only if the folder is the user's own
 (:func:`folder`): owned by the user, written by nobody else, and reached through
@@ -37,13 +37,13 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+import scipy
 
 from ... import _jit
 
 #: Where compiled code is kept (see the module's description).
 CACHE_DIR = Path(os.environ.get("CONTROLKIT_CACHE_DIR",
                                 Path.home() / ".cache" / "controlkit" / "store"))
-
 
 
 class StoreRefused(RuntimeError):
@@ -182,7 +182,8 @@ def name_of(text: str, kind: str) -> str:
     >>> name_of("VALUE = 1\\n", "diagram").startswith("diagram_")
     True
     """
-    key = "\0".join((text, _own_source(kind), pysys.version, np.__version__))
+    versions = (pysys.version, np.__version__, scipy.__version__)
+    key = "\0".join((text, _own_source(kind), *versions))
     return f"{kind}_{hashlib.sha256(key.encode()).hexdigest()[:24]}"
 
 
@@ -470,8 +471,7 @@ def _first_class_functions(numba):
         yield
 
 
-#: About how long the instants' loop takes to compile (measured: 5-13 s on a 2-core
-#: machine).
+#: About how long the instants' loop takes to compile (measured: 5-13 s on 2 cores).
 LOOP_COMPILE_SECONDS = 8.0
 
 

@@ -10,12 +10,12 @@ interval and the dense output are scipy 1.17's [5]_, operation for operation, an
 ``exact=True`` so is the arithmetic: the results are scipy's to the last bit.
 
 Modules: :mod:`~controlkit.engines.fast.rk.tableaux` (the methods as
-:class:`~controlkit.engines.fast.rk.tableaux.Tableau` records: a method is its tableau,
-as in scipy), :mod:`~controlkit.engines.fast.rk.workspace` (the arrays the integrator
+:class:`~controlkit.engines.fast.rk.tableaux.Tableau` records of scipy's own
+coefficients: a method is its tableau, as in scipy), :mod:`~controlkit.engines.fast.rk.workspace` (the arrays the integrator
 works in, their slots, the status codes), :mod:`~controlkit.engines.fast.rk.machine`
 (the step machine), :mod:`~controlkit.engines.fast.rk.interval` (the loop around it),
 :mod:`~controlkit.engines.fast.rk.arithmetic` (the stage combinations, error norm and
-interpolants) and :mod:`~controlkit.engines.fast.rk.dop853_coefficients`.
+interpolants) and :mod:`~controlkit.engines.fast.rk.stiffness`.
 
 Design
 ------

@@ -1,12 +1,15 @@
 """The three explicit methods of ``solve_ivp`` as tableaux, and the step-size constants.
 
-scipy's ``RungeKutta`` class (``scipy/integrate/_ivp/rk.py``, scipy 1.17) is defined by
-its coefficients alone: a method *is* its tableau. Here :data:`RK23`, :data:`RK45` and
-:data:`DOP853` are :class:`Tableau` records, found by name in :data:`METHODS` and by
-number in :data:`TABLEAUX` (the form compiled code selects them in: numba freezes the
-tuple and its arrays as constants of the step machine, which takes the method as a
-run-time index, :data:`METHOD_INDEX`).
-The sources of the coefficients are listed in :mod:`controlkit.engines.fast.rk`.
+scipy's explicit Runge-Kutta methods are defined by their coefficients alone: a method
+*is* its tableau. The coefficients are read from scipy's own classes
+(:class:`scipy.integrate.RK23`, :class:`~scipy.integrate.RK45`,
+:class:`~scipy.integrate.DOP853`: their ``C``, ``A``, ``B``, ``E``, ``P`` and DOP853's
+``E5``, ``E3``, ``D``, ``A_EXTRA``, ``C_EXTRA``), so they are the doubles scipy steps
+with, whatever its version. Here :data:`RK23`, :data:`RK45` and :data:`DOP853` are
+:class:`Tableau` records, found by name in :data:`METHODS` and by number in
+:data:`TABLEAUX` (the form compiled code selects them in: numba freezes the tuple and its
+arrays as constants of the step machine, which takes the method as a run-time index,
+:data:`METHOD_INDEX`). The methods' sources are listed in :mod:`controlkit.engines.fast.rk`.
 """
 
 from __future__ import annotations
@@ -14,8 +17,7 @@ from __future__ import annotations
 from collections import namedtuple
 
 import numpy as np
-
-from . import dop853_coefficients
+import scipy.integrate
 
 # Constants of the step-size controller (scipy's rk.py and common.py).
 #: Machine epsilon of float64.
@@ -123,105 +125,56 @@ weights satisfy the first two order conditions, ``sum b_j = 1`` and
 """
 
 
-def _tableau(*, n_stages, error_kind, dense_kind, estimator_order, C, A, B, E, E_low, dense,
-             stiffness_bound=0.0):
-    """Pack a tableau as C-contiguous float64 arrays (numba freezes such globals)."""
-    C = np.ascontiguousarray(C, dtype=np.float64)
-    A = np.ascontiguousarray(A, dtype=np.float64)
-    n_rows = C.shape[0] if C.shape[0] > n_stages else n_stages + 1
-    weights = np.zeros(n_stages)
-    if stiffness_bound:
-        assert C[n_stages - 1] == 1.0, "the stiffness test needs a last stage at t + h"
-        weights = np.asarray(B, dtype=np.float64) - A[n_stages - 1, :n_stages]
-    return Tableau(
-        n_stages=int(n_stages),
-        n_rows=int(n_rows),
-        error_kind=int(error_kind),
-        dense_kind=int(dense_kind),
-        estimator_order=int(estimator_order),
-        error_exponent=-1 / (estimator_order + 1),
+def _tableau(method, *, stiffness_bound=0.0):
+    """Pack scipy's ``method`` class as a tableau of C-contiguous float64 arrays.
+
+    numba freezes such globals. ``A`` is square over the rows of the stage array: row
+    ``S`` holds the weights (the step's last stage, ``F(t + h, y_new)``); DOP853's rows
+    past it are the three extra stages of its dense output (scipy's ``A_EXTRA``).
+    """
+    S = method.n_stages
+    dop853 = method is scipy.integrate.DOP853
+    if dop853:
+        C = np.concatenate([method.C, [1.0], method.C_EXTRA])
+        A = np.zeros((C.shape[0], C.shape[0]))
+        A[S, :S] = method.B
+        A[S + 1 :] = method.A_EXTRA
+    else:
+        C = method.C
+        A = np.zeros((S, S))
+    A[:S, : method.A.shape[1]] = method.A
+    weights = method.B - A[S - 1, :S] if stiffness_bound else np.zeros(S)
+    assert not stiffness_bound or C[S - 1] == 1.0, "the stiffness test needs c_(S-1) = 1"
+    packed = dict(
         C=C,
         A=A,
-        B=np.ascontiguousarray(B, dtype=np.float64),
-        E=np.ascontiguousarray(E, dtype=np.float64),
-        E_low=np.ascontiguousarray(E_low, dtype=np.float64),
-        dense=np.ascontiguousarray(dense, dtype=np.float64),
-        stiffness_weights=np.ascontiguousarray(weights),
+        B=method.B,
+        E=method.E5 if dop853 else method.E,
+        E_low=method.E3 if dop853 else np.zeros(S + 1),
+        dense=method.D if dop853 else method.P,
+        stiffness_weights=weights,
+    )
+    return Tableau(
+        n_stages=int(S),
+        n_rows=int(C.shape[0] if dop853 else S + 1),
+        error_kind=ERROR_DOP853 if dop853 else ERROR_EMBEDDED,
+        dense_kind=DENSE_DOP853 if dop853 else DENSE_POWERS,
+        estimator_order=int(method.error_estimator_order),
+        error_exponent=-1 / (method.error_estimator_order + 1),
         stiffness_bound=float(stiffness_bound),
+        **{name: np.ascontiguousarray(value, dtype=np.float64)
+           for name, value in packed.items()},
     )
 
 
 #: Bogacki-Shampine 3(2) with its cubic Hermite dense output (Bogacki & Shampine 1989).
-RK23 = _tableau(
-    n_stages=3,
-    error_kind=ERROR_EMBEDDED,
-    dense_kind=DENSE_POWERS,
-    estimator_order=2,
-    C=[0, 1 / 2, 3 / 4],
-    A=[[0, 0, 0], [1 / 2, 0, 0], [0, 3 / 4, 0]],
-    B=[2 / 9, 1 / 3, 4 / 9],
-    E=[5 / 72, -1 / 12, -1 / 9, 1 / 8],
-    E_low=[0.0, 0.0, 0.0, 0.0],
-    dense=[[1, -4 / 3, 5 / 9], [0, 1, -2 / 3], [0, 4 / 3, -8 / 9], [0, -1, 1]],
-)
-
+RK23 = _tableau(scipy.integrate.RK23)
 #: Dormand-Prince 5(4) (Dormand & Prince 1980) with Shampine's quartic dense output
-#: (Shampine 1986).
-RK45 = _tableau(
-    n_stages=6,
-    error_kind=ERROR_EMBEDDED,
-    dense_kind=DENSE_POWERS,
-    estimator_order=4,
-    C=[0, 1 / 5, 3 / 10, 4 / 5, 8 / 9, 1],
-    A=[
-        [0, 0, 0, 0, 0, 0],
-        [1 / 5, 0, 0, 0, 0, 0],
-        [3 / 40, 9 / 40, 0, 0, 0, 0],
-        [44 / 45, -56 / 15, 32 / 9, 0, 0, 0],
-        [19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729, 0, 0],
-        [9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656, 0],
-    ],
-    B=[35 / 384, 0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84],
-    E=[-71 / 57600, 0, 71 / 16695, -71 / 1920, 17253 / 339200, -22 / 525, 1 / 40],
-    E_low=[0.0] * 7,
-    dense=[
-        [1, -8048581381 / 2820520608, 8663915743 / 2820520608, -12715105075 / 11282082432],
-        [0, 0, 0, 0],
-        [
-            0,
-            131558114200 / 32700410799,
-            -68118460800 / 10900136933,
-            87487479700 / 32700410799,
-        ],
-        [0, -1754552775 / 470086768, 14199869525 / 1410260304, -10690763975 / 1880347072],
-        [
-            0,
-            127303824393 / 49829197408,
-            -318862633887 / 49829197408,
-            701980252875 / 199316789632,
-        ],
-        [0, -282668133 / 205662961, 2019193451 / 616988883, -1453857185 / 822651844],
-        [0, 40617522 / 29380423, -110615467 / 29380423, 69997945 / 29380423],
-    ],
-    stiffness_bound=3.25,
-)
-
-
+#: (Shampine 1986); Hairer's stiffness bound of DOPRI5.
+RK45 = _tableau(scipy.integrate.RK45, stiffness_bound=3.25)
 #: Hairer's DOP853: 8th order, 5th/3rd-order error estimate, 7th-order dense output
-#: (Hairer, Norsett & Wanner 1993, Sec. II.5-II.6).
-DOP853 = _tableau(
-    n_stages=12,
-    error_kind=ERROR_DOP853,
-    dense_kind=DENSE_DOP853,
-    estimator_order=7,
-    C=dop853_coefficients.C,
-    A=dop853_coefficients.A,
-    B=dop853_coefficients.B,
-    E=dop853_coefficients.E5,
-    E_low=dop853_coefficients.E3,
-    dense=dop853_coefficients.D,
-    stiffness_bound=6.1,
-)
+#: (Hairer, Norsett & Wanner 1993, Sec. II.5-II.6); the stiffness bound of his code.
+DOP853 = _tableau(scipy.integrate.DOP853, stiffness_bound=6.1)
 
 #: The methods by the names ``solve_ivp`` knows them by.
 METHODS = {"RK23": RK23, "RK45": RK45, "DOP853": DOP853}
