@@ -1,4 +1,5 @@
-"""Problems for tests/test_rk.py and benchmarks/bench_rk.py: ``rhs(t, y, args, out)``.
+"""Problems for tests/test_rk.py and benchmarks/bench_rk.py: ``rhs(t, y, args, out)``,
+and :func:`solve_ivp`, the integrator run as Python on one of them.
 
 Every problem takes the same kind of ``args``: ``(p, T, U)`` -- parameters (1-D), and the
 time points and input samples (``U[k, j]`` is input ``k`` at ``T[j]``) of a tabulated
@@ -19,7 +20,39 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from controlkit._jit import jit
+from controlkit._jit import jit, python_function
+from controlkit.engines.fast import rk
+
+
+def solve_ivp(rhs, t_span, y0, method="RK45", t_eval=None, args=(), rtol=1e-3, atol=1e-6,
+              max_step=np.inf, first_step=None, log_steps=0, exact=True):
+    """One interval integrated by :func:`rk.solve_interval` run as Python (a Python call
+    of ``rhs(t, y, args, out)`` per stage), as ``scipy.integrate.solve_ivp(..., t_eval)``
+    integrates it; ``t_eval=None`` evaluates nothing. ``log_steps`` keeps the times of the
+    first accepted steps. Returns a dict: ``t`` and ``y`` (scipy's layout) of the times
+    served, ``y_end``, ``status``, ``message``, ``success``, ``nfev``, ``n_accepted``,
+    ``n_rejected``, ``t_reached``, ``step_times``, ``stiffness``, ``projected_steps``."""
+    y0 = np.asarray(y0, dtype=np.float64)
+    n = y0.shape[0]
+    atol = np.ascontiguousarray(np.broadcast_to(np.asarray(atol, dtype=np.float64), (n,)))
+    t_eval = np.zeros(0) if t_eval is None else np.ascontiguousarray(t_eval, dtype=float)
+    y_eval = np.full((t_eval.shape[0], n), np.nan)
+    y_end = np.empty(n)
+    work = rk.make_workspace(n, int(log_steps), t_eval.shape[0])
+    status, served = rk.solve_interval(
+        None, python_function(rhs), args, rk.METHOD_INDEX[method], float(t_span[0]),
+        float(t_span[1]), y0, float(rtol), atol, float(max_step),
+        0.0 if first_step is None else float(first_step), t_eval, 0, True, y_eval, y_end,
+        work, bool(exact), 0, False)
+    status = int(status)
+    return {"t": t_eval[:served], "y": y_eval[:served].T, "y_end": y_end, "status": status,
+            "message": rk.STATUS_MESSAGES[status], "success": status == rk.SUCCESS,
+            "nfev": int(work.ints[rk.NFEV]), "n_accepted": int(work.ints[rk.N_ACCEPTED]),
+            "n_rejected": int(work.ints[rk.N_REJECTED]),
+            "t_reached": float(work.floats[rk.TIME_REACHED]),
+            "step_times": rk.step_times(work).copy(),
+            "stiffness": float(work.floats[rk.STIFFNESS]),
+            "projected_steps": float(work.floats[rk.PROJECTED_STEPS])}
 
 
 @jit

@@ -125,7 +125,7 @@ def simulate_sampled_data(sys, T, X0, U, *, params=None, t_eval=None, method="RK
     ctrl, status = np.zeros(5, dtype=np.int64), np.full(4, -1, np.int64)
     ys, ui, ubuf = np.zeros(evaluator.ny), np.zeros(evaluator.nu), np.zeros((U.shape[0], 1))
     xt, yc, y_eval = np.zeros(nx), np.zeros(cidx.size), np.zeros((m, cidx.size))
-    rtol, atol, max_step, first_step = solver_options(cidx.size,
+    rtol, atol, max_step, first_step = solver_options(cidx.size, T[-1] - T[0],
                                                       **(solve_ivp_kwargs or {}))
     args = (evaluator.evaluate, evaluator.derivatives, evaluator, x, xt, cidx, T, U, ubuf,
             None, ys, ui, held, np.zeros(nx))

@@ -12,6 +12,8 @@ the choice of compiling act between pieces.
 
 from __future__ import annotations
 
+import warnings
+
 import control as ct
 import numpy as np
 
@@ -62,23 +64,48 @@ class StiffProblem(RuntimeError):
     """
 
 
-def solver_options(n, rtol=1e-3, atol=1e-6, max_step=np.inf, first_step=None, **other):
-    """``(rtol, atol per state, max_step, first_step)`` as the integrator takes them.
+def solver_options(n, span, rtol=1e-3, atol=1e-6, max_step=np.inf, first_step=None,
+                   **other):
+    """``(rtol, atol per state, max_step, first_step)`` as the integrator takes them, for
+    a run over ``span`` seconds, checked as ``scipy.integrate.solve_ivp`` checks them.
+
+    Raises
+    ------
+    ValueError
+        With scipy's message where python-control's run would raise scipy's:
+        ``max_step`` or ``first_step`` not positive, ``first_step`` beyond the span,
+        ``atol`` negative; ``atol`` neither a number nor one value per state.
+
+    Warns
+    -----
+    UserWarning
+        ``rtol`` below ``100 eps``, which is raised to it (scipy's warning).
 
     Examples
     --------
-    >>> rtol, atol, max_step, first_step = solver_options(2, rtol=1e-6)
+    >>> rtol, atol, max_step, first_step = solver_options(2, 10.0, rtol=1e-6)
     >>> rtol, atol.tolist(), first_step
     (1e-06, [1e-06, 1e-06], 0.0)
     """
     if other:
         raise UnsupportedSystem(f"solve_ivp options {sorted(other)} (the fast engine takes "
                                 f"{list(SOLVER_OPTIONS)})")
+    if max_step <= 0:
+        raise ValueError("`max_step` must be positive.")
+    if first_step is not None and first_step <= 0:
+        raise ValueError("`first_step` must be positive.")
+    if first_step is not None and first_step > abs(span):
+        raise ValueError("`first_step` exceeds bounds.")
+    if rtol < rk.RTOL_FLOOR:
+        warnings.warn("At least one element of `rtol` is too small. Setting "
+                      f"`rtol = np.maximum(rtol, {rk.RTOL_FLOOR})`.", stacklevel=2)
     atol = np.asarray(atol, dtype=float)
     atol = np.full(n, float(atol)) if atol.ndim == 0 else atol.reshape(-1)
     if atol.size != n:
         raise ValueError(f"atol must be a number or have {n} values (one per continuous "
                          f"state), got {atol.size}")
+    if np.any(atol < 0):
+        raise ValueError("`atol` must be positive.")
     return (float(rtol), np.ascontiguousarray(atol), float(max_step),
             0.0 if first_step is None else float(first_step))
 
@@ -102,7 +129,7 @@ class _Run:
         self.y_eval, self.yc = np.zeros((m, nc)), np.zeros(nc)
         rk.set_horizon(self.work, self.instants[0], T[-1])
         self.method = method
-        self.solver = solver_options(nc, **solver)
+        self.solver = solver_options(nc, T[-1] - T[0], **solver)
 
     def arrays(self):
         """The state of the run between pieces (the results are written by index, and a

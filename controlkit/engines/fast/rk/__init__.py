@@ -11,9 +11,10 @@ interval and the dense output are scipy 1.17's [5]_, operation for operation, an
 
 Modules: :mod:`~controlkit.engines.fast.rk.tableaux` (the methods as
 :class:`~controlkit.engines.fast.rk.tableaux.Tableau` records of scipy's own
-coefficients: a method is its tableau, as in scipy), :mod:`~controlkit.engines.fast.rk.workspace` (the arrays the integrator
-works in, their slots, the status codes), :mod:`~controlkit.engines.fast.rk.machine`
-(the step machine), :mod:`~controlkit.engines.fast.rk.interval` (the loop around it),
+coefficients: a method is its tableau, as in scipy),
+:mod:`~controlkit.engines.fast.rk.workspace` (the arrays the integrator works in, their
+slots, the status codes), :mod:`~controlkit.engines.fast.rk.machine` (the step machine),
+:mod:`~controlkit.engines.fast.rk.interval` (the loop around it),
 :mod:`~controlkit.engines.fast.rk.arithmetic` (the stage combinations, error norm and
 interpolants) and :mod:`~controlkit.engines.fast.rk.stiffness`.
 
@@ -59,8 +60,7 @@ equal to ``t0`` is ``y0`` exactly; ``t0 == t1`` takes no step and serves nothing
 take the same steps but say why; where scipy hangs, its first step being NaN, we return
 after one evaluation; where the stages stay finite but their sums overflow and scipy
 returns inf/NaN as a success, we stop at the last finite state);
-:data:`INVALID_ARGUMENT` -3. :func:`solve_ivp`, the Python-level wrapper, raises
-scipy's ValueErrors with scipy's messages.
+:data:`INVALID_ARGUMENT` -3.
 
 Comparing with python-control
 -----------------------------
@@ -98,11 +98,6 @@ References
 
 from __future__ import annotations
 
-import warnings
-
-import numpy as np
-
-from ...._jit import python_function
 from .interval import solve_interval
 from .machine import FINISHED, machine, machine_on_arrays
 from .tableaux import (
@@ -168,131 +163,7 @@ __all__ = [
     "STATUS", "STATUS_MESSAGES", "STEP_TOO_SMALL", "STIFF", "STIFFNESS",
     "STIFF_STEP_BUDGET", "STIFF_STEPS_BEFORE_PROJECTING", "SUCCESS", "TABLEAUX",
     "TIME_FAILED", "TIME_REACHED", "T_REQUEST", "Tableau", "Workspace", "load", "machine",
-    "machine_on_arrays", "make_workspace", "set_horizon", "solve_interval", "solve_ivp",
+    "machine_on_arrays", "make_workspace", "set_horizon", "solve_interval",
     "stage_input", "state", "step_times",
 ]
 
-
-def _validate_like_scipy(t_span, y0, rtol, atol, max_step, first_step, t_eval):
-    """scipy's argument checks, with its messages; returns the arrays the integrator takes.
-
-    Raises
-    ------
-    ValueError
-        As ``solve_ivp`` does: ``max_step``/``first_step`` not positive, ``first_step``
-        beyond the interval, ``atol`` of the wrong shape or negative, ``y0`` not 1-D or
-        not finite, ``t_eval`` not 1-D, outside ``t_span`` or not sorted.
-    """
-    t0, t1 = map(float, t_span)
-    y0 = np.asarray(y0, dtype=np.float64)
-    if y0.ndim != 1:
-        raise ValueError("`y0` must be 1-dimensional.")
-    if not np.isfinite(y0).all():
-        raise ValueError("All components of the initial state `y0` must be finite.")
-    n = y0.shape[0]
-    if max_step <= 0:
-        raise ValueError("`max_step` must be positive.")
-    if first_step is None:
-        first_step = 0.0
-    else:
-        if first_step <= 0:
-            raise ValueError("`first_step` must be positive.")
-        if first_step > abs(t1 - t0):
-            raise ValueError("`first_step` exceeds bounds.")
-    if np.any(np.asarray(rtol) < RTOL_FLOOR):
-        warnings.warn(
-            "At least one element of `rtol` is too small. "
-            f"Setting `rtol = np.maximum(rtol, {RTOL_FLOOR})`.",
-            stacklevel=3,
-        )
-        rtol = np.maximum(rtol, RTOL_FLOOR)
-    atol = np.asarray(atol, dtype=np.float64)
-    if atol.ndim > 0 and atol.shape != (n,):
-        raise ValueError("`atol` has wrong shape.")
-    if np.any(atol < 0):
-        raise ValueError("`atol` must be positive.")
-    atol = np.ascontiguousarray(np.broadcast_to(atol, (n,)), dtype=np.float64)
-    if t_eval is not None:
-        t_eval = np.ascontiguousarray(t_eval, dtype=np.float64)
-        if t_eval.ndim != 1:
-            raise ValueError("`t_eval` must be 1-dimensional.")
-        if np.any(t_eval < min(t0, t1)) or np.any(t_eval > max(t0, t1)):
-            raise ValueError("Values in `t_eval` are not within `t_span`.")
-        d = np.diff(t_eval)
-        if (t1 > t0 and np.any(d <= 0)) or (t1 < t0 and np.any(d >= 0)):
-            raise ValueError("Values in `t_eval` are not properly sorted.")
-    return t0, t1, y0, float(rtol), atol, float(max_step), float(first_step), t_eval
-
-
-def solve_ivp(rhs, t_span, y0, method="RK45", t_eval=None, args=(), rtol=1e-3, atol=1e-6,
-              max_step=np.inf, first_step=None, log_steps=0, exact=True):
-    """One interval, checked as scipy checks it: the drop-in for ``solve_ivp(..., t_eval)``.
-
-    Parameters are ``scipy.integrate.solve_ivp``'s (``method`` one of :data:`METHODS`),
-    except that ``rhs(t, y, args, out)`` writes into ``out`` and ``args`` is passed as
-    one tuple. ``t_eval=None`` evaluates nothing (the final state is returned).
-    ``log_steps`` keeps the times of the first ``log_steps`` accepted steps; ``exact``
-    chooses the arithmetic (see :func:`solve_interval`).
-
-    Returns
-    -------
-    dict
-        ``t`` (the evaluation times served), ``y`` (shape ``(n, len(t))``, scipy's
-        layout), ``y_end``, ``status`` (0 success; -1 step too small; -2 non-finite;
-        -3 invalid argument; -4 stiff, :data:`STIFF`), ``message``, ``success``,
-        ``nfev``, ``n_accepted``, ``n_rejected``, ``t_reached``, ``step_times``,
-        ``stiffness`` (the estimate of ``|h lambda|`` on the last accepted step) and
-        ``projected_steps`` (the steps a run stopped as stiff would have needed, else 0).
-
-    Raises
-    ------
-    ValueError
-        ``method`` unknown, or scipy's checks (:func:`_validate_like_scipy`), with
-        scipy's messages.
-
-    Examples
-    --------
-    The same evaluations and, to the last bit, the same values as scipy:
-
-    >>> import numpy as np
-    >>> from scipy.integrate import solve_ivp as scipy_solve_ivp
-    >>> from controlkit.engines.fast import rk
-    >>> def decay(t, y, args, out):
-    ...     out[0] = -args[0][0] * y[0]
-    >>> t_eval = [0.0, 0.5, 1.0, 2.0]
-    >>> ours = rk.solve_ivp(decay, (0.0, 2.0), [1.0], t_eval=t_eval, args=(np.array([0.5]),))
-    >>> theirs = scipy_solve_ivp(lambda t, y: -0.5 * y, (0.0, 2.0), [1.0], t_eval=t_eval)
-    >>> ours["status"], ours["nfev"] == theirs.nfev, bool(np.array_equal(ours["y"], theirs.y))
-    (0, True, True)
-    """
-    if method not in METHODS:
-        raise ValueError(f"`method` must be one of {sorted(METHODS)}, got {method!r}.")
-    t0, t1, y0, rtol, atol, max_step, first_step, t_eval = _validate_like_scipy(
-        t_span, y0, rtol, atol, max_step, first_step, t_eval
-    )
-    n = y0.shape[0]
-    rhs = python_function(rhs)  # a Python run of the machine calls Python functions
-    if t_eval is None:
-        t_eval = np.zeros(0)
-    y_eval = np.full((t_eval.shape[0], n), np.nan)
-    y_end = np.empty(n)
-    work = make_workspace(n, int(log_steps), t_eval.shape[0])
-    status, served = solve_interval(None, rhs, args, METHOD_INDEX[method], t0,
-                                    t1, y0, rtol, atol, max_step, first_step, t_eval, 0,
-                                    True, y_eval, y_end, work, bool(exact), 0, False)
-    status = int(status)
-    return {
-        "t": t_eval[:served],
-        "y": y_eval[:served].T,
-        "y_end": y_end,
-        "status": status,
-        "message": STATUS_MESSAGES[status],
-        "success": status == SUCCESS,
-        "nfev": int(work.ints[NFEV]),
-        "n_accepted": int(work.ints[N_ACCEPTED]),
-        "n_rejected": int(work.ints[N_REJECTED]),
-        "t_reached": float(work.floats[TIME_REACHED]),
-        "step_times": step_times(work).copy(),
-        "stiffness": float(work.floats[STIFFNESS]),
-        "projected_steps": float(work.floats[PROJECTED_STEPS]),
-    }
