@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ... import _checks
+from .plan import held_logic
 
 
 def signals_at(job, t, x, u, k):
@@ -62,7 +63,7 @@ def explain_failure(job, t, x, u, block_index, k=0):
     if not np.isfinite(x).all():  # the loop diverged before the block's output did
         raise diverged(job, t, x)
     with np.errstate(all="ignore"):
-        if not _held_outputs(job):  # python-control's own evaluation, as its path would
+        if not held_logic(job.sys):  # python-control's own evaluation, as its path would
             try:
                 job.sys.output(t, x, u)
             except RuntimeError:  # its sweep cannot settle on non-finite signals
@@ -72,14 +73,6 @@ def explain_failure(job, t, x, u, block_index, k=0):
         if np.isfinite(inputs).all():  # the block's own words
             block.output(t, x[b.x0:b.x0 + block.nstates], inputs)
     raise FloatingPointError(f"block {block.name!r} returned NaN at t = {t:g} s")
-
-
-def _held_outputs(job) -> bool:
-    """Whether the diagram holds discrete outputs between instants (python-control cannot
-    evaluate it: a sampled-data diagram)."""
-    from ...sampled_data import SampledDataSystem
-
-    return isinstance(job.sys, SampledDataSystem)
 
 
 def diverged(job, t, x) -> FloatingPointError:

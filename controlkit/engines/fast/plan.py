@@ -1,12 +1,11 @@
-"""A diagram reduced to arrays: what the driver reads and the code generator writes out.
+"""A diagram reduced to arrays, which the code generator writes out.
 
 :func:`make_plan` takes the blocks of a diagram (their kernels and offsets, from
 :func:`.tiers.blocks_of`) and its evaluation order, and describes everything else as
 numbers: per block, a row of :attr:`Plan.table` (offsets into the stacked state ``x``,
 the stacked block inputs ``ui`` and outputs ``ys`` and the parameters ``P``, its
 kernels, its kind and rate), and the interconnect's connection, input and output maps
-as sparse rows. Nothing in a plan is compiled; the generic driver (:mod:`.driver`)
-takes its arrays as arguments and :mod:`.codegen` writes them into source.
+as sparse rows. Nothing in a plan is compiled: :mod:`.codegen` writes it into source.
 
 A block is one of four kinds (:data:`KINDS`), by its timebase:
 
@@ -37,14 +36,12 @@ STATIC, DISCRETE, SAMPLED, CONTINUOUS = range(4)
 #: Columns of :attr:`Plan.table`: offsets and sizes in x, ui, ys and P; feedthrough;
 #: output and update kernel (index into :attr:`Plan.kernels`, -1 for none); kind;
 #: instants between firings (discrete and sampled blocks); RK4 substeps (sampled).
-X0, NX, U0, NU, Y0, NY, P0, NP, FT, OUT, UPD, KIND, EVERY, SUB = range(14)
 COLUMNS = ("X0", "NX", "U0", "NU", "Y0", "NY", "P0", "NP", "FT", "OUT", "UPD", "KIND",
            "EVERY", "SUB")
 
 
 class TableRow(namedtuple("TableRow", COLUMNS)):
-    """One row of :attr:`Plan.table` by column name (``row.X0``), for the Python that reads
-    it (:mod:`.codegen`); compiled code reads the columns by the constants above.
+    """One row of :attr:`Plan.table` by column name (``row.X0``).
 
     Examples
     --------
@@ -92,8 +89,8 @@ class Plan:
     >>> from controlkit.engines.fast.run import prepare
     >>> from controlkit.studies.cmg.diagrams import cmg_loop
     >>> plan = prepare(cmg_loop()).plan
-    >>> [KINDS[row.KIND] for row in plan.rows()], plan.mode
-    (['static', 'sampled', 'discrete', 'static'], 'discrete')
+    >>> [KINDS[row.KIND] for row in plan.rows()]
+    ['static', 'sampled', 'discrete', 'static']
     """
 
     sys: object
@@ -109,25 +106,26 @@ class Plan:
     ny: int
     nu: int
 
-    @property
-    def mode(self) -> str:
-        """``"discrete"`` (nothing integrated in continuous time) or ``"continuous"``
-        (some states are, with or without discrete blocks)."""
-        return "continuous" if self.continuous.size else "discrete"
-
     def rows(self) -> list[TableRow]:
         """The table's rows as :class:`TableRow` of plain ints, in block order."""
         return [TableRow(*map(int, row)) for row in self.table]
 
     @functools.cached_property
     def inputs_exact(self) -> list[bool]:
-        """:func:`exact_inputs` of the diagram: which block inputs are written out."""
-        return exact_inputs(self.sys)
+        """Whether each block input written out as the sum of its terms is python-control's
+        ``connect_map @ outputs + input_map @ u`` to the bit: both parts :func:`exact_sum`,
+        and the second one term at most when the first has any (so that the parts are
+        added last, as python-control adds them)."""
+        nonzero = np.count_nonzero
+        return [bool(exact_sum(c) and exact_sum(i) and (nonzero(i) <= 1 or not nonzero(c)))
+                for c, i in zip(np.asarray(self.sys.connect_map, dtype=float),
+                                np.asarray(self.sys.input_map, dtype=float), strict=True)]
 
     @functools.cached_property
     def outputs_exact(self) -> list[bool]:
-        """:func:`exact_rows` of its output map: which of its outputs are written out."""
-        return exact_rows(self.sys.output_map)
+        """:func:`exact_sum` of each row of the output map: which outputs are written out."""
+        return [exact_sum(row) for row in np.atleast_2d(np.asarray(self.sys.output_map,
+                                                                    dtype=float))]
 
     def parameters(self) -> np.ndarray:
         """The stacked parameter vector ``P`` (each block's packed ``p``, in order)."""
@@ -199,35 +197,13 @@ def exact_sum(coefficients) -> bool:
     return nonzero.size <= 1 or nonzero.size == 2 and bool(np.all(np.abs(nonzero) == 1.0))
 
 
-def exact_rows(matrix) -> list[bool]:
-    """:func:`exact_sum` of each row of ``matrix``.
+def held_logic(sys) -> bool:
+    """Whether discrete blocks hold their outputs between their instants (a diagram of
+    several rates, or of continuous and discrete blocks), which python-control's own
+    evaluation of the diagram cannot do."""
+    from ...sampled_data import SampledDataSystem
 
-    Examples
-    --------
-    >>> exact_rows(np.array([[1.0, 1.0, 0.0], [0.5, 0.5, 0.5]]))
-    [True, False]
-    """
-    return [exact_sum(np.asarray(row, dtype=float)) for row in np.atleast_2d(matrix)]
-
-
-def exact_inputs(sys) -> list[bool]:
-    """Whether each block input of ``sys`` written out as the sum of its terms is
-    python-control's ``connect_map @ outputs + input_map @ u`` to the bit: both parts
-    :func:`exact_sum`, and the second one term at most when the first has any (so that
-    the parts are added last, as python-control adds them).
-
-    Examples
-    --------
-    >>> import control as ct
-    >>> a, b = (ct.ss([], [], [], [[1.0]], name=n, inputs="u", outputs="y") for n in "ab")
-    >>> exact_inputs(ct.interconnect([a, b], connections=[["b.u", "a.y"]],
-    ...                              inplist=["a.u"], outlist=["b.y"]))
-    [True, True]
-    """
-    nonzero = np.count_nonzero
-    return [bool(exact_sum(c) and exact_sum(i) and (nonzero(i) <= 1 or not nonzero(c)))
-            for c, i in zip(np.asarray(sys.connect_map, dtype=float),
-                            np.asarray(sys.input_map, dtype=float), strict=True)]
+    return isinstance(sys, SampledDataSystem)
 
 
 def _kind(block, kernel, diagram_dt) -> int:
@@ -258,8 +234,8 @@ def make_plan(sys, blocks, order) -> Plan:
     >>> loop = ct.interconnect([plant, gain, error], inputs="r", outputs="y")
     >>> blocks = blocks_of(loop)
     >>> plan = make_plan(loop, blocks, evaluation_order(loop, blocks))
-    >>> plan.mode, plan.continuous.tolist(), plan.inputs[1].tolist()
-    ('continuous', [0], [1, 2, 3, 0])
+    >>> plan.continuous.tolist(), plan.inputs[1].tolist(), plan.inputs_exact
+    ([0], [1, 2, 3, 0], [True, True, True, True])
     """
     base = float(getattr(sys, "base_period", 0.0) or 0.0)
     if not base and sys.isdtime(strict=True) and sys.dt is not True:

@@ -3,28 +3,16 @@
 :func:`prepare` turns a diagram into a :class:`Job`: its blocks with their kernels
 (:mod:`.tiers`), its plan (:mod:`.plan`) and its module's text (:mod:`.codegen`). A job
 runs its module one of two ways, as Simulink runs a model in normal or accelerator mode:
+as Python (``job.functions()``: nothing to compile, so the first call of a new diagram
+costs what its steps cost), or compiled by numba and kept in the store (:mod:`.store`),
+so that any later run of the wiring loads it in milliseconds.
 
-- **as Python** (``job.functions()``): the text run by Python, the kernels' Python code,
-  users' functions called as they are. Nothing to compile or load: the first call of a
-  new diagram costs what its steps cost, a few times less than python-control's.
-- **compiled**: the same text compiled by numba (every block compiled: controlkit's
-  kernels, LTI blocks, users' functions translated), kept in the store
-  (:mod:`.store`) so that any later run of the wiring loads it in milliseconds.
-
-:class:`Runner` decides each call by :data:`RULE`: compiled when asked (``compile=True``),
-when the module is compiled already (in this process, or kept in the store), or when the
-run (timed on its first tenth of a second as Python) and the earlier runs of the module
-in this process would take longer as Python than numba's start and the compile; as
-Python otherwise, when asked (``compile=False``), or when a block cannot be compiled
-(:func:`explain` says why). The compile happens in the call, said when it takes seconds,
-and a call that compiles stays under python-control's time (numba's start is made by runs
-as Python before it). A compiled module is first run beside Python on one piece: if their
-numbers differ, the run goes on as Python.
-
-Runs go in pieces of about a tenth of a second (:data:`PIECE_SECONDS`): between two
-pieces the run reports its progress, Ctrl-C stops it (``KeyboardInterrupt``, the
-response so far on its ``response`` attribute), and the rule is applied. The pieces
-change no number: a run gives the same result however it is cut.
+:class:`Runner` decides each call by :data:`RULE`, between the pieces of a run
+(:mod:`.pieces`); as Python also when a block cannot be compiled (:func:`explain` says
+why). The compile happens in the call, said when it takes seconds, and a call that
+compiles stays under python-control's time (numba's start is made by runs as Python
+before it). A compiled module is first run beside Python on one piece: if their numbers
+differ, the run goes on as Python.
 """
 
 from __future__ import annotations
@@ -38,15 +26,14 @@ import numpy as np
 
 from ... import _jit
 from .. import PYTHON_CONTROL_SLOWER
-from ..contract import UnsupportedSystem
+from ..contract import UnsupportedSystem, check_compile
 from . import reuse, store
 from .codegen import generate
 from .pieces import PIECE_SECONDS
-from .plan import Plan, evaluation_order, make_plan
+from .plan import Plan, evaluation_order, held_logic, make_plan
 from .tiers import BlockTier, NotCompiled, _resolve, as_interconnect, blocks_of
 
-#: How the engine chooses between running a diagram as Python and compiled (see
-#: the module's description); ``explain`` and the docs quote it.
+#: How the engine chooses between running a diagram as Python and compiled.
 RULE = ("compiled when asked (compile=True), when the diagram's module is compiled "
         "already, or when the run, with the earlier runs of the same module in this "
         "process, would take longer as Python than compiling it takes (timed on its "
@@ -54,14 +41,13 @@ RULE = ("compiled when asked (compile=True), when the diagram's module is compil
 #: Compiling pays when the rest of the run as Python, with the earlier runs of the same
 #: module, would take this many times longer than loading numba and compiling: 1, the
 #: ski-rental rule (a session that goes on pays at most twice what the best choice made
-#: in hindsight would have; a module's compile is now 1-2 s, and the estimate is this
-#: store's own measured times).
+#: in hindsight would have).
 PAYS = 1.0
 #: numba's own start in a process, about: what a run pays before its first compiled step
 #: even when its module is kept compiled.
 NUMBA_START_SECONDS = 0.4
 #: Its two steps, ``(seconds, done, make)``: the import, the first use (numba fills its
-#: tables: loading the step machine kept in the store). See :class:`Runner`.
+#: tables: loading the step machine kept in the store).
 NUMBA_START = ((0.15, lambda: bool(_jit._NUMBA), _jit.numba_module),
                (0.25, lambda: bool(store._MACHINE or any(_COMPILED.values())
                                    or store.integrator_to_compile()), store.step_machine))
@@ -87,25 +73,16 @@ PYTHON_RUNS: dict[str, int] = {}
 
 @dataclass
 class Job:
-    """A diagram ready to run one way (see :func:`prepare`).
-
-    Attributes
-    ----------
-    sys : control.InterconnectedSystem
-    plan : Plan
-    P : numpy.ndarray
-        The parameters in force (packed by the blocks, at run time).
-    source : str
-        The diagram's module.
-    compiled : bool
-        Whether its kernels are the ones compiled code calls (every block compiled).
+    """A diagram ready to run one way (see :func:`prepare`): ``P`` the parameters in
+    force, ``source`` its module's text, ``compiled`` whether its kernels are the ones
+    compiled code calls.
 
     Examples
     --------
     >>> from controlkit.studies.cmg.diagrams import cmg_loop
     >>> job = prepare(cmg_loop())
-    >>> job.plan.mode, job.P.size > 0, job.compiled
-    ('discrete', True, False)
+    >>> job.plan.continuous.size, job.P.size > 0, job.compiled
+    (0, True, False)
     """
 
     sys: object
@@ -172,11 +149,8 @@ class Job:
 
     def is_compiled(self) -> bool:
         """Whether its module is compiled already (in this process, or in the store)."""
-        if self.source in _COMPILED:
-            return True
         try:
-            return store.record(store.folder() / f"{store.name_of(self.source, 'diagram')}"
-                                                  f".py") is not None
+            return self.source in _COMPILED or store.compiled_before(self.source, "diagram")
         except store.StoreRefused:
             return False
 
@@ -195,14 +169,6 @@ def _pasted(fn):
         pasted = _jit.Jitted(fn.py_func, {"inline": "always"})
         fn._controlkit_pasted = pasted
     return pasted
-
-
-def _held_logic(sys) -> bool:
-    """Whether discrete blocks hold their outputs between their instants (a diagram of
-    several rates, or of continuous and discrete blocks)."""
-    from ...sampled_data import SampledDataSystem
-
-    return isinstance(sys, SampledDataSystem)
 
 
 def prepare(sys, params=None, *, compiled=False) -> Job:
@@ -228,7 +194,7 @@ def prepare(sys, params=None, *, compiled=False) -> Job:
         return job
     blocks = blocks_of(sys, params, compiled=compiled)
     plan = make_plan(sys, blocks, evaluation_order(sys, blocks))
-    source = generate(plan, held_logic=_held_logic(sys))
+    source = generate(plan, held_logic=held_logic(sys))
     job = Job(sys, plan, plan.parameters(), source, compiled)
     reuse.keep(sys, key, job)
     return job
@@ -247,7 +213,7 @@ def compile_estimate(job) -> float:
     >>> compile_estimate(prepare(cmg_loop())) > 0
     True
     """
-    continuous = bool(job.plan.continuous.size or _held_logic(job.sys))
+    continuous = bool(job.plan.continuous.size or held_logic(job.sys))
     measured = store.compile_times("continuous" if continuous else "run_discrete")
     if measured:
         seconds = float(np.median(measured)) * len(job.blocks)
@@ -285,9 +251,8 @@ def compiled_job(sys, params):
 def _cost(candidate) -> float:
     """Seconds before the compiled job ``candidate`` can run: numba's start if it has not
     started, and loading the module if it is kept compiled, else compiling it."""
-    kept = candidate.source in _COMPILED or candidate.is_compiled()
     return sum(seconds for seconds, done, _ in NUMBA_START if not done()) + (
-        LOAD_SECONDS if kept else compile_estimate(candidate))
+        LOAD_SECONDS if candidate.is_compiled() else compile_estimate(candidate))
 
 
 class Runner:
@@ -304,19 +269,16 @@ class Runner:
     """
 
     def __init__(self, sys, params, compile):
-        if compile not in (None, True, False):
-            raise ValueError(f"compile must be True, False or None (decide by the run's "
-                             f"length), got {compile!r}")
+        check_compile(compile)
         self.sys, self.params, self.asked = sys, params, compile
         self.python = prepare(sys, params)
         self.compiled = None
-        self.why_python = ""
         self.decided = compile is False
         if compile or compile is None and self.python.source in _TWINS:
             # asked for, or compiled already in this process: compiled from the start
             candidate = compiled_job(sys, params)
             if isinstance(candidate, str):
-                self.why_python, self.decided = candidate, True
+                self.decided = True
                 if compile:
                     warnings.warn(f"running {sys.name!r} as Python: {candidate}",
                                   stacklevel=4)
@@ -385,20 +347,12 @@ class Runner:
         # when earlier ones of the same module took that long (a sunk cost that predicts)
         saved = rest + before
         if saved <= PAYS * NUMBA_START_SECONDS:  # (not even worth numba's start)
-            self.why_python = f"a short run (about {elapsed + rest:.2g} s as Python)"
             return None
         candidate = compiled_job(self.sys, self.params)
-        if isinstance(candidate, str):
-            self.why_python = candidate
+        if isinstance(candidate, str) or saved <= PAYS * _cost(candidate):
             return None
-        cost = _cost(candidate)
-        if saved > PAYS * cost:
-            _TWINS[self.python.source] = candidate.source
-            return candidate
-        earlier = f" ({before:.2g} s in earlier runs of it)" if before else ""
-        self.why_python = (f"a short run: about {elapsed + rest:.2g} s as Python{earlier}, "
-                           f"against about {cost:.2g} s to compile")
-        return None
+        _TWINS[self.python.source] = candidate.source
+        return candidate
 
     def finished(self, seconds: float) -> None:
         """A run that took ``seconds`` ended: counted for its module when it ran as Python
@@ -418,12 +372,8 @@ class Runner:
         """The run goes on as Python, and says why."""
         self.compiled = None
         self.decided = True
-        self.why_python = why
         warnings.warn(f"{self.sys.name!r} runs as Python: {why} (controlkit.explain "
                       f"lists every block's tier)", stacklevel=5)
-
-
-__all__ = ["DIFFERS", "RULE", "Job", "Runner", "compiled_job", "explain", "prepare"]
 
 
 def explain(sys, params=None) -> list[BlockTier]:

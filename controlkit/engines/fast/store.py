@@ -233,18 +233,17 @@ def import_module(path: Path, names: dict | None = None):
 
 
 def record(path: Path) -> dict | None:
-    """The record of the store module at ``path``: None until it was compiled once.
-
-    Examples
-    --------
-    >>> record(Path("/nonexistent/diagram_x.py")) is None
-    True
-    """
+    """The record of the store module at ``path``: None until it was compiled once."""
     try:
         kept = json.loads(path.with_suffix(".json").read_text())
     except (OSError, ValueError):
         return None
     return kept if isinstance(kept, dict) else None
+
+
+def compiled_before(text: str, kind: str) -> bool:
+    """Whether the store module of ``text`` was compiled once (it has a record)."""
+    return record(folder() / f"{name_of(text, kind)}.py") is not None
 
 
 def write_record(path: Path, **values) -> None:
@@ -268,8 +267,7 @@ def write_record(path: Path, **values) -> None:
 
 def compile_entry(function, args, path: Path, blocks: int = 1):
     """``function`` compiled by numba for the types of ``args`` and kept in ``path``'s
-    cache (loaded from it when it is there); the compile's record is written after a
-    compile. Returns the compiled function.
+    cache (loaded from it when it is there), its first compile recorded.
 
     Examples
     --------
@@ -291,7 +289,7 @@ def compile_entry(function, args, path: Path, blocks: int = 1):
 
 def _record_compile(path: Path, seconds: float, blocks: int, entry: str) -> None:
     """The record of a diagram module's first compile (read by :func:`compile_times`)."""
-    if record(path) is None and path.suffix == ".py":
+    if record(path) is None:
         write_record(path, seconds=round(seconds, 3), blocks=blocks, entry=entry)
         _TIMES.clear()
 
@@ -301,20 +299,8 @@ def compile_functions(functions, signatures, path: Path, blocks: int = 1,
     """Each of ``functions`` (of the module at ``path``) compiled for its one signature
     as a C function (:func:`numba.cfunc`: the loop calls it by its address, and no
     Python wrapper is built, a fifth of a compile) and kept in ``path``'s cache (loaded
-    from it when there): a diagram's evaluator as the instants' loop takes it. The
-    compile's record is written after one (``entry`` names the kind). Returns them.
-
-    Examples
-    --------
-    >>> path = module_file("def twice(x):\\n    return 2.0 * x\\n", "diagram")
-    >>> if _jit.available():
-    ...     numba = _jit.numba_module()
-    ...     (twice,) = compile_functions([import_module(path).twice],
-    ...                                  [numba.float64(numba.float64)], path, entry="twice")
-    ...     float(twice(1.5))
-    ... else:
-    ...     3.0
-    3.0
+    from it when there): a diagram's evaluator as the instants' loop takes it. Like
+    :func:`compile_entry` otherwise (``entry`` names the kind in the record).
     """
     numba = _jit.numba_module()
     start = time.perf_counter()
@@ -373,11 +359,9 @@ MACHINE_SIGNATURE = "intp(uintp, intp, uintp, uintp, intp, uintp, intp, uintp)"
 
 
 def step_machine():
-    """The integrator's step machine (:func:`controlkit.engines.fast.rk.machine.machine`),
-    compiled once and kept in the store (compiling it takes half a minute; loading, a
-    few milliseconds), as a C function: a diagram's module receives it as an argument
-    and calls it through its address, so that compiling a module never compiles, nor
-    links, the machine again.
+    """The integrator's step machine (:func:`controlkit.engines.fast.rk.machine.machine`)
+    as a C function, kept in the store: a diagram's module calls it through its address,
+    so that compiling a module never compiles, nor links, the machine again.
 
     Examples
     --------
@@ -430,22 +414,7 @@ def instants_loop(argument_types):
     (:func:`controlkit.engines.fast.loops.instants_loop`) compiled for
     ``argument_types`` (the diagram's four functions among them as numba's
     ``FunctionType``, see :func:`~controlkit.engines.fast.loops.evaluator_signatures`),
-    once and kept in the store: every diagram's functions are handed to the same
-    compiled loop (compiling it takes seconds; loading, milliseconds).
-
-    Examples
-    --------
-    A continuous diagram run compiled goes through it:
-
-    >>> import control as ct
-    >>> from controlkit import input_output_response
-    >>> lag = ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], name="lag", inputs="u",
-    ...             outputs="y")
-    >>> loop = ct.interconnect([lag], inputs="u", outputs="y")
-    >>> T = np.linspace(0.0, 1.0, 3)
-    >>> response = input_output_response(loop, T, np.ones(3), compile=True)
-    >>> bool(_LOOPS) == (response.engine_mode == "compiled")
-    True
+    kept in the store: every diagram's functions are handed to the same compiled loop.
     """
     if argument_types not in _LOOPS:
         numba = _jit.numba_module()
@@ -488,7 +457,7 @@ def integrator_to_compile() -> float:
     return sum(seconds for done, text, kind, seconds in (
         (_MACHINE, _MACHINE_TEXT, "machine", MACHINE_COMPILE_SECONDS),
         (_LOOPS, _LOOP_TEXT, "loop", LOOP_COMPILE_SECONDS))
-        if not done and record(folder() / f"{name_of(text, kind)}.py") is None)
+        if not done and not compiled_before(text, kind))
 
 
 #: About how long the step machine takes to compile (measured: 30 s on a 2-core machine).
