@@ -70,14 +70,11 @@ def check_arguments(sys, T, X0, U=0.0):
     ValueError: X0 must have 1 values (x[0]), got 2
     """
 
-    discrete = sys.isdtime(strict=True) and sys.dt is not True
     if isinstance(T, TimeGrid):  # a lazy grid stays lazy (long streamed runs)
         if T.size == 0 or not np.isfinite(T.Ts) or T.Ts <= 0:
             raise ValueError(f"T must be a non-empty grid with a positive step, got {T.size} "
                              f"samples of {T.Ts:g}")
-        if discrete and T.size > 1 and not np.isclose(T.Ts, sys.dt):
-            raise ValueError(f"time steps of T must equal the sampling time {sys.dt} of "
-                             f"{sys.name!r}, got steps from {T.Ts:g} to {T.Ts:g}")
+        shortest = longest = T.Ts
     else:
         T = _checks.float_array("T", T)
         if T.ndim != 1 or T.size == 0:
@@ -88,11 +85,12 @@ def check_arguments(sys, T, X0, U=0.0):
         steps = np.diff(T)
         if (steps <= 0).any():
             raise ValueError("T must be increasing")
-        # np.isclose(step, dt) holds on an interval of steps: the extremes decide for all
-        if discrete and T.size > 1 and not np.allclose([steps.min(), steps.max()], sys.dt):
-            raise ValueError(f"time steps of T must equal the sampling time {sys.dt} of "
-                             f"{sys.name!r}, got steps from {steps.min():g} to "
-                             f"{steps.max():g}")
+        shortest, longest = (steps.min(), steps.max()) if steps.size else (0.0, 0.0)
+    # np.isclose(step, dt) holds on an interval of steps: the extremes decide for all
+    if (sys.isdtime(strict=True) and sys.dt is not True and T.size > 1
+            and not np.allclose([shortest, longest], sys.dt)):
+        raise ValueError(f"time steps of T must equal the sampling time {sys.dt} of "
+                         f"{sys.name!r}, got steps from {shortest:g} to {longest:g}")
     X0 = _checks.float_array("X0", X0 if X0 is not None else 0.0)
     if X0.ndim == 0 and sys.nstates != 1 and X0 == 0:
         X0 = np.zeros(sys.nstates)

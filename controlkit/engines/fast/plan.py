@@ -200,7 +200,14 @@ def exact_sum(coefficients) -> bool:
 def held_logic(sys) -> bool:
     """Whether discrete blocks hold their outputs between their instants (a diagram of
     several rates, or of continuous and discrete blocks), which python-control's own
-    evaluation of the diagram cannot do."""
+    evaluation of the diagram cannot do.
+
+    Examples
+    --------
+    >>> from controlkit.studies.cmg.diagrams import cmg_loop
+    >>> held_logic(cmg_loop())
+    False
+    """
     from ...sampled_data import SampledDataSystem
 
     return isinstance(sys, SampledDataSystem)

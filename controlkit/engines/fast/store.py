@@ -233,7 +233,13 @@ def import_module(path: Path, names: dict | None = None):
 
 
 def record(path: Path) -> dict | None:
-    """The record of the store module at ``path``: None until it was compiled once."""
+    """The record of the store module at ``path``: None until it was compiled once.
+
+    Examples
+    --------
+    >>> record(Path("/nonexistent/diagram_x.py")) is None
+    True
+    """
     try:
         kept = json.loads(path.with_suffix(".json").read_text())
     except (OSError, ValueError):
@@ -242,7 +248,13 @@ def record(path: Path) -> dict | None:
 
 
 def compiled_before(text: str, kind: str) -> bool:
-    """Whether the store module of ``text`` was compiled once (it has a record)."""
+    """Whether the store module of ``text`` was compiled once (it has a record).
+
+    Examples
+    --------
+    >>> compiled_before("VALUE = 3\\n", "diagram")
+    False
+    """
     return record(folder() / f"{name_of(text, kind)}.py") is not None
 
 
@@ -301,6 +313,18 @@ def compile_functions(functions, signatures, path: Path, blocks: int = 1,
     Python wrapper is built, a fifth of a compile) and kept in ``path``'s cache (loaded
     from it when there): a diagram's evaluator as the instants' loop takes it. Like
     :func:`compile_entry` otherwise (``entry`` names the kind in the record).
+
+    Examples
+    --------
+    >>> path = module_file("def twice(x):\\n    return 2.0 * x\\n", "diagram")
+    >>> if _jit.available():
+    ...     numba = _jit.numba_module()
+    ...     (twice,) = compile_functions([import_module(path).twice],
+    ...                                  [numba.float64(numba.float64)], path, entry="twice")
+    ...     float(twice(1.5))
+    ... else:
+    ...     3.0
+    3.0
     """
     numba = _jit.numba_module()
     start = time.perf_counter()
@@ -415,6 +439,20 @@ def instants_loop(argument_types):
     ``argument_types`` (the diagram's four functions among them as numba's
     ``FunctionType``, see :func:`~controlkit.engines.fast.loops.evaluator_signatures`),
     kept in the store: every diagram's functions are handed to the same compiled loop.
+
+    Examples
+    --------
+    A continuous diagram run compiled goes through it:
+
+    >>> import control as ct
+    >>> from controlkit import input_output_response
+    >>> lag = ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], name="lag", inputs="u",
+    ...             outputs="y")
+    >>> loop = ct.interconnect([lag], inputs="u", outputs="y")
+    >>> T = np.linspace(0.0, 1.0, 3)
+    >>> response = input_output_response(loop, T, np.ones(3), compile=True)
+    >>> bool(_LOOPS) == (response.engine_mode == "compiled")
+    True
     """
     if argument_types not in _LOOPS:
         numba = _jit.numba_module()

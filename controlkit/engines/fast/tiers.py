@@ -76,10 +76,12 @@ def _local_params(sys, block, params):
     return local
 
 
-def _probe_feedthrough(output, nx, nu, ny):
-    """Whether ``output(t, x, u, out)`` moves with ``u`` at random trial points (True
-    where it cannot be evaluated there, or gives a non-finite value, which says nothing
-    about ``u``: the safe answer; ``log(u[0] - 2)`` is NaN at every trial point)."""
+def _probe_feedthrough(block, output, p=None):
+    """Whether ``block``'s kernel ``output(t, x, u, p, out)`` moves with ``u`` at random
+    trial points (True where it cannot be evaluated there, or gives a non-finite value,
+    which says nothing about ``u``: the safe answer; ``log(u[0] - 2)`` is NaN at every
+    trial point)."""
+    nx, nu, ny = block.nstates, block.ninputs, block.noutputs
     if nu == 0 or ny == 0:
         return False
     rng = np.random.default_rng(1)
@@ -89,8 +91,8 @@ def _probe_feedthrough(output, nx, nu, ny):
         try:  # trial points of ours: what numpy or the function warns there is not the user's
             with np.errstate(all="ignore"), warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                a = np.array(output(0.0, x, np.zeros(nu), np.empty(ny)), dtype=float)
-                b = np.array(output(0.0, x, u, np.empty(ny)), dtype=float)
+                a = np.array(output(0.0, x, np.zeros(nu), p, np.empty(ny)), dtype=float)
+                b = np.array(output(0.0, x, u, p, np.empty(ny)), dtype=float)
         except Exception:  # noqa: BLE001 - undefined at this point
             return True
         if not (np.isfinite(a).all() and np.isfinite(b).all()) or not np.array_equal(a, b):
@@ -118,10 +120,8 @@ def _python_kernels(block, local, reason):
         out[:] = block.dynamics(t, x, u, local)
         return out
 
-    feed = _probe_feedthrough(lambda t, x, u, out: output(t, x, u, None, out),
-                              block.nstates, block.ninputs, block.noutputs)
-    return (BlockKernels(output, update if block.nstates else None, np.zeros(0), feed),
-            "python", reason)
+    return (BlockKernels(output, update if block.nstates else None, np.zeros(0),
+                         _probe_feedthrough(block, output)), "python", reason)
 
 
 def _user_kernels(block, local, compiled):
@@ -141,8 +141,7 @@ def _user_kernels(block, local, compiled):
               if block.nstates and block.updfcn is not None else None)
     feed = source.reads_input(block.outfcn) if block.outfcn is not None else False
     if feed is None:  # its source does not say: ask the function itself
-        feed = _probe_feedthrough(lambda t, x, u, out: output(t, x, u, None, out),
-                                  block.nstates, block.ninputs, block.noutputs)
+        feed = _probe_feedthrough(block, output)
     if block.nstates and update is None:
         raise UnsupportedSystem(f"block {block.name!r} has states but no update function")
     mine = [k for k in (output, update) if k is not None]
@@ -231,12 +230,8 @@ def _resolve(sys, block, params, compiled, local=False):
 
 def _check_feedthrough(block, kernel):
     """Refuse a block declared without feedthrough whose output moves with its input."""
-    if kernel.feedthrough or not block.ninputs or not block.noutputs:
-        return
-    p = kernel.params
-    python = _jit.python_function(kernel.output)
-    if _probe_feedthrough(lambda t, x, u, out: python(t, x, u, p, out), block.nstates,
-                          block.ninputs, block.noutputs):
+    if not kernel.feedthrough and _probe_feedthrough(
+            block, _jit.python_function(kernel.output), kernel.params):
         raise ValueError(
             f"block {block.name!r} is declared without feedthrough (feedthrough=False) but "
             f"its output changes with its input; declare feedthrough=True")
