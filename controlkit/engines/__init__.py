@@ -9,9 +9,6 @@ returning :func:`.contract.response`'s :class:`control.TimeResponseData`. A back
 that cannot run a system raises :class:`.contract.UnsupportedSystem` with the reason;
 :func:`controlkit.simulation.simulate` then runs the reference instead and warns.
 
-To add a backend: write its module in this package, following :mod:`.reference`
-(the simplest), and add one entry to :data:`BACKENDS`.
-
 :func:`fast_start_pays` is the rule by which :func:`controlkit.input_output_response`
 starts the fast engine in a process, or leaves a short run to python-control.
 """
@@ -64,15 +61,13 @@ def fast_start_pays(sys, points: int, longest: float = 0.0) -> bool:
     """Whether a call of :func:`controlkit.input_output_response` on ``sys`` starts the
     fast engine, rather than leave the run to python-control.
 
-    Always once the engine has started in this process (its modules imported, by a
-    call or by the user). Before that, only when the engine's start pays in this very
-    call: when python-control would take longer than the start and the engine's own run,
-    ``FAST_START_SECONDS * PYTHON_CONTROL_SLOWER / (PYTHON_CONTROL_SLOWER - 1)`` (50 ms).
-    python-control's time is estimated from the run's size, ``points`` times the blocks
-    times :data:`PYTHON_CONTROL_POINT_SECONDS` (its least measured: an estimate that errs
+    Always once the engine has started in this process (its modules imported). Before
+    that, only when python-control would take longer than the engine's start and its own
+    run, ``FAST_START_SECONDS * PYTHON_CONTROL_SLOWER / (PYTHON_CONTROL_SLOWER - 1)`` (50
+    ms): python-control's time estimated as ``points`` times the blocks times
+    :data:`PYTHON_CONTROL_POINT_SECONDS` (its least measured: an estimate that errs
     towards python-control), or ``longest``, the longest run python-control made in this
-    process (a stiff run of few points). So a short script is never slower than
-    python-control's own, and a long run starts the engine in its first call.
+    process (a stiff run of few points).
 
     Examples
     --------

@@ -90,17 +90,14 @@ def _step(plan, P, rows, names, evaluate, ref, loads, args, view):
     step (python-control's discrete simulation), each step written out in the loop.
 
     A step is ``evaluate``'s lines, then the diagram's outputs and the blocks' updates,
-    which read the signals and states ``evaluate`` keeps in locals (``ref``) instead of
-    reading them back from the arrays: LLVM cannot forward a store into one array to a
-    load from another that might alias it, and each such round trip lay on the step's
-    critical path. Written-out LTI blocks write their next state straight into ``x``
-    (each reads only its own states, all loaded into locals before): no copy from
-    ``xn``. A kernel's update writes ``xn`` as ever, copied into ``x`` at the end. The
-    operations and their order are ``evaluate``, ``outputs`` and ``update``'s: the same
-    numbers to the bit. In the loop itself, not in a function numba inlines into
-    :func:`.loops.discrete_run` (24 ns a step that way). Servo loop of
-    benchmarks/bench_hand_written.py: 21.0 -> 15.9 ns a step, and 13.3 ns with every
-    state loaded once at the top of the step and recorded from its local.
+    which read the signals and states ``evaluate`` keeps in locals (``ref``): LLVM cannot
+    forward a store into one array to a load from another that might alias it. Written-out
+    LTI blocks write their next state straight into ``x`` (each reads only its own states,
+    loaded into locals before); a kernel's update writes ``xn``, copied into ``x`` at the
+    end. The operations and their order are ``evaluate``, ``outputs`` and ``update``'s:
+    the same numbers to the bit. In the loop itself, not in a function numba inlines into
+    :func:`.loops.discrete_run` (24 ns a step that way); servo loop of
+    benchmarks/bench_hand_written.py: 21.0 -> 15.9 ns a step.
     """
     n = plan.sys.nstates
     if n <= STATES_HELD_IN_LOCALS:
@@ -198,11 +195,10 @@ def _rk4_lines(kernel, row, h, view):
     """Lines of a sampled block's update: ``row.SUB`` steps of
     :func:`~controlkit.kernels.common.rk4_step` of length ``h``, written out.
 
-    The same operations in the same order as ``rk4_step`` (which the generic driver and
-    :func:`~controlkit.blocks.sampling.sample_nlsys` call), so the numbers agree to the
-    bit; written out with literal offsets the step costs about half (cruise loop of
-    ``benchmarks/bench_hand_written.py``: ~190 -> ~80 ns for four evaluations of the car).
-    ``scratch`` holds ``k1 .. k4`` and the trial state, ``n`` values each.
+    The same operations in the same order as ``rk4_step`` (which
+    :func:`~controlkit.blocks.sampling.sample_nlsys` calls), so the numbers agree to the
+    bit, at about half the cost (cruise loop of ``benchmarks/bench_hand_written.py``: ~190
+    -> ~80 ns). ``scratch`` holds ``k1 .. k4`` and the trial state, ``n`` values each.
     """
     n, x0 = row.NX, row.X0
     k = [view("scratch", j * n, n) for j in range(5)]
@@ -268,16 +264,12 @@ def generate(plan, held_logic):
     """The source of ``plan``'s module (see the module's description).
 
     The text names each kernel ``kernel_<i>`` and says in a comment which kernel it is
-    (:func:`kernel_identity`); the engine hands the module its kernels when it runs it
-    (:mod:`.store`): compiled code, or their Python versions. Names written into the
-    text are ``repr``-quoted in comments; everything else is generated identifiers and
-    numbers.
-
-    ``held_logic``: whether discrete blocks hold their outputs between their instants (a
-    diagram of several rates or with continuous states); without it every block fires
-    at every step, as in python-control's discrete simulation. A NaN output stops the run
-    (a kernel's failure signal, block contract rule 6; a user's function that returns NaN
-    is named at its block, before any later user function sees the NaN).
+    (:func:`kernel_identity`); the engine hands the module its kernels, compiled or as
+    Python. Names written into the text are ``repr``-quoted in comments; everything else
+    is generated identifiers and numbers. ``held_logic``: :func:`.plan.held_logic`
+    (without it every block fires at every step, as in python-control's discrete
+    simulation). A NaN output stops the run (a kernel's failure signal, block contract
+    rule 6), named at its block before any later user function sees the NaN.
 
     Examples
     --------

@@ -2,10 +2,9 @@
 
 A notebook calls the same diagram again and again. :func:`~.run.prepare` reads every
 user function's outside values afresh, writes their text and lays out the diagram's
-tables: a good part of a short call. The
-:func:`job_key` of a call holds everything that work depends on, read now; when it is
-the key of the diagram's last job, that job is the one :func:`~.run.prepare` would make
-again.
+tables: a good part of a short call. The :func:`job_key` of a call holds everything that
+work depends on, read now; when it is the key of the diagram's last job, that job is the
+one :func:`~.run.prepare` would make again.
 
 What the key holds (anything else, or a value it cannot hold exactly, gives no key, and
 the job is made afresh). Numbers are held by their bits (``0.0`` and ``-0.0`` differ),
@@ -122,11 +121,6 @@ def _user(block, local, compiled):
     return (_Same(block), tuple(parts), _params(local))
 
 
-def _block(sys, block, params, compiled):
-    shape = (block.nstates, block.ninputs, block.noutputs, _rate(block.dt))
-    return (shape, _kernels(sys, block, params, compiled))
-
-
 def _rate(dt):
     return dt if dt is None or dt is True else _value(float(dt))
 
@@ -183,7 +177,8 @@ def job_key(sys, params=None, compiled=False):
     if not isinstance(sys, ct.InterconnectedSystem):
         return None
     try:
-        blocks = tuple(_block(sys, block, params, compiled) for block in sys.syslist)
+        blocks = tuple(((b.nstates, b.ninputs, b.noutputs, _rate(b.dt)),
+                        _kernels(sys, b, params, compiled)) for b in sys.syslist)
         wiring = (_rate(sys.dt), _rate(getattr(sys, "base_period", None)),
                   *(_value(np.asarray(m, dtype=float))
                     for m in (sys.connect_map, sys.input_map, sys.output_map)))

@@ -1,26 +1,20 @@
 """The store: one folder of the user's where compiled code is kept, found by its content.
 
-A diagram runs compiled from its own module (:mod:`.codegen`): a text that numba compiles
-once and keeps, in its own ``__pycache__`` beside the module, so that any later run of the
-same wiring, in this process or another, loads it in milliseconds. The user functions
-compiled for it (:mod:`.usercode`) and the integrator's step machine (:func:`step_machine`)
-are modules of the store too. Each module's file name is a digest of its text, of
-controlkit's own source files (so an edit of any of them, a new version, makes new modules,
-never a stale one) and of the versions of Python, numpy and scipy (the machine holds
-scipy's Runge-Kutta coefficients): a name says what the module holds, files are written
-whole (a temporary file renamed) and never changed, and nothing in the store has to be
-deleted by hand. After its first compile a module gets a record (``<name>.json``: how long
-the compile took), by which the engine knows that it is compiled.
+Compiled code comes from modules of the store, each a text numba compiles once and keeps
+in its ``__pycache__``, so that any later run, in this process or another, loads it in
+milliseconds: a diagram's module (:mod:`.codegen`), the user functions compiled for it
+(:mod:`.usercode`), the integrator's step machine and the instants' loop. A module's file
+name is a digest of its text, of controlkit's source files that it can hold and of the
+versions of Python, numpy and scipy (whose Runge-Kutta coefficients the machine holds), so
+an edit or an upgrade makes new modules, never a stale one; files are written whole and
+never changed, and nothing has to be deleted by hand. After its first compile a module
+gets a record (``<name>.json``: how long the compile took), by which the engine knows that
+it is compiled.
 
-Code is imported from the store, so it is used only if the folder is the user's own
-(:func:`folder`): owned by the user, written by nobody else, and reached through
-folders nobody else can rename it out of, links included. It is checked at each use;
-numba's cache folder (``NUMBA_CACHE_DIR``, if set) is checked the same way. When a check
-fails the engine compiles nothing and runs diagrams as Python, with a warning that
-says why.
-
-``CONTROLKIT_CACHE_DIR`` sets the folder (default ``~/.cache/controlkit/store``): for a
-home that is shared or read-only, or to keep a course's compiled diagrams with it.
+Code is imported from the store only if the folder, and numba's cache folder
+(``NUMBA_CACHE_DIR``, if set), is the user's own (:func:`not_own`), checked at each use;
+else the engine compiles nothing and runs diagrams as Python, with a warning that says
+why. ``CONTROLKIT_CACHE_DIR`` sets the folder (default ``~/.cache/controlkit/store``).
 """
 
 from __future__ import annotations
@@ -148,9 +142,7 @@ def _writable_by_others(info) -> bool:
         return True
 
 
-#: The source files of controlkit's whose code compiled modules can hold, by kind of
-#: module: the step machine holds the integrator's; a diagram or a user function holds
-#: the engine's, the kernels' and what they call.
+#: The source files of controlkit's whose code a compiled module can hold, by its kind.
 SOURCES = {"machine": ("_jit.py", "engines/fast/rk/*.py"),
            "loop": ("_jit.py", "compat.py", "engines/fast/loops.py", "engines/fast/rk/*.py"),
            "other": ("_jit.py", "compat.py", "engines/**/*.py", "kernels/*.py")}
@@ -159,10 +151,9 @@ _OWN_SOURCE: dict = {}
 
 
 def _own_source(kind: str) -> str:
-    """A digest of the source files of controlkit's that a module of ``kind`` can hold,
-    by name and content: an edit, or another version, changes it; a fresh checkout or a
-    reinstall of the same files does not. Made once a process, as the code it stands
-    for was imported once (a file edited during a session is not the code that runs)."""
+    """A digest of the source files a module of ``kind`` can hold, by name and content
+    (a reinstall of the same files keeps it). Made once a process, as the code it stands
+    for was imported once."""
     if kind not in _OWN_SOURCE:
         root = Path(__file__).resolve().parents[2]
         patterns = SOURCES.get(kind, SOURCES["other"])
@@ -206,10 +197,8 @@ def module_file(text: str, kind: str) -> Path:
 
 def import_module(path: Path, names: dict | None = None):
     """The module at ``path`` (a store file), run once a process with ``names`` in its
-    namespace first; a module that fails to run is not kept.
-
-    It is registered in ``sys.modules`` as ``controlkit_store_<name>``: numba's cache
-    finds the module of compiled code it loads by that name.
+    namespace first, registered as ``controlkit_store_<name>`` in ``sys.modules`` (where
+    numba's cache finds it by name); a module that fails to run is not kept.
 
     Examples
     --------
@@ -336,8 +325,7 @@ def compile_functions(functions, signatures, path: Path, blocks: int = 1,
     return compiled
 
 
-#: Compile times per block read from the store's records, by entry point (once a
-#: process, and after a compile).
+#: Compile times per block read from the store's records, by entry point.
 _TIMES: dict = {}
 
 
@@ -404,8 +392,7 @@ def step_machine():
 
 def _kept_once(text: str, kind: str, what: str, seconds: float, compile_it):
     """``compile_it(module)`` of the store module ``text``: loaded from numba's cache, or
-    compiled now (after an install or an upgrade), saying so first and recording it
-    after."""
+    compiled now, said first and recorded after."""
     path = module_file(text, kind)
     module = import_module(path)
     compiled_before = record(path) is not None
@@ -469,10 +456,8 @@ def instants_loop(argument_types):
 
 @contextlib.contextmanager
 def _first_class_functions(numba):
-    """numba's warning that its first-class functions are experimental, kept from the
-    user while the loop and a diagram's functions compile: they are how one compiled loop
-    serves every diagram (a public part of numba, checked by ``tests/test_engine.py``);
-    the warning is about our choice, not the user's code."""
+    """numba's warning that its first-class functions (how one compiled loop serves every
+    diagram) are experimental, kept from the user: it is about our choice, not their code."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", numba.NumbaExperimentalFeatureWarning)
         yield
@@ -483,8 +468,8 @@ LOOP_COMPILE_SECONDS = 8.0
 
 
 def integrator_to_compile() -> float:
-    """About how long compiling what every continuous run needs and is not compiled yet
-    (in this process, or in the store) takes: the step machine, the instants' loop.
+    """About how long compiling the step machine and the instants' loop takes, where not
+    compiled yet (in this process, or in the store).
 
     Examples
     --------
