@@ -33,14 +33,8 @@ class UnsupportedSystem(ValueError):
 
 
 def check_arguments(sys, T, X0, U=0.0):
-    """``T``, ``X0`` and ``U`` checked and shaped once, the same way for both engines.
-
-    Parameters
-    ----------
-    sys : control.InputOutputSystem
-        The system they are meant for.
-    T, X0, U : array_like
-        As for :func:`simulate`.
+    """``T``, ``X0`` and ``U`` of a run of ``sys`` (as for
+    :func:`controlkit.simulation.simulate`) checked and shaped once, for every engine.
 
     Returns
     -------
@@ -165,9 +159,8 @@ def recorded_indices(N: int, record_every: int) -> np.ndarray:
 def response(sys, time, outputs, states, inputs, **overrides) -> ct.TimeResponseData:
     """The :class:`control.TimeResponseData` of a run of ``sys``, as python-control labels it.
 
-    Both simulators (and a run pieced together from parts) build their result here, so a
-    result looks the same whichever made it: signal labels from ``sys``, its name, and
-    ``plot_inputs`` only when it has inputs (``.plot()`` fails on an empty input panel).
+    Signal labels from ``sys``, its name, and ``plot_inputs`` only when it has inputs
+    (``.plot()`` fails on an empty input panel).
 
     Parameters
     ----------

@@ -141,11 +141,8 @@ def run_many(sys, T, U, X0s, params_list, *, t_eval=None, method="RK45", compile
                                                  result.Uo)
                 except (ArithmeticError, RuntimeError, ValueError) as error:
                     errors[r] = error
-            if responses[r] is not None and jobs[r] is not None:
+            if responses[r] is not None:
                 responses[r].engine_mode = "compiled"
-    for resp in responses:
-        if resp is not None and not hasattr(resp, "engine_mode"):
-            resp.engine_mode = "python"
     return responses, errors
 
 

@@ -1,8 +1,6 @@
-"""A run in pieces of about a tenth of a second: their sizes, the clock, Ctrl-C, and two
-runs of one piece compared.
-
-Between two pieces a run reports its progress, Ctrl-C stops it, and the rule of
-:mod:`.run` may move it from Python to compiled code; the pieces change no number.
+"""A run in pieces of about a tenth of a second: between two pieces a run reports its
+progress, Ctrl-C stops it, and the rule of :mod:`.run` may move it from Python to compiled
+code; the pieces change no number.
 """
 
 from __future__ import annotations
@@ -11,7 +9,7 @@ import time
 
 import numpy as np
 
-#: The length of a piece of a run (progress, Ctrl-C and the rule act between pieces).
+#: The length of a piece of a run.
 PIECE_SECONDS = 0.1
 
 

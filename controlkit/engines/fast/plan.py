@@ -79,8 +79,6 @@ class Plan:
         The distinct kernel functions, indexed by the table's ``OUT`` and ``UPD``.
     continuous : numpy.ndarray
         Indices in ``x`` of the states that are integrated in continuous time.
-    base_period : float
-        The instants' spacing (the shortest period; 0 when nothing is discrete).
     ny, nu : int
         Sizes of ``ys`` and ``ui``.
 
@@ -102,7 +100,6 @@ class Plan:
     outputs: tuple
     kernels: list
     continuous: np.ndarray
-    base_period: float
     ny: int
     nu: int
 
@@ -279,5 +276,5 @@ def make_plan(sys, blocks, order) -> Plan:
         h=np.array(h, dtype=float),
         inputs=_sparse_rows(np.hstack([sys.connect_map, sys.input_map])),
         outputs=_sparse_rows(sys.output_map), kernels=kernels,
-        continuous=np.array(continuous, dtype=np.int64), base_period=base, ny=ny,
+        continuous=np.array(continuous, dtype=np.int64), ny=ny,
         nu=sys.connect_map.shape[0])
