@@ -280,16 +280,17 @@ def generate(plan, held_logic):
     ['def run_discrete(T, X0', 'def run_continuous(ins']
     """
     P = plan.parameters()  # (which LTI blocks are written out depends on its zeros)
+    identities = tuple(map(kernel_identity, plan.kernels))
     key = (held_logic, plan.table.tobytes(), plan.order.tobytes(),
            plan.h.tobytes(), plan.continuous.tobytes(),
            *(a.tobytes() for a in (*plan.inputs, *plan.outputs)),
-           plan.ny, plan.nu, tuple(map(kernel_identity, plan.kernels)), plan.sys.noutputs,
+           plan.ny, plan.nu, identities, plan.sys.noutputs,
            plan.sys.nstates, tuple(s.name for s in plan.sys.syslist),
            (P == 0.0).tobytes(), (abs(P) == 1.0).tobytes())
     if key not in _GENERATED:  # a diagram called again writes the same text (0.1 ms)
         if len(_GENERATED) >= 1024:
             _GENERATED.clear()
-        _GENERATED[key] = _generate(plan, held_logic, P)
+        _GENERATED[key] = _generate(plan, held_logic, P, identities)
     return _GENERATED[key]
 
 
@@ -297,10 +298,9 @@ def generate(plan, held_logic):
 _GENERATED: dict = {}
 
 
-def _generate(plan, held_logic, P):
+def _generate(plan, held_logic, P, identities):
     rows, ny = plan.rows(), plan.ny
     names = [f"kernel_{i}" for i in range(len(plan.kernels))]
-    identities = [kernel_identity(fn) for fn in plan.kernels]
     # controlkit's own kernels: NaN in, NaN out (their NaN checks can wait, see below)
     trusted = {i for i, name in enumerate(identities)
                if name.startswith("controlkit.kernels.")}

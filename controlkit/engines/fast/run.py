@@ -100,8 +100,7 @@ class Job:
         return self.plan.blocks
 
     def kernels(self) -> dict:
-        """The names the module's text leaves to the engine: ``kernel_<i>`` and the
-        integrator's ``machine``, for this job's way of running."""
+        """The kernels the module's text names ``kernel_<i>``, as this job runs them."""
         names = {}
         for i, fn in enumerate(self.plan.kernels):
             if not self.compiled:
