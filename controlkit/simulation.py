@@ -235,9 +235,9 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
                    solve_ivp_kwargs=dict(solve_ivp_kwargs or {}), **kwargs)
     if engine not in engines.ENGINES:
         raise ValueError(f"engine must be one of {engines.ENGINES}, got {engine!r}")
-    if compile not in (None, True, False):
-        raise ValueError(f"compile must be True, False or None (decided by the run's "
-                         f"length), got {compile!r}")
+    from .engines.contract import check_compile
+
+    check_compile(compile)
     if isinstance(sys, list | tuple):
         return TimeResponseList([input_output_response(s, T, U, X0, engine=engine,
                                                        compile=compile, **options)
