@@ -331,6 +331,15 @@ def evaluator_signatures(numba, rhs_args, results, state, buffers):
     return signatures, tuple(types.FunctionType(s) for s in signatures)
 
 
+def scipy_loop(evaluate, update, outputs, derivatives, machine, rhs_args, times, results,
+               state, buffers, solver, ctrl, status):
+    """:func:`instants_loop` integrated by scipy's ``solve_ivp`` (:func:`scipy_interval`,
+    Python only): ``solver[0]`` is scipy's name of the method."""
+    continuous_run(evaluate, update, outputs, diagram_rhs, scipy_interval, None, (),
+                   (evaluate, derivatives) + rhs_args, times, results, state, buffers,
+                   solver, ctrl, status)
+
+
 def scipy_interval(machine, rhs, args, method, t0, t1, y0, rtol, atol, max_step,
                    first_step, t_eval, i_eval, closed_right, y_eval, y_end, work, exact,
                    budget, resume):
