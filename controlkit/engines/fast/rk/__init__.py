@@ -101,12 +101,7 @@ from __future__ import annotations
 from .interval import solve_interval
 from .machine import FINISHED, machine, machine_on_arrays
 from .tableaux import (
-    DENSE_DOP853,
-    DENSE_POWERS,
     DOP853,
-    EPS,
-    ERROR_DOP853,
-    ERROR_EMBEDDED,
     MAX_FACTOR,
     METHOD_INDEX,
     METHODS,
@@ -155,8 +150,7 @@ from .workspace import (
 )
 
 __all__ = [
-    "DENSE_DOP853", "DENSE_POWERS", "DENSE_ROWS", "DOP853", "EPS", "ERROR_DOP853",
-    "ERROR_EMBEDDED", "FINISHED", "INVALID_ARGUMENT", "MAX_FACTOR", "METHODS",
+    "DENSE_ROWS", "DOP853", "FINISHED", "INVALID_ARGUMENT", "MAX_FACTOR", "METHODS",
     "METHOD_INDEX", "MIN_FACTOR", "NEXT_EVAL", "NEXT_STEP", "NFEV", "NON_FINITE",
     "N_ACCEPTED", "N_DENSE", "N_FLOAT_SLOTS", "N_INT_SLOTS", "N_REJECTED", "PAUSED",
     "PROJECTED_STEPS", "RK23", "RK45", "RTOL_FLOOR", "RUN_ACCEPTED", "SAFETY", "STAGE_ROWS",

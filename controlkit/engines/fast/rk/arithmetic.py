@@ -22,7 +22,6 @@ import math
 import numpy as np
 
 from ...._jit import jit
-from .tableaux import DENSE_DOP853, DENSE_POWERS, ERROR_EMBEDDED
 from .workspace import (
     _ATOL,
     _ERR,
@@ -133,7 +132,7 @@ def _error_norm(method, K, K_flat, f, h, rtol, n, exact):
         f[scale + i] = f[atol + i] + biggest * rtol
     rows = method.n_stages + 1
     _combine(K, K_flat, rows, method.E, f, err, n, exact)
-    if method.error_kind == ERROR_EMBEDDED:
+    if not method.dop853:
         for i in range(n):
             f[err + i] = f[err + i] * h / f[scale + i]
         return _rms(f, err, n, exact)
@@ -163,7 +162,7 @@ def _build_interpolant(method, K, K_flat, f, h, n, exact):
     """
     dense = _dense_at(n)
     rows = method.n_stages + 1
-    if method.dense_kind == DENSE_POWERS:
+    if not method.dop853:
         P = method.dense
         powers = P.shape[1]
         if exact:
@@ -219,7 +218,7 @@ def _evaluate_interpolant(method, f, t_old, h, t_eval, first, stop, y_eval, buff
     m = stop - first
     dense = _dense_at(n)
     y_old = _at(_Y_OLD, n)
-    if method.dense_kind == DENSE_DOP853:
+    if method.dop853:
         for k in range(m):
             x = (t_eval[first + k] - t_old) / h
             for i in range(n):

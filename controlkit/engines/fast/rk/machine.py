@@ -36,7 +36,7 @@ from .arithmetic import (
     _stage_argument,
 )
 from .stiffness import _too_stiff
-from .tableaux import DENSE_DOP853, MAX_FACTOR, MIN_FACTOR, RTOL_FLOOR, SAFETY, TABLEAUX
+from .tableaux import MAX_FACTOR, MIN_FACTOR, RTOL_FLOOR, SAFETY, TABLEAUX
 from .workspace import (
     _ATOL,
     _CLOSED_RIGHT,
@@ -309,7 +309,7 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
             phase = _PHASE_STEP_END
             if stop > first:
                 st[N_DENSE] += 1
-                if method.dense_kind == DENSE_DOP853:
+                if method.dop853:
                     s = S + 1
                     st[_STAGE] = s
                     _stage_argument(K, K_flat, s, method.A[s], f, y_old, f[_H], n, exact)
