@@ -57,7 +57,6 @@ from .workspace import (
     _MIN_STEP,
     _PHASE,
     _PHASE_ACCEPTED,
-    _PHASE_BAD_SIZES,
     _PHASE_BEGIN,
     _PHASE_DONE,
     _PHASE_EXTRA,
@@ -86,11 +85,9 @@ from .workspace import (
     DENSE_ROWS,
     INVALID_ARGUMENT,
     N_ACCEPTED,
-    N_DENSE,
     N_INT_SLOTS,
     N_REJECTED,
     NEXT_EVAL,
-    NEXT_STEP,
     NFEV,
     NON_FINITE,
     RUN_ACCEPTED,
@@ -100,7 +97,6 @@ from .workspace import (
     STIFF,
     SUCCESS,
     T_REQUEST,
-    TIME_FAILED,
     TIME_REACHED,
     _arguments_valid,
     _at,
@@ -186,8 +182,6 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
     it serves; the end of the interval or a failure.
     """
     phase = st[_PHASE]
-    if phase == _PHASE_BAD_SIZES:
-        return _finish(st, INVALID_ARGUMENT)
     if phase == _PHASE_DONE:
         return FINISHED
     n = K.shape[1]
@@ -210,7 +204,6 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
         f[_DIRECTION] = direction
         f[_RTOL] = _py_max(f[_RTOL_GIVEN], RTOL_FLOOR)
         if not _all_finite(f, y, n):
-            f[TIME_FAILED] = t0
             return _finish(st, NON_FINITE)
         for i in range(n):
             f[y_stage + i] = f[y + i]
@@ -261,8 +254,6 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
             t = f[_T]
             h_abs = f[_H_ABS]
             if h_abs < f[_MIN_STEP]:
-                f[TIME_FAILED] = t
-                f[NEXT_STEP] = h_abs
                 if st[_LAST_ERROR_FINITE] == 1:
                     return _finish(st, STEP_TOO_SMALL)
                 return _finish(st, NON_FINITE)
@@ -287,7 +278,6 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
             if not (_all_finite(f, y, n) and _all_finite(K_flat, S * n, n)):
                 for i in range(n):
                     f[y + i] = f[y_old + i]
-                f[TIME_FAILED] = t
                 return _finish(st, NON_FINITE)
             f[_T_OLD] = t_old
             f[_T] = t
@@ -296,7 +286,6 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
             st[N_ACCEPTED] += 1
             st[RUN_ACCEPTED] += 1
             f[TIME_REACHED] = t
-            f[NEXT_STEP] = f[_H_ABS]
             if method.stiffness_bound > 0.0 and _too_stiff(method, K, f, st, n, t):
                 return _finish(st, STIFF)
             # The evaluation times this step serves: t_e <= t, in the direction of travel.
@@ -308,7 +297,6 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
             st[_STOP] = stop
             phase = _PHASE_STEP_END
             if stop > first:
-                st[N_DENSE] += 1
                 if method.dop853:
                     s = S + 1
                     st[_STAGE] = s
@@ -316,7 +304,6 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
                     return _request(f, st, t_old + method.C[s] * f[_H], s, _PHASE_EXTRA)
                 _build_interpolant(method, K, K_flat, f, f[_H], n, exact)
                 if not _all_finite(f, _dense_at(n), n * method.dense.shape[1]):
-                    f[TIME_FAILED] = t
                     return _finish(st, NON_FINITE)
                 _evaluate_interpolant(method, f, t_old, t - t_old, t_eval, first, stop, y_eval,
                                       _log_at(n) + st[_LOG_SIZE], st[_EVAL_CAPACITY] * (4 + n),
@@ -356,7 +343,6 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
                 return _request(f, st, t_old + method.C[s] * h, s, _PHASE_EXTRA)
             _build_interpolant(method, K, K_flat, f, h, n, exact)
             if not _all_finite(f, _dense_at(n), DENSE_ROWS * n):
-                f[TIME_FAILED] = f[_T]
                 return _finish(st, NON_FINITE)
             _evaluate_interpolant(method, f, t_old, f[_T] - t_old, t_eval, st[NEXT_EVAL],
                                   st[_STOP], y_eval, _log_at(n) + st[_LOG_SIZE],
@@ -378,7 +364,6 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
                 f[TIME_REACHED] = t1
                 return _finish(st, SUCCESS)
             if not _all_finite(K_flat, 0, n):
-                f[TIME_FAILED] = t0
                 return _finish(st, NON_FINITE)
             if f[_FIRST_STEP] > 0:
                 f[_H_ABS] = f[_FIRST_STEP]

@@ -26,7 +26,6 @@ from .workspace import (
     STIFF_STEPS_BEFORE_PROJECTING,
     STIFF_STEPS_IN_ROW,
     STIFFNESS,
-    TIME_FAILED,
 )
 
 
@@ -101,5 +100,4 @@ def _too_stiff(method, K, f, st, n, t):
     if projected <= STIFF_STEP_BUDGET:
         return False
     f[PROJECTED_STEPS] = projected
-    f[TIME_FAILED] = t
     return True

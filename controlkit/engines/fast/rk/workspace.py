@@ -3,18 +3,15 @@
 Everything the step machine keeps between calls -- scalars, the state and its copies,
 the stages, the interpolant, counters and status -- lives in one :class:`Workspace`,
 allocated once per state size and reused for every interval (a sampled-data loop
-allocates nothing per interval). Quantities are found by slot: :data:`T_REQUEST`,
-:data:`TIME_REACHED`, :data:`NEXT_STEP`, :data:`TIME_FAILED` in ``floats``;
-:data:`NFEV`, :data:`N_ACCEPTED`, :data:`N_REJECTED`, :data:`N_DENSE`,
-:data:`STATUS`, :data:`NEXT_EVAL` in ``ints``. The other slots (underscored) belong to
-the machine. This module also defines the values the :data:`STATUS` slot takes (the
-status codes, :data:`STATUS_MESSAGES`) and those of the machine's phase, and
-:func:`load`, which starts an interval.
+allocates nothing per interval). Quantities are found by slot; the underscored slots
+belong to the machine. This module also defines the status codes, the machine's phases
+and :func:`load`, which starts an interval.
 
 Why flat arrays: numba updates the reference count of every array a compiled function
 receives, with atomic instructions, at every call. With the workspace as a tuple of
 fourteen arrays that cost about 60% of the run time; with four arrays read by index
-(and the machine viewing them through their addresses) it is gone.
+(and the machine viewing them through their addresses, :func:`.machine.machine`) it is
+gone.
 """
 
 from __future__ import annotations
@@ -34,35 +31,31 @@ from .tableaux import TABLEAUX
 T_REQUEST = 0
 #: ``floats`` slot: last time reached (the end of the last accepted step).
 TIME_REACHED = 1
-#: ``floats`` slot: step size proposed for the next step.
-NEXT_STEP = 2
-#: ``floats`` slot: time of the step that failed (NaN when none failed).
-TIME_FAILED = 3
-_T = 4
-_T_OLD = 5
-_T_NEW = 6
-_H = 7
-_H_ABS = 8
-_MIN_STEP = 9
-_T0 = 10
-_T1 = 11
-_DIRECTION = 12
-_RTOL = 13
-_MAX_STEP = 14
-_FIRST_STEP = 15
-_H0 = 16
-_D1 = 17
-_RTOL_GIVEN = 18
+_T = 2
+_T_OLD = 3
+_T_NEW = 4
+_H = 5
+_H_ABS = 6
+_MIN_STEP = 7
+_T0 = 8
+_T1 = 9
+_DIRECTION = 10
+_RTOL = 11
+_MAX_STEP = 12
+_FIRST_STEP = 13
+_H0 = 14
+_D1 = 15
+_RTOL_GIVEN = 16
 #: ``floats`` slot: the stiffness estimate ``|h lambda|`` of the last accepted step
 #: (see :func:`set_horizon`; 0 for a method without the test).
-STIFFNESS = 19
+STIFFNESS = 17
 #: ``floats`` slot: the steps the whole run was projected to need when it stopped as
 #: :data:`STIFF`.
-PROJECTED_STEPS = 20
-_RUN_START = 21
-_RUN_END = 22
+PROJECTED_STEPS = 18
+_RUN_START = 19
+_RUN_END = 20
 #: Number of scalar slots at the start of ``work.floats``.
-N_FLOAT_SLOTS = 23
+N_FLOAT_SLOTS = 21
 
 # The vectors after the scalars, in this order (each of the state's size).
 _Y = 0
@@ -85,30 +78,29 @@ NFEV = 0
 N_ACCEPTED = 1
 #: ``ints`` slot: rejected trial steps.
 N_REJECTED = 2
-#: ``ints`` slot: steps whose interpolant served an evaluation time.
-N_DENSE = 3
 #: ``ints`` slot: status of the call (once the machine returned :data:`FINISHED`).
-STATUS = 4
+STATUS = 3
 #: ``ints`` slot: index of the first evaluation time not served yet.
-NEXT_EVAL = 5
-_PHASE = 6
-_STAGE = 7
-_REJECTED = 8
-_LAST_ERROR_FINITE = 9
-_EVAL_END = 10
-_STOP = 11
-_METHOD = 12
-_EXACT = 13
-_CLOSED_RIGHT = 14
-_LOG_SIZE = 15
-_EVAL_CAPACITY = 16
+NEXT_EVAL = 4
+_PHASE = 5
+_STAGE = 6
+_REJECTED = 7
+_LAST_ERROR_FINITE = 8
+_EVAL_END = 9
+_STOP = 10
+_METHOD = 11
+_EXACT = 12
+_CLOSED_RIGHT = 13
+# the slots above are reset by :func:`load`, the ones below kept
+_LOG_SIZE = 14
+_EVAL_CAPACITY = 15
 #: ``ints`` slot: accepted steps since :func:`set_horizon` (over all the intervals of a
 #: run; :func:`load` keeps it).
-RUN_ACCEPTED = 17
-_STIFF_IN_ROW = 18
-_NONSTIFF_IN_ROW = 19
+RUN_ACCEPTED = 16
+_STIFF_IN_ROW = 17
+_NONSTIFF_IN_ROW = 18
 #: Number of slots of ``work.ints``.
-N_INT_SLOTS = 20
+N_INT_SLOTS = 19
 
 # Status codes returned by solve_interval.
 #: The interval was integrated to its end.
@@ -167,7 +159,6 @@ _PHASE_TRIAL = 7
 _PHASE_ACCEPTED = 8
 _PHASE_STEP_END = 9
 _PHASE_DONE = 10
-_PHASE_BAD_SIZES = 11
 
 
 Workspace = namedtuple("Workspace", ["floats", "stages", "stages_flat", "ints"])
@@ -181,19 +172,18 @@ the arithmetic of a step).
 Attributes
 ----------
 floats : numpy.ndarray
-    :data:`N_FLOAT_SLOTS` scalars (:data:`T_REQUEST`, :data:`TIME_REACHED`,
-    :data:`NEXT_STEP`, :data:`TIME_FAILED`, ...), then eight vectors of the state's size
-    (state, trial state, previous state, the state at which the caller evaluates the
-    right-hand side, error scale, two error estimates, absolute tolerance), the
-    interpolant's coefficients (``7 n``), the log of step times and the scratch for
-    evaluating the interpolant at several times at once.
+    :data:`N_FLOAT_SLOTS` scalars (:data:`T_REQUEST`, :data:`TIME_REACHED`, ...), then
+    eight vectors of the state's size (state, trial state, previous state, the state at
+    which the caller evaluates the right-hand side, error scale, two error estimates,
+    absolute tolerance), the interpolant's coefficients (``7 n``), the log of step times
+    and the scratch for evaluating the interpolant at several times at once.
 stages : numpy.ndarray, shape (16, n)
     The stages ``k_j``, one per row.
 stages_flat : numpy.ndarray, shape (16 n,)
     The same memory, flat.
 ints : numpy.ndarray of int64
     :data:`N_INT_SLOTS` integers: :data:`NFEV`, :data:`N_ACCEPTED`, :data:`N_REJECTED`,
-    :data:`N_DENSE`, :data:`STATUS`, :data:`NEXT_EVAL`, ...
+    :data:`STATUS`, :data:`NEXT_EVAL`, ...
 
 Examples
 --------
@@ -442,8 +432,6 @@ def load(method_index, t0, t1, y0, rtol, atol, max_step, first_step, i_eval, clo
     for k in range(_LOG_SIZE):
         st[k] = 0
     f[TIME_REACHED] = t0
-    f[NEXT_STEP] = 0.0
-    f[TIME_FAILED] = math.nan
     f[_T0] = t0
     f[_T1] = t1
     f[_RTOL_GIVEN] = rtol
@@ -459,7 +447,8 @@ def load(method_index, t0, t1, y0, rtol, atol, max_step, first_step, i_eval, clo
     st[_EXACT] = 1 if exact else 0
     n = work.stages.shape[1]
     if y0.shape[0] != n or atol.shape[0] != n:
-        st[_PHASE] = _PHASE_BAD_SIZES
+        st[STATUS] = INVALID_ARGUMENT
+        st[_PHASE] = _PHASE_DONE
         return
     y = _at(_Y, n)
     at = _at(_ATOL, n)
