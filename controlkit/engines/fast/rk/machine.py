@@ -4,18 +4,29 @@ The integrator never calls the right-hand side: it asks its caller to ("reverse
 communication", as RKSUITE and ODEPACK's DLSODE do). :func:`machine` returns a row
 ``r >= 0``, meaning "evaluate ``rhs(floats[T_REQUEST], stage_input(work))`` into
 ``stages[r]``, then call me again", or :data:`FINISHED`. It is therefore compiled once,
-whatever the right-hand side and its arguments, and cached on disk; the caller's loop
-around it (:func:`controlkit.engines.fast.rk.solve_interval`) is a few lines. Called
-through a first-class function (:func:`controlkit.engines.fast.rk.machine_function`),
-the machine is not even compiled into its callers.
+whatever the right-hand side and its arguments, and kept in the store; the caller's loop
+around it is :func:`controlkit.engines.fast.rk.solve_interval`.
 
 What it does between requests is scipy 1.17's ``solve_ivp`` for an explicit method,
-operation for operation (``scipy/integrate/_ivp/{rk,common,base,ivp}.py``): Hairer's
-starting step (Hairer, Norsett & Wanner 1993, Sec. II.4), the trial step clipped at
-the end of the interval, the scaled RMS error, acceptance with ``SAFETY``,
-``MIN_FACTOR``, ``MAX_FACTOR`` and "no growth after a rejection in this step", the
-smallest step ``10 |nextafter(t) - t|``, and the dense output serving the evaluation
-times with ``searchsorted(side="right")``.
+operation for operation (``scipy/integrate/_ivp/{rk,common,base,ivp}.py``). Each step
+from ``(t, y)`` with derivative ``f`` and proposed size ``h`` (the first one: Hairer's
+starting step, Hairer, Norsett & Wanner 1993, Sec. II.4, or ``first_step``) is
+
+.. math::
+
+    h &\\leftarrow \\operatorname{clip}(h,\\ h_{min},\\ h_{max}), \\quad
+    h_{min} = 10\\,|\\mathrm{nextafter}(t) - t|; \\qquad
+    t_{new} = \\min(t + h, t_1), \\\\
+    \\epsilon &= \\text{scaled RMS error of the trial step}, \\\\
+    \\epsilon < 1 &: \\text{accept}, \\ h \\leftarrow h \\cdot
+    \\min(10, 0.9\\,\\epsilon^{-1/(q+1)}) \\ (\\text{at most } h
+    \\text{ after a rejection in this step; } 10 \\text{ if } \\epsilon = 0), \\\\
+    \\epsilon \\ge 1 &: \\text{reject}, \\ h \\leftarrow h \\cdot
+    \\max(0.2,\\ 0.9\\,\\epsilon^{-1/(q+1)}), \\text{ fail below } h_{min}
+
+(``SAFETY``, ``MIN_FACTOR``, ``MAX_FACTOR``; ``q`` the order of the error estimate).
+After each accepted step, its interpolant serves the evaluation times ``t_e <= t`` not
+served yet, in the direction of integration (scipy's ``searchsorted(side="right")``).
 """
 
 from __future__ import annotations
@@ -137,11 +148,8 @@ def machine_on_arrays(t_eval, y_eval, f, K, K_flat, st):
 
     Most calls only form the next stage's argument; they are served here, in a small
     function, and the rest (:func:`_machine_general`, a large one whose every call costs
-    setting up its many variables) only once or twice per step.
-
-    This is the machine plain Python runs. Compiled callers call :func:`machine`, the
-    same code on arrays given by address: compiled, this function would update the
-    reference counts of its six arrays at each call.
+    setting up its many variables) only once or twice per step. Plain Python runs this;
+    compiled callers call :func:`machine`, the same code on arrays given by address.
 
     Examples
     --------
@@ -176,8 +184,8 @@ def machine_on_arrays(t_eval, y_eval, f, K, K_flat, st):
 
 @jit
 def _machine_general(t_eval, y_eval, f, K, K_flat, st):
-    """Every phase of the step machine (see :func:`machine_on_arrays`), one after the other until
-    the next request: validation and ``f0``; Hairer's starting step; a step's bounds,
+    """Every phase of the step machine (see :func:`machine_on_arrays`), one after the other
+    until the next request: validation and ``f0``; Hairer's starting step; a step's bounds,
     trial, stages, error norm and acceptance; the interpolant and the evaluation times
     it serves; the end of the interval or a failure.
     """
@@ -424,14 +432,12 @@ def _by_address_in_python(*args):
 def machine(t_eval_at, m, y_eval_at, floats_at, floats_size, stages_at, n, ints_at):
     """:func:`machine_on_arrays` on arrays given by address (compiled callers).
 
-    numba updates the reference count of every array a compiled function receives,
-    with atomic instructions, at each call; for a function called once per
-    evaluation of the right-hand side that cost more than the step's arithmetic.
     Given addresses, the machine views the memory with arrays that own nothing
-    (:func:`controlkit._jit.floats_at`), whose reference counting compiles to nothing.
-    The caller keeps the arrays alive: :func:`solve_interval` does. Compiled once and
-    kept in the store (:func:`controlkit.engines.fast.store.step_machine`), it is
-    called, not pasted, by every diagram's module.
+    (:func:`controlkit._jit.floats_at`), whose reference counting compiles to nothing
+    (see :mod:`.workspace`); the caller keeps the arrays alive, as :func:`solve_interval`
+    does. Compiled once and kept in the store
+    (:func:`controlkit.engines.fast.store.step_machine`), it is called, not pasted, by
+    every diagram's module.
 
     Examples
     --------

@@ -105,9 +105,14 @@ N_INT_SLOTS = 19
 # Status codes returned by solve_interval.
 #: The interval was integrated to its end.
 SUCCESS = 0
-#: The step needed fell below ten times the spacing of floats at the current time.
+#: The step needed fell below ten times the spacing of floats at the current time
+#: (scipy's failure: the same message, time reached and evaluation count).
 STEP_TOO_SMALL = -1
-#: The state or the right-hand side became non-finite (NaN or infinite).
+#: The state or the right-hand side became non-finite (NaN or infinite), never a silent
+#: NaN: where scipy rejects NaN trials until the step is too small, the same steps, but
+#: said why; where scipy hangs (its first step NaN), after one evaluation; where the
+#: stages stay finite but their sums overflow (scipy's success with inf or NaN), at the
+#: last finite state.
 NON_FINITE = -2
 #: An argument is out of range (see :data:`STATUS_MESSAGES`).
 INVALID_ARGUMENT = -3
@@ -164,11 +169,6 @@ _PHASE_DONE = 10
 Workspace = namedtuple("Workspace", ["floats", "stages", "stages_flat", "ints"])
 Workspace.__doc__ = """What the integrator works in: four arrays, allocated once per state size.
 
-The integrator keeps everything in a few flat arrays, read by index, rather than in
-many small ones: compiled code then passes four pointers around instead of dozens of
-arrays whose reference counts numba would update at every call (which cost more than
-the arithmetic of a step).
-
 Attributes
 ----------
 floats : numpy.ndarray
@@ -210,12 +210,6 @@ def make_workspace(n, log_size=0, eval_capacity=0):
     eval_capacity : int
         Most evaluation times one step may serve without the integrator allocating
         scratch for them (only the exact arithmetic of RK23/RK45 needs it).
-
-    Examples
-    --------
-    >>> work = make_workspace(3)
-    >>> work.stages.shape, work.ints.shape[0] == N_INT_SLOTS
-    ((16, 3), True)
     """
     size = (N_FLOAT_SLOTS + (_N_VECTORS + DENSE_ROWS) * n + log_size
             + (4 + n) * eval_capacity)
@@ -277,19 +271,6 @@ def stage_input(work):
 
     When the machine returns a row ``r >= 0``, the caller evaluates
     ``rhs(work.floats[T_REQUEST], stage_input(work), args, work.stages[r])``.
-
-    Examples
-    --------
-    The first request of an interval is ``f(t0, y0)``, into row 0:
-
-    >>> import numpy as np
-    >>> from controlkit.engines.fast.rk import METHOD_INDEX, load, machine_on_arrays
-    >>> work = make_workspace(2)
-    >>> load(METHOD_INDEX["RK45"], 0.0, 1.0, np.array([1.0, -2.0]), 1e-3, np.full(2, 1e-6),
-    ...      np.inf, 0.0, 0, True, work, True)
-    >>> row = machine_on_arrays(np.zeros(0), np.zeros((0, 2)), *work)
-    >>> int(row), float(work.floats[T_REQUEST]), stage_input(work).tolist()
-    (0, 0.0, [1.0, -2.0])
     """
     n = work.stages.shape[1]
     start = _at(_Y_STAGE, n)
@@ -299,18 +280,6 @@ def stage_input(work):
 @jit(inline=True)
 def state(work):
     """The state at the last time reached, ``work.floats[TIME_REACHED]`` (a view).
-
-    Examples
-    --------
-    Loading an interval puts its initial state there:
-
-    >>> import numpy as np
-    >>> from controlkit.engines.fast.rk import METHOD_INDEX, load
-    >>> work = make_workspace(2)
-    >>> load(METHOD_INDEX["DOP853"], 0.0, 1.0, np.array([1.0, -2.0]), 1e-3,
-    ...      np.full(2, 1e-6), np.inf, 0.0, 0, True, work, True)
-    >>> state(work).tolist(), float(work.floats[TIME_REACHED])
-    ([1.0, -2.0], 0.0)
     """
     n = work.stages.shape[1]
     start = _at(_Y, n)
@@ -319,28 +288,7 @@ def state(work):
 
 @jit(inline=True)
 def step_times(work):
-    """The accepted step times the workspace kept (a view; see :func:`make_workspace`).
-
-    The first ``log_size`` of them, in the order they were taken.
-
-    Examples
-    --------
-    ``y' = -y`` over ``[0, 1]`` with RK45 at scipy's default tolerances; the last step
-    ends at ``t1`` exactly:
-
-    >>> import numpy as np
-    >>> from controlkit.engines.fast import rk
-    >>> def decay(t, y, args, out):
-    ...     out[0] = -args[0][0] * y[0]
-    >>> args = (np.array([1.0]),)
-    >>> work = rk.make_workspace(1, log_size=100)
-    >>> status, served = rk.solve_interval(
-    ...     None, decay, args, rk.METHOD_INDEX["RK45"], 0.0, 1.0, np.ones(1), 1e-3,
-    ...     np.full(1, 1e-6), np.inf, 0.0, np.zeros(0), 0, True, np.zeros((0, 1)),
-    ...     np.empty(1), work, True, 0, False)
-    >>> times = rk.step_times(work)
-    >>> int(work.ints[rk.N_ACCEPTED]) == times.size, float(times[-1])
-    (True, 1.0)
+    """The first ``log_size`` accepted step times, in order (a view; :func:`make_workspace`).
     """
     n = work.stages.shape[1]
     kept = min(work.ints[N_ACCEPTED], work.ints[_LOG_SIZE])
