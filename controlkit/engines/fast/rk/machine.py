@@ -137,6 +137,22 @@ def _request(f, st, t, row, phase):
     return row
 
 
+@jit(inline=True)
+def _serve(method, K, K_flat, f, st, t_eval, y_eval, n, exact):
+    """The last step's interpolant, and the evaluation times ``t_eval[NEXT_EVAL:_STOP]``
+    read from it; False (nothing served) when its coefficients are not finite."""
+    _build_interpolant(method, K, K_flat, f, f[_H], n, exact)
+    coefficients = DENSE_ROWS if method.dop853 else method.dense.shape[1]
+    if not _all_finite(f, _dense_at(n), n * coefficients):
+        return False
+    t_old = f[_T_OLD]
+    _evaluate_interpolant(method, f, t_old, f[_T] - t_old, t_eval, st[NEXT_EVAL], st[_STOP],
+                          y_eval, _log_at(n) + st[_LOG_SIZE], st[_EVAL_CAPACITY] * (4 + n),
+                          n, exact)
+    st[NEXT_EVAL] = st[_STOP]
+    return True
+
+
 @jit
 def machine_on_arrays(t_eval, y_eval, f, K, K_flat, st):
     """Advance the loaded interval: the next request (a row ``r >= 0``) or :data:`FINISHED`.
@@ -223,14 +239,10 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
     direction = f[_DIRECTION]
     while True:
         if phase == _PHASE_STAGE:
-            # Stage st[_STAGE] is in K; the next stage, or the new state and its slope.
-            s = st[_STAGE] + 1
+            # The last stage is in K (machine_on_arrays asked for the others): the new
+            # state and its slope.
             t = f[_T]
             h = f[_H]
-            if s < S:
-                st[_STAGE] = s
-                _stage_argument(K, K_flat, s, method.A[s], f, y, h, n, exact)
-                return _request(f, st, t + method.C[s] * h, s, _PHASE_STAGE)
             _combine(K, K_flat, S, method.B, f, y_new, n, exact)
             for i in range(n):
                 f[y_new + i] = f[y + i] + h * f[y_new + i]
@@ -305,18 +317,11 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
             st[_STOP] = stop
             phase = _PHASE_STEP_END
             if stop > first:
-                if method.dop853:
-                    s = S + 1
-                    st[_STAGE] = s
-                    _stage_argument(K, K_flat, s, method.A[s], f, y_old, f[_H], n, exact)
-                    return _request(f, st, t_old + method.C[s] * f[_H], s, _PHASE_EXTRA)
-                _build_interpolant(method, K, K_flat, f, f[_H], n, exact)
-                if not _all_finite(f, _dense_at(n), n * method.dense.shape[1]):
+                if method.dop853:  # its interpolant needs its extra stages first
+                    st[_STAGE] = S
+                    phase = _PHASE_EXTRA
+                elif not _serve(method, K, K_flat, f, st, t_eval, y_eval, n, exact):
                     return _finish(st, NON_FINITE)
-                _evaluate_interpolant(method, f, t_old, t - t_old, t_eval, first, stop, y_eval,
-                                      _log_at(n) + st[_LOG_SIZE], st[_EVAL_CAPACITY] * (4 + n),
-                                      n, exact)
-                st[NEXT_EVAL] = stop
 
         elif phase == _PHASE_STEP_END:
             if direction * (f[_T] - f[_T1]) >= 0:
@@ -349,13 +354,8 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
                 st[_STAGE] = s
                 _stage_argument(K, K_flat, s, method.A[s], f, y_old, h, n, exact)
                 return _request(f, st, t_old + method.C[s] * h, s, _PHASE_EXTRA)
-            _build_interpolant(method, K, K_flat, f, h, n, exact)
-            if not _all_finite(f, _dense_at(n), DENSE_ROWS * n):
+            if not _serve(method, K, K_flat, f, st, t_eval, y_eval, n, exact):
                 return _finish(st, NON_FINITE)
-            _evaluate_interpolant(method, f, t_old, f[_T] - t_old, t_eval, st[NEXT_EVAL],
-                                  st[_STOP], y_eval, _log_at(n) + st[_LOG_SIZE],
-                                  st[_EVAL_CAPACITY] * (4 + n), n, exact)
-            st[NEXT_EVAL] = st[_STOP]
             phase = _PHASE_STEP_END
 
         elif phase == _PHASE_F0:
