@@ -18,26 +18,20 @@ diagram (``plan`` is theirs to read; the generated ones ignore it):
 ``derivatives(t, x, ui, P, dx, plan)``
     The continuous blocks' right-hand sides into ``dx`` at their states' places.
 
-The same loops serve three evaluators and two ways of running: a diagram's own module
-(:mod:`.codegen`) compiled by numba or run as Python, and the reference's evaluator
-built from python-control's own block functions (:mod:`controlkit.engines.reference`).
-Compiled, the discrete loop is pasted into its caller (``inline="always"``) with the
-evaluator as a compile-time constant; the instants' loop (:func:`instants_loop`) is
-compiled once for every diagram and takes the evaluator's functions as numba's
-first-class functions (a call through an address each), so that a new wiring compiles
-only its own functions: 0.4-3 s, where pasting the loop into each diagram's module took
-6-15 s.
+The same loops serve a diagram's own module (:mod:`.codegen`), compiled or run as Python,
+and the reference's evaluator of python-control's own block functions
+(:mod:`controlkit.engines.reference`). Compiled, the discrete loop is pasted into its
+caller with the evaluator as a compile-time constant; the instants' loop
+(:func:`instants_loop`) is compiled once for every diagram and takes the evaluator's
+functions as numba's first-class functions (docs/architecture.md, *The engine*).
 
-Semantics (:mod:`controlkit.sampled_data`): at each instant the signals are evaluated
-(firing discrete blocks fresh, the others held), the evaluation times on the instant are
-recorded (the state before the update, as python-control reports a discrete system),
-the firing blocks update, and the continuous states are integrated to the next instant
-by ``integrate`` (:func:`controlkit.engines.fast.rk.solve_interval`, or
-:func:`scipy_interval` for scipy's stiff methods), a fresh ``solve_ivp`` per interval. A
-diagram with no discrete block has one interval, ``[T[0], T[-1]]``: one ``solve_ivp``
-call, as python-control makes. The instants (:func:`instants`), which evaluation times
-fall on them (:func:`instant_of`) and the inputs between time points
-(:func:`interpolate`) are defined here only.
+Semantics: :func:`controlkit.engines.reference.simulate_sampled_data` tells them; the
+continuous states are integrated between instants by ``integrate``
+(:func:`controlkit.engines.fast.rk.solve_interval`, or :func:`scipy_interval`), a fresh
+``solve_ivp`` per interval, so a diagram with no discrete block makes python-control's
+one call over ``[T[0], T[-1]]``. Which evaluation times fall on an instant
+(:func:`instant_of`) and the inputs between time points (:func:`interpolate`) are
+defined here only.
 """
 
 from __future__ import annotations
