@@ -298,21 +298,6 @@ def evaluator_signatures(numba, rhs_args, results, state, buffers):
     as :func:`instants_loop` calls them with these arrays (the times are floats, the
     indexes integers, ``plan`` the empty tuple), and the types of its arguments with the
     four functions as numba's ``FunctionType`` of each.
-
-    Examples
-    --------
-    >>> from controlkit import _jit
-    >>> if _jit.available():
-    ...     numba = _jit.numba_module()
-    ...     v = np.zeros(2)
-    ...     sigs, _ = evaluator_signatures(numba, ((), v, v), (np.zeros((1, 3)),) * 3,
-    ...                                    (v, v, v), (v, v, v, v, v, np.zeros(2, np.int64),
-    ...                                                v, np.zeros((3, 2)), np.zeros((1, 1)),
-    ...                                                None))
-    ...     str(sigs[0].return_type)
-    ... else:
-    ...     'int64'
-    'int64'
     """
     types, typeof = numba.types, numba.typeof
     f8, i8, plan = types.float64, types.int64, typeof(())

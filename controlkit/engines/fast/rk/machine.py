@@ -438,30 +438,6 @@ def machine(t_eval_at, m, y_eval_at, floats_at, floats_size, stages_at, n, ints_
     does. Compiled once and kept in the store
     (:func:`controlkit.engines.fast.store.step_machine`), it is called, not pasted, by
     every diagram's module.
-
-    Examples
-    --------
-    The first request of an interval, ``f(t0, y0)`` into row 0, through the kept machine:
-
-    >>> import numpy as np
-    >>> from controlkit import _jit
-    >>> from controlkit.engines.fast import store
-    >>> from controlkit.engines.fast.rk import (
-    ...     METHOD_INDEX, T_REQUEST, load, make_workspace, stage_input)
-    >>> work = make_workspace(2)
-    >>> load(METHOD_INDEX["RK45"], 0.5, 1.0, np.array([1.0, -2.0]), 1e-3,
-    ...      np.full(2, 1e-6), np.inf, 0.0, 0, True, work, True)
-    >>> t_eval, y_eval = np.zeros(0), np.zeros((0, 2))
-    >>> def at(array):
-    ...     return np.uintp(array.ctypes.data)
-    >>> if _jit.available():  # (called from Python, through its C entry)
-    ...     row = store.step_machine().ctypes(at(t_eval), 0, at(y_eval), at(work.floats),
-    ...                                       work.floats.size, at(work.stages), 2,
-    ...                                       at(work.ints))
-    ... else:
-    ...     row = machine_on_arrays(t_eval, y_eval, *work)
-    >>> int(row), float(work.floats[T_REQUEST]), stage_input(work).tolist()
-    (0, 0.5, [1.0, -2.0])
     """
     t_eval = _jit.floats_at(t_eval_at, m)
     y_eval = _jit.matrix_at(y_eval_at, m, n)
