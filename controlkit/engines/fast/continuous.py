@@ -29,7 +29,7 @@ from .run import CHECKED, Runner
 from .tiers import NotCompiled
 
 #: The methods integrated by the engine's own code; the stiff ones go to scipy.
-EXPLICIT_METHODS = ("RK23", "RK45", "DOP853")
+EXPLICIT_METHODS = tuple(rk.METHODS)
 STIFF_METHODS = ("LSODA", "BDF", "Radau")
 #: The ``solve_ivp`` options the engine takes; any other sends the run to python-control.
 SOLVER_OPTIONS = ("rtol", "atol", "max_step", "first_step")
