@@ -127,11 +127,9 @@ def simulate_sampled_data(sys, T, X0, U, *, params=None, t_eval=None, method="RK
     xt, yc, y_eval = np.zeros(nx), np.zeros(cidx.size), np.zeros((m, cidx.size))
     rtol, atol, max_step, first_step = solver_options(cidx.size, T[-1] - T[0],
                                                       **(solve_ivp_kwargs or {}))
-    args = (evaluator.evaluate, evaluator.derivatives, evaluator, x, xt, cidx, T, U, ubuf,
-            None, ys, ui, held, np.zeros(nx))
-    loops.continuous_run(
-        evaluator.evaluate, evaluator.update, evaluator.outputs, loops.diagram_rhs,
-        loops.scipy_interval, None, evaluator, args,
+    loops.scipy_loop(
+        evaluator.evaluate, evaluator.update, evaluator.outputs, evaluator.derivatives, None,
+        ((), x, xt, cidx, T, U, ubuf, None, ys, ui, held, np.zeros(nx)),
         (instants, 0, instants.size, float(T[-1]), T, U, t_eval, eval_instant), (Y, X, Uo),
         (x, None, held), (ys, ui, np.zeros(nx), None, xt, cidx, yc, y_eval, ubuf,
                           make_workspace(cidx.size)),

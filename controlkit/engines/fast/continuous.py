@@ -29,7 +29,7 @@ from .run import CHECKED, Runner
 from .tiers import NotCompiled
 
 #: The methods integrated by the engine's own code; the stiff ones go to scipy.
-EXPLICIT_METHODS = ("RK23", "RK45", "DOP853")
+EXPLICIT_METHODS = tuple(rk.METHODS)
 STIFF_METHODS = ("LSODA", "BDF", "Radau")
 #: The ``solve_ivp`` options the engine takes; any other sends the run to python-control.
 SOLVER_OPTIONS = ("rtol", "atol", "max_step", "first_step")
@@ -157,40 +157,20 @@ class _Run:
         return float(np.clip((t - self.T[0]) / span, 0.0, 1.0))
 
     def piece(self, job, budget):
-        """One piece of the run on ``job`` (at most ``budget`` evaluations in an interval)."""
+        """One piece of the run on ``job`` (at most ``budget`` evaluations in an interval):
+        the stiff methods by scipy's solvers, which the loop calls as Python."""
         self.ctrl[BUDGET] = budget
-        rtol, atol, max_step, first_step = self.solver
-        if self.method in STIFF_METHODS:  # scipy's solvers, called by the loop as Python
-            ns = job.python.functions() if hasattr(job, "python") else job.functions()
-            return self._stiff(job, ns, rtol, atol, max_step, first_step)
+        stiff = self.method in STIFF_METHODS
         args = (self.instants, 0, self.instants.size, float(self.T[-1]), self.T, self.U,
                 self.t_eval, self.eval_instant, self.ctrl, self.Y, self.X, self.Uo, self.x,
-                self.held, job.P, rk.METHOD_INDEX[self.method], rtol, atol, max_step,
-                first_step, True, self.status, self.work, self.y_eval, self.yc)
-        if job.compiled:
+                self.held, job.P, self.method if stiff else rk.METHOD_INDEX[self.method],
+                *self.solver, True, self.status, self.work, self.y_eval, self.yc)
+        if job.compiled and not stiff:
             _run_compiled(job, args)
         else:
             with quiet_numbers():
-                job.functions().run_continuous(*args, None, loops.instants_loop)
-
-    def _stiff(self, job, ns, rtol, atol, max_step, first_step):
-        plan, nx = job.plan, self.sys.nstates
-        widest = max([1, *plan.table[:, 1].tolist()])
-        buffers = (np.zeros(plan.ny), np.zeros(plan.nu), np.empty(nx),
-                   np.empty(5 * widest), np.empty(nx), plan.continuous, self.yc,
-                   self.y_eval, np.empty((self.U.shape[0], 1)), self.work)
-        ys, ui, xn, scratch, xt, cidx, yc, y_eval, ubuf, _ = buffers
-        args = ((), self.x, xt, cidx, self.T, self.U, ubuf, job.P, ys, ui, self.held,
-                np.zeros(nx))
-        with quiet_numbers():
-            loops.continuous_run(
-                ns.evaluate, ns.update, ns.outputs, loops.diagram_rhs, loops.scipy_interval,
-                None, (), (ns.evaluate, ns.derivatives, *args),
-                (self.instants, 0, self.instants.size, float(self.T[-1]), self.T, self.U,
-                 self.t_eval, self.eval_instant), (self.Y, self.X, self.Uo),
-                (self.x, job.P, self.held), buffers,
-                (self.method, rtol, atol, max_step, first_step, True), self.ctrl,
-                self.status)
+                job.functions().run_continuous(
+                    *args, None, loops.scipy_loop if stiff else loops.instants_loop)
 
 
 def run_continuous(sys, T, U, X0, *, params=None, t_eval=None, method="RK45",

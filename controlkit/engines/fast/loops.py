@@ -18,26 +18,20 @@ diagram (``plan`` is theirs to read; the generated ones ignore it):
 ``derivatives(t, x, ui, P, dx, plan)``
     The continuous blocks' right-hand sides into ``dx`` at their states' places.
 
-The same loops serve three evaluators and two ways of running: a diagram's own module
-(:mod:`.codegen`) compiled by numba or run as Python, and the reference's evaluator
-built from python-control's own block functions (:mod:`controlkit.engines.reference`).
-Compiled, the discrete loop is pasted into its caller (``inline="always"``) with the
-evaluator as a compile-time constant; the instants' loop (:func:`instants_loop`) is
-compiled once for every diagram and takes the evaluator's functions as numba's
-first-class functions (a call through an address each), so that a new wiring compiles
-only its own functions: 0.4-3 s, where pasting the loop into each diagram's module took
-6-15 s.
+The same loops serve a diagram's own module (:mod:`.codegen`), compiled or run as Python,
+and the reference's evaluator of python-control's own block functions
+(:mod:`controlkit.engines.reference`). Compiled, the discrete loop is pasted into its
+caller with the evaluator as a compile-time constant; the instants' loop
+(:func:`instants_loop`) is compiled once for every diagram and takes the evaluator's
+functions as numba's first-class functions (docs/architecture.md, *The engine*).
 
-Semantics (:mod:`controlkit.sampled_data`): at each instant the signals are evaluated
-(firing discrete blocks fresh, the others held), the evaluation times on the instant are
-recorded (the state before the update, as python-control reports a discrete system),
-the firing blocks update, and the continuous states are integrated to the next instant
-by ``integrate`` (:func:`controlkit.engines.fast.rk.solve_interval`, or
-:func:`scipy_interval` for scipy's stiff methods), a fresh ``solve_ivp`` per interval. A
-diagram with no discrete block has one interval, ``[T[0], T[-1]]``: one ``solve_ivp``
-call, as python-control makes. The instants (:func:`instants`), which evaluation times
-fall on them (:func:`instant_of`) and the inputs between time points
-(:func:`interpolate`) are defined here only.
+Semantics: :func:`controlkit.engines.reference.simulate_sampled_data` tells them; the
+continuous states are integrated between instants by ``integrate``
+(:func:`controlkit.engines.fast.rk.solve_interval`, or :func:`scipy_interval`), a fresh
+``solve_ivp`` per interval, so a diagram with no discrete block makes python-control's
+one call over ``[T[0], T[-1]]``. Which evaluation times fall on an instant
+(:func:`instant_of`) and the inputs between time points (:func:`interpolate`) are
+defined here only.
 """
 
 from __future__ import annotations
@@ -304,21 +298,6 @@ def evaluator_signatures(numba, rhs_args, results, state, buffers):
     as :func:`instants_loop` calls them with these arrays (the times are floats, the
     indexes integers, ``plan`` the empty tuple), and the types of its arguments with the
     four functions as numba's ``FunctionType`` of each.
-
-    Examples
-    --------
-    >>> from controlkit import _jit
-    >>> if _jit.available():
-    ...     numba = _jit.numba_module()
-    ...     v = np.zeros(2)
-    ...     sigs, _ = evaluator_signatures(numba, ((), v, v), (np.zeros((1, 3)),) * 3,
-    ...                                    (v, v, v), (v, v, v, v, v, np.zeros(2, np.int64),
-    ...                                                v, np.zeros((3, 2)), np.zeros((1, 1)),
-    ...                                                None))
-    ...     str(sigs[0].return_type)
-    ... else:
-    ...     'int64'
-    'int64'
     """
     types, typeof = numba.types, numba.typeof
     f8, i8, plan = types.float64, types.int64, typeof(())
@@ -329,6 +308,15 @@ def evaluator_signatures(numba, rhs_args, results, state, buffers):
                   types.none(ys, ui, typeof(results[0]), i8, plan),  # outputs
                   types.none(f8, x, ui, P, typeof(rhs_args[-1]), plan))  # derivatives
     return signatures, tuple(types.FunctionType(s) for s in signatures)
+
+
+def scipy_loop(evaluate, update, outputs, derivatives, machine, rhs_args, times, results,
+               state, buffers, solver, ctrl, status):
+    """:func:`instants_loop` integrated by scipy's ``solve_ivp`` (:func:`scipy_interval`,
+    Python only): ``solver[0]`` is scipy's name of the method."""
+    continuous_run(evaluate, update, outputs, diagram_rhs, scipy_interval, None, (),
+                   (evaluate, derivatives) + rhs_args, times, results, state, buffers,
+                   solver, ctrl, status)
 
 
 def scipy_interval(machine, rhs, args, method, t0, t1, y0, rtol, atol, max_step,

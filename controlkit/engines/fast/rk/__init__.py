@@ -21,28 +21,21 @@ interpolants) and :mod:`~controlkit.engines.fast.rk.stiffness`.
 Design
 ------
 **Reverse communication.** The integrator never calls the right-hand side: the step
-machine (:func:`machine`) returns "evaluate at ``work.floats[T_REQUEST]`` and
-:func:`stage_input` into row ``r`` of ``work.stages``" and is called again with the
+machine (:func:`machine`) asks its caller to evaluate it and is called again with the
 result (as RKSUITE and ODEPACK do). What a caller compiles is the six-line loop
 :func:`solve_interval`, which numba pastes into it, so the right-hand side stays a
 compile-time constant of the caller, which is then cached on disk.
 
 **Compiled once.** The machine does not depend on the right-hand side, the type of its
 ``args`` or the method (a run-time index into :data:`TABLEAUX`): it is compiled once
-and kept in the store; a diagram's module calls it, so a new diagram compiles no slower
-than a diagram with no integrator. Its state is one :class:`Workspace` of four flat arrays,
-which the machine views by address (numba would otherwise update the reference count
-of each array it receives, atomically, at every call).
+and kept in the store, named by controlkit's own source (editing these files compiles
+it again); a diagram's module calls it, so a new diagram compiles no slower than a
+diagram with no integrator. Its state is one workspace of four flat arrays
+(:mod:`~controlkit.engines.fast.rk.workspace` says why).
 
-**Exact arithmetic.** scipy forms each combination of stages with ``numpy.dot``, i.e.
-OpenBLAS gemv/gemm/ddot (fused multiply-adds, blocked summation; one state takes
-vector-vector paths). The error estimate cancels, so another summation order changes
-the step sizes by ~1e-13 relative, which the step-size controller amplifies: on van
-der Pol at scipy's default tolerances, plain loops (``exact=False``) differ from scipy
-by 3e-9 (RK45) and 1.5e-7 (DOP853) after 20 s. ``exact=True`` makes the BLAS calls
-numpy makes (numba's ``numpy.dot`` calls the OpenBLAS bundled with scipy, which picks
-the same kernels as numpy's on one machine). ``exact=False`` is faster for small
-systems and equal to rounding.
+**Exact arithmetic.** With ``exact=True`` every combination of stages is the BLAS call
+numpy makes in scipy, so the results are scipy's to the last bit; ``exact=False`` sums
+in plain loops (:mod:`~controlkit.engines.fast.rk.arithmetic`).
 
 **Evaluation times.** One :func:`solve_interval` call is one ``solve_ivp(fun, (t0,
 t1), y0, t_eval=...)`` call: a fresh initial step, a stop exactly at ``t1``. It serves
@@ -54,13 +47,8 @@ exactly). A time equal to a step's end is read from that step's interpolant at
 equal to ``t0`` is ``y0`` exactly; ``t0 == t1`` takes no step and serves nothing
 (scipy treats that span as backward and returns no points).
 
-**Status codes** (never a silent NaN): :data:`SUCCESS` 0; :data:`STEP_TOO_SMALL` -1
-(scipy's failure: same message, time reached and evaluation count);
-:data:`NON_FINITE` -2 (where scipy rejects NaN trials until the step is too small we
-take the same steps but say why; where scipy hangs, its first step being NaN, we return
-after one evaluation; where the stages stay finite but their sums overflow and scipy
-returns inf/NaN as a success, we stop at the last finite state);
-:data:`INVALID_ARGUMENT` -3.
+**Status codes** (never a silent NaN): :data:`STATUS_MESSAGES`, and the constants'
+comments in :mod:`~controlkit.engines.fast.rk.workspace`.
 
 Comparing with python-control
 -----------------------------
@@ -77,10 +65,6 @@ compiled right-hand side that reproduces numpy's bits, not merely its formulas.
 
 Without numba (or with ``CONTROLKIT_DISABLE_NUMBA=1``) the same functions run as plain
 Python and take the same steps.
-
-The machine is compiled once and kept in the store, named by controlkit's own source
-(:mod:`controlkit.engines.fast.store`): editing any of these files compiles it again,
-with nothing to delete by hand.
 
 References
 ----------
@@ -100,40 +84,15 @@ from __future__ import annotations
 
 from .interval import solve_interval
 from .machine import FINISHED, machine, machine_on_arrays
-from .tableaux import (
-    DENSE_DOP853,
-    DENSE_POWERS,
-    DOP853,
-    EPS,
-    ERROR_DOP853,
-    ERROR_EMBEDDED,
-    MAX_FACTOR,
-    METHOD_INDEX,
-    METHODS,
-    MIN_FACTOR,
-    RK23,
-    RK45,
-    RTOL_FLOOR,
-    SAFETY,
-    TABLEAUX,
-    Tableau,
-)
+from .tableaux import METHOD_INDEX, METHODS, RTOL_FLOOR, TABLEAUX
 from .workspace import (
-    DENSE_ROWS,
     INVALID_ARGUMENT,
     N_ACCEPTED,
-    N_DENSE,
-    N_FLOAT_SLOTS,
-    N_INT_SLOTS,
     N_REJECTED,
-    NEXT_EVAL,
-    NEXT_STEP,
     NFEV,
     NON_FINITE,
     PAUSED,
     PROJECTED_STEPS,
-    RUN_ACCEPTED,
-    STAGE_ROWS,
     STATUS,
     STATUS_MESSAGES,
     STEP_TOO_SMALL,
@@ -143,9 +102,7 @@ from .workspace import (
     STIFFNESS,
     SUCCESS,
     T_REQUEST,
-    TIME_FAILED,
     TIME_REACHED,
-    Workspace,
     load,
     make_workspace,
     set_horizon,
@@ -154,16 +111,12 @@ from .workspace import (
     step_times,
 )
 
+# what the engine, the tests and the examples take from here
 __all__ = [
-    "DENSE_DOP853", "DENSE_POWERS", "DENSE_ROWS", "DOP853", "EPS", "ERROR_DOP853",
-    "ERROR_EMBEDDED", "FINISHED", "INVALID_ARGUMENT", "MAX_FACTOR", "METHODS",
-    "METHOD_INDEX", "MIN_FACTOR", "NEXT_EVAL", "NEXT_STEP", "NFEV", "NON_FINITE",
-    "N_ACCEPTED", "N_DENSE", "N_FLOAT_SLOTS", "N_INT_SLOTS", "N_REJECTED", "PAUSED",
-    "PROJECTED_STEPS", "RK23", "RK45", "RTOL_FLOOR", "RUN_ACCEPTED", "SAFETY", "STAGE_ROWS",
-    "STATUS", "STATUS_MESSAGES", "STEP_TOO_SMALL", "STIFF", "STIFFNESS",
-    "STIFF_STEP_BUDGET", "STIFF_STEPS_BEFORE_PROJECTING", "SUCCESS", "TABLEAUX",
-    "TIME_FAILED", "TIME_REACHED", "T_REQUEST", "Tableau", "Workspace", "load", "machine",
-    "machine_on_arrays", "make_workspace", "set_horizon", "solve_interval",
-    "stage_input", "state", "step_times",
+    "FINISHED", "INVALID_ARGUMENT", "METHODS", "METHOD_INDEX", "NFEV", "NON_FINITE",
+    "N_ACCEPTED", "N_REJECTED", "PAUSED", "PROJECTED_STEPS", "RTOL_FLOOR", "STATUS",
+    "STATUS_MESSAGES", "STEP_TOO_SMALL", "STIFF", "STIFFNESS", "STIFF_STEP_BUDGET",
+    "STIFF_STEPS_BEFORE_PROJECTING", "SUCCESS", "TABLEAUX", "TIME_REACHED", "T_REQUEST",
+    "load", "machine", "machine_on_arrays", "make_workspace", "set_horizon",
+    "solve_interval", "stage_input", "state", "step_times",
 ]
-

@@ -1,14 +1,11 @@
 """One interval of integration, as one ``solve_ivp`` call: the loop around the machine.
 
-:func:`solve_interval` is what compiled callers (the generated simulation loops) call:
-six lines that load the interval, then evaluate the right-hand side whenever the step
-machine asks and call it again. numba pastes it into its caller (``inline="always"``),
-so a right-hand side that is a global of the caller stays a compile-time constant
-there and the caller can be cached on disk. The machine itself is passed in: compiled
-once and kept in the store (:func:`controlkit.engines.fast.store.step_machine`), it is
-called, not compiled again into each caller, so a new diagram compiles no more than its
-own loop. A call may stop after a budget of evaluations and be resumed: a long run
-returns to Python between pieces (progress, Ctrl-C).
+:func:`solve_interval` is what compiled callers (the generated simulation loops) call.
+numba pastes it into its caller (``inline="always"``), so a right-hand side that is a
+global of the caller stays a compile-time constant there and the caller can be cached on
+disk; the machine is passed in, compiled once and kept in the store. A call may stop
+after a budget of evaluations and be resumed: a long run returns to Python between
+pieces (progress, Ctrl-C).
 """
 
 from __future__ import annotations
@@ -37,26 +34,9 @@ def _solve_interval_compiled(machine_function, rhs, args, method_index, t0, t1, 
                              y_end, work, exact, budget, resume):
     """Integrate ``y' = rhs(t, y)`` over ``[t0, t1]`` as one ``solve_ivp`` call would.
 
-    Each step from ``(t, y)`` with derivative ``f`` and proposed size ``h`` (first one:
-    Hairer's starting step, or ``first_step``) is the loop of scipy's ``RungeKutta``:
-
-    .. math::
-
-        h &\\leftarrow \\operatorname{clip}(h,\\ h_{min},\\ h_{max}), \\quad
-        h_{min} = 10\\,|\\mathrm{nextafter}(t) - t|; \\qquad
-        t_{new} = \\min(t + h, t_1), \\\\
-        \\epsilon &= \\text{scaled RMS error of the trial step}, \\\\
-        \\epsilon < 1 &: \\text{accept}, \\ h \\leftarrow h \\cdot
-        \\min(10, 0.9\\,\\epsilon^{-1/(q+1)}) \\ (\\text{at most } h
-        \\text{ after a rejection in this step; } 10 \\text{ if } \\epsilon = 0), \\\\
-        \\epsilon \\ge 1 &: \\text{reject}, \\ h \\leftarrow h \\cdot
-        \\max(0.2,\\ 0.9\\,\\epsilon^{-1/(q+1)}), \\text{ fail below } h_{min}.
-
-    After each accepted step ending at ``t``, the evaluation times not yet served with
-    ``t_e <= t`` (in the direction of integration) are read from that step's
-    interpolant -- also a time equal to the step's end, and ``t1`` itself; a time equal
-    to ``t0`` comes out exactly ``y0``. This is scipy's ``searchsorted(...,
-    side="right")`` rule.
+    The steps are scipy's (see :mod:`.machine`); after each accepted step ending at
+    ``t``, the evaluation times not yet served with ``t_e <= t`` are read from that
+    step's interpolant, a time equal to ``t0`` comes out exactly ``y0``.
 
     Parameters
     ----------

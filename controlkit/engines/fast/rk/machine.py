@@ -4,18 +4,29 @@ The integrator never calls the right-hand side: it asks its caller to ("reverse
 communication", as RKSUITE and ODEPACK's DLSODE do). :func:`machine` returns a row
 ``r >= 0``, meaning "evaluate ``rhs(floats[T_REQUEST], stage_input(work))`` into
 ``stages[r]``, then call me again", or :data:`FINISHED`. It is therefore compiled once,
-whatever the right-hand side and its arguments, and cached on disk; the caller's loop
-around it (:func:`controlkit.engines.fast.rk.solve_interval`) is a few lines. Called
-through a first-class function (:func:`controlkit.engines.fast.rk.machine_function`),
-the machine is not even compiled into its callers.
+whatever the right-hand side and its arguments, and kept in the store; the caller's loop
+around it is :func:`controlkit.engines.fast.rk.solve_interval`.
 
 What it does between requests is scipy 1.17's ``solve_ivp`` for an explicit method,
-operation for operation (``scipy/integrate/_ivp/{rk,common,base,ivp}.py``): Hairer's
-starting step (Hairer, Norsett & Wanner 1993, Sec. II.4), the trial step clipped at
-the end of the interval, the scaled RMS error, acceptance with ``SAFETY``,
-``MIN_FACTOR``, ``MAX_FACTOR`` and "no growth after a rejection in this step", the
-smallest step ``10 |nextafter(t) - t|``, and the dense output serving the evaluation
-times with ``searchsorted(side="right")``.
+operation for operation (``scipy/integrate/_ivp/{rk,common,base,ivp}.py``). Each step
+from ``(t, y)`` with derivative ``f`` and proposed size ``h`` (the first one: Hairer's
+starting step, Hairer, Norsett & Wanner 1993, Sec. II.4, or ``first_step``) is
+
+.. math::
+
+    h &\\leftarrow \\operatorname{clip}(h,\\ h_{min},\\ h_{max}), \\quad
+    h_{min} = 10\\,|\\mathrm{nextafter}(t) - t|; \\qquad
+    t_{new} = \\min(t + h, t_1), \\\\
+    \\epsilon &= \\text{scaled RMS error of the trial step}, \\\\
+    \\epsilon < 1 &: \\text{accept}, \\ h \\leftarrow h \\cdot
+    \\min(10, 0.9\\,\\epsilon^{-1/(q+1)}) \\ (\\text{at most } h
+    \\text{ after a rejection in this step; } 10 \\text{ if } \\epsilon = 0), \\\\
+    \\epsilon \\ge 1 &: \\text{reject}, \\ h \\leftarrow h \\cdot
+    \\max(0.2,\\ 0.9\\,\\epsilon^{-1/(q+1)}), \\text{ fail below } h_{min}
+
+(``SAFETY``, ``MIN_FACTOR``, ``MAX_FACTOR``; ``q`` the order of the error estimate).
+After each accepted step, its interpolant serves the evaluation times ``t_e <= t`` not
+served yet, in the direction of integration (scipy's ``searchsorted(side="right")``).
 """
 
 from __future__ import annotations
@@ -36,7 +47,7 @@ from .arithmetic import (
     _stage_argument,
 )
 from .stiffness import _too_stiff
-from .tableaux import DENSE_DOP853, MAX_FACTOR, MIN_FACTOR, RTOL_FLOOR, SAFETY, TABLEAUX
+from .tableaux import MAX_FACTOR, MIN_FACTOR, RTOL_FLOOR, SAFETY, TABLEAUX
 from .workspace import (
     _ATOL,
     _CLOSED_RIGHT,
@@ -57,7 +68,6 @@ from .workspace import (
     _MIN_STEP,
     _PHASE,
     _PHASE_ACCEPTED,
-    _PHASE_BAD_SIZES,
     _PHASE_BEGIN,
     _PHASE_DONE,
     _PHASE_EXTRA,
@@ -86,11 +96,9 @@ from .workspace import (
     DENSE_ROWS,
     INVALID_ARGUMENT,
     N_ACCEPTED,
-    N_DENSE,
     N_INT_SLOTS,
     N_REJECTED,
     NEXT_EVAL,
-    NEXT_STEP,
     NFEV,
     NON_FINITE,
     RUN_ACCEPTED,
@@ -100,7 +108,6 @@ from .workspace import (
     STIFF,
     SUCCESS,
     T_REQUEST,
-    TIME_FAILED,
     TIME_REACHED,
     _arguments_valid,
     _at,
@@ -130,6 +137,22 @@ def _request(f, st, t, row, phase):
     return row
 
 
+@jit(inline=True)
+def _serve(method, K, K_flat, f, st, t_eval, y_eval, n, exact):
+    """The last step's interpolant, and the evaluation times ``t_eval[NEXT_EVAL:_STOP]``
+    read from it; False (nothing served) when its coefficients are not finite."""
+    _build_interpolant(method, K, K_flat, f, f[_H], n, exact)
+    coefficients = DENSE_ROWS if method.dop853 else method.dense.shape[1]
+    if not _all_finite(f, _dense_at(n), n * coefficients):
+        return False
+    t_old = f[_T_OLD]
+    _evaluate_interpolant(method, f, t_old, f[_T] - t_old, t_eval, st[NEXT_EVAL], st[_STOP],
+                          y_eval, _log_at(n) + st[_LOG_SIZE], st[_EVAL_CAPACITY] * (4 + n),
+                          n, exact)
+    st[NEXT_EVAL] = st[_STOP]
+    return True
+
+
 @jit
 def machine_on_arrays(t_eval, y_eval, f, K, K_flat, st):
     """Advance the loaded interval: the next request (a row ``r >= 0``) or :data:`FINISHED`.
@@ -141,11 +164,8 @@ def machine_on_arrays(t_eval, y_eval, f, K, K_flat, st):
 
     Most calls only form the next stage's argument; they are served here, in a small
     function, and the rest (:func:`_machine_general`, a large one whose every call costs
-    setting up its many variables) only once or twice per step.
-
-    This is the machine plain Python runs. Compiled callers call :func:`machine`, the
-    same code on arrays given by address: compiled, this function would update the
-    reference counts of its six arrays at each call.
+    setting up its many variables) only once or twice per step. Plain Python runs this;
+    compiled callers call :func:`machine`, the same code on arrays given by address.
 
     Examples
     --------
@@ -180,14 +200,12 @@ def machine_on_arrays(t_eval, y_eval, f, K, K_flat, st):
 
 @jit
 def _machine_general(t_eval, y_eval, f, K, K_flat, st):
-    """Every phase of the step machine (see :func:`machine_on_arrays`), one after the other until
-    the next request: validation and ``f0``; Hairer's starting step; a step's bounds,
+    """Every phase of the step machine (see :func:`machine_on_arrays`), one after the other
+    until the next request: validation and ``f0``; Hairer's starting step; a step's bounds,
     trial, stages, error norm and acceptance; the interpolant and the evaluation times
     it serves; the end of the interval or a failure.
     """
     phase = st[_PHASE]
-    if phase == _PHASE_BAD_SIZES:
-        return _finish(st, INVALID_ARGUMENT)
     if phase == _PHASE_DONE:
         return FINISHED
     n = K.shape[1]
@@ -210,7 +228,6 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
         f[_DIRECTION] = direction
         f[_RTOL] = _py_max(f[_RTOL_GIVEN], RTOL_FLOOR)
         if not _all_finite(f, y, n):
-            f[TIME_FAILED] = t0
             return _finish(st, NON_FINITE)
         for i in range(n):
             f[y_stage + i] = f[y + i]
@@ -222,14 +239,10 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
     direction = f[_DIRECTION]
     while True:
         if phase == _PHASE_STAGE:
-            # Stage st[_STAGE] is in K; the next stage, or the new state and its slope.
-            s = st[_STAGE] + 1
+            # The last stage is in K (machine_on_arrays asked for the others): the new
+            # state and its slope.
             t = f[_T]
             h = f[_H]
-            if s < S:
-                st[_STAGE] = s
-                _stage_argument(K, K_flat, s, method.A[s], f, y, h, n, exact)
-                return _request(f, st, t + method.C[s] * h, s, _PHASE_STAGE)
             _combine(K, K_flat, S, method.B, f, y_new, n, exact)
             for i in range(n):
                 f[y_new + i] = f[y + i] + h * f[y_new + i]
@@ -261,8 +274,6 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
             t = f[_T]
             h_abs = f[_H_ABS]
             if h_abs < f[_MIN_STEP]:
-                f[TIME_FAILED] = t
-                f[NEXT_STEP] = h_abs
                 if st[_LAST_ERROR_FINITE] == 1:
                     return _finish(st, STEP_TOO_SMALL)
                 return _finish(st, NON_FINITE)
@@ -287,7 +298,6 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
             if not (_all_finite(f, y, n) and _all_finite(K_flat, S * n, n)):
                 for i in range(n):
                     f[y + i] = f[y_old + i]
-                f[TIME_FAILED] = t
                 return _finish(st, NON_FINITE)
             f[_T_OLD] = t_old
             f[_T] = t
@@ -296,7 +306,6 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
             st[N_ACCEPTED] += 1
             st[RUN_ACCEPTED] += 1
             f[TIME_REACHED] = t
-            f[NEXT_STEP] = f[_H_ABS]
             if method.stiffness_bound > 0.0 and _too_stiff(method, K, f, st, n, t):
                 return _finish(st, STIFF)
             # The evaluation times this step serves: t_e <= t, in the direction of travel.
@@ -308,20 +317,11 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
             st[_STOP] = stop
             phase = _PHASE_STEP_END
             if stop > first:
-                st[N_DENSE] += 1
-                if method.dense_kind == DENSE_DOP853:
-                    s = S + 1
-                    st[_STAGE] = s
-                    _stage_argument(K, K_flat, s, method.A[s], f, y_old, f[_H], n, exact)
-                    return _request(f, st, t_old + method.C[s] * f[_H], s, _PHASE_EXTRA)
-                _build_interpolant(method, K, K_flat, f, f[_H], n, exact)
-                if not _all_finite(f, _dense_at(n), n * method.dense.shape[1]):
-                    f[TIME_FAILED] = t
+                if method.dop853:  # its interpolant needs its extra stages first
+                    st[_STAGE] = S
+                    phase = _PHASE_EXTRA
+                elif not _serve(method, K, K_flat, f, st, t_eval, y_eval, n, exact):
                     return _finish(st, NON_FINITE)
-                _evaluate_interpolant(method, f, t_old, t - t_old, t_eval, first, stop, y_eval,
-                                      _log_at(n) + st[_LOG_SIZE], st[_EVAL_CAPACITY] * (4 + n),
-                                      n, exact)
-                st[NEXT_EVAL] = stop
 
         elif phase == _PHASE_STEP_END:
             if direction * (f[_T] - f[_T1]) >= 0:
@@ -354,14 +354,8 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
                 st[_STAGE] = s
                 _stage_argument(K, K_flat, s, method.A[s], f, y_old, h, n, exact)
                 return _request(f, st, t_old + method.C[s] * h, s, _PHASE_EXTRA)
-            _build_interpolant(method, K, K_flat, f, h, n, exact)
-            if not _all_finite(f, _dense_at(n), DENSE_ROWS * n):
-                f[TIME_FAILED] = f[_T]
+            if not _serve(method, K, K_flat, f, st, t_eval, y_eval, n, exact):
                 return _finish(st, NON_FINITE)
-            _evaluate_interpolant(method, f, t_old, f[_T] - t_old, t_eval, st[NEXT_EVAL],
-                                  st[_STOP], y_eval, _log_at(n) + st[_LOG_SIZE],
-                                  st[_EVAL_CAPACITY] * (4 + n), n, exact)
-            st[NEXT_EVAL] = st[_STOP]
             phase = _PHASE_STEP_END
 
         elif phase == _PHASE_F0:
@@ -378,7 +372,6 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
                 f[TIME_REACHED] = t1
                 return _finish(st, SUCCESS)
             if not _all_finite(K_flat, 0, n):
-                f[TIME_FAILED] = t0
                 return _finish(st, NON_FINITE)
             if f[_FIRST_STEP] > 0:
                 f[_H_ABS] = f[_FIRST_STEP]
@@ -439,38 +432,12 @@ def _by_address_in_python(*args):
 def machine(t_eval_at, m, y_eval_at, floats_at, floats_size, stages_at, n, ints_at):
     """:func:`machine_on_arrays` on arrays given by address (compiled callers).
 
-    numba updates the reference count of every array a compiled function receives,
-    with atomic instructions, at each call; for a function called once per
-    evaluation of the right-hand side that cost more than the step's arithmetic.
     Given addresses, the machine views the memory with arrays that own nothing
-    (:func:`controlkit._jit.floats_at`), whose reference counting compiles to nothing.
-    The caller keeps the arrays alive: :func:`solve_interval` does. Compiled once and
-    kept in the store (:func:`controlkit.engines.fast.store.step_machine`), it is
-    called, not pasted, by every diagram's module.
-
-    Examples
-    --------
-    The first request of an interval, ``f(t0, y0)`` into row 0, through the kept machine:
-
-    >>> import numpy as np
-    >>> from controlkit import _jit
-    >>> from controlkit.engines.fast import store
-    >>> from controlkit.engines.fast.rk import (
-    ...     METHOD_INDEX, T_REQUEST, load, make_workspace, stage_input)
-    >>> work = make_workspace(2)
-    >>> load(METHOD_INDEX["RK45"], 0.5, 1.0, np.array([1.0, -2.0]), 1e-3,
-    ...      np.full(2, 1e-6), np.inf, 0.0, 0, True, work, True)
-    >>> t_eval, y_eval = np.zeros(0), np.zeros((0, 2))
-    >>> def at(array):
-    ...     return np.uintp(array.ctypes.data)
-    >>> if _jit.available():  # (called from Python, through its C entry)
-    ...     row = store.step_machine().ctypes(at(t_eval), 0, at(y_eval), at(work.floats),
-    ...                                       work.floats.size, at(work.stages), 2,
-    ...                                       at(work.ints))
-    ... else:
-    ...     row = machine_on_arrays(t_eval, y_eval, *work)
-    >>> int(row), float(work.floats[T_REQUEST]), stage_input(work).tolist()
-    (0, 0.5, [1.0, -2.0])
+    (:func:`controlkit._jit.floats_at`), whose reference counting compiles to nothing
+    (see :mod:`.workspace`); the caller keeps the arrays alive, as :func:`solve_interval`
+    does. Compiled once and kept in the store
+    (:func:`controlkit.engines.fast.store.step_machine`), it is called, not pasted, by
+    every diagram's module.
     """
     t_eval = _jit.floats_at(t_eval_at, m)
     y_eval = _jit.matrix_at(y_eval_at, m, n)

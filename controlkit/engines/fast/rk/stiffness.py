@@ -26,13 +26,12 @@ from .workspace import (
     STIFF_STEPS_BEFORE_PROJECTING,
     STIFF_STEPS_IN_ROW,
     STIFFNESS,
-    TIME_FAILED,
 )
 
 
 @jit(inline=True)
 def _stiffness(method, K, n):
-    """Hairer's estimate of ``|h lambda|`` for the accepted step (0 without the test).
+    """Hairer's estimate of ``|h lambda|`` for the accepted step (a method with the test).
 
     The new state and the last stage's argument both sit at ``t + h``; their
     derivatives ``k_S`` and ``k_{S-1}`` differ by about the Jacobian times their
@@ -47,8 +46,6 @@ def _stiffness(method, K, n):
     step. An explicit step whose value sits at the edge of the method's stability
     region (above ``stiffness_bound``) is held down by stability: the problem is stiff.
     """
-    if method.stiffness_bound == 0.0:
-        return 0.0
     S = method.n_stages
     w = method.stiffness_weights
     num = 0.0
@@ -101,5 +98,4 @@ def _too_stiff(method, K, f, st, n, t):
     if projected <= STIFF_STEP_BUDGET:
         return False
     f[PROJECTED_STEPS] = projected
-    f[TIME_FAILED] = t
     return True

@@ -20,10 +20,8 @@ import numpy as np
 import scipy.integrate
 
 # Constants of the step-size controller (scipy's rk.py and common.py).
-#: Machine epsilon of float64.
-EPS = float(np.finfo(np.float64).eps)
 #: Smallest relative tolerance accepted; smaller values are raised to it (as scipy does).
-RTOL_FLOOR = 100 * EPS
+RTOL_FLOOR = 100 * float(np.finfo(np.float64).eps)
 #: Factor applied to the asymptotically optimal step.
 SAFETY = 0.9
 #: Largest decrease of the step after a rejection.
@@ -31,24 +29,13 @@ MIN_FACTOR = 0.2
 #: Largest increase of the step after an acceptance.
 MAX_FACTOR = 10.0
 
-# Kinds of error estimate and of dense output a tableau can ask for.
-#: One embedded formula: ``err = h sum_j E_j k_j``.
-ERROR_EMBEDDED = 0
-#: DOP853's blend of a 5th- and a 3rd-order estimate.
-ERROR_DOP853 = 1
-#: Dense output ``y_old + h sum_r Q_r x^(r+1)`` with ``Q = K^T P``.
-DENSE_POWERS = 0
-#: DOP853's 7th-order interpolant built from three extra stages.
-DENSE_DOP853 = 1
-
 
 Tableau = namedtuple(
     "Tableau",
     [
         "n_stages",
         "n_rows",
-        "error_kind",
-        "dense_kind",
+        "dop853",
         "estimator_order",
         "error_exponent",
         "C",
@@ -72,8 +59,8 @@ For a step of length ``h`` from ``(t, y)`` with ``f = F(t, y)`` the stages are
     y_{new} = y + h \\sum_{j<S} b_j k_j, \\qquad k_S = F(t + h, y_{new})
 
 (``k_S`` is reused as the next step's ``k_0``, "first same as last"). The error
-estimate is ``h sum_{j<=S} e_j k_j`` (DOP853 blends two, see ``error_kind``) and the
-dense output over the step is built from the same stages (``dense_kind``).
+estimate is ``h sum_{j<=S} e_j k_j`` (DOP853 blends two) and the dense output over the
+step is built from the same stages.
 
 Attributes
 ----------
@@ -81,10 +68,11 @@ n_stages : int
     ``S``, the stages of one step (evaluations per trial step).
 n_rows : int
     Rows of the stage array ``K``: ``S + 1``, plus the extra stages of the dense output.
-error_kind : int
-    :data:`ERROR_EMBEDDED` or :data:`ERROR_DOP853`.
-dense_kind : int
-    :data:`DENSE_POWERS` or :data:`DENSE_DOP853`.
+dop853 : bool
+    DOP853's error estimate (a blend of a 5th- and a 3rd-order one) and 7th-order
+    interpolant (from three extra stages); else one embedded estimate,
+    ``err = h sum_j E_j k_j``, and the interpolant ``y_old + h sum_r Q_r x^(r+1)`` with
+    ``Q = K^T P``.
 estimator_order : int
     ``q``, order of the error estimate (the error scales as ``h^(q+1)``).
 error_exponent : float
@@ -95,8 +83,7 @@ C, A, B : numpy.ndarray
 E, E_low : numpy.ndarray
     Error weights over ``k_0..k_S``; ``E_low`` is DOP853's 3rd-order one (zeros else).
 dense : numpy.ndarray
-    ``P`` (``(S+1) x p``) for :data:`DENSE_POWERS`, ``D`` (``4 x n_rows``) for
-    :data:`DENSE_DOP853`.
+    ``P`` (``(S+1) x p``), or DOP853's ``D`` (``4 x n_rows``).
 stiffness_weights : numpy.ndarray
     ``w_j = b_j - a_{S-1,j}`` (``S``): ``y_new - y_{S-1} = h sum_j w_j k_j``, the
     difference between the new state and the argument of the last stage, which both
@@ -157,8 +144,7 @@ def _tableau(method, *, stiffness_bound=0.0):
     return Tableau(
         n_stages=int(S),
         n_rows=int(C.shape[0] if dop853 else S + 1),
-        error_kind=ERROR_DOP853 if dop853 else ERROR_EMBEDDED,
-        dense_kind=DENSE_DOP853 if dop853 else DENSE_POWERS,
+        dop853=dop853,
         estimator_order=int(method.error_estimator_order),
         error_exponent=-1 / (method.error_estimator_order + 1),
         stiffness_bound=float(stiffness_bound),

@@ -3,18 +3,15 @@
 Everything the step machine keeps between calls -- scalars, the state and its copies,
 the stages, the interpolant, counters and status -- lives in one :class:`Workspace`,
 allocated once per state size and reused for every interval (a sampled-data loop
-allocates nothing per interval). Quantities are found by slot: :data:`T_REQUEST`,
-:data:`TIME_REACHED`, :data:`NEXT_STEP`, :data:`TIME_FAILED` in ``floats``;
-:data:`NFEV`, :data:`N_ACCEPTED`, :data:`N_REJECTED`, :data:`N_DENSE`,
-:data:`STATUS`, :data:`NEXT_EVAL` in ``ints``. The other slots (underscored) belong to
-the machine. This module also defines the values the :data:`STATUS` slot takes (the
-status codes, :data:`STATUS_MESSAGES`) and those of the machine's phase, and
-:func:`load`, which starts an interval.
+allocates nothing per interval). Quantities are found by slot; the underscored slots
+belong to the machine. This module also defines the status codes, the machine's phases
+and :func:`load`, which starts an interval.
 
 Why flat arrays: numba updates the reference count of every array a compiled function
 receives, with atomic instructions, at every call. With the workspace as a tuple of
 fourteen arrays that cost about 60% of the run time; with four arrays read by index
-(and the machine viewing them through their addresses) it is gone.
+(and the machine viewing them through their addresses, :func:`.machine.machine`) it is
+gone.
 """
 
 from __future__ import annotations
@@ -34,35 +31,31 @@ from .tableaux import TABLEAUX
 T_REQUEST = 0
 #: ``floats`` slot: last time reached (the end of the last accepted step).
 TIME_REACHED = 1
-#: ``floats`` slot: step size proposed for the next step.
-NEXT_STEP = 2
-#: ``floats`` slot: time of the step that failed (NaN when none failed).
-TIME_FAILED = 3
-_T = 4
-_T_OLD = 5
-_T_NEW = 6
-_H = 7
-_H_ABS = 8
-_MIN_STEP = 9
-_T0 = 10
-_T1 = 11
-_DIRECTION = 12
-_RTOL = 13
-_MAX_STEP = 14
-_FIRST_STEP = 15
-_H0 = 16
-_D1 = 17
-_RTOL_GIVEN = 18
+_T = 2
+_T_OLD = 3
+_T_NEW = 4
+_H = 5
+_H_ABS = 6
+_MIN_STEP = 7
+_T0 = 8
+_T1 = 9
+_DIRECTION = 10
+_RTOL = 11
+_MAX_STEP = 12
+_FIRST_STEP = 13
+_H0 = 14
+_D1 = 15
+_RTOL_GIVEN = 16
 #: ``floats`` slot: the stiffness estimate ``|h lambda|`` of the last accepted step
 #: (see :func:`set_horizon`; 0 for a method without the test).
-STIFFNESS = 19
+STIFFNESS = 17
 #: ``floats`` slot: the steps the whole run was projected to need when it stopped as
 #: :data:`STIFF`.
-PROJECTED_STEPS = 20
-_RUN_START = 21
-_RUN_END = 22
+PROJECTED_STEPS = 18
+_RUN_START = 19
+_RUN_END = 20
 #: Number of scalar slots at the start of ``work.floats``.
-N_FLOAT_SLOTS = 23
+N_FLOAT_SLOTS = 21
 
 # The vectors after the scalars, in this order (each of the state's size).
 _Y = 0
@@ -85,37 +78,41 @@ NFEV = 0
 N_ACCEPTED = 1
 #: ``ints`` slot: rejected trial steps.
 N_REJECTED = 2
-#: ``ints`` slot: steps whose interpolant served an evaluation time.
-N_DENSE = 3
 #: ``ints`` slot: status of the call (once the machine returned :data:`FINISHED`).
-STATUS = 4
+STATUS = 3
 #: ``ints`` slot: index of the first evaluation time not served yet.
-NEXT_EVAL = 5
-_PHASE = 6
-_STAGE = 7
-_REJECTED = 8
-_LAST_ERROR_FINITE = 9
-_EVAL_END = 10
-_STOP = 11
-_METHOD = 12
-_EXACT = 13
-_CLOSED_RIGHT = 14
-_LOG_SIZE = 15
-_EVAL_CAPACITY = 16
+NEXT_EVAL = 4
+_PHASE = 5
+_STAGE = 6
+_REJECTED = 7
+_LAST_ERROR_FINITE = 8
+_EVAL_END = 9
+_STOP = 10
+_METHOD = 11
+_EXACT = 12
+_CLOSED_RIGHT = 13
+# the slots above are reset by :func:`load`, the ones below kept
+_LOG_SIZE = 14
+_EVAL_CAPACITY = 15
 #: ``ints`` slot: accepted steps since :func:`set_horizon` (over all the intervals of a
 #: run; :func:`load` keeps it).
-RUN_ACCEPTED = 17
-_STIFF_IN_ROW = 18
-_NONSTIFF_IN_ROW = 19
+RUN_ACCEPTED = 16
+_STIFF_IN_ROW = 17
+_NONSTIFF_IN_ROW = 18
 #: Number of slots of ``work.ints``.
-N_INT_SLOTS = 20
+N_INT_SLOTS = 19
 
 # Status codes returned by solve_interval.
 #: The interval was integrated to its end.
 SUCCESS = 0
-#: The step needed fell below ten times the spacing of floats at the current time.
+#: The step needed fell below ten times the spacing of floats at the current time
+#: (scipy's failure: the same message, time reached and evaluation count).
 STEP_TOO_SMALL = -1
-#: The state or the right-hand side became non-finite (NaN or infinite).
+#: The state or the right-hand side became non-finite (NaN or infinite), never a silent
+#: NaN: where scipy rejects NaN trials until the step is too small, the same steps, but
+#: said why; where scipy hangs (its first step NaN), after one evaluation; where the
+#: stages stay finite but their sums overflow (scipy's success with inf or NaN), at the
+#: last finite state.
 NON_FINITE = -2
 #: An argument is out of range (see :data:`STATUS_MESSAGES`).
 INVALID_ARGUMENT = -3
@@ -167,33 +164,26 @@ _PHASE_TRIAL = 7
 _PHASE_ACCEPTED = 8
 _PHASE_STEP_END = 9
 _PHASE_DONE = 10
-_PHASE_BAD_SIZES = 11
 
 
 Workspace = namedtuple("Workspace", ["floats", "stages", "stages_flat", "ints"])
 Workspace.__doc__ = """What the integrator works in: four arrays, allocated once per state size.
 
-The integrator keeps everything in a few flat arrays, read by index, rather than in
-many small ones: compiled code then passes four pointers around instead of dozens of
-arrays whose reference counts numba would update at every call (which cost more than
-the arithmetic of a step).
-
 Attributes
 ----------
 floats : numpy.ndarray
-    :data:`N_FLOAT_SLOTS` scalars (:data:`T_REQUEST`, :data:`TIME_REACHED`,
-    :data:`NEXT_STEP`, :data:`TIME_FAILED`, ...), then eight vectors of the state's size
-    (state, trial state, previous state, the state at which the caller evaluates the
-    right-hand side, error scale, two error estimates, absolute tolerance), the
-    interpolant's coefficients (``7 n``), the log of step times and the scratch for
-    evaluating the interpolant at several times at once.
+    :data:`N_FLOAT_SLOTS` scalars (:data:`T_REQUEST`, :data:`TIME_REACHED`, ...), then
+    eight vectors of the state's size (state, trial state, previous state, the state at
+    which the caller evaluates the right-hand side, error scale, two error estimates,
+    absolute tolerance), the interpolant's coefficients (``7 n``), the log of step times
+    and the scratch for evaluating the interpolant at several times at once.
 stages : numpy.ndarray, shape (16, n)
     The stages ``k_j``, one per row.
 stages_flat : numpy.ndarray, shape (16 n,)
     The same memory, flat.
 ints : numpy.ndarray of int64
     :data:`N_INT_SLOTS` integers: :data:`NFEV`, :data:`N_ACCEPTED`, :data:`N_REJECTED`,
-    :data:`N_DENSE`, :data:`STATUS`, :data:`NEXT_EVAL`, ...
+    :data:`STATUS`, :data:`NEXT_EVAL`, ...
 
 Examples
 --------
@@ -220,12 +210,6 @@ def make_workspace(n, log_size=0, eval_capacity=0):
     eval_capacity : int
         Most evaluation times one step may serve without the integrator allocating
         scratch for them (only the exact arithmetic of RK23/RK45 needs it).
-
-    Examples
-    --------
-    >>> work = make_workspace(3)
-    >>> work.stages.shape, work.ints.shape[0] == N_INT_SLOTS
-    ((16, 3), True)
     """
     size = (N_FLOAT_SLOTS + (_N_VECTORS + DENSE_ROWS) * n + log_size
             + (4 + n) * eval_capacity)
@@ -287,19 +271,6 @@ def stage_input(work):
 
     When the machine returns a row ``r >= 0``, the caller evaluates
     ``rhs(work.floats[T_REQUEST], stage_input(work), args, work.stages[r])``.
-
-    Examples
-    --------
-    The first request of an interval is ``f(t0, y0)``, into row 0:
-
-    >>> import numpy as np
-    >>> from controlkit.engines.fast.rk import METHOD_INDEX, load, machine_on_arrays
-    >>> work = make_workspace(2)
-    >>> load(METHOD_INDEX["RK45"], 0.0, 1.0, np.array([1.0, -2.0]), 1e-3, np.full(2, 1e-6),
-    ...      np.inf, 0.0, 0, True, work, True)
-    >>> row = machine_on_arrays(np.zeros(0), np.zeros((0, 2)), *work)
-    >>> int(row), float(work.floats[T_REQUEST]), stage_input(work).tolist()
-    (0, 0.0, [1.0, -2.0])
     """
     n = work.stages.shape[1]
     start = _at(_Y_STAGE, n)
@@ -309,18 +280,6 @@ def stage_input(work):
 @jit(inline=True)
 def state(work):
     """The state at the last time reached, ``work.floats[TIME_REACHED]`` (a view).
-
-    Examples
-    --------
-    Loading an interval puts its initial state there:
-
-    >>> import numpy as np
-    >>> from controlkit.engines.fast.rk import METHOD_INDEX, load
-    >>> work = make_workspace(2)
-    >>> load(METHOD_INDEX["DOP853"], 0.0, 1.0, np.array([1.0, -2.0]), 1e-3,
-    ...      np.full(2, 1e-6), np.inf, 0.0, 0, True, work, True)
-    >>> state(work).tolist(), float(work.floats[TIME_REACHED])
-    ([1.0, -2.0], 0.0)
     """
     n = work.stages.shape[1]
     start = _at(_Y, n)
@@ -329,28 +288,7 @@ def state(work):
 
 @jit(inline=True)
 def step_times(work):
-    """The accepted step times the workspace kept (a view; see :func:`make_workspace`).
-
-    The first ``log_size`` of them, in the order they were taken.
-
-    Examples
-    --------
-    ``y' = -y`` over ``[0, 1]`` with RK45 at scipy's default tolerances; the last step
-    ends at ``t1`` exactly:
-
-    >>> import numpy as np
-    >>> from controlkit.engines.fast import rk
-    >>> def decay(t, y, args, out):
-    ...     out[0] = -args[0][0] * y[0]
-    >>> args = (np.array([1.0]),)
-    >>> work = rk.make_workspace(1, log_size=100)
-    >>> status, served = rk.solve_interval(
-    ...     None, decay, args, rk.METHOD_INDEX["RK45"], 0.0, 1.0, np.ones(1), 1e-3,
-    ...     np.full(1, 1e-6), np.inf, 0.0, np.zeros(0), 0, True, np.zeros((0, 1)),
-    ...     np.empty(1), work, True, 0, False)
-    >>> times = rk.step_times(work)
-    >>> int(work.ints[rk.N_ACCEPTED]) == times.size, float(times[-1])
-    (True, 1.0)
+    """The first ``log_size`` accepted step times, in order (a view; :func:`make_workspace`).
     """
     n = work.stages.shape[1]
     kept = min(work.ints[N_ACCEPTED], work.ints[_LOG_SIZE])
@@ -442,8 +380,6 @@ def load(method_index, t0, t1, y0, rtol, atol, max_step, first_step, i_eval, clo
     for k in range(_LOG_SIZE):
         st[k] = 0
     f[TIME_REACHED] = t0
-    f[NEXT_STEP] = 0.0
-    f[TIME_FAILED] = math.nan
     f[_T0] = t0
     f[_T1] = t1
     f[_RTOL_GIVEN] = rtol
@@ -459,7 +395,8 @@ def load(method_index, t0, t1, y0, rtol, atol, max_step, first_step, i_eval, clo
     st[_EXACT] = 1 if exact else 0
     n = work.stages.shape[1]
     if y0.shape[0] != n or atol.shape[0] != n:
-        st[_PHASE] = _PHASE_BAD_SIZES
+        st[STATUS] = INVALID_ARGUMENT
+        st[_PHASE] = _PHASE_DONE
         return
     y = _at(_Y, n)
     at = _at(_ATOL, n)
