@@ -325,7 +325,6 @@ def _python_from_here(runner, run, pieces):
     error if there is one), and the rest of the run as Python."""
     run.restore(runner.last_snapshot)
     runner.compiled = None
-    runner.why_python = "compiled code stopped where Python did not"
     run.piece(runner.python, pieces.next())
 
 

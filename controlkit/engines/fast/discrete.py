@@ -186,7 +186,6 @@ def _replay(runner, T, x, U, Y, X, status, k0, k1):
     here if there is one; if there is none, Python's numbers stand and the run goes on
     as Python (compiled code and Python part ways here, and Python is the meaning)."""
     runner.compiled = None
-    runner.why_python = "compiled code stopped where Python did not"
     status[:] = -1
     return _run(runner.python, (T, x, U, runner.python.P, Y, X, status, k0, k1))
 
