@@ -23,8 +23,7 @@ compile
     first-class function too, was measured and dropped: see README.md.)
 runtime
     Nanoseconds per accepted step on a 2-state and a 10-state nonlinear problem over a
-    1e5 s horizon: ours (exact and loop arithmetic; machine linked or by pointer),
-    scipy's ``solve_ivp`` with the same
+    1e5 s horizon: ours (machine linked or by pointer), scipy's ``solve_ivp`` with the same
     right-hand side in Python and with the numba-compiled one (python-control's "just
     jit the right-hand side"), both measured per step on a 1e3 s horizon, and a plain
     fixed-step RK4 loop making as many evaluations as our run. The problems are
@@ -82,7 +81,7 @@ PROBLEM = '''    y0 = np.array([2.0, 0.0])
 SOLVE = '''    y_end = np.empty(y0.shape[0])
     return rk.solve_interval({machine}, rhs, args, {{index}}, 0.0, 20.0, y0, 1e-3,
                              np.full(y0.shape[0], 1e-6), np.inf, 0.0, t_eval, 0, True,
-                             y_eval, y_end, work, True, 0, False)
+                             y_eval, y_end, work, 0, False)
 
 
 def first_call():
@@ -236,19 +235,19 @@ def _compiled_callers():
 
     @numba.njit
     def linked(machine_function, rhs, args, method, t1, y0, atol, t_eval, y_eval, y_end,
-               work, exact):
+               work):
         """The machine called directly (its code compiled into this caller)."""
         return rk.solve_interval(rk.machine, rhs, args, method, 0.0, t1, y0, 1e-3, atol,
-                                 np.inf, 0.0, t_eval, 0, True, y_eval, y_end, work, exact,
-                                 0, False)
+                                 np.inf, 0.0, t_eval, 0, True, y_eval, y_end, work, 0,
+                                 False)
 
     @numba.njit
     def by_pointer(machine_function, rhs, args, method, t1, y0, atol, t_eval, y_eval, y_end,
-                   work, exact):
+                   work):
         """The machine called through its address (the engine's way)."""
         return rk.solve_interval(machine_function, rhs, args, method, 0.0, t1, y0, 1e-3, atol,
-                                 np.inf, 0.0, t_eval, 0, True, y_eval, y_end, work, exact,
-                                 0, False)
+                                 np.inf, 0.0, t_eval, 0, True, y_eval, y_end, work, 0,
+                                 False)
 
     return rk4_fixed, linked, by_pointer
 
@@ -286,23 +285,21 @@ def bench_runtime(repeats=5, horizon=1e5, scipy_horizon=1e3):
             atol = np.full(n, 1e-6)
             work = rk.make_workspace(n, 0, t_eval.shape[0])
             variants = {
-                "exact, linked": (linked, machine_pointer, problem.rhs, True),
-                "exact, machine by pointer": (by_pointer, machine_pointer, problem.rhs, True),
-                "loops, linked": (linked, machine_pointer, problem.rhs, False),
-                "loops, machine by pointer": (by_pointer, machine_pointer, problem.rhs, False),
+                "linked": (linked, machine_pointer, problem.rhs),
+                "machine by pointer": (by_pointer, machine_pointer, problem.rhs),
             }
             per_step = {}
             counts = {}
-            for name, (caller, machine_value, rhs_value, exact) in variants.items():
+            for name, (caller, machine_value, rhs_value) in variants.items():
                 call = functools.partial(caller, machine_value, rhs_value, args, index,
                                          horizon, problem.y0, atol, t_eval, y_eval, y_end,
-                                         work, exact)
+                                         work)
                 status, _ = call()
                 assert status == rk.SUCCESS
                 seconds = median_seconds(call, repeats)
                 counts[name] = (int(work.ints[rk.N_ACCEPTED]), int(work.ints[rk.NFEV]))
                 per_step[name] = seconds / counts[name][0] * 1e9
-            steps, nfev = counts["exact, linked"]
+            steps, nfev = counts["linked"]
 
             # scipy on a shorter horizon (its cost per step does not depend on the horizon)
             short_eval = np.linspace(0.0, scipy_horizon, 11)
@@ -325,7 +322,7 @@ def bench_runtime(repeats=5, horizon=1e5, scipy_horizon=1e3):
             seconds = median_seconds(call, repeats)
             row = {"problem": label, "method": method, "steps": steps, "nfev": nfev,
                    "ns_per_step": per_step,
-                   "ns_per_evaluation_ours": per_step["exact, linked"] * steps / nfev,
+                   "ns_per_evaluation_ours": per_step["linked"] * steps / nfev,
                    "ns_per_evaluation_rk4": seconds / (4 * rk4_steps) * 1e9}
             rows.append(row)
             print(f"{label} {method}: {steps} steps, {nfev} evaluations over {horizon:g} s; "

@@ -25,7 +25,7 @@ from controlkit.engines.fast import rk
 
 
 def solve_ivp(rhs, t_span, y0, method="RK45", t_eval=None, args=(), rtol=1e-3, atol=1e-6,
-              max_step=np.inf, first_step=None, log_steps=0, exact=True):
+              max_step=np.inf, first_step=None, log_steps=0):
     """One interval integrated by :func:`rk.solve_interval` run as Python (a Python call
     of ``rhs(t, y, args, out)`` per stage), as ``scipy.integrate.solve_ivp(..., t_eval)``
     integrates it; ``t_eval=None`` evaluates nothing. ``log_steps`` keeps the times of the
@@ -43,7 +43,7 @@ def solve_ivp(rhs, t_span, y0, method="RK45", t_eval=None, args=(), rtol=1e-3, a
         None, python_function(rhs), args, rk.METHOD_INDEX[method], float(t_span[0]),
         float(t_span[1]), y0, float(rtol), atol, float(max_step),
         0.0 if first_step is None else float(first_step), t_eval, 0, True, y_eval, y_end,
-        work, bool(exact), 0, False)
+        work, 0, False)
     status = int(status)
     return {"t": t_eval[:served], "y": y_eval[:served].T, "y_end": y_end, "status": status,
             "message": rk.STATUS_MESSAGES[status], "success": status == rk.SUCCESS,

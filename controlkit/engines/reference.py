@@ -133,7 +133,7 @@ def simulate_sampled_data(sys, T, X0, U, *, params=None, t_eval=None, method="RK
         (instants, 0, instants.size, float(T[-1]), T, U, t_eval, eval_instant), (Y, X, Uo),
         (x, None, held), (ys, ui, np.zeros(nx), None, xt, cidx, yc, y_eval, ubuf,
                           make_workspace(cidx.size)),
-        (method, rtol, atol, max_step, first_step, True), ctrl, status)
+        (method, rtol, atol, max_step, first_step), ctrl, status)
     return response(sys, t_eval, Y, X, Uo)
 
 

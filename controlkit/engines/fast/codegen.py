@@ -476,7 +476,7 @@ def _generate(plan, held_logic, P, identities):
     # called): the loop is handed in, as Python or compiled once for every diagram
     text += function(
         "run_continuous(instants, fire0, k1, t_final, T, U, t_eval, eval_instant, ctrl, "
-        "Y, X, Uo, x, held, P, method, rtol, atol, max_step, first_step, exact, status, "
+        "Y, X, Uo, x, held, P, method, rtol, atol, max_step, first_step, status, "
         "work, y_eval, yc, machine, loop)", [
             *buffers, f"xt = np.empty({nx})", f"dx = np.zeros({nx})",
             (f"cidx = np.array({cidx!r}, dtype=np.int64)" if cidx
@@ -486,6 +486,6 @@ def _generate(plan, held_logic, P, identities):
             "loop(evaluate, update, outputs, derivatives, machine, args, "
             "(instants, fire0, k1, t_final, T, U, t_eval, eval_instant), "
             "(Y, X, Uo), (x, P, held), (ys, ui, xn, scratch, xt, cidx, yc, y_eval, "
-            "ubuf, work), (method, rtol, atol, max_step, first_step, exact), ctrl, "
+            "ubuf, work), (method, rtol, atol, max_step, first_step), ctrl, "
             "status)"])
     return "\n".join(text) + "\n"

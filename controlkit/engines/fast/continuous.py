@@ -164,7 +164,7 @@ class _Run:
         args = (self.instants, 0, self.instants.size, float(self.T[-1]), self.T, self.U,
                 self.t_eval, self.eval_instant, self.ctrl, self.Y, self.X, self.Uo, self.x,
                 self.held, job.P, self.method if stiff else rk.METHOD_INDEX[self.method],
-                *self.solver, True, self.status, self.work, self.y_eval, self.yc)
+                *self.solver, self.status, self.work, self.y_eval, self.yc)
         if job.compiled and not stiff:
             _run_compiled(job, args)
         else:

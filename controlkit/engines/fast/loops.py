@@ -172,7 +172,7 @@ def continuous_run(evaluate, update, outputs, rhs, integrate, machine, plan, rhs
     ``times = (instants, fire0, k1, t_final, T, U, t_eval, eval_instant)``,
     ``results = (Y, X, Uo)``, ``state = (x, P, held)``,
     ``buffers = (ys, ui, xn, scratch, xt, cidx, yc, y_eval, ubuf, work)``,
-    ``solver = (method, rtol, atol, max_step, first_step, exact)``.
+    ``solver = (method, rtol, atol, max_step, first_step)``.
     ``instants[k]`` is the ``k``-th instant (``fire0 + k`` its number for the firing
     rule); after the last one the integration runs to ``t_final``. ``integrate`` has the
     signature of :func:`controlkit.engines.fast.rk.solve_interval` (``machine`` is its
@@ -187,7 +187,7 @@ def continuous_run(evaluate, update, outputs, rhs, integrate, machine, plan, rhs
     Y, X, Uo = results
     x, P, held = state
     ys, ui, xn, scratch, xt, cidx, yc, y_eval, ubuf, work = buffers
-    method, rtol, atol, max_step, first_step, exact = solver
+    method, rtol, atol, max_step, first_step = solver
     m = t_eval.shape[0]
     nx = x.shape[0]
     nc = cidx.shape[0]
@@ -247,7 +247,7 @@ def continuous_run(evaluate, update, outputs, rhs, integrate, machine, plan, rhs
         budget = 0 if ctrl[BUDGET] <= 0 else max(1, ctrl[BUDGET] - ctrl[SPENT])
         code, served = integrate(machine, rhs, rhs_args, method, t, t1, yc, rtol, atol,
                                  max_step, first_step, t_eval[:stop], i, last,
-                                 y_eval[:stop], yc, work, exact, budget, resume)
+                                 y_eval[:stop], yc, work, budget, resume)
         ctrl[SPENT] += work.ints[NFEV] - evaluations
         if code == PAUSED:
             ctrl[UNDER_WAY] = 1
@@ -320,16 +320,16 @@ def scipy_loop(evaluate, update, outputs, derivatives, machine, rhs_args, times,
 
 
 def scipy_interval(machine, rhs, args, method, t0, t1, y0, rtol, atol, max_step,
-                   first_step, t_eval, i_eval, closed_right, y_eval, y_end, work, exact,
-                   budget, resume):
+                   first_step, t_eval, i_eval, closed_right, y_eval, y_end, work, budget,
+                   resume):
     """:func:`controlkit.engines.fast.rk.solve_interval`'s contract kept by
     :func:`scipy.integrate.solve_ivp` (Python only): one interval, the evaluation times
     ``t_eval[i_eval:]`` it serves into ``y_eval``, the state at ``t1`` into ``y_end``.
 
     ``method`` is scipy's method name (the implicit ones, ``BDF``, ``LSODA``,
     ``Radau``, or an explicit one for the reference); ``work`` (a workspace of
-    :mod:`.rk`) counts the evaluations; ``machine``, ``exact``, ``budget`` and ``resume``
-    are not used (scipy's call is never paused). ``rhs`` is called as ``rhs(t, y, args,
+    :mod:`.rk`) counts the evaluations; ``machine``, ``budget`` and ``resume`` are
+    not used (scipy's call is never paused). ``rhs`` is called as ``rhs(t, y, args,
     out)``. The last interval (``closed_right``) is served as python-control's call, by
     ``t_eval``; the state at its end is the last time served.
 
@@ -346,7 +346,7 @@ def scipy_interval(machine, rhs, args, method, t0, t1, y0, rtol, atol, max_step,
     >>> y_eval, y = np.zeros((2, 1)), np.ones(1)
     >>> status, served = scipy_interval(None, decay, (), "BDF", 0.0, 1.0, y, 1e-8,
     ...     np.full(1, 1e-10), np.inf, 0.0, np.array([0.5, 1.0]), 0, True, y_eval, y,
-    ...     make_workspace(1), True, 0, False)
+    ...     make_workspace(1), 0, False)
     >>> status, served, bool(abs(y[0] - np.exp(-1.0)) < 1e-6)
     (0, 2, True)
     """

@@ -6,8 +6,8 @@ dense output [3]_, python-control's default) and ``"DOP853"`` (Hairer's 8(5,3) [
 -- as loops numba compiles, so that a compiled right-hand side is integrated without a
 Python call per stage. "The same steps" is meant literally: the initial step, the
 error norm, the acceptance test, the step-size factors, the clipping at the end of the
-interval and the dense output are scipy 1.17's [5]_, operation for operation, and with
-``exact=True`` so is the arithmetic: the results are scipy's to the last bit.
+interval and the dense output are scipy 1.17's [5]_, operation for operation, and so
+is the arithmetic: the results are scipy's to the last bit.
 
 Modules: :mod:`~controlkit.engines.fast.rk.tableaux` (the methods as
 :class:`~controlkit.engines.fast.rk.tableaux.Tableau` records of scipy's own
@@ -33,9 +33,9 @@ it again); a diagram's module calls it, so a new diagram compiles no slower than
 diagram with no integrator. Its state is one workspace of four flat arrays
 (:mod:`~controlkit.engines.fast.rk.workspace` says why).
 
-**Exact arithmetic.** With ``exact=True`` every combination of stages is the BLAS call
-numpy makes in scipy, so the results are scipy's to the last bit; ``exact=False`` sums
-in plain loops (:mod:`~controlkit.engines.fast.rk.arithmetic`).
+**Exact arithmetic.** Every combination of stages is the BLAS call numpy makes in
+scipy, so the results are scipy's to the last bit
+(:mod:`~controlkit.engines.fast.rk.arithmetic` says why plain loops would not do).
 
 **Evaluation times.** One :func:`solve_interval` call is one ``solve_ivp(fun, (t0,
 t1), y0, t_eval=...)`` call: a fresh initial step, a stop exactly at ``t1``. It serves

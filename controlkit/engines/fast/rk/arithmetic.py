@@ -6,10 +6,9 @@ a plain product). OpenBLAS sums in its own order with fused multiply-adds, and t
 error estimate subtracts nearly equal numbers, so a different summation order moves
 the accepted step sizes by ~1e-13 relative, which the step-size controller amplifies:
 on van der Pol at scipy's default tolerances, plain loops differ from scipy by 3e-9
-(RK45) and 1.5e-7 (DOP853) after 20 s. With ``exact=True`` every combination here is
-the same BLAS call numpy makes (numba's ``numpy.dot`` calls the BLAS scipy ships, which
-on one machine picks the same kernel), so the results agree to the last bit;
-``exact=False`` sums in plain loops: faster for small systems, equal to rounding.
+(RK45) and 1.5e-7 (DOP853) after 20 s. So every combination here is the same BLAS call
+numpy makes (numba's ``numpy.dot`` calls the BLAS scipy ships, which on one machine picks
+the same kernel), and the results agree to the last bit.
 
 Every function here is pasted into the step machine by numba (``inline="always"``);
 ``f`` is the workspace's ``floats`` and ``K``/``K_flat`` its stages.
@@ -49,13 +48,13 @@ def _py_max(a, b):
 
 
 @jit(inline=True)
-def _combine(K, K_flat, count, coefficients, f, out, n, exact):
+def _combine(K, K_flat, count, coefficients, f, out, n):
     """``f[out:out+n] = sum_{j < count} c_j K[j]`` as ``numpy.dot(K[:count].T, c[:count])``.
 
     With one state numpy takes the dot product of two vectors (``K_flat``'s first
     ``count`` entries are then the column).
     """
-    if exact and count > 1:
+    if count > 1:
         if n == 1:
             f[out] = np.dot(K_flat[:count], coefficients[:count])
         else:
@@ -69,30 +68,25 @@ def _combine(K, K_flat, count, coefficients, f, out, n, exact):
 
 
 @jit(inline=True)
-def _stage_argument(K, K_flat, count, coefficients, f, base, h, n, exact):
+def _stage_argument(K, K_flat, count, coefficients, f, base, h, n):
     """``y_stage = f[base:base+n] + (sum_{j < count} c_j K[j]) h``: a stage's argument."""
     stage = _at(_Y_STAGE, n)
-    _combine(K, K_flat, count, coefficients, f, stage, n, exact)
+    _combine(K, K_flat, count, coefficients, f, stage, n)
     for i in range(n):
         f[stage + i] = f[base + i] + f[stage + i] * h
 
 
 @jit(inline=True)
-def _sum_of_squares(f, start, n, exact):
+def _sum_of_squares(f, start, n):
     """``x . x`` for ``x = f[start:start+n]`` (numpy's ``x.dot(x)`` in ``norm``)."""
-    if exact:
-        x = f[start : start + n]
-        return np.dot(x, x)
-    total = 0.0
-    for i in range(n):
-        total += f[start + i] * f[start + i]
-    return total
+    x = f[start : start + n]
+    return np.dot(x, x)
 
 
 @jit(inline=True)
-def _rms(f, start, n, exact):
+def _rms(f, start, n):
     """scipy's RMS norm ``||x||_2 / sqrt(n)`` of ``x = f[start:start+n]``."""
-    return math.sqrt(_sum_of_squares(f, start, n, exact)) / n**0.5
+    return math.sqrt(_sum_of_squares(f, start, n)) / n**0.5
 
 
 @jit(inline=True)
@@ -105,7 +99,7 @@ def _all_finite(f, start, count):
 
 
 @jit(inline=True)
-def _error_norm(method, K, K_flat, f, h, rtol, n, exact):
+def _error_norm(method, K, K_flat, f, h, rtol, n):
     """Scaled RMS error of the trial step; the step is accepted when this is below 1.
 
     ``sc_i = atol_i + max(|y_i|, |y_new,i|) rtol``. Embedded pair:
@@ -131,18 +125,18 @@ def _error_norm(method, K, K_flat, f, h, rtol, n, exact):
         biggest = a if (a >= b or a != a) else b
         f[scale + i] = f[atol + i] + biggest * rtol
     rows = method.n_stages + 1
-    _combine(K, K_flat, rows, method.E, f, err, n, exact)
+    _combine(K, K_flat, rows, method.E, f, err, n)
     if not method.dop853:
         for i in range(n):
             f[err + i] = f[err + i] * h / f[scale + i]
-        return _rms(f, err, n, exact)
+        return _rms(f, err, n)
     err_low = _at(_ERR_LOW, n)
-    _combine(K, K_flat, rows, method.E_low, f, err_low, n, exact)
+    _combine(K, K_flat, rows, method.E_low, f, err_low, n)
     for i in range(n):
         f[err + i] = f[err + i] / f[scale + i]
         f[err_low + i] = f[err_low + i] / f[scale + i]
-    norm5 = math.sqrt(_sum_of_squares(f, err, n, exact)) ** 2
-    norm3 = math.sqrt(_sum_of_squares(f, err_low, n, exact)) ** 2
+    norm5 = math.sqrt(_sum_of_squares(f, err, n)) ** 2
+    norm3 = math.sqrt(_sum_of_squares(f, err_low, n)) ** 2
     if norm5 == 0 and norm3 == 0:
         return 0.0
     denominator = norm5 + 0.01 * norm3
@@ -150,7 +144,7 @@ def _error_norm(method, K, K_flat, f, h, rtol, n, exact):
 
 
 @jit(inline=True)
-def _build_interpolant(method, K, K_flat, f, h, n, exact):
+def _build_interpolant(method, K, K_flat, f, h, n):
     """Coefficients of the interpolant over the last step (its stages all in ``K``).
 
     Powers (RK23, RK45): ``Q = K^T P`` (``n x p``, row-major from the coefficients'
@@ -165,19 +159,11 @@ def _build_interpolant(method, K, K_flat, f, h, n, exact):
     if not method.dop853:
         P = method.dense
         powers = P.shape[1]
-        if exact:
-            if n == 1:
-                np.dot(K_flat[:rows], P, f[dense : dense + powers])
-            else:
-                Q = f[dense : dense + n * powers].reshape((n, powers))
-                np.dot(K[:rows].T, P, Q)
-            return
-        for i in range(n):
-            for r in range(powers):
-                total = 0.0
-                for j in range(rows):
-                    total += K[j, i] * P[j, r]
-                f[dense + i * powers + r] = total
+        if n == 1:
+            np.dot(K_flat[:rows], P, f[dense : dense + powers])
+        else:
+            Q = f[dense : dense + n * powers].reshape((n, powers))
+            np.dot(K[:rows].T, P, Q)
         return
     S = method.n_stages
     y = _at(_Y, n)
@@ -189,25 +175,17 @@ def _build_interpolant(method, K, K_flat, f, h, n, exact):
         f[dense + 2 * n + i] = 2 * delta - h * (K[S, i] + K[0, i])
     D = method.dense
     high = dense + 3 * n
-    if exact:
-        if n == 1:
-            np.dot(D, K_flat[: method.n_rows], f[high : high + 4])
-        else:
-            np.dot(D, K[: method.n_rows], f[high : high + 4 * n].reshape((4, n)))
+    if n == 1:
+        np.dot(D, K_flat[: method.n_rows], f[high : high + 4])
     else:
-        for r in range(4):
-            for i in range(n):
-                total = 0.0
-                for j in range(method.n_rows):
-                    total += D[r, j] * K[j, i]
-                f[high + r * n + i] = total
+        np.dot(D, K[: method.n_rows], f[high : high + 4 * n].reshape((4, n)))
     for k in range(4 * n):
         f[high + k] = h * f[high + k]
 
 
 @jit(inline=True)
 def _evaluate_interpolant(method, f, t_old, h, t_eval, first, stop, y_eval, buffer_at,
-                          capacity, n, exact):
+                          capacity, n):
     """States at ``t_eval[first:stop]`` from the interpolant over ``[t_old, t_old + h]``.
 
     With ``x = (t - t_old) / h``: powers, ``y_old + h Q (x, .., x^p)`` (all the times
@@ -232,18 +210,6 @@ def _evaluate_interpolant(method, f, t_old, h, t_eval, first, stop, y_eval, buff
                 y_eval[first + k, i] = value + f[y_old + i]
         return
     powers = method.dense.shape[1]
-    if not exact:
-        for k in range(m):
-            x = (t_eval[first + k] - t_old) / h
-            for i in range(n):
-                total = 0.0
-                power = x
-                for r in range(powers):
-                    if r > 0:
-                        power = power * x
-                    total += f[dense + i * powers + r] * power
-                y_eval[first + k, i] = h * total + f[y_old + i]
-        return
     # numpy: p = cumprod of x over the powers, (powers x m); y = h * Q p + y_old.
     if (powers + n) * m <= capacity:
         scratch = f[buffer_at : buffer_at + (powers + n) * m]

@@ -31,7 +31,7 @@ from .workspace import (
 
 def _solve_interval_compiled(machine_function, rhs, args, method_index, t0, t1, y0, rtol,
                              atol, max_step, first_step, t_eval, i_eval, closed_right, y_eval,
-                             y_end, work, exact, budget, resume):
+                             y_end, work, budget, resume):
     """Integrate ``y' = rhs(t, y)`` over ``[t0, t1]`` as one ``solve_ivp`` call would.
 
     The steps are scipy's (see :mod:`.machine`); after each accepted step ending at
@@ -78,9 +78,6 @@ def _solve_interval_compiled(machine_function, rhs, args, method_index, t0, t1, 
         Receives the state at ``t1`` (at the last time reached on failure); may be ``y0``.
     work : Workspace
         From :func:`make_workspace`; its counters are reset.
-    exact : bool
-        True: form the stage combinations with the BLAS calls numpy makes (bit for bit
-        scipy's result); False: plain loops (faster for small systems, equal to rounding).
     budget : int
         At most this many evaluations of ``rhs`` in this call (0: no limit); past it the
         call returns :data:`PAUSED`, the interval held in ``work`` to go on with.
@@ -119,7 +116,7 @@ def _solve_interval_compiled(machine_function, rhs, args, method_index, t0, t1, 
     ...     status, served = rk.solve_interval(
     ...         None, decay, args, rk.METHOD_INDEX["RK45"], t0, t1, y, 1e-8,
     ...         np.full(1, 1e-10), np.inf, 0.0, t_eval, served, t1 == 2.0, y_eval, y, work,
-    ...         True, 0, False)
+    ...         0, False)
     >>> int(status) == rk.SUCCESS, int(served)
     (True, 5)
     >>> bool(np.allclose(y_eval[:, 0], np.exp(-0.5 * t_eval), rtol=1e-7))
@@ -127,7 +124,7 @@ def _solve_interval_compiled(machine_function, rhs, args, method_index, t0, t1, 
     """
     if not resume:
         load(method_index, t0, t1, y0, rtol, atol, max_step, first_step, i_eval,
-             closed_right, work, exact)
+             closed_right, work)
     floats = work.floats
     ints = work.ints
     n = work.stages.shape[1]
@@ -163,11 +160,11 @@ def _solve_interval_compiled(machine_function, rhs, args, method_index, t0, t1, 
 
 def _solve_interval_python(machine_function, rhs, args, method_index, t0, t1, y0, rtol,
                            atol, max_step, first_step, t_eval, i_eval, closed_right, y_eval,
-                           y_end, work, exact, budget, resume):
+                           y_end, work, budget, resume):
     # the same loop on the arrays themselves (Python cannot view memory by address)
     if not resume:
         load(method_index, t0, t1, y0, rtol, atol, max_step, first_step, i_eval,
-             closed_right, work, exact)
+             closed_right, work)
     floats, stages, stages_flat, ints = work
     y_stage = stage_input(work)
     row = machine_on_arrays(t_eval, y_eval, floats, stages, stages_flat, ints)

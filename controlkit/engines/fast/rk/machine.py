@@ -56,7 +56,6 @@ from .workspace import (
     _ERR,
     _EVAL_CAPACITY,
     _EVAL_END,
-    _EXACT,
     _FIRST_STEP,
     _H,
     _H0,
@@ -138,17 +137,17 @@ def _request(f, st, t, row, phase):
 
 
 @jit(inline=True)
-def _serve(method, K, K_flat, f, st, t_eval, y_eval, n, exact):
+def _serve(method, K, K_flat, f, st, t_eval, y_eval, n):
     """The last step's interpolant, and the evaluation times ``t_eval[NEXT_EVAL:_STOP]``
     read from it; False (nothing served) when its coefficients are not finite."""
-    _build_interpolant(method, K, K_flat, f, f[_H], n, exact)
+    _build_interpolant(method, K, K_flat, f, f[_H], n)
     coefficients = DENSE_ROWS if method.dop853 else method.dense.shape[1]
     if not _all_finite(f, _dense_at(n), n * coefficients):
         return False
     t_old = f[_T_OLD]
     _evaluate_interpolant(method, f, t_old, f[_T] - t_old, t_eval, st[NEXT_EVAL], st[_STOP],
                           y_eval, _log_at(n) + st[_LOG_SIZE], st[_EVAL_CAPACITY] * (4 + n),
-                          n, exact)
+                          n)
     st[NEXT_EVAL] = st[_STOP]
     return True
 
@@ -177,7 +176,7 @@ def machine_on_arrays(t_eval, y_eval, f, K, K_flat, st):
     ...     FINISHED, METHOD_INDEX, STATUS, SUCCESS, load, make_workspace, stage_input, state)
     >>> work = make_workspace(1)
     >>> load(METHOD_INDEX["RK23"], 0.0, 1.0, np.ones(1), 1e-6, np.full(1, 1e-9), np.inf,
-    ...      0.0, 0, True, work, True)
+    ...      0.0, 0, True, work)
     >>> no_times, no_states = np.zeros(0), np.zeros((0, 1))
     >>> row = machine_on_arrays(no_times, no_states, *work)
     >>> while row != FINISHED:
@@ -193,7 +192,7 @@ def machine_on_arrays(t_eval, y_eval, f, K, K_flat, st):
             n = K.shape[1]
             h = f[_H]
             st[_STAGE] = s
-            _stage_argument(K, K_flat, s, method.A[s], f, _at(_Y, n), h, n, st[_EXACT] == 1)
+            _stage_argument(K, K_flat, s, method.A[s], f, _at(_Y, n), h, n)
             return _request(f, st, f[_T] + method.C[s] * h, s, _PHASE_STAGE)
     return _machine_general(t_eval, y_eval, f, K, K_flat, st)
 
@@ -234,7 +233,6 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
         return _request(f, st, t0, 0, _PHASE_F0)
 
     method = TABLEAUX[st[_METHOD]]
-    exact = st[_EXACT] == 1
     S = method.n_stages
     direction = f[_DIRECTION]
     while True:
@@ -243,7 +241,7 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
             # state and its slope.
             t = f[_T]
             h = f[_H]
-            _combine(K, K_flat, S, method.B, f, y_new, n, exact)
+            _combine(K, K_flat, S, method.B, f, y_new, n)
             for i in range(n):
                 f[y_new + i] = f[y + i] + h * f[y_new + i]
                 f[y_stage + i] = f[y_new + i]
@@ -252,7 +250,7 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
         elif phase == _PHASE_F_NEW:
             # f_new = rhs(t + h, y_new) is in K[S]: accept or reject.
             h_abs = f[_H_ABS]
-            error = _error_norm(method, K, K_flat, f, f[_H], f[_RTOL], n, exact)
+            error = _error_norm(method, K, K_flat, f, f[_H], f[_RTOL], n)
             if error < 1:
                 if error == 0:
                     factor = MAX_FACTOR
@@ -286,7 +284,7 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
             f[_H_ABS] = abs(h)
             f[_T_NEW] = t_new
             st[_STAGE] = 1
-            _stage_argument(K, K_flat, 1, method.A[1], f, y, h, n, exact)
+            _stage_argument(K, K_flat, 1, method.A[1], f, y, h, n)
             return _request(f, st, t + method.C[1] * h, 1, _PHASE_STAGE)
 
         elif phase == _PHASE_ACCEPTED:
@@ -320,7 +318,7 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
                 if method.dop853:  # its interpolant needs its extra stages first
                     st[_STAGE] = S
                     phase = _PHASE_EXTRA
-                elif not _serve(method, K, K_flat, f, st, t_eval, y_eval, n, exact):
+                elif not _serve(method, K, K_flat, f, st, t_eval, y_eval, n):
                     return _finish(st, NON_FINITE)
 
         elif phase == _PHASE_STEP_END:
@@ -352,9 +350,9 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
             h = f[_H]
             if s < method.n_rows:
                 st[_STAGE] = s
-                _stage_argument(K, K_flat, s, method.A[s], f, y_old, h, n, exact)
+                _stage_argument(K, K_flat, s, method.A[s], f, y_old, h, n)
                 return _request(f, st, t_old + method.C[s] * h, s, _PHASE_EXTRA)
-            if not _serve(method, K, K_flat, f, st, t_eval, y_eval, n, exact):
+            if not _serve(method, K, K_flat, f, st, t_eval, y_eval, n):
                 return _finish(st, NON_FINITE)
             phase = _PHASE_STEP_END
 
@@ -387,10 +385,10 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
                 f[scale + i] = f[atol + i] + abs(f[y + i]) * rtol
             for i in range(n):
                 f[ratio + i] = f[y + i] / f[scale + i]
-            d0 = _rms(f, ratio, n, exact)
+            d0 = _rms(f, ratio, n)
             for i in range(n):
                 f[ratio + i] = K[0, i] / f[scale + i]
-            d1 = _rms(f, ratio, n, exact)
+            d1 = _rms(f, ratio, n)
             if d0 < 1e-5 or d1 < 1e-5:
                 h0 = 1e-6
             else:
@@ -410,7 +408,7 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
             ratio = _at(_ERR, n)
             for i in range(n):
                 f[ratio + i] = (K[1, i] - K[0, i]) / f[scale + i]
-            d2 = _rms(f, ratio, n, exact) / h0
+            d2 = _rms(f, ratio, n) / h0
             if d1 <= 1e-15 and d2 <= 1e-15:
                 h1 = _py_max(1e-6, h0 * 1e-3)
             else:

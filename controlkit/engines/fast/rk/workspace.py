@@ -89,18 +89,17 @@ _LAST_ERROR_FINITE = 8
 _EVAL_END = 9
 _STOP = 10
 _METHOD = 11
-_EXACT = 12
-_CLOSED_RIGHT = 13
+_CLOSED_RIGHT = 12
 # the slots above are reset by :func:`load`, the ones below kept
-_LOG_SIZE = 14
-_EVAL_CAPACITY = 15
+_LOG_SIZE = 13
+_EVAL_CAPACITY = 14
 #: ``ints`` slot: accepted steps since :func:`set_horizon` (over all the intervals of a
 #: run; :func:`load` keeps it).
-RUN_ACCEPTED = 16
-_STIFF_IN_ROW = 17
-_NONSTIFF_IN_ROW = 18
+RUN_ACCEPTED = 15
+_STIFF_IN_ROW = 16
+_NONSTIFF_IN_ROW = 17
 #: Number of slots of ``work.ints``.
-N_INT_SLOTS = 19
+N_INT_SLOTS = 18
 
 # Status codes returned by solve_interval.
 #: The interval was integrated to its end.
@@ -209,7 +208,7 @@ def make_workspace(n, log_size=0, eval_capacity=0):
         How many accepted step times to keep (:func:`step_times`; for tests).
     eval_capacity : int
         Most evaluation times one step may serve without the integrator allocating
-        scratch for them (only the exact arithmetic of RK23/RK45 needs it).
+        scratch for them (RK23/RK45's interpolant, evaluated as numpy does).
     """
     size = (N_FLOAT_SLOTS + (_N_VECTORS + DENSE_ROWS) * n + log_size
             + (4 + n) * eval_capacity)
@@ -355,7 +354,7 @@ def _evaluation_end(t0, t1, direction, t_eval, i_eval, closed_right):
 
 @jit
 def load(method_index, t0, t1, y0, rtol, atol, max_step, first_step, i_eval, closed_right,
-         work, exact):
+         work):
     """Put an interval's arguments into ``work``; :func:`machine` then starts on it.
 
     Arguments as :func:`solve_interval`; ``method_index`` is ``METHOD_INDEX[name]``.
@@ -371,7 +370,7 @@ def load(method_index, t0, t1, y0, rtol, atol, max_step, first_step, i_eval, clo
     >>> work = make_workspace(2)
     >>> work.ints[NFEV] = 7  # left over from the previous interval
     >>> load(METHOD_INDEX["RK45"], 0.0, 2.0, np.array([1.0, 0.0]), 1e-3, np.full(2, 1e-6),
-    ...      np.inf, 0.0, 0, True, work, True)
+    ...      np.inf, 0.0, 0, True, work)
     >>> int(work.ints[NFEV]), float(work.floats[TIME_REACHED]), state(work).tolist()
     (0, 0.0, [1.0, 0.0])
     """
@@ -392,7 +391,6 @@ def load(method_index, t0, t1, y0, rtol, atol, max_step, first_step, i_eval, clo
     st[_METHOD] = method_index
     st[NEXT_EVAL] = i_eval
     st[_CLOSED_RIGHT] = 1 if closed_right else 0
-    st[_EXACT] = 1 if exact else 0
     n = work.stages.shape[1]
     if y0.shape[0] != n or atol.shape[0] != n:
         st[STATUS] = INVALID_ARGUMENT
