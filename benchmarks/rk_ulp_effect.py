@@ -4,11 +4,10 @@ integration (benchmarks/README.md, "Compiled Runge-Kutta").
 Van der Pol with ``2 tanh(y0)`` (a limit cycle): ours compiled with ``math.tanh`` (libm)
 against scipy with the same Python function, and against scipy with ``numpy.tanh``
 (numpy's own implementation, 1 ulp off libm for ~25% of arguments on this machine).
-(Plain summation loops instead of numpy's BLAS calls were measured here too, until the
-integrator dropped them: 3e-9 (RK45) and 1.5e-7 (DOP853) at T=20 s, rtol=1e-3; git
-history before 2026-11-28.) Ours is the integrator
-compiled as a diagram's module calls it (``compiled_rk.py``). Run from the repository
-root (a few seconds once the step machine is in the store)::
+(Plain summation loops instead of numpy's BLAS calls were measured here too until the
+integrator dropped them on 2026-11-28: README.md's column "loops vs scipy".) Ours is the
+integrator compiled as a diagram's module calls it (``compiled_rk.py``). Run from the
+repository root (a few seconds once the step machine is in the store)::
 
     python benchmarks/rk_ulp_effect.py
 """
