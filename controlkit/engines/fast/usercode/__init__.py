@@ -26,8 +26,5 @@ module's text), :mod:`.compiling` (:class:`UserKernel`); what compiled code call
 
 from ....kernels.user_calls import clip, missing_parameter, store
 from .compiling import UserKernel, block_layout
-from .layout import ParamEntry, ParamLayout
-from .writer import kernel_source
 
-__all__ = ["ParamEntry", "ParamLayout", "UserKernel", "block_layout", "clip",
-           "kernel_source", "missing_parameter", "store"]
+__all__ = ["UserKernel", "block_layout", "clip", "missing_parameter", "store"]

@@ -102,11 +102,6 @@ class ParamLayout:
             keys |= read
         return cls(keys, values)
 
-    @property
-    def has_ints(self) -> bool:
-        """Whether an entry is an integer (read as a float first, cast back if needed)."""
-        return any(e.kind in ("int", "array-i") for e in self.entries)
-
     def pack(self, values) -> np.ndarray:
         """``p`` for the parameter ``values`` in force (same kinds and shapes as the layout).
 
