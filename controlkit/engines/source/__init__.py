@@ -32,19 +32,16 @@ python-control does) and the function not compilable, with the reason.
 
 The package's rooms: :mod:`.reading` (a function's own source, what a call runs),
 :mod:`.bindings` (how arguments are bound), :mod:`.plan` (:class:`Plan`,
-:func:`plan_function`, :func:`used_params`, :func:`reads_input`), :mod:`.translator`
+:func:`plan_function` and the questions :func:`used_params`, :func:`reads_input` and
+:func:`side_effect`), :mod:`.translator`
 with its parts :mod:`.outside` (names and objects read from outside) and :mod:`.helpers`
 (calls to helper functions), :mod:`.rewrites` (loops over keys written out),
 :mod:`.values` (which values can be frozen, and whether they changed).
 """
 
-from .bindings import PARAMS, RUNTIME, Frozen
 from .plan import Plan, plan_function, reads_input, side_effect, used_params
-from .reading import PARAM_READ, NotCompilable, call_target, function_node
+from .reading import PARAM_READ, NotCompilable
 from .rewrites import copy_tree, walk
-from .values import NUMERIC_MODULES
 
-__all__ = ["NUMERIC_MODULES", "PARAMS", "PARAM_READ", "RUNTIME", "Frozen", "NotCompilable",
-           "side_effect",
-           "Plan", "call_target", "copy_tree", "function_node", "plan_function",
-           "reads_input", "used_params", "walk"]
+__all__ = ["PARAM_READ", "NotCompilable", "Plan", "copy_tree", "plan_function", "reads_input",
+           "side_effect", "used_params", "walk"]

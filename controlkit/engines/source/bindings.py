@@ -37,6 +37,11 @@ class Frozen:
     value: object
 
 
+def _called_as_python_control(target, bound, keywords):
+    """The bindings of ``target`` called as ``fn(t, x, u, params)`` with the values
+    :func:`~.reading.call_target` found bound, or the reason it cannot be bound."""
+    call = [Frozen(v) for v in bound] + [RUNTIME, RUNTIME, RUNTIME, PARAMS]
+    return _bind(target, call, {k: Frozen(v) for k, v in keywords.items()})
 
 
 def _input_name(bindings):

@@ -12,14 +12,13 @@ import types
 
 import numpy as np
 
+from ...kernels.user_calls import clip
 from .values import (
     _MISSING,
     _UNKNOWN,
     NUMERIC_MODULES,
     _cell,
-    _clip,
     _evaluate,
-    _global,
     _is_numba_function,
     _is_plain,
     _reevaluate,
@@ -48,7 +47,7 @@ class _OutsideReads:
             cell = self.fn.__closure__[code.co_freevars.index(name)]
             return True, _cell(cell), functools.partial(_cell, cell)
         module = self.fn.__globals__
-        getter = functools.partial(_global, module, name)
+        getter = functools.partial(module.get, name, _MISSING)
         value = getter()
         if value is not _MISSING:
             return True, value, getter
@@ -79,7 +78,7 @@ class _OutsideReads:
                           f"cannot compile")
             return node
         if value is np.clip:
-            return ast.copy_location(ast.Name(self._freeze_value(name, _clip()), ast.Load()),
+            return ast.copy_location(ast.Name(self._freeze_value(name, clip), ast.Load()),
                                      node)
         if name not in self.renamed:
             self.renamed[name] = self._freeze_value(name, value)
@@ -153,7 +152,7 @@ class _OutsideReads:
                 try:
                     if _evaluate(value, parts[1]) is np.clip:
                         return ast.copy_location(ast.Name(self._freeze_value(
-                            "clip", _clip()), ast.Load()), node)
+                            "clip", clip), ast.Load()), node)
                 except Exception:  # noqa: BLE001 - numba reports what does not exist
                     pass
                 return None

@@ -6,14 +6,16 @@ those values are unchanged. Also the two questions the ``params`` check and the 
 from __future__ import annotations
 
 import ast
+import contextlib
+import copy
 import weakref
 from dataclasses import dataclass, field
 
-from .bindings import PARAMS, RUNTIME, Frozen, _bind, _binding_key, _input_name
+from .bindings import PARAMS, Frozen, _binding_key, _called_as_python_control, _input_name
 from .reading import MUTATORS, SIDE_EFFECTS, NotCompilable, _definition, call_target
 from .rewrites import walk
 from .translator import _Translator
-from .values import _same, _same_items, _same_sequence, _snapshot
+from .values import _same, _same_items, _same_sequence
 
 
 @dataclass(eq=False)
@@ -42,8 +44,6 @@ class Plan:
         Why the keys it reads cannot all be known (``params`` used otherwise than by key).
     problem : str or None
         Why it cannot be compiled.
-    input_name : str or None
-        The name of its argument bound to ``u`` (for the top plan).
     checks : list
         ``(read, value)`` for each value read from outside the function: ``read()`` reads
         it again (see :meth:`valid`).
@@ -76,7 +76,6 @@ class Plan:
     keys: set = field(default_factory=set)
     opaque: str | None = None
     problem: str | None = None
-    input_name: str | None = None
     checks: list = field(default_factory=list)
     code: object = None
     defaults: object = None
@@ -157,25 +156,16 @@ def plan_function(fn):
     if cached is not None and cached.valid() \
             and _same_call(cached.call, (target, bound, keywords)):
         return cached
-    build = _Build()
-    call = [Frozen(v) for v in bound] + [RUNTIME, RUNTIME, RUNTIME, PARAMS]
-    bindings = _bind(target, call, {k: Frozen(v) for k, v in keywords.items()})
+    bindings = _called_as_python_control(target, bound, keywords)
     if isinstance(bindings, str):
         raise NotCompilable(bindings)
     _definition(target.__code__, copy=False)  # no source: NotCompilable, nothing is known
-    plan = build.plan(target, bindings, name="user")
-    plan.input_name = _input_name(bindings)
+    plan = _Build().plan(target, bindings, name="user")
     plan.call = (target, list(bound), dict(keywords))
     plan.finished = plan.tree()  # asked for at every run (its validity, keys, reasons)
-    _keep(fn, plan)
-    return plan
-
-
-def _keep(fn, plan):
-    try:
+    with contextlib.suppress(TypeError):
         _PLANS[fn] = plan
-    except TypeError:
-        pass
+    return plan
 
 
 def _same_call(then, now) -> bool:
@@ -205,13 +195,14 @@ class _Build:
         self.count += 1
         plan = Plan(fn, name or f"_h{self.count}_{fn.__name__.strip('<>')}", self.count,
                     code=fn.__code__, defaults=fn.__defaults__,
-                    kwdefaults=_snapshot(fn.__kwdefaults__))
+                    kwdefaults=copy.copy(fn.__kwdefaults__))  # (changed in place)
         self.plans[key] = plan
         try:
             _, body = _definition(fn.__code__)
         except NotCompilable as why:
             plan.problem = str(why)
-            if any(b == PARAMS or _is_dict_binding(b) for b in bindings.values()):
+            if any(b == PARAMS or isinstance(b, Frozen) and isinstance(b.value, dict)
+                   for b in bindings.values()):
                 plan.opaque = f"params is handed to {fn.__qualname__}, whose source is unknown"
             return plan
         try:
@@ -220,11 +211,6 @@ class _Build:
             plan.problem = plan.opaque = (f"it could not be read ({type(error).__name__}: "
                                           f"{error})")
         return plan
-
-
-def _is_dict_binding(binding):
-    return isinstance(binding, Frozen) and isinstance(binding.value, dict)
-
 
 
 def used_params(fn):
@@ -272,8 +258,7 @@ def reads_input(fn):
             _, body = _definition(target.__code__, copy=False)
         except NotCompilable:
             return None
-        call = [Frozen(v) for v in bound] + [RUNTIME, RUNTIME, RUNTIME, PARAMS]
-        bindings = _bind(target, call, {k: Frozen(v) for k, v in keywords.items()})
+        bindings = _called_as_python_control(target, bound, keywords)
         name = None if isinstance(bindings, str) else _input_name(bindings)
         _READS_INPUT[key] = None if name is None else any(
             isinstance(n, ast.Name) and n.id == name for n in walk(ast.Module(body, [])))

@@ -184,24 +184,6 @@ def _source_lines(code):
 _DEF_LINE = re.compile(r"^(\s*def\s)|(\s*async\s+def\s)|^(\s*@)")
 
 
-def function_node(fn):
-    """The positional argument names and body statements of ``fn`` (a def or a lambda).
-
-    The source is that of ``fn``'s own code: for a decorated function, the wrapper.
-
-    Examples
-    --------
-    >>> names, body = function_node(lambda t, x, u, params: -x)
-    >>> names, type(body[0]).__name__
-    (['t', 'x', 'u', 'params'], 'Return')
-    """
-    fn = _jit.python_function(fn)
-    if not isinstance(fn, types.FunctionType):
-        raise NotCompilable(f"it is a {type(fn).__name__}, not a Python function")
-    arguments, body = _definition(fn.__code__)
-    return [a.arg for a in arguments.posonlyargs + arguments.args], body
-
-
 # --- what Python calls ------------------------------------------------------------------
 
 def call_target(fn):

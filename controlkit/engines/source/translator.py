@@ -16,7 +16,7 @@ from .helpers import _HelperCalls
 from .outside import _OutsideReads
 from .reading import MUTATORS, PARAM_READ, SIDE_EFFECTS
 from .rewrites import _store_counts, _stored_names, _string_items, _Unroll, walk
-from .values import _MISSING, _UNKNOWN, _global, _is_plain
+from .values import _MISSING, _UNKNOWN, _is_plain
 
 
 class _Translator(_OutsideReads, _HelperCalls, ast.NodeTransformer):
@@ -55,7 +55,7 @@ class _Translator(_OutsideReads, _HelperCalls, ast.NodeTransformer):
         body = [_Unroll(self._lookup).visit(stmt) for stmt in body]
         body = [s for stmt in body for s in (stmt if isinstance(stmt, list) else [stmt])]
         counts = _store_counts(body)
-        self._find_aliases(body, counts)
+        self._find_aliases(body)
         self._find_strings(body, counts)
         self.local = _stored_names(body) | kept | set(plan.arguments)
         self.ints = _integer_names(body)
@@ -89,7 +89,7 @@ class _Translator(_OutsideReads, _HelperCalls, ast.NodeTransformer):
                 kept.append(stmt)
         return kept
 
-    def _find_aliases(self, body, counts):
+    def _find_aliases(self, body):
         changed = True
         while changed:
             changed = False
@@ -156,8 +156,8 @@ class _Translator(_OutsideReads, _HelperCalls, ast.NodeTransformer):
                              ast.Constant(how), default or ast.Constant(None)], [])
             return ast.copy_location(call, node)
         # a dict known when the plan is made (a default {}, a dict handed to a helper)
-        self.plan.checks.append((functools.partial(_global, source, key), source.get(
-            key, _MISSING)))
+        self.plan.checks.append((functools.partial(source.get, key, _MISSING),
+                                 source.get(key, _MISSING)))
         if how == "in":
             return ast.copy_location(ast.Constant(key in source), node)
         if key in source:
@@ -252,9 +252,8 @@ class _Translator(_OutsideReads, _HelperCalls, ast.NodeTransformer):
                           f"of compiled code")
 
     def visit_BinOp(self, node):
-        ints = getattr(self, "ints", set())
         if isinstance(node.op, ast.LShift) or isinstance(node.op, ast.Pow | ast.Mult) and (
-                _integer(node.left, ints) and _integer(node.right, ints)):
+                _integer(node.left, self.ints) and _integer(node.right, self.ints)):
             self._problem(f"it computes {ast.unparse(node)[:40]} with integers, which can "
                           f"outgrow the 64 bits of compiled code (Python's integers do not)")
         return self.generic_visit(node)

@@ -9,8 +9,6 @@ import types
 
 import numpy as np
 
-from ...kernels.user_calls import clip
-
 #: Modules whose functions numba compiles itself: calls into them are left as written.
 NUMERIC_MODULES = ("numpy", "math", "cmath")
 
@@ -82,12 +80,6 @@ class _Missing:
 _MISSING = _Missing()
 
 
-def _global(namespace, name):
-    return namespace.get(name, _MISSING)
-
-
-
-
 def _evaluate(value, steps):
     """``value.a[b]...`` for ``steps`` ``[("attr", "a"), ("item", b), ...]``."""
     for kind, step in steps:
@@ -132,11 +124,4 @@ def _same_items(now, then) -> bool:
     return now.keys() == then.keys() and all(_same(now[k], then[k]) for k in now)
 
 
-def _snapshot(kwdefaults):
-    """Keyword defaults as they are now (the function's own dict can change in place)."""
-    return None if kwdefaults is None else dict(kwdefaults)
-
-
-def _clip():
-    return clip  # the compiled clip that takes numbers too
 
