@@ -30,8 +30,8 @@ Anything else is recorded, not guessed: a ``params`` use that is not understood
 makes the keys read unknown (the ``params`` check then accepts every key, as
 python-control does) and the function not compilable, with the reason.
 
-The package's rooms: :mod:`.reading` (a function's own source, what a call runs),
-:mod:`.bindings` (how arguments are bound), :mod:`.plan` (:class:`Plan`,
+The package's rooms: :mod:`.reading` (a function's own source, what a call runs, how it
+binds the arguments), :mod:`.plan` (:class:`Plan`,
 :func:`plan_function` and the questions :func:`used_params`, :func:`reads_input` and
 :func:`side_effect`), :mod:`.translator`
 with its parts :mod:`.outside` (names and objects read from outside) and :mod:`.helpers`

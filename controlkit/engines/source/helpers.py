@@ -9,9 +9,8 @@ import ast
 import functools
 import types
 
-from .bindings import PARAMS, RUNTIME, Frozen, _bind
-from .reading import NotCompilable, _definition, call_target
-from .values import _UNKNOWN, _helper_allowed, _is_numba_function, _is_plain
+from .reading import PARAMS, RUNTIME, Frozen, NotCompilable, _bind, _definition, call_target
+from .values import _helper_allowed, _is_numba_function, _is_plain
 
 
 class _HelperCalls:
@@ -53,11 +52,9 @@ class _HelperCalls:
         if self._is_source(arg):
             source = self.sources[arg.id]
             return PARAMS if source is RUNTIME else Frozen(source)
-        key = self._key(arg) if isinstance(arg, ast.Name) else _UNKNOWN
-        if isinstance(arg, ast.Constant) and isinstance(arg.value, str):
-            return Frozen(arg.value)
-        if key is not _UNKNOWN and isinstance(key, str):
-            return Frozen(key)
+        key = self._key(arg) if isinstance(arg, ast.Name | ast.Constant) else None
+        if isinstance(key, str):
+            return Frozen(key)  # a key handed on
         if isinstance(arg, ast.Name) and arg.id not in self.local:
             found, value = self._lookup(arg.id)
             if found and not _is_plain(value):

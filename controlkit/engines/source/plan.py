@@ -11,8 +11,17 @@ import copy
 import weakref
 from dataclasses import dataclass, field
 
-from .bindings import PARAMS, Frozen, _binding_key, _called_as_python_control, _input_name
-from .reading import MUTATORS, SIDE_EFFECTS, NotCompilable, _definition, call_target
+from .reading import (
+    PARAMS,
+    Frozen,
+    NotCompilable,
+    _binding_key,
+    _called_as_python_control,
+    _definition,
+    _input_name,
+    _outside_effect,
+    call_target,
+)
 from .rewrites import walk
 from .translator import _Translator
 from .values import _same, _same_items, _same_sequence
@@ -293,12 +302,7 @@ def side_effect(fn) -> str | None:
     local = {n.id for n in walk(ast.Module(body, [])) if isinstance(n, ast.Name)
              and isinstance(n.ctx, ast.Store)} | set(target.__code__.co_varnames)
     for node in walk(ast.Module(body, [])):
-        if not isinstance(node, ast.Call):
-            continue
-        f = node.func
-        if isinstance(f, ast.Name) and f.id in SIDE_EFFECTS and f.id not in local:
-            return f"it calls {f.id}()"
-        if isinstance(f, ast.Attribute) and f.attr in MUTATORS \
-                and isinstance(f.value, ast.Name) and f.value.id not in local:
-            return f"it changes an object from outside ({f.value.id}.{f.attr})"
+        effect = _outside_effect(node, local) if isinstance(node, ast.Call) else None
+        if effect is not None:
+            return effect[0]
     return None

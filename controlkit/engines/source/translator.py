@@ -11,10 +11,9 @@ import functools
 import importlib
 import types
 
-from .bindings import PARAMS, RUNTIME
 from .helpers import _HelperCalls
 from .outside import _OutsideReads
-from .reading import MUTATORS, PARAM_READ, SIDE_EFFECTS
+from .reading import PARAM_READ, PARAMS, RUNTIME, _outside_effect
 from .rewrites import _store_counts, _stored_names, _string_items, _Unroll, walk
 from .values import _MISSING, _UNKNOWN, _is_plain
 
@@ -235,17 +234,13 @@ class _Translator(_OutsideReads, _HelperCalls, ast.NodeTransformer):
         """Calls whose compiled meaning is not Python's: the function then runs as Python."""
         f = node.func
         name = f.id if isinstance(f, ast.Name) and f.id not in self.local else None
-        if name in SIDE_EFFECTS:
-            self._problem(f"it calls {name}(), {SIDE_EFFECTS[name]} (compiled code would "
-                          f"do it at other moments, or not at all)")
+        effect = _outside_effect(node, self.local)
+        if effect is not None:
+            self._problem("".join(effect))
         elif name == "round" and (len(node.args) > 1 or node.keywords):
             self._problem("it rounds to digits (round(x, n)): compiled code rounds some "
                           "halves otherwise than Python (round(0.35, 1) gives 0.4, Python "
                           "0.3)")
-        elif isinstance(f, ast.Attribute) and f.attr in MUTATORS \
-                and isinstance(f.value, ast.Name) and f.value.id not in self.local:
-            self._problem(f"it changes an object from outside ({f.value.id}.{f.attr}): a "
-                          f"side effect compiled code would not have")
         elif isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) \
                 and f.value.id == "math" and f.attr in ("factorial", "comb", "perm"):
             self._problem(f"it calls math.{f.attr}, whose integers can outgrow the 64 bits "

@@ -57,12 +57,20 @@ def _helper_allowed(fn):
     return module not in _NOT_HELPERS
 
 
-class _Unknown:
+class _Marker:
+    """A value standing for something that is not a value (its repr says what)."""
+
+    def __init__(self, name):
+        self.name = name
+
     def __repr__(self):
-        return "<unknown>"
+        return self.name
 
 
-_UNKNOWN = _Unknown()
+#: A key or a value not known when the plan is made.
+_UNKNOWN = _Marker("<unknown>")
+#: A name or a key that is not there.
+_MISSING = _Marker("<missing>")
 
 
 def _cell(cell):
@@ -70,14 +78,6 @@ def _cell(cell):
         return cell.cell_contents
     except ValueError:  # an empty cell: a name defined later in the enclosing function
         return None
-
-
-class _Missing:
-    def __repr__(self):
-        return "<missing>"
-
-
-_MISSING = _Missing()
 
 
 def _evaluate(value, steps):
