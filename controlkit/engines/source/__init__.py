@@ -41,7 +41,7 @@ with its parts :mod:`.outside` (names and objects read from outside) and :mod:`.
 
 from .plan import Plan, plan_function, reads_input, side_effect, used_params
 from .reading import PARAM_READ, NotCompilable
-from .rewrites import copy_tree, walk
+from .rewrites import copy_tree, function_def, walk
 
-__all__ = ["PARAM_READ", "NotCompilable", "Plan", "copy_tree", "plan_function", "reads_input",
-           "side_effect", "used_params", "walk"]
+__all__ = ["PARAM_READ", "NotCompilable", "Plan", "copy_tree", "function_def", "plan_function",
+           "reads_input", "side_effect", "used_params", "walk"]

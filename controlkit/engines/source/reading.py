@@ -18,7 +18,7 @@ import types
 from dataclasses import dataclass
 
 from ... import _jit
-from .rewrites import copy_tree, walk
+from .rewrites import copy_tree, function_def, walk
 from .values import _Marker
 
 
@@ -77,11 +77,7 @@ def _definition(code, copy=True):
     hit = _PARSED.get(code)
     if hit is None:
         try:
-            arguments, body = _parse_definition(code)
-            node = ast.FunctionDef(name="f", args=arguments, body=body, decorator_list=[],
-                                   returns=None, type_params=[])
-            ast.fix_missing_locations(ast.Module([node], []))
-            hit = (arguments, body)
+            hit = _parse_definition(code)
         except NotCompilable as why:
             hit = why
         _PARSED[code] = hit
@@ -92,14 +88,12 @@ def _definition(code, copy=True):
 
 def _parse_definition(code):
     if code.co_name == "<lambda>":
-        names = code.co_varnames[:code.co_argcount]
-        arguments = ast.arguments(posonlyargs=[], args=[ast.arg(n) for n in names],
-                                  vararg=None, kwonlyargs=[], kw_defaults=[], kwarg=None,
-                                  defaults=[])
         if code.co_flags & (inspect.CO_VARARGS | inspect.CO_VARKEYWORDS) \
                 or code.co_kwonlyargcount:
             raise NotCompilable("it is a lambda taking *args or keyword-only arguments")
-        return arguments, [ast.Return(_lambda_body(code))]
+        node = function_def("f", code.co_varnames[:code.co_argcount],
+                            [ast.Return(_lambda_body(code))])
+        return node.args, node.body
     text = "".join(_source_lines(code))
     if text[:1] in (" ", "\t"):  # a nested def: parse it inside a block, not dedented
         text = "if 1:\n" + text

@@ -13,7 +13,7 @@ import types as pytypes
 import numpy as np
 
 from .... import _jit
-from ...source import PARAM_READ, NotCompilable, Plan, copy_tree, walk
+from ...source import PARAM_READ, NotCompilable, Plan, copy_tree, function_def, walk
 from .layout import ParamLayout
 
 
@@ -207,14 +207,6 @@ def _has_contents(cell) -> bool:
     return True
 
 
-def _function(name, arguments, body):
-    args = ast.arguments(posonlyargs=[], args=[ast.arg(a) for a in arguments], vararg=None,
-                         kwonlyargs=[], kw_defaults=[], kwarg=None, defaults=[])
-    node = ast.FunctionDef(name=name, args=args, body=body, decorator_list=[], returns=None,
-                           type_params=[])
-    return ast.unparse(ast.fix_missing_locations(ast.Module([node], [])))
-
-
 def kernel_source(plan: Plan, layout: ParamLayout) -> str:
     """The module source of the kernel compiled from ``plan`` for the parameter ``layout``.
 
@@ -306,6 +298,6 @@ def _functions(plan, layout):
     """The text of the plan's functions, params read from ``p``."""
     reads = _Reads(layout)
     return "\n\n\n".join(
-        _function(each.name, each.arguments,
-                  _read_only_lists([reads.visit(stmt) for stmt in copy_tree(each.body)]))
+        ast.unparse(function_def(each.name, each.arguments, _read_only_lists(
+            [reads.visit(stmt) for stmt in copy_tree(each.body)])))
         for each in plan.tree())
