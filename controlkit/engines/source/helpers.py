@@ -18,7 +18,6 @@ class _HelperCalls:
     provides ``build``, ``plan``, ``local``, ``sources``, the lookups of
     :class:`~.outside._OutsideReads` and the recording methods)."""
 
-
     def _callee(self, f):
         """``(function, bound values, bound keywords)`` of a call's function, if a helper."""
         if isinstance(f, ast.Name):

@@ -30,7 +30,6 @@ class _OutsideReads:
     (it provides ``fn``, ``fixed``, ``local``, ``sources``, ``renamed``, ``plan`` and the
     recording methods)."""
 
-
     def _lookup(self, name):
         """``(found, value)`` of a name read from outside the function, as Python finds it
         now (closure, module, builtins); the read is recorded for :meth:`Plan.valid`."""
@@ -77,11 +76,8 @@ class _OutsideReads:
             self._problem(f"it reads {name!r}, a {type(value).__name__}, which numba "
                           f"cannot compile")
             return node
-        if value is np.clip:
-            return ast.copy_location(ast.Name(self._freeze_value(name, clip), ast.Load()),
-                                     node)
-        if name not in self.renamed:
-            self.renamed[name] = self._freeze_value(name, value)
+        if name not in self.renamed:  # (np.clip: the compiled clip, which takes numbers too)
+            self.renamed[name] = self._freeze_value(name, clip if value is np.clip else value)
         return ast.copy_location(ast.Name(self.renamed[name], ast.Load()), node)
 
     @staticmethod

@@ -189,7 +189,6 @@ def _same_call(then, now) -> bool:
 _PLANS = weakref.WeakKeyDictionary()
 
 
-
 class _Build:
     """The plans made for one function and its helpers (each specialisation once)."""
 
