@@ -51,32 +51,25 @@ class _Translator(_OutsideReads, _HelperCalls, ast.NodeTransformer):
             else:
                 self.fixed[name] = binding.value  # an object, a module, a function
         body = self._hoist_imports(body)
-        body = [_Unroll(self._lookup).visit(stmt) for stmt in body]
-        body = [s for stmt in body for s in (stmt if isinstance(stmt, list) else [stmt])]
+        body = _Unroll(self._lookup).visit(ast.Module(body, [])).body
         counts = _store_counts(body)
         self._find_aliases(body)
         self._find_strings(body, counts)
-        self.local = _stored_names(body) | kept | set(plan.arguments)
+        self.local = (_stored_names(body) | kept | set(plan.arguments)) - set(self.sources)
         self.ints = _integer_names(body)
-        self.local -= set(self.sources)
         for name in self.sources:
             if counts.get(name, 0) > (1 if name not in self.bindings else 0):
                 self._opaque(f"params ({name!r}) is assigned more than once")
-        body = [self.visit(stmt) for stmt in body]
-        body = [s for stmt in body for s in (stmt if isinstance(stmt, list) else [stmt])]
-        plan.body = prologue + body or [ast.Pass()]
+        plan.body = prologue + self.visit(ast.Module(body, [])).body or [ast.Pass()]
 
     def _hoist_imports(self, body):
         kept = []
         for stmt in body:
             if isinstance(stmt, ast.Import):
-                for alias in stmt.names:
-                    module = importlib.import_module(alias.name)
-                    if alias.asname:
-                        self.fixed[alias.asname] = module
-                    else:
-                        self.fixed[alias.name.split(".")[0]] = importlib.import_module(
-                            alias.name.split(".")[0])
+                for alias in stmt.names:  # (import a.b imports a.b and binds a)
+                    module, top = importlib.import_module(alias.name), alias.name.split(".")[0]
+                    self.fixed[alias.asname or top] = (module if alias.asname
+                                                       else importlib.import_module(top))
             elif isinstance(stmt, ast.ImportFrom) and not stmt.level:
                 module = importlib.import_module(stmt.module)
                 for alias in stmt.names:

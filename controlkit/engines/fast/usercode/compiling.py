@@ -133,19 +133,18 @@ _PLAIN_MESSAGES = (ArithmeticError, ValueError, IndexError, TypeError, Attribute
 
 
 def _told_where(error, where):
-    """``error``, its message followed by ``(where)``: the same type, Python's own words."""
+    """Follow ``error``'s message by ``(where)``: the same type, Python's own words."""
     plain = type(error).__str__ is BaseException.__str__ or isinstance(error, _PLAIN_MESSAGES)
     if plain and len(error.args) == 1 and isinstance(error.args[0], str) \
             and not isinstance(error, KeyError | UnicodeError | OSError):
         error.args = (f"{error.args[0]} ({where})",)
     else:
         error.add_note(f"({where})")
-    return error
 
 
 def block_layout(kernels, values) -> ParamLayout:
-    """The packed parameters shared by a block's user functions (NotCompilable if a
-    value cannot be packed).
+    """The packed parameters shared by a block's user functions (NotCompilable if the
+    keys they read are not known, or a value cannot be packed).
 
     Examples
     --------
@@ -154,5 +153,12 @@ def block_layout(kernels, values) -> ParamLayout:
     >>> block_layout([UserKernel(f, {"k": 2.0}, "b", "output", 1)], {"k": 2.0}).size
     1
     """
-    return ParamLayout.of([k.plan() for k in kernels], values)
+    keys = set()
+    for kernel in kernels:
+        plan = kernel.plan()
+        read = plan.params_read()
+        if read is None:
+            raise NotCompilable(plan.why_not() or "the params it reads are not known")
+        keys |= read
+    return ParamLayout(keys, values)
 

@@ -63,13 +63,9 @@ class _Reads(ast.NodeTransformer):
 
 # --- the generated module -----------------------------------------------------------------
 
-def _number(value) -> str:
-    value = float(value)
-    if value != value:
-        return "_np_.nan"
-    if value in (np.inf, -np.inf):
-        return "_np_.inf" if value > 0 else "-_np_.inf"
-    return repr(value)
+def _numbers(value) -> str:
+    """``repr`` of a real number or a list of them, infinities and NaN written numpy's way."""
+    return repr(value).replace("inf", "_np_.inf").replace("nan", "_np_.nan")
 
 
 def _literal(name, value, lines, imports):
@@ -82,18 +78,15 @@ def _literal(name, value, lines, imports):
         lines.append(f"{name} = {value!r}")
     elif isinstance(value, np.bool_):
         lines.append(f"{name} = _np_.bool_({bool(value)!r})")
-    elif isinstance(value, int) or isinstance(value, float) and type(value) is float:
-        lines.append(f"{name} = {_number(value) if isinstance(value, float) else repr(value)}")
+    elif isinstance(value, int) or type(value) is float:  # (a numpy float keeps its type)
+        lines.append(f"{name} = {_numbers(value)}")
     elif isinstance(value, complex):
-        lines.append(f"{name} = complex({_number(value.real)}, {_number(value.imag)})")
+        lines.append(f"{name} = complex({_numbers(value.real)}, {_numbers(value.imag)})")
     elif isinstance(value, np.ndarray | np.generic | list | tuple):
         array = np.asarray(value)
         if array.dtype.kind not in "biufc":
             raise NotCompilable(f"it reads {name.split('_', 2)[-1]!r}, which is not numeric")
-        if array.dtype.kind == "c":
-            text = repr(array.tolist())
-        else:
-            text = repr(array.tolist()).replace("inf", "_np_.inf").replace("nan", "_np_.nan")
+        text = repr(array.tolist()) if array.dtype.kind == "c" else _numbers(array.tolist())
         if isinstance(value, np.ndarray | list | tuple):
             lines.append(f"{name} = _np_.array({text}, dtype=_np_.{array.dtype.name})")
         else:  # a numpy scalar keeps its type
@@ -219,7 +212,7 @@ def kernel_source(plan: Plan, layout: ParamLayout) -> str:
     --------
     >>> from controlkit.engines.source import plan_function
     >>> plan = plan_function(lambda t, x, u, params: params["k"] * x)
-    >>> src = kernel_source(plan, ParamLayout.of([plan], {"k": 2.0}))
+    >>> src = kernel_source(plan, ParamLayout(["k"], {"k": 2.0}))
     >>> "return params[0] * x" in src, "2.0" in src
     (True, False)
     """
