@@ -94,16 +94,10 @@ class _HelperCalls:
         plan = self.build.plan(fn, bindings)
         self.plan.helpers.append(plan)
         # the run-time arguments, in the helper's order
-        given = {}
-        names = list(bindings)
-        for i, a in enumerate(node.args):
-            given[names[len(bound) + i]] = a
-        for k in node.keywords:
-            given[k.arg] = k.value
-        args = []
-        for name in plan.arguments:
-            arg = given[name]
-            args.append(arg if self._is_source(arg) else self.visit(arg))
+        given = dict(zip(list(bindings)[len(bound):], node.args, strict=False))
+        given.update((k.arg, k.value) for k in node.keywords)
+        args = [given[name] if self._is_source(given[name]) else self.visit(given[name])
+                for name in plan.arguments]
         return ast.copy_location(ast.Call(ast.Name(plan.name, ast.Load()), args, []), node)
 
     def _helper_plan(self, value):

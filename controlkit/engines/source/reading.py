@@ -215,9 +215,7 @@ def call_target(fn):
     if isinstance(fn, types.MethodType):
         target, bound, keywords = call_target(fn.__func__)
         return target, bound + [fn.__self__], keywords
-    call = vars(type(fn)).get("__call__") if callable(fn) else None
-    for kind in type(fn).__mro__[1:]:
-        call = call or vars(kind).get("__call__")
+    call = inspect.getattr_static(type(fn), "__call__", None)  # (as Python finds it)
     if isinstance(call, types.FunctionType):
         return call, [fn], {}
     raise NotCompilable(f"it is a {type(fn).__name__}, not a Python function")
