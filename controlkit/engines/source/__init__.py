@@ -17,9 +17,9 @@ python-control does) and the function not compilable, with the reason.
 The package's rooms: :mod:`.reading` (a function's own source, what a call runs, how it
 binds the arguments), :mod:`.plan` (:class:`Plan`, :func:`plan_function` and the
 questions :func:`used_params`, :func:`reads_input` and :func:`side_effect`),
-:mod:`.translator` with its parts :mod:`.outside` (names and objects read from outside)
-and :mod:`.helpers` (calls to helper functions), :mod:`.rewrites` (syntax trees, loops over
-keys written out), :mod:`.values` (which values can be frozen, and whether they changed).
+:mod:`.translator` with its part :mod:`.outside` (names, objects and helper functions read
+from outside), :mod:`.rewrites` (syntax trees, loops over keys written out),
+:mod:`.values` (which values can be frozen, and whether they changed).
 """
 
 from .plan import Plan, plan_function, reads_input, side_effect, used_params

@@ -1,7 +1,6 @@
 """Translating one function's statements into a plan's: every read of the run-time
 ``params`` written as one :data:`~.reading.PARAM_READ` call, keys held in variables made
-constants, names from outside and helper calls handed to :mod:`.outside` and
-:mod:`.helpers`.
+constants, names from outside and helper calls handed to :mod:`.outside`.
 """
 
 from __future__ import annotations
@@ -11,14 +10,13 @@ import functools
 import importlib
 import types
 
-from .helpers import _HelperCalls
 from .outside import _OutsideReads
 from .reading import PARAM_READ, PARAMS, RUNTIME, _outside_effect
 from .rewrites import _store_counts, _stored_names, _string_items, _Unroll, walk
 from .values import _MISSING, _UNKNOWN, _is_plain
 
 
-class _Translator(_OutsideReads, _HelperCalls, ast.NodeTransformer):
+class _Translator(_OutsideReads, ast.NodeTransformer):
     """One function's statements -> a plan's (params reads, helpers, frozen values)."""
 
     def __init__(self, build, plan, fn, bindings):
