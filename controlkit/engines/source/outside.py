@@ -73,9 +73,7 @@ class _OutsideReads:
             return node  # a builtin numba knows (or reports)
         if isinstance(value, types.FunctionType | functools.partial) \
                 or _is_numba_function(value) and not self._importable(value):
-            plan = self._helper_plan(value)
-            return node if plan is None else ast.copy_location(ast.Name(plan.name, ast.Load()),
-                                                               node)
+            return self._helper_name(value, node)
         if not _is_plain(value):
             self._problem(f"it reads {name!r}, a {type(value).__name__}, which numba "
                           f"cannot compile")
@@ -169,9 +167,7 @@ class _OutsideReads:
             if rest:
                 self._problem(f"it reads {text} and then more of it")
                 return node
-            plan = self._helper_plan(value)
-            return node if plan is None else ast.copy_location(
-                ast.Name(plan.name, ast.Load()), node)
+            return self._helper_name(value, node)
         if not _is_plain(value) or isinstance(value, types.ModuleType):
             self._problem(f"it reads {text}, a {type(value).__name__}, which numba cannot "
                           f"compile")
@@ -267,23 +263,24 @@ class _OutsideReads:
                 for name in plan.arguments]
         return ast.copy_location(ast.Call(ast.Name(plan.name, ast.Load()), args, []), node)
 
-    def _helper_plan(self, value):
-        """The plan of a function used as a value (all its arguments at run time)."""
+    def _helper_name(self, value, node):
+        """``node``, a function used as a value, renamed to its plan (all its arguments at
+        run time); left as it is when it cannot be planned."""
         try:
             fn, bound, keywords = call_target(value)
         except NotCompilable as why:
             self._problem(str(why))
-            return None
+            return node
         if bound or keywords or not _helper_allowed(fn):
             self._problem(f"it uses {getattr(value, '__qualname__', value)!r} as a value")
-            return None
+            return node
         try:
             arguments, _ = _definition(fn.__code__, copy=False)
         except NotCompilable as why:
             self._problem(f"{fn.__qualname__}: {why}")
-            return None
+            return node
         names = [a.arg for a in arguments.posonlyargs + arguments.args]
         plan = self.build.plan(fn, dict.fromkeys(names, RUNTIME))
         self.plan.helpers.append(plan)
-        return plan
+        return ast.copy_location(ast.Name(plan.name, ast.Load()), node)
 

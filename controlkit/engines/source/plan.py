@@ -162,9 +162,9 @@ def plan_function(fn):
     except TypeError:  # not hashable or not weakly referable: planned each time
         cached = None
     target, bound, keywords = call_target(fn)
-    if cached is not None and cached.valid() \
-            and _same_call(cached.call, (target, bound, keywords)):
-        return cached
+    if cached is not None and cached.valid() and cached.call[0] is target \
+            and _same_sequence(bound, cached.call[1]) and _same_items(keywords, cached.call[2]):
+        return cached  # (calling fn still runs the same: a partial's values, __call__)
     bindings = _called_as_python_control(target, bound, keywords)
     if isinstance(bindings, str):
         raise NotCompilable(bindings)
@@ -175,13 +175,6 @@ def plan_function(fn):
     with contextlib.suppress(TypeError):
         _PLANS[fn] = plan
     return plan
-
-
-def _same_call(then, now) -> bool:
-    """Whether ``call_target`` of a callable gives what it gave when its plan was made."""
-    (target, bound, keywords), (target_now, bound_now, keywords_now) = then, now
-    return target is target_now and _same_sequence(bound_now, bound) \
-        and _same_items(keywords_now, keywords)
 
 
 #: Plans by the callable they were made for, kept while it lives and used again while

@@ -110,11 +110,9 @@ def _same(a, b) -> bool:
 
 
 def _same_sequence(now, then) -> bool:
-    """Whether values read now (defaults, a partial's arguments) are the ones of then,
-    each by :func:`_same`; None only equals None."""
-    if now is None or then is None:
-        return now is None and then is None
-    return len(now) == len(then) and all(_same(a, b) for a, b in zip(now, then, strict=True))
+    """Whether values read now (a partial's arguments) are the ones of then, each by
+    :func:`_same`."""
+    return len(now) == len(then) and all(map(_same, now, then))
 
 
 def _same_items(now, then) -> bool:
