@@ -3,48 +3,28 @@
 What a function reads can only be known from its source: which ``params`` keys
 (for the ``params`` check every backend makes), whether it reads ``u`` (its
 feedthrough, for the fast engine's evaluation order), and the statements the fast
-engine compiles. This module turns a function, as python-control's examples and
-course notebooks write them, into a :class:`Plan`: its statements with every read
+engine compiles. This package turns a function written as python-control's examples and
+course notebooks write them (the idioms understood are listed in docs/fast-blocks.md,
+*Writing a function that compiles*) into a :class:`Plan`: its statements with every read
 of the run-time ``params`` in one canonical form, the helper functions it calls
 (planned the same way, transitively) and the values it reads from outside (its
 module, its closure, the objects it was bound to), which the compiler freezes.
-
-What is understood:
-
-- ``params["k"]``, ``params.get("k", default)``, ``"k" in params``;
-  ``map(params.get, ["a", "b"])``; an alias (``p = params``); a key held in a
-  variable assigned one string (``name = "k"; params[name]``), looped over
-  (``for name in ("a", "b"): ... params[name]``) or collected
-  (``[params[k] for k in ("a", "b")]``);
-- ``params`` handed to another function (``motor_torque(omega, params)``), which is
-  planned with it, as are functions called with a string key or an object (a
-  ``StateSpace``, a ``self``) whose attributes they read;
-- values read from objects: ``actuator.params["umax"]``, ``P.A`` (a python-control
-  system's matrix), ``self.kp``, read when the plan is made;
-- callables that are not plain functions: a :func:`functools.partial`, a bound
-  method, an object with ``__call__``, a decorated function (what Python runs: the
-  wrapper, calling the function it wraps as a helper, never the wrapped body alone);
-- imports inside the function (``from math import sin``), hoisted.
 
 Anything else is recorded, not guessed: a ``params`` use that is not understood
 makes the keys read unknown (the ``params`` check then accepts every key, as
 python-control does) and the function not compilable, with the reason.
 
-The package's rooms: :mod:`.reading` (a function's own source, what a call runs),
-:mod:`.bindings` (how arguments are bound), :mod:`.plan` (:class:`Plan`,
-:func:`plan_function`, :func:`used_params`, :func:`reads_input`), :mod:`.translator`
-with its parts :mod:`.outside` (names and objects read from outside) and :mod:`.helpers`
-(calls to helper functions), :mod:`.rewrites` (loops over keys written out),
+The package's rooms: :mod:`.reading` (a function's own source, what a call runs, how it
+binds the arguments), :mod:`.plan` (:class:`Plan`, :func:`plan_function` and the
+questions :func:`used_params`, :func:`reads_input` and :func:`side_effect`),
+:mod:`.translator` with its part :mod:`.outside` (names, objects and helper functions read
+from outside), :mod:`.rewrites` (syntax trees, loops over keys written out),
 :mod:`.values` (which values can be frozen, and whether they changed).
 """
 
-from .bindings import PARAMS, RUNTIME, Frozen
 from .plan import Plan, plan_function, reads_input, side_effect, used_params
-from .reading import PARAM_READ, NotCompilable, call_target, function_node
-from .rewrites import copy_tree, walk
-from .values import NUMERIC_MODULES
+from .reading import PARAM_READ, NotCompilable
+from .rewrites import copy_tree, function_def, walk
 
-__all__ = ["NUMERIC_MODULES", "PARAMS", "PARAM_READ", "RUNTIME", "Frozen", "NotCompilable",
-           "side_effect",
-           "Plan", "call_target", "copy_tree", "function_node", "plan_function",
-           "reads_input", "used_params", "walk"]
+__all__ = ["PARAM_READ", "NotCompilable", "Plan", "copy_tree", "function_def", "plan_function",
+           "reads_input", "side_effect", "used_params", "walk"]

@@ -1,5 +1,7 @@
 """The part of the translator that reads names and objects from outside the function: a
-number or array frozen, a function planned as a helper, ``obj.attr[...]`` evaluated now.
+number or array frozen, ``obj.attr[...]`` evaluated now, a function planned as a helper
+(each call site bound as Python binds it, the callee planned for those bindings, once per
+kind of binding, and the call renamed to the helper's plan).
 """
 
 from __future__ import annotations
@@ -12,14 +14,15 @@ import types
 
 import numpy as np
 
+from ...kernels.user_calls import clip
+from .reading import PARAMS, RUNTIME, Frozen, NotCompilable, _bind, _definition, call_target
 from .values import (
     _MISSING,
     _UNKNOWN,
     NUMERIC_MODULES,
     _cell,
-    _clip,
     _evaluate,
-    _global,
+    _helper_allowed,
     _is_numba_function,
     _is_plain,
     _reevaluate,
@@ -28,9 +31,8 @@ from .values import (
 
 class _OutsideReads:
     """Methods of :class:`~.translator._Translator` for names read from outside the function
-    (it provides ``fn``, ``fixed``, ``local``, ``sources``, ``renamed``, ``plan`` and the
-    recording methods)."""
-
+    and calls to helper functions (it provides ``build``, ``fn``, ``fixed``, ``local``,
+    ``sources``, ``renamed``, ``plan`` and the recording methods)."""
 
     def _lookup(self, name):
         """``(found, value)`` of a name read from outside the function, as Python finds it
@@ -48,7 +50,7 @@ class _OutsideReads:
             cell = self.fn.__closure__[code.co_freevars.index(name)]
             return True, _cell(cell), functools.partial(_cell, cell)
         module = self.fn.__globals__
-        getter = functools.partial(_global, module, name)
+        getter = functools.partial(module.get, name, _MISSING)
         value = getter()
         if value is not _MISSING:
             return True, value, getter
@@ -71,18 +73,13 @@ class _OutsideReads:
             return node  # a builtin numba knows (or reports)
         if isinstance(value, types.FunctionType | functools.partial) \
                 or _is_numba_function(value) and not self._importable(value):
-            plan = self._helper_plan(value)
-            return node if plan is None else ast.copy_location(ast.Name(plan.name, ast.Load()),
-                                                               node)
+            return self._helper_name(value, node)
         if not _is_plain(value):
             self._problem(f"it reads {name!r}, a {type(value).__name__}, which numba "
                           f"cannot compile")
             return node
-        if value is np.clip:
-            return ast.copy_location(ast.Name(self._freeze_value(name, _clip()), ast.Load()),
-                                     node)
-        if name not in self.renamed:
-            self.renamed[name] = self._freeze_value(name, value)
+        if name not in self.renamed:  # (np.clip: the compiled clip, which takes numbers too)
+            self.renamed[name] = self._freeze_value(name, clip if value is np.clip else value)
         return ast.copy_location(ast.Name(self.renamed[name], ast.Load()), node)
 
     @staticmethod
@@ -153,7 +150,7 @@ class _OutsideReads:
                 try:
                     if _evaluate(value, parts[1]) is np.clip:
                         return ast.copy_location(ast.Name(self._freeze_value(
-                            "clip", _clip()), ast.Load()), node)
+                            "clip", clip), ast.Load()), node)
                 except Exception:  # noqa: BLE001 - numba reports what does not exist
                     pass
                 return None
@@ -170,9 +167,7 @@ class _OutsideReads:
             if rest:
                 self._problem(f"it reads {text} and then more of it")
                 return node
-            plan = self._helper_plan(value)
-            return node if plan is None else ast.copy_location(
-                ast.Name(plan.name, ast.Load()), node)
+            return self._helper_name(value, node)
         if not _is_plain(value) or isinstance(value, types.ModuleType):
             self._problem(f"it reads {text}, a {type(value).__name__}, which numba cannot "
                           f"compile")
@@ -183,3 +178,109 @@ class _OutsideReads:
             frozen = (ast.Attribute(frozen, step, ast.Load()) if kind == "attr"
                       else ast.Subscript(frozen, ast.Constant(step), ast.Load()))
         return ast.copy_location(frozen, node)
+
+    # -- calls to helper functions -----------------------------------------------------------
+
+    def _callee(self, f):
+        """``(function, bound values, bound keywords)`` of a call's function, if a helper."""
+        if isinstance(f, ast.Name):
+            if f.id in self.local or f.id in self.sources:
+                return None
+            found, value = self._lookup(f.id)
+            if not found:
+                return None
+        elif isinstance(f, ast.Attribute | ast.Subscript):
+            try:
+                reached = self._outside(f)
+            except Exception:  # noqa: BLE001 - left to the visit, which reports it
+                return None
+            if reached is None or reached[2]:
+                return None
+            value = reached[0]
+        else:
+            return None
+        if _is_numba_function(value) and self._importable(value):
+            return None  # imported as it is
+        if not (isinstance(value, types.FunctionType | types.MethodType | functools.partial)
+                or _is_numba_function(value)):
+            return None
+        try:
+            return call_target(value)
+        except NotCompilable:
+            return None
+
+    def _argument_binding(self, arg):
+        """How an argument at a call site binds: PARAMS, Frozen(value) or RUNTIME."""
+        if self._is_source(arg):
+            source = self.sources[arg.id]
+            return PARAMS if source is RUNTIME else Frozen(source)
+        key = self._key(arg) if isinstance(arg, ast.Name | ast.Constant) else None
+        if isinstance(key, str):
+            return Frozen(key)  # a key handed on
+        if isinstance(arg, ast.Name) and arg.id not in self.local:
+            found, value = self._lookup(arg.id)
+            if found and not _is_plain(value):
+                return Frozen(value)  # an object: its attributes are read by the helper
+        if isinstance(arg, ast.Attribute | ast.Subscript):
+            try:
+                reached = self._outside(arg)
+            except Exception:  # noqa: BLE001 - left to the visit, which reports it
+                reached = None
+            if reached is not None and not reached[2] and not _is_plain(reached[0]):
+                return Frozen(reached[0])  # an object handed on (a dict: its params)
+        return RUNTIME
+
+    def _helper_call(self, node, fn, bound, keywords):
+        if not _helper_allowed(fn):
+            for arg in [*node.args, *(k.value for k in node.keywords)]:
+                if self._is_source(arg):
+                    self._opaque(f"params is handed to {fn.__qualname__}, which is not "
+                                 f"compiled")
+            self._problem(f"it calls {fn.__module__}.{fn.__qualname__}, which is not compiled")
+            return node
+        if any(isinstance(a, ast.Starred) for a in node.args) \
+                or any(k.arg is None for k in node.keywords):
+            if any(self._is_source(getattr(a, "value", a)) for a in
+                   [*node.args, *(k.value for k in node.keywords)]):
+                self._opaque("params is handed on with * or **")
+            self._problem("it calls a function with *args or **kwargs")
+            return node
+        positional = [Frozen(v) for v in bound] + [self._argument_binding(a) for a in node.args]
+        named = {k: Frozen(v) for k, v in keywords.items()}
+        named.update({k.arg: self._argument_binding(k.value) for k in node.keywords})
+        bindings = _bind(fn, positional, named)
+        if isinstance(bindings, str):
+            if any(b == PARAMS for b in positional + list(named.values())):
+                self._opaque(f"params is handed to {fn.__qualname__}: {bindings}")
+            self._problem(bindings)
+            return node
+        plan = self.build.plan(fn, bindings)
+        self.plan.helpers.append(plan)
+        # the run-time arguments, in the helper's order
+        given = dict(zip(list(bindings)[len(bound):], node.args, strict=False))
+        given.update((k.arg, k.value) for k in node.keywords)
+        args = [given[name] if self._is_source(given[name]) else self.visit(given[name])
+                for name in plan.arguments]
+        return ast.copy_location(ast.Call(ast.Name(plan.name, ast.Load()), args, []), node)
+
+    def _helper_name(self, value, node):
+        """``node``, a function used as a value, renamed to its plan (all its arguments at
+        run time); left as it is when it cannot be planned."""
+        try:
+            fn, bound, keywords = call_target(value)
+        except NotCompilable as why:
+            self._problem(str(why))
+            return node
+        if bound or keywords or not _helper_allowed(fn):
+            self._problem(f"it uses {getattr(value, '__qualname__', value)!r} as a value")
+            return node
+        try:
+            arguments, _ = _definition(fn.__code__, copy=False)
+        except NotCompilable as why:
+            self._problem(f"{fn.__qualname__}: {why}")
+            return node
+        names = [a.arg for a in arguments.posonlyargs + arguments.args]
+        plan = self.build.plan(fn, dict.fromkeys(names, RUNTIME))
+        self.plan.helpers.append(plan)
+        return ast.copy_location(ast.Name(plan.name, ast.Load()), node)
+

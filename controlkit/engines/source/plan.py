@@ -6,14 +6,25 @@ those values are unchanged. Also the two questions the ``params`` check and the 
 from __future__ import annotations
 
 import ast
+import contextlib
+import copy
 import weakref
 from dataclasses import dataclass, field
 
-from .bindings import PARAMS, RUNTIME, Frozen, _bind, _binding_key, _input_name
-from .reading import MUTATORS, SIDE_EFFECTS, NotCompilable, _definition, call_target
+from .reading import (
+    PARAMS,
+    Frozen,
+    NotCompilable,
+    _binding_key,
+    _called_as_python_control,
+    _definition,
+    _input_name,
+    _outside_effect,
+    call_target,
+)
 from .rewrites import walk
 from .translator import _Translator
-from .values import _same, _same_items, _same_sequence, _snapshot
+from .values import _same, _same_items, _same_sequence
 
 
 @dataclass(eq=False)
@@ -42,8 +53,6 @@ class Plan:
         Why the keys it reads cannot all be known (``params`` used otherwise than by key).
     problem : str or None
         Why it cannot be compiled.
-    input_name : str or None
-        The name of its argument bound to ``u`` (for the top plan).
     checks : list
         ``(read, value)`` for each value read from outside the function: ``read()`` reads
         it again (see :meth:`valid`).
@@ -76,7 +85,6 @@ class Plan:
     keys: set = field(default_factory=set)
     opaque: str | None = None
     problem: str | None = None
-    input_name: str | None = None
     checks: list = field(default_factory=list)
     code: object = None
     defaults: object = None
@@ -154,41 +162,24 @@ def plan_function(fn):
     except TypeError:  # not hashable or not weakly referable: planned each time
         cached = None
     target, bound, keywords = call_target(fn)
-    if cached is not None and cached.valid() \
-            and _same_call(cached.call, (target, bound, keywords)):
-        return cached
-    build = _Build()
-    call = [Frozen(v) for v in bound] + [RUNTIME, RUNTIME, RUNTIME, PARAMS]
-    bindings = _bind(target, call, {k: Frozen(v) for k, v in keywords.items()})
+    if cached is not None and cached.valid() and cached.call[0] is target \
+            and _same_sequence(bound, cached.call[1]) and _same_items(keywords, cached.call[2]):
+        return cached  # (calling fn still runs the same: a partial's values, __call__)
+    bindings = _called_as_python_control(target, bound, keywords)
     if isinstance(bindings, str):
         raise NotCompilable(bindings)
     _definition(target.__code__, copy=False)  # no source: NotCompilable, nothing is known
-    plan = build.plan(target, bindings, name="user")
-    plan.input_name = _input_name(bindings)
+    plan = _Build().plan(target, bindings, name="user")
     plan.call = (target, list(bound), dict(keywords))
     plan.finished = plan.tree()  # asked for at every run (its validity, keys, reasons)
-    _keep(fn, plan)
-    return plan
-
-
-def _keep(fn, plan):
-    try:
+    with contextlib.suppress(TypeError):
         _PLANS[fn] = plan
-    except TypeError:
-        pass
-
-
-def _same_call(then, now) -> bool:
-    """Whether ``call_target`` of a callable gives what it gave when its plan was made."""
-    (target, bound, keywords), (target_now, bound_now, keywords_now) = then, now
-    return target is target_now and _same_sequence(bound_now, bound) \
-        and _same_items(keywords_now, keywords)
+    return plan
 
 
 #: Plans by the callable they were made for, kept while it lives and used again while
 #: :meth:`Plan.valid` (a simulation asks for each block's plans several times).
 _PLANS = weakref.WeakKeyDictionary()
-
 
 
 class _Build:
@@ -205,13 +196,14 @@ class _Build:
         self.count += 1
         plan = Plan(fn, name or f"_h{self.count}_{fn.__name__.strip('<>')}", self.count,
                     code=fn.__code__, defaults=fn.__defaults__,
-                    kwdefaults=_snapshot(fn.__kwdefaults__))
+                    kwdefaults=copy.copy(fn.__kwdefaults__))  # (changed in place)
         self.plans[key] = plan
         try:
             _, body = _definition(fn.__code__)
         except NotCompilable as why:
             plan.problem = str(why)
-            if any(b == PARAMS or _is_dict_binding(b) for b in bindings.values()):
+            if any(b == PARAMS or isinstance(b, Frozen) and isinstance(b.value, dict)
+                   for b in bindings.values()):
                 plan.opaque = f"params is handed to {fn.__qualname__}, whose source is unknown"
             return plan
         try:
@@ -220,11 +212,6 @@ class _Build:
             plan.problem = plan.opaque = (f"it could not be read ({type(error).__name__}: "
                                           f"{error})")
         return plan
-
-
-def _is_dict_binding(binding):
-    return isinstance(binding, Frozen) and isinstance(binding.value, dict)
-
 
 
 def used_params(fn):
@@ -272,8 +259,7 @@ def reads_input(fn):
             _, body = _definition(target.__code__, copy=False)
         except NotCompilable:
             return None
-        call = [Frozen(v) for v in bound] + [RUNTIME, RUNTIME, RUNTIME, PARAMS]
-        bindings = _bind(target, call, {k: Frozen(v) for k, v in keywords.items()})
+        bindings = _called_as_python_control(target, bound, keywords)
         name = None if isinstance(bindings, str) else _input_name(bindings)
         _READS_INPUT[key] = None if name is None else any(
             isinstance(n, ast.Name) and n.id == name for n in walk(ast.Module(body, [])))
@@ -308,12 +294,7 @@ def side_effect(fn) -> str | None:
     local = {n.id for n in walk(ast.Module(body, [])) if isinstance(n, ast.Name)
              and isinstance(n.ctx, ast.Store)} | set(target.__code__.co_varnames)
     for node in walk(ast.Module(body, [])):
-        if not isinstance(node, ast.Call):
-            continue
-        f = node.func
-        if isinstance(f, ast.Name) and f.id in SIDE_EFFECTS and f.id not in local:
-            return f"it calls {f.id}()"
-        if isinstance(f, ast.Attribute) and f.attr in MUTATORS \
-                and isinstance(f.value, ast.Name) and f.value.id not in local:
-            return f"it changes an object from outside ({f.value.id}.{f.attr})"
+        effect = _outside_effect(node, local) if isinstance(node, ast.Call) else None
+        if effect is not None:
+            return effect[0]
     return None

@@ -1,6 +1,9 @@
 """Reading a function's own source: the ``def`` or ``lambda`` its code object was compiled
-from (never the function a decorator wraps), and what calling a callable runs (a
-partial's function, a bound method's, an object's ``__call__``).
+from (never the function a decorator wraps); what calling a callable runs (a partial's
+function, a bound method's, an object's ``__call__``); and how a call binds the function's
+arguments: to a value known when the plan is made (:class:`Frozen`), to the run-time
+``params`` (:data:`PARAMS`) or to a value known only when the function runs
+(:data:`RUNTIME`).
 """
 
 from __future__ import annotations
@@ -12,9 +15,11 @@ import linecache
 import re
 import textwrap
 import types
+from dataclasses import dataclass
 
 from ... import _jit
-from .rewrites import copy_tree, walk
+from .rewrites import copy_tree, function_def, walk
+from .values import _Marker
 
 
 class NotCompilable(Exception):
@@ -72,11 +77,7 @@ def _definition(code, copy=True):
     hit = _PARSED.get(code)
     if hit is None:
         try:
-            arguments, body = _parse_definition(code)
-            node = ast.FunctionDef(name="f", args=arguments, body=body, decorator_list=[],
-                                   returns=None, type_params=[])
-            ast.fix_missing_locations(ast.Module([node], []))
-            hit = (arguments, body)
+            hit = _parse_definition(code)
         except NotCompilable as why:
             hit = why
         _PARSED[code] = hit
@@ -87,14 +88,12 @@ def _definition(code, copy=True):
 
 def _parse_definition(code):
     if code.co_name == "<lambda>":
-        names = code.co_varnames[:code.co_argcount]
-        arguments = ast.arguments(posonlyargs=[], args=[ast.arg(n) for n in names],
-                                  vararg=None, kwonlyargs=[], kw_defaults=[], kwarg=None,
-                                  defaults=[])
         if code.co_flags & (inspect.CO_VARARGS | inspect.CO_VARKEYWORDS) \
                 or code.co_kwonlyargcount:
             raise NotCompilable("it is a lambda taking *args or keyword-only arguments")
-        return arguments, [ast.Return(_lambda_body(code))]
+        node = function_def("f", code.co_varnames[:code.co_argcount],
+                            [ast.Return(_lambda_body(code))])
+        return node.args, node.body
     text = "".join(_source_lines(code))
     if text[:1] in (" ", "\t"):  # a nested def: parse it inside a block, not dedented
         text = "if 1:\n" + text
@@ -184,24 +183,6 @@ def _source_lines(code):
 _DEF_LINE = re.compile(r"^(\s*def\s)|(\s*async\s+def\s)|^(\s*@)")
 
 
-def function_node(fn):
-    """The positional argument names and body statements of ``fn`` (a def or a lambda).
-
-    The source is that of ``fn``'s own code: for a decorated function, the wrapper.
-
-    Examples
-    --------
-    >>> names, body = function_node(lambda t, x, u, params: -x)
-    >>> names, type(body[0]).__name__
-    (['t', 'x', 'u', 'params'], 'Return')
-    """
-    fn = _jit.python_function(fn)
-    if not isinstance(fn, types.FunctionType):
-        raise NotCompilable(f"it is a {type(fn).__name__}, not a Python function")
-    arguments, body = _definition(fn.__code__)
-    return [a.arg for a in arguments.posonlyargs + arguments.args], body
-
-
 # --- what Python calls ------------------------------------------------------------------
 
 def call_target(fn):
@@ -234,13 +215,83 @@ def call_target(fn):
     if isinstance(fn, types.MethodType):
         target, bound, keywords = call_target(fn.__func__)
         return target, bound + [fn.__self__], keywords
-    call = vars(type(fn)).get("__call__") if callable(fn) else None
-    for kind in type(fn).__mro__[1:]:
-        call = call or vars(kind).get("__call__")
+    call = inspect.getattr_static(type(fn), "__call__", None)  # (as Python finds it)
     if isinstance(call, types.FunctionType):
         return call, [fn], {}
     raise NotCompilable(f"it is a {type(fn).__name__}, not a Python function")
 
+
+# --- how a call binds the arguments ------------------------------------------------------
+
+#: A function argument given a value at run time (kept in the compiled signature).
+RUNTIME = _Marker("runtime")
+#: A function argument that receives the run-time ``params`` (the packed vector, compiled).
+PARAMS = "params"
+
+
+@dataclass(eq=False)
+class Frozen:
+    """A function argument bound to a value known when the plan is made (dropped from
+    the compiled signature): a partial's argument, a default, a method's ``self``.
+
+    Examples
+    --------
+    >>> Frozen(2.0).value
+    2.0
+    """
+
+    value: object
+
+
+def _called_as_python_control(target, bound, keywords):
+    """The bindings of ``target`` called as ``fn(t, x, u, params)`` with the values
+    :func:`call_target` found bound, or the reason it cannot be bound."""
+    call = [Frozen(v) for v in bound] + [RUNTIME, RUNTIME, RUNTIME, PARAMS]
+    return _bind(target, call, {k: Frozen(v) for k, v in keywords.items()})
+
+
+def _input_name(bindings):
+    """The argument that receives ``u`` (the third of t, x, u, params)."""
+    runtime = [name for name, b in bindings.items() if b is RUNTIME or b == PARAMS]
+    return runtime[2] if len(runtime) == 4 else None
+
+
+def _bind(fn, positional, keywords):
+    """Each argument name of ``fn`` -> its binding, as Python would bind the call, or
+    the reason it cannot be bound."""
+    try:
+        arguments, _ = _definition(fn.__code__, copy=False)
+    except NotCompilable as why:
+        return str(why)
+    if arguments.vararg is not None or arguments.kwarg is not None:
+        return f"{fn.__qualname__} takes *args or **kwargs"
+    names = [a.arg for a in arguments.posonlyargs + arguments.args]
+    kwonly = [a.arg for a in arguments.kwonlyargs]
+    if len(positional) > len(names):
+        return f"{fn.__qualname__} is called with {len(positional)} arguments"
+    bindings = dict(zip(names, positional, strict=False))
+    for key, value in keywords.items():
+        if key in bindings or key not in names + kwonly:
+            return f"{fn.__qualname__} cannot take the argument {key!r}"
+        bindings[key] = value
+    defaults = dict(zip(names[len(names) - len(fn.__defaults__ or ()):],
+                        fn.__defaults__ or (), strict=True))
+    defaults.update(fn.__kwdefaults__ or {})
+    for name in names + kwonly:
+        if name not in bindings:
+            if name not in defaults:
+                return f"{fn.__qualname__} is called without its argument {name!r}"
+            bindings[name] = Frozen(defaults[name])
+    return {name: bindings[name] for name in names + kwonly}
+
+
+def _binding_key(binding):
+    if isinstance(binding, Frozen):
+        return ("frozen", id(binding.value))
+    return ("params",) if binding == PARAMS else ("runtime",)
+
+
+# --- what compiled code cannot do as Python -----------------------------------------------
 
 #: Builtins with effects outside the function (what compiled code cannot do as Python).
 SIDE_EFFECTS = {"print": "which prints", "open": "which reads or writes files",
@@ -250,3 +301,18 @@ SIDE_EFFECTS = {"print": "which prints", "open": "which reads or writes files",
 MUTATORS = {"append", "extend", "insert", "pop", "remove", "clear", "update", "add",
              "discard", "setdefault", "popitem", "write", "writelines", "sort", "reverse",
              "fill", "put", "resize", "itemset"}
+
+
+def _outside_effect(call, local):
+    """``(what, why compiled code differs)`` of a call with an effect outside the function
+    (a builtin such as ``print``, a method changing an object from outside), else None;
+    ``local`` holds the function's own names."""
+    f = call.func
+    if isinstance(f, ast.Name) and f.id in SIDE_EFFECTS and f.id not in local:
+        return (f"it calls {f.id}()", f", {SIDE_EFFECTS[f.id]} (compiled code would do it "
+                                      f"at other moments, or not at all)")
+    if isinstance(f, ast.Attribute) and f.attr in MUTATORS \
+            and isinstance(f.value, ast.Name) and f.value.id not in local:
+        return (f"it changes an object from outside ({f.value.id}.{f.attr})",
+                ": a side effect compiled code would not have")
+    return None

@@ -1,5 +1,7 @@
-"""Rewrites of a function's statements made before it is translated: the names it binds,
-how often, and loops over literal lists of ``params`` keys written out one copy per key.
+"""Syntax trees: walked, copied and made (:func:`walk`, :func:`copy_tree`,
+:func:`function_def`), and the rewrites of a function's statements made before it is
+translated: the names it binds, how often, and loops over literal lists of ``params`` keys
+written out one copy per key.
 """
 
 from __future__ import annotations
@@ -60,6 +62,20 @@ def copy_tree(node):
     return new
 
 
+def function_def(name, arguments, body):
+    """``def name(arguments): body`` as a syntax tree, its missing locations filled in.
+
+    Examples
+    --------
+    >>> ast.unparse(function_def("double", ["x"], ast.parse("return 2 * x").body))
+    'def double(x):\\n    return 2 * x'
+    """
+    args = ast.arguments(posonlyargs=[], args=[ast.arg(a) for a in arguments], vararg=None,
+                         kwonlyargs=[], kw_defaults=[], kwarg=None, defaults=[])
+    return ast.fix_missing_locations(ast.FunctionDef(
+        name=name, args=args, body=body, decorator_list=[], returns=None, type_params=[]))
+
+
 def _stored_names(body):
     """Names bound anywhere in ``body`` (assigned, loop targets, inner functions' args)."""
     names = set()
@@ -117,13 +133,6 @@ class _Substitute(ast.NodeTransformer):
         return node
 
 
-def _has_jump(statements):
-    for node in walk(ast.Module(statements, [])):
-        if isinstance(node, ast.Break | ast.Continue):
-            return True
-    return False
-
-
 class _Unroll(ast.NodeTransformer):
     """Loops and comprehensions over a literal sequence of strings (params keys), written
     out one copy per string, so that each key is a constant."""
@@ -134,8 +143,8 @@ class _Unroll(ast.NodeTransformer):
     def visit_For(self, node):
         node = self.generic_visit(node)
         keys = _string_items(node.iter, self.lookup)
-        if keys is None or not isinstance(node.target, ast.Name) or node.orelse \
-                or _has_jump(node.body):
+        if keys is None or not isinstance(node.target, ast.Name) or node.orelse or any(
+                isinstance(n, ast.Break | ast.Continue) for n in walk(ast.Module(node.body, []))):
             return node
         out = []
         for key in keys:

@@ -1,7 +1,6 @@
 """Translating one function's statements into a plan's: every read of the run-time
 ``params`` written as one :data:`~.reading.PARAM_READ` call, keys held in variables made
-constants, names from outside and helper calls handed to :mod:`.outside` and
-:mod:`.helpers`.
+constants, names from outside and helper calls handed to :mod:`.outside`.
 """
 
 from __future__ import annotations
@@ -11,15 +10,13 @@ import functools
 import importlib
 import types
 
-from .bindings import PARAMS, RUNTIME
-from .helpers import _HelperCalls
 from .outside import _OutsideReads
-from .reading import MUTATORS, PARAM_READ, SIDE_EFFECTS
+from .reading import PARAM_READ, PARAMS, RUNTIME, _outside_effect
 from .rewrites import _store_counts, _stored_names, _string_items, _Unroll, walk
-from .values import _MISSING, _UNKNOWN, _global, _is_plain
+from .values import _MISSING, _UNKNOWN, _is_plain
 
 
-class _Translator(_OutsideReads, _HelperCalls, ast.NodeTransformer):
+class _Translator(_OutsideReads, ast.NodeTransformer):
     """One function's statements -> a plan's (params reads, helpers, frozen values)."""
 
     def __init__(self, build, plan, fn, bindings):
@@ -52,32 +49,25 @@ class _Translator(_OutsideReads, _HelperCalls, ast.NodeTransformer):
             else:
                 self.fixed[name] = binding.value  # an object, a module, a function
         body = self._hoist_imports(body)
-        body = [_Unroll(self._lookup).visit(stmt) for stmt in body]
-        body = [s for stmt in body for s in (stmt if isinstance(stmt, list) else [stmt])]
+        body = _Unroll(self._lookup).visit(ast.Module(body, [])).body
         counts = _store_counts(body)
-        self._find_aliases(body, counts)
+        self._find_aliases(body)
         self._find_strings(body, counts)
-        self.local = _stored_names(body) | kept | set(plan.arguments)
+        self.local = (_stored_names(body) | kept | set(plan.arguments)) - set(self.sources)
         self.ints = _integer_names(body)
-        self.local -= set(self.sources)
         for name in self.sources:
             if counts.get(name, 0) > (1 if name not in self.bindings else 0):
                 self._opaque(f"params ({name!r}) is assigned more than once")
-        body = [self.visit(stmt) for stmt in body]
-        body = [s for stmt in body for s in (stmt if isinstance(stmt, list) else [stmt])]
-        plan.body = prologue + body or [ast.Pass()]
+        plan.body = prologue + self.visit(ast.Module(body, [])).body or [ast.Pass()]
 
     def _hoist_imports(self, body):
         kept = []
         for stmt in body:
             if isinstance(stmt, ast.Import):
-                for alias in stmt.names:
-                    module = importlib.import_module(alias.name)
-                    if alias.asname:
-                        self.fixed[alias.asname] = module
-                    else:
-                        self.fixed[alias.name.split(".")[0]] = importlib.import_module(
-                            alias.name.split(".")[0])
+                for alias in stmt.names:  # (import a.b imports a.b and binds a)
+                    module, top = importlib.import_module(alias.name), alias.name.split(".")[0]
+                    self.fixed[alias.asname or top] = (module if alias.asname
+                                                       else importlib.import_module(top))
             elif isinstance(stmt, ast.ImportFrom) and not stmt.level:
                 module = importlib.import_module(stmt.module)
                 for alias in stmt.names:
@@ -89,7 +79,7 @@ class _Translator(_OutsideReads, _HelperCalls, ast.NodeTransformer):
                 kept.append(stmt)
         return kept
 
-    def _find_aliases(self, body, counts):
+    def _find_aliases(self, body):
         changed = True
         while changed:
             changed = False
@@ -156,8 +146,8 @@ class _Translator(_OutsideReads, _HelperCalls, ast.NodeTransformer):
                              ast.Constant(how), default or ast.Constant(None)], [])
             return ast.copy_location(call, node)
         # a dict known when the plan is made (a default {}, a dict handed to a helper)
-        self.plan.checks.append((functools.partial(_global, source, key), source.get(
-            key, _MISSING)))
+        self.plan.checks.append((functools.partial(source.get, key, _MISSING),
+                                 source.get(key, _MISSING)))
         if how == "in":
             return ast.copy_location(ast.Constant(key in source), node)
         if key in source:
@@ -235,26 +225,21 @@ class _Translator(_OutsideReads, _HelperCalls, ast.NodeTransformer):
         """Calls whose compiled meaning is not Python's: the function then runs as Python."""
         f = node.func
         name = f.id if isinstance(f, ast.Name) and f.id not in self.local else None
-        if name in SIDE_EFFECTS:
-            self._problem(f"it calls {name}(), {SIDE_EFFECTS[name]} (compiled code would "
-                          f"do it at other moments, or not at all)")
+        effect = _outside_effect(node, self.local)
+        if effect is not None:
+            self._problem("".join(effect))
         elif name == "round" and (len(node.args) > 1 or node.keywords):
             self._problem("it rounds to digits (round(x, n)): compiled code rounds some "
                           "halves otherwise than Python (round(0.35, 1) gives 0.4, Python "
                           "0.3)")
-        elif isinstance(f, ast.Attribute) and f.attr in MUTATORS \
-                and isinstance(f.value, ast.Name) and f.value.id not in self.local:
-            self._problem(f"it changes an object from outside ({f.value.id}.{f.attr}): a "
-                          f"side effect compiled code would not have")
         elif isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) \
                 and f.value.id == "math" and f.attr in ("factorial", "comb", "perm"):
             self._problem(f"it calls math.{f.attr}, whose integers can outgrow the 64 bits "
                           f"of compiled code")
 
     def visit_BinOp(self, node):
-        ints = getattr(self, "ints", set())
         if isinstance(node.op, ast.LShift) or isinstance(node.op, ast.Pow | ast.Mult) and (
-                _integer(node.left, ints) and _integer(node.right, ints)):
+                _integer(node.left, self.ints) and _integer(node.right, self.ints)):
             self._problem(f"it computes {ast.unparse(node)[:40]} with integers, which can "
                           f"outgrow the 64 bits of compiled code (Python's integers do not)")
         return self.generic_visit(node)

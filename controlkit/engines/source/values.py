@@ -9,8 +9,6 @@ import types
 
 import numpy as np
 
-from ...kernels.user_calls import clip
-
 #: Modules whose functions numba compiles itself: calls into them are left as written.
 NUMERIC_MODULES = ("numpy", "math", "cmath")
 
@@ -59,12 +57,20 @@ def _helper_allowed(fn):
     return module not in _NOT_HELPERS
 
 
-class _Unknown:
+class _Marker:
+    """A value standing for something that is not a value (its repr says what)."""
+
+    def __init__(self, name):
+        self.name = name
+
     def __repr__(self):
-        return "<unknown>"
+        return self.name
 
 
-_UNKNOWN = _Unknown()
+#: A key or a value not known when the plan is made.
+_UNKNOWN = _Marker("<unknown>")
+#: A name or a key that is not there.
+_MISSING = _Marker("<missing>")
 
 
 def _cell(cell):
@@ -72,20 +78,6 @@ def _cell(cell):
         return cell.cell_contents
     except ValueError:  # an empty cell: a name defined later in the enclosing function
         return None
-
-
-class _Missing:
-    def __repr__(self):
-        return "<missing>"
-
-
-_MISSING = _Missing()
-
-
-def _global(namespace, name):
-    return namespace.get(name, _MISSING)
-
-
 
 
 def _evaluate(value, steps):
@@ -118,11 +110,9 @@ def _same(a, b) -> bool:
 
 
 def _same_sequence(now, then) -> bool:
-    """Whether values read now (defaults, a partial's arguments) are the ones of then,
-    each by :func:`_same`; None only equals None."""
-    if now is None or then is None:
-        return now is None and then is None
-    return len(now) == len(then) and all(_same(a, b) for a, b in zip(now, then, strict=True))
+    """Whether values read now (a partial's arguments) are the ones of then, each by
+    :func:`_same`."""
+    return len(now) == len(then) and all(map(_same, now, then))
 
 
 def _same_items(now, then) -> bool:
@@ -132,11 +122,4 @@ def _same_items(now, then) -> bool:
     return now.keys() == then.keys() and all(_same(now[k], then[k]) for k in now)
 
 
-def _snapshot(kwdefaults):
-    """Keyword defaults as they are now (the function's own dict can change in place)."""
-    return None if kwdefaults is None else dict(kwdefaults)
-
-
-def _clip():
-    return clip  # the compiled clip that takes numbers too
 

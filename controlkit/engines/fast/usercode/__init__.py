@@ -1,18 +1,13 @@
 """A user's ``(t, x, u, params)`` function as a kernel ``(t, x, u, p, out)``.
 
-python-control documents update and output functions as ``f(t, x, u, params)`` with
-``params`` a dict. Run as Python, the engine calls the function as it is
-(:class:`UserKernel`, which names the block in any error). numba cannot compile a dict of
-mixed values, so for compiling the function is translated for the *types and shapes* of
-its parameters, never their values: :mod:`..source` plans the function (every read of
-``params``, the helpers it calls, the values it reads from outside), each read becomes a
-read of the packed vector ``p`` (:class:`ParamLayout`: a float at one index, an int or bool
-cast back, an array as a slice reshaped, a complex as two floats), and
-:meth:`ParamLayout.pack` builds ``p`` from the values in force for each run. The values the
-function reads from outside (numbers, arrays, modules, compiled functions, attributes of
-objects) are frozen as module-level constants, and the result is a module of the store
-(:mod:`..store`), compiled with the diagram that calls it, indexes checked. A new parameter
-value is a new ``p``: nothing is written or compiled again.
+Run as Python, the engine calls the function as it is (:class:`UserKernel`, which names
+the block in any error). Compiled (docs/fast-blocks.md, *Your own nlsys*), the function's
+plan (:mod:`..source`) is written out for the *types and shapes* of its parameters: each
+``params`` read becomes a read of the packed vector ``p`` (:class:`~.layout.ParamLayout`:
+a float at one index, an int or bool cast back, an array as a slice reshaped, a complex
+as two floats), the values read from outside become module-level constants, and the
+module, kept in the store (:mod:`..store`), is compiled with the diagram that calls it. A
+new parameter value is a new ``p``: nothing is written or compiled again.
 
 The user's functions and helpers are pasted into the kernel, compiled with numba's numpy
 error model: a division by zero gives ``inf`` or ``nan``, as it does in Python for the
@@ -26,8 +21,5 @@ module's text), :mod:`.compiling` (:class:`UserKernel`); what compiled code call
 
 from ....kernels.user_calls import clip, missing_parameter, store
 from .compiling import UserKernel, block_layout
-from .layout import ParamEntry, ParamLayout
-from .writer import kernel_source
 
-__all__ = ["ParamEntry", "ParamLayout", "UserKernel", "block_layout", "clip",
-           "kernel_source", "missing_parameter", "store"]
+__all__ = ["UserKernel", "block_layout", "clip", "missing_parameter", "store"]

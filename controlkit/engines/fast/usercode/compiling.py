@@ -24,10 +24,8 @@ class UserKernel:
     Called as ``kernel(t, x, u, p, out)`` it calls ``fn(t, x, u, params)`` with the
     block's parameters and stores the result in ``out``, refusing a result of another
     size with the block's name (python-control raises for a lone system and, inside an
-    interconnect, silently spreads a single value over the slots). :meth:`compiled`
-    translates it (:mod:`controlkit.engines.source`), writes the kernel module into the
-    store and returns numba's function, with indexes checked (``boundscheck``) so that
-    an index outside an array is Python's ``IndexError``, not a read of other memory.
+    interconnect, silently spreads a single value over the slots). :meth:`text` writes
+    the kernel module for a parameter layout, :meth:`compiled` gives its numba function.
 
     Parameters
     ----------
@@ -53,11 +51,10 @@ class UserKernel:
     controlkit.engines.fast.usercode.compiling.SizeError: inconsistent size of outputs; ...
     """
 
-    def __init__(self, fn, values, block, role, size, n_x=0, n_u=0):
+    def __init__(self, fn, values, block, role, size):
         self.fn, self.params, self.block = fn, dict(values), block
-        self.role, self.size, self.n_x, self.n_u = role, size, n_x, n_u
+        self.role, self.size = role, size
         self._plan = self._text = self._why = None
-        self.layout = None
 
     def __call__(self, t, x, u, p, out):
         what, unit = ROLES[self.role]
@@ -90,16 +87,10 @@ class UserKernel:
         if self._why is not None:
             raise NotCompilable(self._why)
         try:
-            plan = self.plan()
-            why = plan.why_not()
-            if why is not None:
-                raise NotCompilable(why)
-            self._text = kernel_source(self.fn, self.params, False, layout=layout,
-                                       exact=True, plan=plan)
+            self._text = kernel_source(self.plan(), layout)
         except NotCompilable as why:
             self._why = str(why)
             raise
-        self.layout = layout
         return self._text
 
     @property
@@ -108,9 +99,10 @@ class UserKernel:
         return store.name_of(self._text, "user") if self._text else f"python {self.block!r}"
 
     def compiled(self):
-        """The kernel of the store module of :meth:`text`, for compiled code: the user's
-        functions are pasted into it, and its indexes checked (compiled with the diagram
-        that calls it)."""
+        """The kernel of the store module of :meth:`text` (compiled with the diagram that
+        calls it): the user's functions are pasted into it, and its indexes checked
+        (``boundscheck``), so that an index outside an array is Python's ``IndexError``,
+        not a read of other memory."""
         module = store.import_module(store.module_file(self._text, "user"))
         if not isinstance(module.kernel, _jit.Jitted):  # (once a process)
             for name, value in list(vars(module).items()):
@@ -141,19 +133,18 @@ _PLAIN_MESSAGES = (ArithmeticError, ValueError, IndexError, TypeError, Attribute
 
 
 def _told_where(error, where):
-    """``error``, its message followed by ``(where)``: the same type, Python's own words."""
+    """Follow ``error``'s message by ``(where)``: the same type, Python's own words."""
     plain = type(error).__str__ is BaseException.__str__ or isinstance(error, _PLAIN_MESSAGES)
     if plain and len(error.args) == 1 and isinstance(error.args[0], str) \
             and not isinstance(error, KeyError | UnicodeError | OSError):
         error.args = (f"{error.args[0]} ({where})",)
     else:
         error.add_note(f"({where})")
-    return error
 
 
 def block_layout(kernels, values) -> ParamLayout:
-    """The packed parameters shared by a block's user functions (NotCompilable if a
-    value cannot be packed).
+    """The packed parameters shared by a block's user functions (NotCompilable if the
+    keys they read are not known, or a value cannot be packed).
 
     Examples
     --------
@@ -162,7 +153,12 @@ def block_layout(kernels, values) -> ParamLayout:
     >>> block_layout([UserKernel(f, {"k": 2.0}, "b", "output", 1)], {"k": 2.0}).size
     1
     """
-    return ParamLayout.of([k.plan() for k in kernels], values)
+    keys = set()
+    for kernel in kernels:
+        plan = kernel.plan()
+        read = plan.params_read()
+        if read is None:
+            raise NotCompilable(plan.why_not() or "the params it reads are not known")
+        keys |= read
+    return ParamLayout(keys, values)
 
-
-__all__ = ["SizeError", "UserKernel", "block_layout"]

@@ -91,22 +91,6 @@ class ParamLayout:
         self.size = offset
         self.by_key = {e.key: e for e in entries}
 
-    @classmethod
-    def of(cls, plans, values):
-        """The layout of the keys read by ``plans`` (NotCompilable if they are unknown)."""
-        keys = set()
-        for plan in plans:
-            read = plan.params_read()
-            if read is None:
-                raise NotCompilable(plan.why_not() or "the params it reads are not known")
-            keys |= read
-        return cls(keys, values)
-
-    @property
-    def has_ints(self) -> bool:
-        """Whether an entry is an integer (read as a float first, cast back if needed)."""
-        return any(e.kind in ("int", "array-i") for e in self.entries)
-
     def pack(self, values) -> np.ndarray:
         """``p`` for the parameter ``values`` in force (same kinds and shapes as the layout).
 

@@ -13,15 +13,15 @@ import types as pytypes
 import numpy as np
 
 from .... import _jit
-from ...source import PARAM_READ, NotCompilable, Plan, copy_tree, plan_function, walk
+from ...source import PARAM_READ, NotCompilable, Plan, copy_tree, function_def, walk
 from .layout import ParamLayout
 
 
 class _Reads(ast.NodeTransformer):
     """``__controlkit_param__(params, key, how, default)`` -> the read of ``p``."""
 
-    def __init__(self, layout, exact):
-        self.layout, self.exact = layout, exact
+    def __init__(self, layout):
+        self.layout = layout
 
     def visit_Call(self, node):
         node = self.generic_visit(node)
@@ -45,7 +45,7 @@ class _Reads(ast.NodeTransformer):
         i = e.offset
         if e.kind == "none":
             return "None"
-        if e.kind == "float" or e.kind == "int" and not self.exact:
+        if e.kind == "float":
             return f"{p}[{i}]"
         if e.kind == "int":
             return f"int({p}[{i}])"
@@ -56,20 +56,16 @@ class _Reads(ast.NodeTransformer):
         text = f"{p}[{i}:{i + e.size}]"
         if e.kind == "array-b":
             text = f"({text} != 0.0)"
-        elif e.kind == "array-i" and self.exact:
+        elif e.kind == "array-i":
             text = f"{text}.astype(_np_.int64)"
         return text if len(e.shape) == 1 else f"{text}.reshape({e.shape!r})"
 
 
 # --- the generated module -----------------------------------------------------------------
 
-def _number(value) -> str:
-    value = float(value)
-    if value != value:
-        return "_np_.nan"
-    if value in (np.inf, -np.inf):
-        return "_np_.inf" if value > 0 else "-_np_.inf"
-    return repr(value)
+def _numbers(value) -> str:
+    """``repr`` of a real number or a list of them, infinities and NaN written numpy's way."""
+    return repr(value).replace("inf", "_np_.inf").replace("nan", "_np_.nan")
 
 
 def _literal(name, value, lines, imports):
@@ -82,18 +78,15 @@ def _literal(name, value, lines, imports):
         lines.append(f"{name} = {value!r}")
     elif isinstance(value, np.bool_):
         lines.append(f"{name} = _np_.bool_({bool(value)!r})")
-    elif isinstance(value, int) or isinstance(value, float) and type(value) is float:
-        lines.append(f"{name} = {_number(value) if isinstance(value, float) else repr(value)}")
+    elif isinstance(value, int) or type(value) is float:  # (a numpy float keeps its type)
+        lines.append(f"{name} = {_numbers(value)}")
     elif isinstance(value, complex):
-        lines.append(f"{name} = complex({_number(value.real)}, {_number(value.imag)})")
+        lines.append(f"{name} = complex({_numbers(value.real)}, {_numbers(value.imag)})")
     elif isinstance(value, np.ndarray | np.generic | list | tuple):
         array = np.asarray(value)
         if array.dtype.kind not in "biufc":
             raise NotCompilable(f"it reads {name.split('_', 2)[-1]!r}, which is not numeric")
-        if array.dtype.kind == "c":
-            text = repr(array.tolist())
-        else:
-            text = repr(array.tolist()).replace("inf", "_np_.inf").replace("nan", "_np_.nan")
+        text = repr(array.tolist()) if array.dtype.kind == "c" else _numbers(array.tolist())
         if isinstance(value, np.ndarray | list | tuple):
             lines.append(f"{name} = _np_.array({text}, dtype=_np_.{array.dtype.name})")
         else:  # a numpy scalar keeps its type
@@ -207,94 +200,33 @@ def _has_contents(cell) -> bool:
     return True
 
 
-def _literal_items(value):
-    """The elements of ``[a, b]``, ``(a, b)`` or ``np.array([a, b])``, else None."""
-    if isinstance(value, ast.Call) and isinstance(value.func, ast.Attribute) \
-            and value.func.attr in ("array", "asarray") and len(value.args) == 1 \
-            and not value.keywords:
-        value = value.args[0]
-    if isinstance(value, ast.List | ast.Tuple) and not any(
-            isinstance(e, ast.Starred) for e in value.elts):
-        return value.elts
-    return None
-
-
-#: The name of the output buffer in a function that writes its result into it.
-_OUT = "_ck_out"
-
-
-class _WriteOut(ast.NodeTransformer):
-    """``return [a, b]`` -> ``out[0] = a; out[1] = b; return out``: no array per call."""
-
-    def visit_Return(self, node):
-        items = _literal_items(node.value)
-        lines = [ast.Assign([ast.Subscript(ast.Name(_OUT, ast.Load()), ast.Constant(i),
-                                           ast.Store())], item, lineno=0)
-                 for i, item in enumerate(items)]
-        return [*lines, ast.Return(ast.Name(_OUT, ast.Load()))]
-
-    def visit_FunctionDef(self, node):
-        return node
-
-    def visit_Lambda(self, node):
-        return node
-
-
-def _returns(body):
-    """The return statements of ``body`` itself (not of functions defined in it)."""
-    found, stack = [], list(body)
-    while stack:
-        node = stack.pop()
-        if isinstance(node, ast.Return):
-            found.append(node)
-        elif not isinstance(node, ast.FunctionDef | ast.Lambda | ast.ClassDef):
-            stack.extend(ast.iter_child_nodes(node))
-    return found
-
-
-def _function(name, arguments, body):
-    args = ast.arguments(posonlyargs=[], args=[ast.arg(a) for a in arguments], vararg=None,
-                         kwonlyargs=[], kw_defaults=[], kwarg=None, defaults=[])
-    node = ast.FunctionDef(name=name, args=args, body=body, decorator_list=[], returns=None,
-                           type_params=[])
-    return ast.unparse(ast.fix_missing_locations(ast.Module([node], [])))
-
-
-def kernel_source(fn, values: dict, direct: bool = False, *, layout=None, exact=False,
-                  plan: Plan | None = None) -> str:
-    """The module source of the kernel compiled from ``fn`` for the types of ``values``.
-
-    ``direct`` writes a literal result straight into ``out`` (NotCompilable when a return
-    is not a literal list); ``exact`` casts integer
-    parameters back to integers (else they are read as floats, so that ``kp=1`` and
-    ``kp=1.5`` share one compiled kernel).
+def kernel_source(plan: Plan, layout: ParamLayout) -> str:
+    """The module source of the kernel compiled from ``plan`` for the parameter ``layout``.
 
     Raises
     ------
     NotCompilable
-        Saying why ``fn`` cannot be turned into a kernel.
+        Saying why the plan's function cannot be turned into a kernel.
 
     Examples
     --------
-    >>> src = kernel_source(lambda t, x, u, params: params["k"] * x, {"k": 2.0})
+    >>> from controlkit.engines.source import plan_function
+    >>> plan = plan_function(lambda t, x, u, params: params["k"] * x)
+    >>> src = kernel_source(plan, ParamLayout(["k"], {"k": 2.0}))
     >>> "return params[0] * x" in src, "2.0" in src
     (True, False)
     """
-    plan = plan or plan_function(fn)
     why = plan.why_not()
     if why is not None:
         raise NotCompilable(why)
-    layout = layout or ParamLayout.of([plan], values)
     written = plan.written  # the functions' text, per layout
-    key = (layout.entries, bool(direct), bool(exact))
-    if key not in written:
+    if layout.entries not in written:
         try:
-            written[key] = _functions(plan, layout, direct, exact)
+            written[layout.entries] = _functions(plan, layout)
         except NotCompilable as why:
-            written[key] = why
-    if isinstance(written[key], NotCompilable):
-        raise NotCompilable(str(written[key]))
-    functions, call = written[key]
+            written[layout.entries] = why
+    if isinstance(written[layout.entries], NotCompilable):
+        raise NotCompilable(str(written[layout.entries]))
     imports = ["import numpy as _np_",
                "from controlkit.engines.fast.usercode import missing_parameter as _ck_missing",
                "from controlkit.engines.fast.usercode import store"]
@@ -306,9 +238,9 @@ def kernel_source(fn, values: dict, direct: bool = False, *, layout=None, exact=
     return "\n".join([
         f"# generated by controlkit from {plan.function.__qualname__!r} "
         f"({code.co_filename!r}, line {code.co_firstlineno}): do not edit",
-        *dict.fromkeys(imports), *lines, "", "", functions, "", "",
+        *dict.fromkeys(imports), *lines, "", "", written[layout.entries], "", "",
         "def kernel(t, x, u, p, out):",
-        call,
+        "    return store(user(t, x, u, p), out)",
         "",
     ])
 
@@ -355,26 +287,10 @@ def _read_only_lists(body):
     return body
 
 
-def _functions(plan, layout, direct, exact):
-    """The text of the plan's functions, params read from ``p``, and the kernel's call."""
-    if direct:
-        returns = _returns(plan.body)
-        if not returns or _OUT in {n.id for n in walk(ast.Module(plan.body, []))
-                                   if isinstance(n, ast.Name)} \
-                or any(_literal_items(r.value) is None for r in returns):
-            raise NotCompilable("not every return is a literal list")
-    functions = []
-    for each in plan.tree():
-        reads = _Reads(layout, exact)
-        body = _read_only_lists([reads.visit(stmt) for stmt in copy_tree(each.body)])
-        functions.append(_function(each.name, each.arguments, body))
-        if each is plan:
-            top = body
-    call = "    return store(user(t, x, u, p), out)"
-    if direct:
-        written = [_WriteOut().visit(stmt) for stmt in copy_tree(top)]
-        written = [s for stmt in written for s in (stmt if isinstance(stmt, list) else [stmt])]
-        functions.append(_function("user_out", [*plan.arguments, _OUT], written))
-        call = "    return user_out(t, x, u, p, out)"
-    return "\n\n\n".join(functions), call
-
+def _functions(plan, layout):
+    """The text of the plan's functions, params read from ``p``."""
+    reads = _Reads(layout)
+    return "\n\n\n".join(
+        ast.unparse(function_def(each.name, each.arguments, _read_only_lists(
+            [reads.visit(stmt) for stmt in copy_tree(each.body)])))
+        for each in plan.tree())
