@@ -243,6 +243,25 @@ def test_bad_solver_options_raise_as_python_control_s_run(case):
         controlkit.input_output_response(lag, T, 1.0, solve_ivp_kwargs=options, compile=False)
 
 
+def test_an_rtol_per_state_is_left_to_python_control():
+    """scipy takes an ``rtol`` per state, the integrator one number: such a run is
+    python-control's own, said in a warning, with its numbers."""
+    import control as ct
+
+    import controlkit
+
+    pair = ct.nlsys(lambda t, x, u, params: -x + u, lambda t, x, u, params: x, states=2,
+                    inputs=1, outputs=2, name="pair")
+    T = np.linspace(0.0, 1.0, 11)
+    options = {"rtol": np.array([1e-3, 1e-4])}
+    theirs = ct.input_output_response(pair, T, 1.0, solve_ivp_kwargs=options)
+    with pytest.warns(UserWarning, match="an rtol per state"):
+        ours = controlkit.input_output_response(pair, T, 1.0, solve_ivp_kwargs=options,
+                                                compile=False)
+    assert ours.engine_mode == "python-control"
+    assert np.array_equal(ours.outputs, theirs.outputs)
+
+
 def test_rtol_below_floor_warns_as_python_control_s_run():
     import control as ct
 

@@ -90,6 +90,8 @@ def solver_options(n, span, rtol=1e-3, atol=1e-6, max_step=np.inf, first_step=No
     if other:
         raise UnsupportedSystem(f"solve_ivp options {sorted(other)} (the fast engine takes "
                                 f"{list(SOLVER_OPTIONS)})")
+    if np.ndim(rtol) > 0:  # scipy takes one per state; the integrator takes one number
+        raise UnsupportedSystem("an rtol per state (the fast engine takes one number)")
     if max_step <= 0:
         raise ValueError("`max_step` must be positive.")
     if first_step is not None and first_step <= 0:
