@@ -395,13 +395,13 @@ def _kept_once(text: str, kind: str, what: str, seconds: float, compile_it):
     compiled now, said first and recorded after."""
     path = module_file(text, kind)
     module = import_module(path)
-    compiled_before = record(path) is not None
-    if not compiled_before:
+    first = record(path) is None
+    if first:
         _say(f"compiling {what} (once after an install or an upgrade: about "
              f"{seconds:.0f} s)")
     start = time.perf_counter()
     compiled = compile_it(module)
-    if not compiled_before:
+    if first:
         write_record(path, seconds=round(time.perf_counter() - start, 3))
     return compiled
 
