@@ -147,6 +147,25 @@ def test_partials_callable_objects_and_methods_take_params_on_both_engines(kind)
     assert engine.explain(loop, params={"gain": 3.0})[0].tier == "compiled"
 
 
+class _MadeByItsClass(type):
+    def __call__(cls, *args):
+        return "an instance"
+
+
+class _NotCallable(metaclass=_MadeByItsClass):
+    """An object that is not callable, though its class's class has ``__call__``."""
+
+
+def test_what_a_call_runs_is_what_python_finds_and_nothing_python_would_refuse():
+    from controlkit.engines.source.reading import NotCompilable, call_target
+
+    assert call_target(Gain(2.0))[0] is Gain.__call__
+    not_callable = object.__new__(_NotCallable)
+    assert not callable(not_callable)
+    with pytest.raises(NotCompilable, match="it is a _NotCallable, not a Python function"):
+        call_target(not_callable)
+
+
 def alias_gain(t, x, u, params):
     p = params
     return p["k"] * u[0]

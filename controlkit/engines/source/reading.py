@@ -215,7 +215,8 @@ def call_target(fn):
     if isinstance(fn, types.MethodType):
         target, bound, keywords = call_target(fn.__func__)
         return target, bound + [fn.__self__], keywords
-    call = inspect.getattr_static(type(fn), "__call__", None)  # (as Python finds it)
+    # as Python finds it; an instance that is not callable may still find its metaclass's
+    call = inspect.getattr_static(type(fn), "__call__", None) if callable(fn) else None
     if isinstance(call, types.FunctionType):
         return call, [fn], {}
     raise NotCompilable(f"it is a {type(fn).__name__}, not a Python function")
