@@ -253,7 +253,7 @@ def test_a_run_compiles_from_its_start_when_earlier_runs_paid_and_the_call_stays
     from controlkit.engines.fast import run
 
     loop = cmg_scenario.build_loop("thesis")
-    monkeypatch.setattr(run, "_cost", lambda job: 1.5)  # numba's start and the compile
+    monkeypatch.setattr(run, "compiled_cost", lambda job: 1.5)  # numba's start and the compile
     monkeypatch.setattr(run, "NUMBA_START", ((0.15, lambda: True, None),))  # (started)
     source = run.prepare(loop).source
     for before, runs, compiled in ((1.2, 1, False),   # not paid yet

@@ -23,7 +23,7 @@ from ..contract import response as base_response
 from .continuous import STIFF_METHODS, _failed, _Run, run_continuous
 from .discrete import simulate
 from .pieces import now
-from .run import CHECKED, NUMBA_START_SECONDS, PAYS, compile_estimate, compiled_job
+from .run import CHECKED, PAYS, compiled_cost, compiled_job
 from .tiers import _local_params
 
 
@@ -100,7 +100,7 @@ def run_many(sys, T, U, X0s, params_list, *, t_eval=None, method="RK45", compile
         alone(0, False)
         todo = todo[1:]
         python = (now() - began) * len(todo)
-        if python <= PAYS * (NUMBA_START_SECONDS + compile_estimate(job)):
+        if python <= PAYS * compiled_cost(job):
             for r in todo:
                 alone(r, False)
             return responses, errors

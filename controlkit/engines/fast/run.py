@@ -247,9 +247,16 @@ def compiled_job(sys, params):
     return job
 
 
-def _cost(candidate) -> float:
+def compiled_cost(candidate) -> float:
     """Seconds before the compiled job ``candidate`` can run: numba's start if it has not
-    started, and loading the module if it is kept compiled, else compiling it."""
+    started, and loading the module if it is kept compiled, else compiling it.
+
+    Examples
+    --------
+    >>> from controlkit.studies.cmg.diagrams import cmg_loop
+    >>> compiled_cost(prepare(cmg_loop(), compiled=True)) >= LOAD_SECONDS
+    True
+    """
     return sum(seconds for seconds, done, _ in NUMBA_START if not done()) + (
         LOAD_SECONDS if candidate.is_compiled() else compile_estimate(candidate))
 
@@ -300,7 +307,7 @@ class Runner:
         candidate = compiled_job(self.sys, self.params)
         if isinstance(candidate, str):
             return
-        cost = _cost(candidate)
+        cost = compiled_cost(candidate)
         typical = before / max(PYTHON_RUNS.get(source, 1), 1)
         if before <= PAYS * cost:
             return
@@ -348,7 +355,7 @@ class Runner:
         if saved <= PAYS * NUMBA_START_SECONDS:  # (not even worth numba's start)
             return None
         candidate = compiled_job(self.sys, self.params)
-        if isinstance(candidate, str) or saved <= PAYS * _cost(candidate):
+        if isinstance(candidate, str) or saved <= PAYS * compiled_cost(candidate):
             return None
         _TWINS[self.python.source] = candidate.source
         return candidate
