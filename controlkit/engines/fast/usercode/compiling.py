@@ -36,13 +36,10 @@ class UserKernel:
     block : str
         The block's name.
     role : {"output", "update"}
-    size : int
-        How many values it must return (outputs, or states).
 
     Examples
     --------
-    >>> k = UserKernel(lambda t, x, u, params: params["a"] * x, {"a": 2.0}, "gain",
-    ...                "output", 1)
+    >>> k = UserKernel(lambda t, x, u, params: params["a"] * x, {"a": 2.0}, "gain", "output")
     >>> k(0.0, np.ones(1), np.zeros(0), None, np.empty(1)).tolist()
     [2.0]
     >>> k(0.0, np.ones(2), np.zeros(0), None, np.empty(1))
@@ -51,9 +48,8 @@ class UserKernel:
     controlkit.engines.fast.usercode.compiling.SizeError: inconsistent size of outputs; ...
     """
 
-    def __init__(self, fn, values, block, role, size):
-        self.fn, self.params, self.block = fn, dict(values), block
-        self.role, self.size = role, size
+    def __init__(self, fn, values, block, role):
+        self.fn, self.params, self.block, self.role = fn, dict(values), block, role
         self._plan = self._text = self._why = None
 
     def __call__(self, t, x, u, p, out):
@@ -150,7 +146,7 @@ def block_layout(kernels, values) -> ParamLayout:
     --------
     >>> def f(t, x, u, params):
     ...     return [params["k"] * x[0]]
-    >>> block_layout([UserKernel(f, {"k": 2.0}, "b", "output", 1)], {"k": 2.0}).size
+    >>> block_layout([UserKernel(f, {"k": 2.0}, "b", "output")], {"k": 2.0}).size
     1
     """
     keys = set()
