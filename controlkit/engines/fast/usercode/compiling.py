@@ -50,7 +50,7 @@ class UserKernel:
 
     def __init__(self, fn, values, block, role):
         self.fn, self.params, self.block, self.role = fn, dict(values), block, role
-        self._plan = self._text = self._why = None
+        self._plan = self._text = None
 
     def __call__(self, t, x, u, p, out):
         what, unit = ROLES[self.role]
@@ -80,13 +80,7 @@ class UserKernel:
     def text(self, layout: ParamLayout) -> str:
         """The kernel module's text for the block's parameter ``layout`` (or
         NotCompilable with the reason)."""
-        if self._why is not None:
-            raise NotCompilable(self._why)
-        try:
-            self._text = kernel_source(self.plan(), layout)
-        except NotCompilable as why:
-            self._why = str(why)
-            raise
+        self._text = kernel_source(self.plan(), layout)
         return self._text
 
     @property

@@ -13,7 +13,7 @@ import numpy as np
 
 from .... import _jit
 from ...source import PARAM_READ, NotCompilable, Plan, copy_tree, function_def, walk
-from ...source.values import _dotted, _import_name
+from ...source.values import _cell, _dotted, _import_name
 from ..codegen import numbers
 from .layout import ParamLayout
 
@@ -150,8 +150,7 @@ def _runs(function) -> str:
         namespace = getattr(fn, "__globals__", {})
         cells = zip(code.co_freevars, fn.__closure__ or (), strict=False)
         reads = [(name, namespace.get(name)) for name in _global_names(code)]
-        reads += [(name, cell.cell_contents) for name, cell in cells
-                  if _has_contents(cell)]
+        reads += [(name, _cell(cell)) for name, cell in cells]  # (an empty one: None)
         for name, value in reads:
             if isinstance(value, bool | int | float | complex | str | bytes) or value is None:
                 digest.update(repr((name, value)).encode())
@@ -170,14 +169,6 @@ def _global_names(code):
         if isinstance(const, pytypes.CodeType):
             names |= _global_names(const)
     return sorted(names)
-
-
-def _has_contents(cell) -> bool:
-    try:
-        cell.cell_contents  # noqa: B018 - an empty cell raises
-    except ValueError:
-        return False
-    return True
 
 
 def kernel_source(plan: Plan, layout: ParamLayout) -> str:
@@ -201,12 +192,7 @@ def kernel_source(plan: Plan, layout: ParamLayout) -> str:
         raise NotCompilable(why)
     written = plan.written  # the functions' text, per layout
     if layout.entries not in written:
-        try:
-            written[layout.entries] = _functions(plan, layout)
-        except NotCompilable as why:
-            written[layout.entries] = why
-    if isinstance(written[layout.entries], NotCompilable):
-        raise NotCompilable(str(written[layout.entries]))
+        written[layout.entries] = _functions(plan, layout)
     imports = ["import numpy as _np_",
                "from controlkit.engines.fast.usercode import missing_parameter as _ck_missing",
                "from controlkit.engines.fast.usercode import store"]
