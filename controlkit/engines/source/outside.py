@@ -278,4 +278,3 @@ class _OutsideReads:
         plan = self.build.plan(fn, dict.fromkeys(names, RUNTIME))
         self.plan.helpers.append(plan)
         return ast.copy_location(ast.Name(plan.name, ast.Load()), node)
-

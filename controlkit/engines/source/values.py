@@ -138,17 +138,8 @@ def _same(a, b) -> bool:
     return False
 
 
-def _same_sequence(now, then) -> bool:
-    """Whether values read now (a partial's arguments) are the ones of then, each by
-    :func:`_same`."""
-    return len(now) == len(then) and all(map(_same, now, then))
-
-
 def _same_items(now, then) -> bool:
     """Whether keyword defaults (or a partial's keywords) read now are the ones of then."""
     if now is None or then is None:
         return now is None and then is None
     return now.keys() == then.keys() and all(_same(now[k], then[k]) for k in now)
-
-
-

@@ -151,4 +151,3 @@ def block_layout(kernels, values) -> ParamLayout:
             raise NotCompilable(plan.why_not() or "the params it reads are not known")
         keys |= read
     return ParamLayout(keys, values)
-
