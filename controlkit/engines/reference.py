@@ -58,18 +58,11 @@ def simulate_sampled_data(sys, T, X0, U, *, params=None, t_eval=None, method="RK
     """Run a :class:`~controlkit.sampled_data.SampledDataSystem` in plain Python.
 
     The reference semantics of a diagram of continuous, discrete and static blocks
-    (:mod:`controlkit.sampled_data`): the instants' loop every engine runs
+    (docs/sampled-data.md, *Semantics*): the instants' loop every engine runs
     (:func:`controlkit.engines.fast.loops.continuous_run`), here as Python, with each
     block computed by its own python-control functions (``output`` and ``dynamics``) in
     python-control's sweep (every block's output again until the signals settle),
-    and :func:`scipy.integrate.solve_ivp` between instants. At each instant ``t_k =
-    T[0] + k h`` (``h`` the shortest period) the signals are evaluated with the discrete
-    blocks that fire computing a fresh output (held until they fire again), then the
-    firing blocks update their state, then the continuous blocks are integrated from
-    ``t_k`` to ``t_{k+1}`` with the held outputs. At an instant the reported state is
-    the one before the update, as python-control reports a discrete system; between
-    instants, the updated one. Inputs are interpolated linearly between the points of
-    ``T``, as python-control does.
+    and :func:`scipy.integrate.solve_ivp` between instants.
 
     Parameters
     ----------
@@ -187,4 +180,3 @@ class _Sweep:
         for s, xi, ui_, _, local, every in self.blocks:
             if not every and s.nstates:
                 dx[xi] = s.dynamics(t, x[xi], ui[ui_], local)
-

@@ -17,8 +17,6 @@ disk; the parameters stay values at run time (``P``), so a new value never recom
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from ... import _jit
@@ -26,20 +24,24 @@ from ...kernels import lti
 from .plan import CONTINUOUS, DISCRETE, SAMPLED, exact_sum
 
 
-def _number(value) -> str:
-    """``value`` (a float) as a literal of the module's text: its ``repr`` (exact), or
-    numpy's name for an infinity or a NaN (whose ``repr`` names nothing)."""
-    value = float(value)
-    if math.isfinite(value):
-        return repr(value)
-    return "np.nan" if math.isnan(value) else ("np.inf" if value > 0 else "-np.inf")
+def numbers(value, numpy="np") -> str:
+    """``repr`` of a float or a (nested) list of them, as a literal of a module's text
+    (exact): an infinity or a NaN, whose ``repr`` names nothing, by the name ``numpy``
+    gives it there.
+
+    Examples
+    --------
+    >>> numbers([1.5, -float("inf"), float("nan")])
+    '[1.5, -np.inf, np.nan]'
+    """
+    return repr(value).replace("inf", f"{numpy}.inf").replace("nan", f"{numpy}.nan")
 
 
 def _terms(ptr, cols, gain, r, name):
     terms = []
     for q in range(ptr[r], ptr[r + 1]):
         g, ref = gain[q], name(cols[q])
-        terms.append(ref if g == 1.0 else f"{_number(g)} * {ref}")
+        terms.append(ref if g == 1.0 else f"{numbers(float(g))} * {ref}")
     return " + ".join(terms) if terms else "0.0"
 
 
@@ -179,8 +181,8 @@ def _maps(plan) -> list[str]:
                                ("_OUTPUT_MAP", sys.output_map, plan.outputs_exact)):
         if not all(rows):
             array = np.ascontiguousarray(matrix, dtype=float)
-            values = ", ".join(_number(v) for v in array.ravel())
-            lines.append(f"{name} = np.array([{values}], dtype=np.float64)"
+            lines.append(f"{name} = np.array({numbers(array.ravel().tolist())}, "
+                         f"dtype=np.float64)"
                          f".reshape({array.shape!r})")
     return (["# python-control's maps: sums not exact in any order are made as it makes them"]
             + lines if lines else [])

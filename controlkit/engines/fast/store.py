@@ -289,7 +289,7 @@ def compile_entry(function, args, path: Path, blocks: int = 1):
 
 
 def _record_compile(path: Path, seconds: float, blocks: int, entry: str) -> None:
-    """The record of a diagram module's first compile (read by :func:`compile_times`)."""
+    """The record of a module's first compile (a diagram's read by :func:`compile_times`)."""
     if record(path) is None:
         write_record(path, seconds=round(seconds, 3), blocks=blocks, entry=entry)
         _TIMES.clear()
@@ -395,14 +395,12 @@ def _kept_once(text: str, kind: str, what: str, seconds: float, compile_it):
     compiled now, said first and recorded after."""
     path = module_file(text, kind)
     module = import_module(path)
-    first = record(path) is None
-    if first:
+    if record(path) is None:
         _say(f"compiling {what} (once after an install or an upgrade: about "
              f"{seconds:.0f} s)")
     start = time.perf_counter()
     compiled = compile_it(module)
-    if first:
-        write_record(path, seconds=round(time.perf_counter() - start, 3))
+    _record_compile(path, time.perf_counter() - start, 1, kind)
     return compiled
 
 

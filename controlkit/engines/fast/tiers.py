@@ -135,9 +135,9 @@ def _user_kernels(block, local, compiled):
             raise UnsupportedSystem(f"block {block.name!r}: {effect}, which python-control "
                                     f"calls as many times as it sweeps the diagram: "
                                     f"python-control runs it")
-    output = (usercode.UserKernel(block.outfcn, local, block.name, "output",
-                                  block.noutputs) if block.outfcn is not None else None)
-    update = (usercode.UserKernel(block.updfcn, local, block.name, "update", block.nstates)
+    output = (usercode.UserKernel(block.outfcn, local, block.name, "output")
+              if block.outfcn is not None else None)
+    update = (usercode.UserKernel(block.updfcn, local, block.name, "update")
               if block.nstates and block.updfcn is not None else None)
     feed = source.reads_input(block.outfcn) if block.outfcn is not None else False
     if feed is None:  # its source does not say: ask the function itself

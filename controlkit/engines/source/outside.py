@@ -9,7 +9,6 @@ from __future__ import annotations
 import ast
 import builtins
 import functools
-import importlib
 import types
 
 import numpy as np
@@ -23,6 +22,7 @@ from .values import (
     _cell,
     _evaluate,
     _helper_allowed,
+    _import_name,
     _is_numba_function,
     _is_plain,
     _reevaluate,
@@ -85,13 +85,8 @@ class _OutsideReads:
     @staticmethod
     def _importable(value):
         fn = value.py_func
-        module = getattr(fn, "__module__", None)
-        if module in (None, "__main__") or "<" in fn.__qualname__:
-            return False
-        try:
-            return getattr(importlib.import_module(module), fn.__name__, None) is value
-        except ImportError:
-            return False
+        return fn.__module__ != "__main__" and "<" not in fn.__qualname__ \
+            and _import_name(value) is not None
 
     def _chain_parts(self, node):
         """``root, [steps]`` of ``root.a[b].c`` with constant subscripts, else None."""
@@ -283,4 +278,3 @@ class _OutsideReads:
         plan = self.build.plan(fn, dict.fromkeys(names, RUNTIME))
         self.plan.helpers.append(plan)
         return ast.copy_location(ast.Name(plan.name, ast.Load()), node)
-

@@ -24,7 +24,7 @@ from .reading import (
 )
 from .rewrites import walk
 from .translator import _Translator
-from .values import _same, _same_items, _same_sequence
+from .values import _same, _same_items
 
 
 @dataclass(eq=False)
@@ -163,7 +163,8 @@ def plan_function(fn):
         cached = None
     target, bound, keywords = call_target(fn)
     if cached is not None and cached.valid() and cached.call[0] is target \
-            and _same_sequence(bound, cached.call[1]) and _same_items(keywords, cached.call[2]):
+            and len(bound) == len(cached.call[1]) and all(map(_same, bound, cached.call[1])) \
+            and _same_items(keywords, cached.call[2]):
         return cached  # (calling fn still runs the same: a partial's values, __call__)
     bindings = _called_as_python_control(target, bound, keywords)
     if isinstance(bindings, str):

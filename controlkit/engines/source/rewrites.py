@@ -169,4 +169,3 @@ class _Unroll(ast.NodeTransformer):
     def visit_GeneratorExp(self, node):
         node = self.generic_visit(node)
         return self._expand(node, lambda items: ast.Tuple(items, ast.Load()))
-

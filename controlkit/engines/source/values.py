@@ -5,9 +5,13 @@ valid, and the markers of a value not known or not there.
 
 from __future__ import annotations
 
+import importlib
+import keyword
 import types
 
 import numpy as np
+
+from ... import _jit
 
 #: Modules whose functions numba compiles itself: calls into them are left as written.
 NUMERIC_MODULES = ("numpy", "math", "cmath")
@@ -50,6 +54,31 @@ def _is_plain(value):
             or _is_array_like(value) or isinstance(value, types.ModuleType)
             or _is_numeric_function(value) or _is_numba_function(value)
             or isinstance(value, types.FunctionType))
+
+
+def _dotted(name) -> bool:
+    """Whether ``name`` is a dotted name of identifiers (what may be written after import).
+
+    Examples
+    --------
+    >>> _dotted("numpy.linalg"), _dotted("os; os.system('x')")
+    (True, False)
+    """
+    return isinstance(name, str) and all(part.isidentifier() and not keyword.iskeyword(part)
+                                         for part in name.split("."))
+
+
+def _import_name(value):
+    """``(module, name)`` that ``from module import name`` gives ``value`` itself by (a
+    numpy, math or numba function), else None; checked before anything is imported."""
+    fn = _jit.python_function(value)
+    module, name = getattr(fn, "__module__", None), getattr(fn, "__name__", "")
+    try:
+        found = _dotted(module) and name.isidentifier() and getattr(
+            importlib.import_module(module), name, None) is value
+    except ImportError:
+        return None
+    return (module, name) if found else None
 
 
 def _helper_allowed(fn):
@@ -109,17 +138,8 @@ def _same(a, b) -> bool:
     return False
 
 
-def _same_sequence(now, then) -> bool:
-    """Whether values read now (a partial's arguments) are the ones of then, each by
-    :func:`_same`."""
-    return len(now) == len(then) and all(map(_same, now, then))
-
-
 def _same_items(now, then) -> bool:
     """Whether keyword defaults (or a partial's keywords) read now are the ones of then."""
     if now is None or then is None:
         return now is None and then is None
     return now.keys() == then.keys() and all(_same(now[k], then[k]) for k in now)
-
-
-

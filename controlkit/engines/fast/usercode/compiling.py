@@ -36,13 +36,10 @@ class UserKernel:
     block : str
         The block's name.
     role : {"output", "update"}
-    size : int
-        How many values it must return (outputs, or states).
 
     Examples
     --------
-    >>> k = UserKernel(lambda t, x, u, params: params["a"] * x, {"a": 2.0}, "gain",
-    ...                "output", 1)
+    >>> k = UserKernel(lambda t, x, u, params: params["a"] * x, {"a": 2.0}, "gain", "output")
     >>> k(0.0, np.ones(1), np.zeros(0), None, np.empty(1)).tolist()
     [2.0]
     >>> k(0.0, np.ones(2), np.zeros(0), None, np.empty(1))
@@ -51,10 +48,9 @@ class UserKernel:
     controlkit.engines.fast.usercode.compiling.SizeError: inconsistent size of outputs; ...
     """
 
-    def __init__(self, fn, values, block, role, size):
-        self.fn, self.params, self.block = fn, dict(values), block
-        self.role, self.size = role, size
-        self._plan = self._text = self._why = None
+    def __init__(self, fn, values, block, role):
+        self.fn, self.params, self.block, self.role = fn, dict(values), block, role
+        self._plan = self._text = None
 
     def __call__(self, t, x, u, p, out):
         what, unit = ROLES[self.role]
@@ -84,13 +80,7 @@ class UserKernel:
     def text(self, layout: ParamLayout) -> str:
         """The kernel module's text for the block's parameter ``layout`` (or
         NotCompilable with the reason)."""
-        if self._why is not None:
-            raise NotCompilable(self._why)
-        try:
-            self._text = kernel_source(self.plan(), layout)
-        except NotCompilable as why:
-            self._why = str(why)
-            raise
+        self._text = kernel_source(self.plan(), layout)
         return self._text
 
     @property
@@ -150,7 +140,7 @@ def block_layout(kernels, values) -> ParamLayout:
     --------
     >>> def f(t, x, u, params):
     ...     return [params["k"] * x[0]]
-    >>> block_layout([UserKernel(f, {"k": 2.0}, "b", "output", 1)], {"k": 2.0}).size
+    >>> block_layout([UserKernel(f, {"k": 2.0}, "b", "output")], {"k": 2.0}).size
     1
     """
     keys = set()
@@ -161,4 +151,3 @@ def block_layout(kernels, values) -> ParamLayout:
             raise NotCompilable(plan.why_not() or "the params it reads are not known")
         keys |= read
     return ParamLayout(keys, values)
-

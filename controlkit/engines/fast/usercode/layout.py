@@ -123,4 +123,3 @@ class ParamLayout:
                                         f"2**53, which a float64 does not hold exactly")
                 p[e.offset] = value
         return p
-

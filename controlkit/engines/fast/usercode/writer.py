@@ -7,13 +7,14 @@ from __future__ import annotations
 
 import ast
 import hashlib
-import importlib
 import types as pytypes
 
 import numpy as np
 
 from .... import _jit
 from ...source import PARAM_READ, NotCompilable, Plan, copy_tree, function_def, walk
+from ...source.values import _cell, _dotted, _import_name
+from ..codegen import numbers
 from .layout import ParamLayout
 
 
@@ -63,11 +64,6 @@ class _Reads(ast.NodeTransformer):
 
 # --- the generated module -----------------------------------------------------------------
 
-def _numbers(value) -> str:
-    """``repr`` of a real number or a list of them, infinities and NaN written numpy's way."""
-    return repr(value).replace("inf", "_np_.inf").replace("nan", "_np_.nan")
-
-
 def _literal(name, value, lines, imports):
     """A module-level line freezing ``value`` as ``name`` (or NotCompilable)."""
     if isinstance(value, pytypes.ModuleType):
@@ -79,49 +75,33 @@ def _literal(name, value, lines, imports):
     elif isinstance(value, np.bool_):
         lines.append(f"{name} = _np_.bool_({bool(value)!r})")
     elif isinstance(value, int) or type(value) is float:  # (a numpy float keeps its type)
-        lines.append(f"{name} = {_numbers(value)}")
+        lines.append(f"{name} = {numbers(value, '_np_')}")
     elif isinstance(value, complex):
-        lines.append(f"{name} = complex({_numbers(value.real)}, {_numbers(value.imag)})")
+        lines.append(f"{name} = complex({numbers(value.real, '_np_')}, "
+                     f"{numbers(value.imag, '_np_')})")
     elif isinstance(value, np.ndarray | np.generic | list | tuple):
         array = np.asarray(value)
         if array.dtype.kind not in "biufc":
             raise NotCompilable(f"it reads {name.split('_', 2)[-1]!r}, which is not numeric")
-        text = repr(array.tolist()) if array.dtype.kind == "c" else _numbers(array.tolist())
+        text = (repr(array.tolist()) if array.dtype.kind == "c"
+                else numbers(array.tolist(), "_np_"))
         if isinstance(value, np.ndarray | list | tuple):
             lines.append(f"{name} = _np_.array({text}, dtype=_np_.{array.dtype.name})")
         else:  # a numpy scalar keeps its type
             lines.append(f"{name} = _np_.{array.dtype.name}({text})")
     elif callable(value) and getattr(value, "__module__", None) and getattr(
             value, "__name__", None):
-        fn = _jit.python_function(value)
-        module, attr = getattr(fn, "__module__", None), getattr(fn, "__name__", "")
-        try:  # a name written into the kernel's text: checked before anything is imported
-            ok = _dotted(module) and attr.isidentifier() and getattr(
-                importlib.import_module(module), attr, None) is value
-        except ImportError:
-            ok = False
-        if not ok:
+        imported = _import_name(value)
+        if imported is None:
+            attr = getattr(_jit.python_function(value), "__name__", "")
             raise NotCompilable(f"it calls {attr!r}, which cannot be imported by name")
+        module, attr = imported
         # what it runs, in the text: numba's cache knows the kernel by its own file only,
         # and would hand back code compiled with an older version of the imported function
         imports.append(f"from {module} import {attr} as {name}  # {_runs(value)}")
     else:
         raise NotCompilable(f"it reads {name.split('_', 2)[-1]!r}, a {type(value).__name__}, "
                             f"which numba cannot compile")
-
-
-def _dotted(name) -> bool:
-    """Whether ``name`` is a dotted name of identifiers (what may be written after import).
-
-    Examples
-    --------
-    >>> _dotted("numpy.linalg"), _dotted("os; os.system('x')")
-    (True, False)
-    """
-    import keyword
-
-    return isinstance(name, str) and all(part.isidentifier() and not keyword.iskeyword(part)
-                                         for part in name.split("."))
 
 
 def code_digest(code, digest) -> None:
@@ -170,8 +150,7 @@ def _runs(function) -> str:
         namespace = getattr(fn, "__globals__", {})
         cells = zip(code.co_freevars, fn.__closure__ or (), strict=False)
         reads = [(name, namespace.get(name)) for name in _global_names(code)]
-        reads += [(name, cell.cell_contents) for name, cell in cells
-                  if _has_contents(cell)]
+        reads += [(name, _cell(cell)) for name, cell in cells]  # (an empty one: None)
         for name, value in reads:
             if isinstance(value, bool | int | float | complex | str | bytes) or value is None:
                 digest.update(repr((name, value)).encode())
@@ -190,14 +169,6 @@ def _global_names(code):
         if isinstance(const, pytypes.CodeType):
             names |= _global_names(const)
     return sorted(names)
-
-
-def _has_contents(cell) -> bool:
-    try:
-        cell.cell_contents  # noqa: B018 - an empty cell raises
-    except ValueError:
-        return False
-    return True
 
 
 def kernel_source(plan: Plan, layout: ParamLayout) -> str:
@@ -221,12 +192,7 @@ def kernel_source(plan: Plan, layout: ParamLayout) -> str:
         raise NotCompilable(why)
     written = plan.written  # the functions' text, per layout
     if layout.entries not in written:
-        try:
-            written[layout.entries] = _functions(plan, layout)
-        except NotCompilable as why:
-            written[layout.entries] = why
-    if isinstance(written[layout.entries], NotCompilable):
-        raise NotCompilable(str(written[layout.entries]))
+        written[layout.entries] = _functions(plan, layout)
     imports = ["import numpy as _np_",
                "from controlkit.engines.fast.usercode import missing_parameter as _ck_missing",
                "from controlkit.engines.fast.usercode import store"]
