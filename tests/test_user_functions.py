@@ -603,3 +603,34 @@ def test_a_module_file_edited_after_its_import_gives_python_controls_answer(tmp_
     ref = ct.input_output_response(loop, T, 1.0, [0.0])
     np.testing.assert_allclose(ours.outputs, ref.outputs, rtol=1e-9, atol=1e-12)
     assert engine.explain(loop)[1].tier == "python"
+
+
+def test_an_imported_helper_s_frozen_globals_name_the_kernel(tmp_path, monkeypatch):
+    # numba freezes what a compiled helper reads by global name (a tuple, a module's
+    # attribute) into the code kept in its cache; the kernel that imports the helper names
+    # those values, so that an edit of them is a new kernel, not the old code found again
+    # (a new process once got the edited file's helper with the old tuple's numbers)
+    import importlib
+
+    from controlkit.engines.fast.usercode.writer import _runs
+
+    monkeypatch.syspath_prepend(str(tmp_path))
+
+    def helper_digest(table, gain):
+        (tmp_path / "frozen_consts.py").write_text(f"G = {gain!r}\n")
+        (tmp_path / "frozen_helper.py").write_text(
+            "import frozen_consts\n\n"
+            f"TABLE = {table!r}\n\n"
+            "def gain(e):\n"
+            "    return TABLE[0][1] * frozen_consts.G * e\n")
+        for name in ("frozen_consts", "frozen_helper"):
+            sys.modules.pop(name, None)
+        importlib.invalidate_caches()
+        return _runs(importlib.import_module("frozen_helper").gain)
+
+    first = helper_digest(((1.0, 2.0), 3), 2.0)
+    assert helper_digest(((1.0, 2.0), 3), 2.0) == first
+    assert helper_digest(((1.0, 2.5), 3), 2.0) != first  # a value in a nested tuple
+    assert helper_digest(((1.0, 2.0), 3), 4.0) != first  # a module's attribute it reads
+    for name in ("frozen_consts", "frozen_helper"):
+        sys.modules.pop(name, None)

@@ -13,7 +13,7 @@ import numpy as np
 
 from .... import _jit
 from ...source import PARAM_READ, NotCompilable, Plan, copy_tree, function_def, walk
-from ...source.values import _cell, _dotted, _import_name
+from ...source.values import NUMERIC_MODULES, _cell, _dotted, _import_name
 from ..codegen import numbers
 from .layout import ParamLayout
 
@@ -136,8 +136,9 @@ def code_digest(code, digest) -> None:
 
 def _runs(function) -> str:
     """A digest of what ``function`` (imported by a kernel) runs: its code, and the code
-    and the numbers, strings and arrays of what it reads by global name, followed into
-    the functions it calls that way."""
+    and the values of what it reads by global name (numba freezes them into the compiled
+    code: numbers, strings, arrays, tuples, a module's attributes), followed into the
+    functions it calls that way."""
     digest = hashlib.sha256()
     todo, seen = [function], set()
     while todo:
@@ -148,18 +149,37 @@ def _runs(function) -> str:
         seen.add(id(fn))
         code_digest(code, digest)
         namespace = getattr(fn, "__globals__", {})
+        names = _global_names(code)
         cells = zip(code.co_freevars, fn.__closure__ or (), strict=False)
-        reads = [(name, namespace.get(name)) for name in _global_names(code)]
+        reads = [(name, namespace.get(name)) for name in names]
         reads += [(name, _cell(cell)) for name, cell in cells]  # (an empty one: None)
         for name, value in reads:
-            if isinstance(value, bool | int | float | complex | str | bytes) or value is None:
-                digest.update(repr((name, value)).encode())
-            elif isinstance(value, np.ndarray | np.generic):
-                digest.update(repr((name, value.dtype.str, np.shape(value))).encode())
-                digest.update(np.ascontiguousarray(value).tobytes())
-            elif callable(value) and not isinstance(value, type):
-                todo.append(value)
+            _feed(digest, name, value, names, todo, seen)
     return digest.hexdigest()[:16]
+
+
+def _feed(digest, name, value, names, todo, seen) -> None:
+    """Feed the value ``name`` reads into ``digest``; a function it may call into ``todo``.
+    A module's attributes are fed by the names the code reads (``consts.G``), but not
+    numpy's, math's or numba's (numba compiles those itself)."""
+    if isinstance(value, bool | int | float | complex | str | bytes) or value is None:
+        digest.update(repr((name, value)).encode())
+    elif isinstance(value, np.ndarray | np.generic):
+        digest.update(repr((name, value.dtype.str, np.shape(value))).encode())
+        digest.update(np.ascontiguousarray(value).tobytes())
+    elif isinstance(value, tuple):
+        digest.update(repr((name, "tuple", len(value))).encode())
+        for i, item in enumerate(value):
+            _feed(digest, f"{name}[{i}]", item, names, todo, seen)
+    elif isinstance(value, pytypes.ModuleType):
+        if id(value) not in seen and value.__name__.split(".")[0] not in (
+                *NUMERIC_MODULES, "numba"):
+            seen.add(id(value))
+            for attr in names:
+                if attr in vars(value):
+                    _feed(digest, f"{name}.{attr}", vars(value)[attr], names, todo, seen)
+    elif callable(value) and not isinstance(value, type):
+        todo.append(value)
 
 
 def _global_names(code):
