@@ -136,6 +136,30 @@ def test_compile_true_runs_a_short_continuous_diagram_compiled():
     assert modes == ["compiled", "compiled"]
 
 
+def test_a_compiled_module_that_differs_inside_its_first_step_is_left_for_python(
+        monkeypatch):
+    # the check piece is short (32 evaluations): for a continuous loop it may end inside
+    # the integrator's first step, writing no output and no state. A compiled module whose
+    # right-hand side differs from Python's is then seen in the integrator's stages, which
+    # are compared too (they once were not, and such a module went on compiled)
+    from controlkit.engines.fast import continuous
+
+    def differing(job, args):
+        compiled(job, args)
+        work = next(a for a in args if hasattr(a, "stages"))
+        work.stages[...] *= 1.0 + 1e-6
+
+    compiled = continuous._run_compiled
+    monkeypatch.setattr(continuous, "_run_compiled", differing)
+    loop, T, X0, U = CONTINUOUS["mrac"]()
+    U = np.broadcast_to(U, (loop.ninputs, T.size))
+    ref = ct.input_output_response(loop, T, U, X0)
+    with pytest.warns(UserWarning, match="its compiled numbers differ from Python's"):
+        ours = run_continuous(loop, T, U, X0, compile=True)
+    assert ours.engine_mode == "python"
+    assert scaled_error(ours.y, ref.y) <= 1e-9
+
+
 @pytest.mark.parametrize("method", ["LSODA", "BDF", "Radau"])
 def test_stiff_methods_run_scipy_on_the_diagrams_right_hand_side(method):
     loop, T, X0, U = dc_motor()  # a 1 ms electrical pole under a 100 ms mechanical one

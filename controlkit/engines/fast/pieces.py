@@ -20,9 +20,11 @@ def same_numbers(a, b, rtol) -> bool:
     --------
     >>> same_numbers([1.0, 2.0], [1.0, 2.0 + 1e-13], 1e-12), same_numbers([1.0], [1.1], 1e-9)
     (True, False)
+    >>> same_numbers([np.inf, 1.0], [np.inf, 1.1], 1e-9)  # an infinity sets no scale
+    False
     """
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    scale = max(1.0, float(np.nanmax(np.abs(a), initial=0.0)))
+    scale = max(1.0, float(np.max(np.abs(a[np.isfinite(a)]), initial=0.0)))
     return bool(np.allclose(a, b, rtol=rtol, atol=rtol * scale, equal_nan=True))
 
 
