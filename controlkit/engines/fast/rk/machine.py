@@ -172,8 +172,8 @@ def machine_on_arrays(t_eval, y_eval, f, K, K_flat, st):
     times: ``t_eval`` and ``y_eval`` are empty):
 
     >>> import numpy as np
-    >>> from controlkit.engines.fast.rk import (
-    ...     FINISHED, METHOD_INDEX, STATUS, SUCCESS, load, make_workspace, stage_input, state)
+    >>> from controlkit.engines.fast.rk import METHOD_INDEX, make_workspace
+    >>> from controlkit.engines.fast.rk.workspace import load, stage_input, state
     >>> work = make_workspace(1)
     >>> load(METHOD_INDEX["RK23"], 0.0, 1.0, np.ones(1), 1e-6, np.full(1, 1e-9), np.inf,
     ...      0.0, 0, True, work)
