@@ -1,11 +1,10 @@
 """The step machine: scipy's ``RungeKutta`` loop, driven by its caller.
 
-The integrator never calls the right-hand side: it asks its caller to ("reverse
-communication", as RKSUITE and ODEPACK's DLSODE do). :func:`machine` returns a row
-``r >= 0``, meaning "evaluate ``rhs(floats[T_REQUEST], stage_input(work))`` into
-``stages[r]``, then call me again", or :data:`FINISHED`. It is therefore compiled once,
-whatever the right-hand side and its arguments, and kept in the store; the caller's loop
-around it is :func:`controlkit.engines.fast.rk.solve_interval`.
+:func:`machine` returns a row ``r >= 0``, meaning "evaluate
+``rhs(floats[T_REQUEST], stage_input(work))`` into ``stages[r]``, then call me again", or
+:data:`FINISHED` (reverse communication, as RKSUITE and ODEPACK's DLSODE do; why:
+:mod:`controlkit.engines.fast.rk`, *Design*). The caller's loop around it is
+:func:`controlkit.engines.fast.rk.solve_interval`.
 
 What it does between requests is scipy 1.17's ``solve_ivp`` for an explicit method,
 operation for operation (``scipy/integrate/_ivp/{rk,common,base,ivp}.py``). Each step
@@ -54,7 +53,6 @@ from .workspace import (
     _D1,
     _DIRECTION,
     _ERR,
-    _EVAL_CAPACITY,
     _EVAL_END,
     _FIRST_STEP,
     _H,
@@ -146,8 +144,7 @@ def _serve(method, K, K_flat, f, st, t_eval, y_eval, n):
         return False
     t_old = f[_T_OLD]
     _evaluate_interpolant(method, f, t_old, f[_T] - t_old, t_eval, st[NEXT_EVAL], st[_STOP],
-                          y_eval, _log_at(n) + st[_LOG_SIZE], st[_EVAL_CAPACITY] * (4 + n),
-                          n)
+                          y_eval, _log_at(n) + st[_LOG_SIZE], n)
     st[NEXT_EVAL] = st[_STOP]
     return True
 
