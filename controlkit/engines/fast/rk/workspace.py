@@ -273,8 +273,7 @@ def stage_input(work):
 
 @jit(inline=True)
 def state(work):
-    """The state at the last time reached, ``work.floats[TIME_REACHED]`` (a view).
-    """
+    """The state at the last time reached, ``work.floats[TIME_REACHED]`` (a view)."""
     n = work.stages.shape[1]
     start = _at(_Y, n)
     return work.floats[start : start + n]
@@ -282,8 +281,7 @@ def state(work):
 
 @jit(inline=True)
 def step_times(work):
-    """The first ``log_size`` accepted step times, in order (a view; :func:`make_workspace`).
-    """
+    """The first ``log_size`` accepted step times, in order (a view; :func:`make_workspace`)."""
     n = work.stages.shape[1]
     kept = min(work.ints[N_ACCEPTED], work.ints[_LOG_SIZE])
     return work.floats[_log_at(n) : _log_at(n) + kept]
