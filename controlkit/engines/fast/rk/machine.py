@@ -33,7 +33,7 @@ from __future__ import annotations
 import math
 
 from .... import _jit
-from ...._jit import jit, python_function
+from ...._jit import jit
 from .arithmetic import (
     _all_finite,
     _build_interpolant,
@@ -149,7 +149,7 @@ def _serve(method, K, K_flat, f, st, t_eval, y_eval, n):
     return True
 
 
-@jit
+@jit(inline=True)
 def machine_on_arrays(t_eval, y_eval, f, K, K_flat, st):
     """Advance the loaded interval: the next request (a row ``r >= 0``) or :data:`FINISHED`.
 
@@ -440,7 +440,4 @@ def machine(t_eval_at, m, y_eval_at, floats_at, floats_size, stages_at, n, ints_
     K = _jit.matrix_at(stages_at, STAGE_ROWS, n)
     K_flat = _jit.floats_at(stages_at, STAGE_ROWS * n)
     st = _jit.ints_at(ints_at, N_INT_SLOTS)
-    return _machine_general_or_stage(t_eval, y_eval, f, K, K_flat, st)
-
-
-_machine_general_or_stage = jit(python_function(machine_on_arrays), inline=True)
+    return machine_on_arrays(t_eval, y_eval, f, K, K_flat, st)
