@@ -381,17 +381,12 @@ def _failed(job, run):
         raise _integrator_error(job, run)
     if status[1] >= 0:
         j = min(int(status[0]), t_eval.size - 1)
-        explain_failure(job, t_eval[j], run.x, _u_at(run, t_eval[j]), status[1], -1)
+        u = loops.interpolate(run.T, run.U, t_eval[j], np.zeros((run.U.shape[0], 1)))[:, 0]
+        explain_failure(job, t_eval[j], run.x, u, status[1], -1)
     if run.ctrl[NEXT_TIME] < t_eval.size:
         raise RuntimeError(f"the integration of {job.sys.name!r} stopped at t = "
                            f"{t_eval[run.ctrl[NEXT_TIME]]:g} s without a reason; please "
                            f"report it")
-
-
-def _u_at(run, t):
-    out = np.zeros((run.U.shape[0], 1))
-    loops.interpolate(run.T, run.U, t, out)
-    return out[:, 0]
 
 
 def _integrator_error(job, run):

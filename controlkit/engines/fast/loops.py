@@ -162,8 +162,8 @@ def diagram_rhs(t, y, args, out):
 
 
 @jit(inline=True)
-def continuous_run(evaluate, update, outputs, rhs, integrate, machine, plan, rhs_args,
-                   times, results, state, buffers, solver, ctrl, status):
+def continuous_run(evaluate, update, outputs, integrate, machine, plan, rhs_args, times,
+                   results, state, buffers, solver, ctrl, status):
     """Instants up to ``k1`` of a diagram with continuous states; ``x``, ``held``, ``ctrl``
     in/out. A call may stop early, the run to go on with the next call (see ``ctrl``).
 
@@ -176,11 +176,12 @@ def continuous_run(evaluate, update, outputs, rhs, integrate, machine, plan, rhs
     ``instants[k]`` is the ``k``-th instant (``fire0 + k`` its number for the firing
     rule); after the last one the integration runs to ``t_final``. ``integrate`` has the
     signature of :func:`controlkit.engines.fast.rk.solve_interval` (``machine`` is its
-    first argument). ``ctrl`` (:data:`NEXT_TIME`, :data:`INSTANT`, :data:`UNDER_WAY`,
-    :data:`BUDGET`) says where the run is: a call goes on from there and returns when
-    the run reaches ``k1``, fails, or has spent its budget of evaluations inside an
-    interval (``ctrl[UNDER_WAY] == 1``: call again). On failure ``status`` is ``[time
-    index, block, 0, 0]`` for a NaN output, or ``[time index, INTEGRATOR_FAILED, code,
+    first argument) and integrates :func:`diagram_rhs` with ``rhs_args``. ``ctrl``
+    (:data:`NEXT_TIME`, :data:`INSTANT`, :data:`UNDER_WAY`, :data:`BUDGET`) says where
+    the run is: a call goes on from there and returns when the run reaches ``k1``,
+    fails, or has spent its budget of evaluations inside an interval
+    (``ctrl[UNDER_WAY] == 1``: call again). On failure ``status`` is ``[time index,
+    block, 0, 0]`` for a NaN output, or ``[time index, INTEGRATOR_FAILED, code,
     steps]`` (``steps``: the projected steps of a run stopped as too stiff).
     """
     instants, fire0, k1, t_final, T, U, t_eval, eval_instant = times
@@ -245,7 +246,7 @@ def continuous_run(evaluate, update, outputs, rhs, integrate, machine, plan, rhs
         else:
             evaluations = work.ints[NFEV]
         budget = 0 if ctrl[BUDGET] <= 0 else max(1, ctrl[BUDGET] - ctrl[SPENT])
-        code, served = integrate(machine, rhs, rhs_args, method, t, t1, yc, rtol, atol,
+        code, served = integrate(machine, diagram_rhs, rhs_args, method, t, t1, yc, rtol, atol,
                                  max_step, first_step, t_eval[:stop], i, last,
                                  y_eval[:stop], yc, work, budget, resume)
         ctrl[SPENT] += work.ints[NFEV] - evaluations
@@ -288,7 +289,7 @@ def instants_loop(evaluate, update, outputs, derivatives, machine, rhs_args, tim
     :func:`evaluator_signatures` gives: a new diagram compiles its own four functions,
     not the loop. As Python, it is this function.
     """
-    continuous_run(evaluate, update, outputs, diagram_rhs, solve_interval, machine, (),
+    continuous_run(evaluate, update, outputs, solve_interval, machine, (),
                    (evaluate, derivatives) + rhs_args, times, results, state, buffers,
                    solver, ctrl, status)
 
@@ -344,7 +345,7 @@ def scipy_loop(evaluate, update, outputs, derivatives, machine, rhs_args, times,
     >>> bool(np.array_equal(ours.outputs, theirs.outputs))
     True
     """
-    continuous_run(evaluate, update, outputs, diagram_rhs, scipy_interval, None, (),
+    continuous_run(evaluate, update, outputs, scipy_interval, None, (),
                    (evaluate, derivatives) + rhs_args, times, results, state, buffers,
                    solver, ctrl, status)
 

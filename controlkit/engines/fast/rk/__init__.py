@@ -83,7 +83,7 @@ References
 from __future__ import annotations
 
 from .interval import solve_interval
-from .machine import FINISHED, machine, machine_on_arrays
+from .machine import machine
 from .tableaux import METHOD_INDEX, METHODS, RTOL_FLOOR, TABLEAUX
 from .workspace import (
     INVALID_ARGUMENT,
@@ -93,7 +93,6 @@ from .workspace import (
     NON_FINITE,
     PAUSED,
     PROJECTED_STEPS,
-    STATUS,
     STATUS_MESSAGES,
     STEP_TOO_SMALL,
     STIFF,
@@ -101,22 +100,17 @@ from .workspace import (
     STIFF_STEPS_BEFORE_PROJECTING,
     STIFFNESS,
     SUCCESS,
-    T_REQUEST,
     TIME_REACHED,
-    load,
     make_workspace,
     set_horizon,
-    stage_input,
-    state,
     step_times,
 )
 
-# what the engine, the tests and the examples take from here
+# what the engine, the tests and the benchmarks take from here
 __all__ = [
-    "FINISHED", "INVALID_ARGUMENT", "METHODS", "METHOD_INDEX", "NFEV", "NON_FINITE",
-    "N_ACCEPTED", "N_REJECTED", "PAUSED", "PROJECTED_STEPS", "RTOL_FLOOR", "STATUS",
-    "STATUS_MESSAGES", "STEP_TOO_SMALL", "STIFF", "STIFFNESS", "STIFF_STEP_BUDGET",
-    "STIFF_STEPS_BEFORE_PROJECTING", "SUCCESS", "TABLEAUX", "TIME_REACHED", "T_REQUEST",
-    "load", "machine", "machine_on_arrays", "make_workspace", "set_horizon",
-    "solve_interval", "stage_input", "state", "step_times",
+    "INVALID_ARGUMENT", "METHODS", "METHOD_INDEX", "NFEV", "NON_FINITE", "N_ACCEPTED",
+    "N_REJECTED", "PAUSED", "PROJECTED_STEPS", "RTOL_FLOOR", "STATUS_MESSAGES",
+    "STEP_TOO_SMALL", "STIFF", "STIFFNESS", "STIFF_STEP_BUDGET",
+    "STIFF_STEPS_BEFORE_PROJECTING", "SUCCESS", "TABLEAUX", "TIME_REACHED", "machine",
+    "make_workspace", "set_horizon", "solve_interval", "step_times",
 ]

@@ -184,9 +184,10 @@ def _build_interpolant(method, K, K_flat, f, h, n):
 
 
 @jit(inline=True)
-def _evaluate_interpolant(method, f, t_old, h, t_eval, first, stop, y_eval, buffer_at,
-                          capacity, n):
-    """States at ``t_eval[first:stop]`` from the interpolant over ``[t_old, t_old + h]``.
+def _evaluate_interpolant(method, f, t_old, h, t_eval, first, stop, y_eval, scratch_at, n):
+    """States at ``t_eval[first:stop]`` from the interpolant over ``[t_old, t_old + h]``
+    (RK23 and RK45 work in ``f[scratch_at:]``, or in an array of their own when that is
+    too short).
 
     With ``x = (t - t_old) / h``: powers, ``y_old + h Q (x, .., x^p)`` (all the times
     of the step in one product, as scipy evaluates them); DOP853, nested from the last
@@ -211,8 +212,8 @@ def _evaluate_interpolant(method, f, t_old, h, t_eval, first, stop, y_eval, buff
         return
     powers = method.dense.shape[1]
     # numpy: p = cumprod of x over the powers, (powers x m); y = h * Q p + y_old.
-    if (powers + n) * m <= capacity:
-        scratch = f[buffer_at : buffer_at + (powers + n) * m]
+    if scratch_at + (powers + n) * m <= f.shape[0]:
+        scratch = f[scratch_at : scratch_at + (powers + n) * m]
     else:
         scratch = np.empty((powers + n) * m)
     p = scratch[: powers * m].reshape((powers, m))

@@ -1,11 +1,8 @@
-"""One interval of integration, as one ``solve_ivp`` call: the loop around the machine.
+"""One interval of integration, as one ``solve_ivp`` call: the loop around the machine,
+which numba pastes into its callers (:mod:`controlkit.engines.fast.rk`, *Design*).
 
-:func:`solve_interval` is what compiled callers (the generated simulation loops) call.
-numba pastes it into its caller (``inline="always"``), so a right-hand side that is a
-global of the caller stays a compile-time constant there and the caller can be cached on
-disk; the machine is passed in, compiled once and kept in the store. A call may stop
-after a budget of evaluations and be resumed: a long run returns to Python between
-pieces (progress, Ctrl-C).
+A call may stop after a budget of evaluations and be resumed: a long run returns to
+Python between pieces (progress, Ctrl-C).
 """
 
 from __future__ import annotations

@@ -1,11 +1,10 @@
 """The step machine: scipy's ``RungeKutta`` loop, driven by its caller.
 
-The integrator never calls the right-hand side: it asks its caller to ("reverse
-communication", as RKSUITE and ODEPACK's DLSODE do). :func:`machine` returns a row
-``r >= 0``, meaning "evaluate ``rhs(floats[T_REQUEST], stage_input(work))`` into
-``stages[r]``, then call me again", or :data:`FINISHED`. It is therefore compiled once,
-whatever the right-hand side and its arguments, and kept in the store; the caller's loop
-around it is :func:`controlkit.engines.fast.rk.solve_interval`.
+:func:`machine` returns a row ``r >= 0``, meaning "evaluate
+``rhs(floats[T_REQUEST], stage_input(work))`` into ``stages[r]``, then call me again", or
+:data:`FINISHED` (reverse communication, as RKSUITE and ODEPACK's DLSODE do; why:
+:mod:`controlkit.engines.fast.rk`, *Design*). The caller's loop around it is
+:func:`controlkit.engines.fast.rk.solve_interval`.
 
 What it does between requests is scipy 1.17's ``solve_ivp`` for an explicit method,
 operation for operation (``scipy/integrate/_ivp/{rk,common,base,ivp}.py``). Each step
@@ -34,7 +33,7 @@ from __future__ import annotations
 import math
 
 from .... import _jit
-from ...._jit import jit, python_function
+from ...._jit import jit
 from .arithmetic import (
     _all_finite,
     _build_interpolant,
@@ -54,7 +53,6 @@ from .workspace import (
     _D1,
     _DIRECTION,
     _ERR,
-    _EVAL_CAPACITY,
     _EVAL_END,
     _FIRST_STEP,
     _H,
@@ -146,13 +144,12 @@ def _serve(method, K, K_flat, f, st, t_eval, y_eval, n):
         return False
     t_old = f[_T_OLD]
     _evaluate_interpolant(method, f, t_old, f[_T] - t_old, t_eval, st[NEXT_EVAL], st[_STOP],
-                          y_eval, _log_at(n) + st[_LOG_SIZE], st[_EVAL_CAPACITY] * (4 + n),
-                          n)
+                          y_eval, _log_at(n) + st[_LOG_SIZE], n)
     st[NEXT_EVAL] = st[_STOP]
     return True
 
 
-@jit
+@jit(inline=True)
 def machine_on_arrays(t_eval, y_eval, f, K, K_flat, st):
     """Advance the loaded interval: the next request (a row ``r >= 0``) or :data:`FINISHED`.
 
@@ -172,8 +169,8 @@ def machine_on_arrays(t_eval, y_eval, f, K, K_flat, st):
     times: ``t_eval`` and ``y_eval`` are empty):
 
     >>> import numpy as np
-    >>> from controlkit.engines.fast.rk import (
-    ...     FINISHED, METHOD_INDEX, STATUS, SUCCESS, load, make_workspace, stage_input, state)
+    >>> from controlkit.engines.fast.rk import METHOD_INDEX, make_workspace
+    >>> from controlkit.engines.fast.rk.workspace import load, stage_input, state
     >>> work = make_workspace(1)
     >>> load(METHOD_INDEX["RK23"], 0.0, 1.0, np.ones(1), 1e-6, np.full(1, 1e-9), np.inf,
     ...      0.0, 0, True, work)
@@ -443,7 +440,4 @@ def machine(t_eval_at, m, y_eval_at, floats_at, floats_size, stages_at, n, ints_
     K = _jit.matrix_at(stages_at, STAGE_ROWS, n)
     K_flat = _jit.floats_at(stages_at, STAGE_ROWS * n)
     st = _jit.ints_at(ints_at, N_INT_SLOTS)
-    return _machine_general_or_stage(t_eval, y_eval, f, K, K_flat, st)
-
-
-_machine_general_or_stage = jit(python_function(machine_on_arrays), inline=True)
+    return machine_on_arrays(t_eval, y_eval, f, K, K_flat, st)

@@ -24,9 +24,7 @@ import numpy as np
 from ...._jit import jit
 from .tableaux import TABLEAUX
 
-# Layout of the workspace (see :class:`Workspace`). Scalars first, at fixed slots of
-# ``work.floats`` and ``work.ints``; then, in ``work.floats``, eight vectors of the state's
-# size, the interpolant's coefficients, the log of step times and the evaluation scratch.
+# The slots of the scalars in ``work.floats`` and ``work.ints`` (the layout: Workspace).
 #: ``floats`` slot: time at which the caller must evaluate the right-hand side.
 T_REQUEST = 0
 #: ``floats`` slot: last time reached (the end of the last accepted step).
@@ -92,14 +90,13 @@ _METHOD = 11
 _CLOSED_RIGHT = 12
 # the slots above are reset by :func:`load`, the ones below kept
 _LOG_SIZE = 13
-_EVAL_CAPACITY = 14
 #: ``ints`` slot: accepted steps since :func:`set_horizon` (over all the intervals of a
 #: run; :func:`load` keeps it).
-RUN_ACCEPTED = 15
-_STIFF_IN_ROW = 16
-_NONSTIFF_IN_ROW = 17
+RUN_ACCEPTED = 14
+_STIFF_IN_ROW = 15
+_NONSTIFF_IN_ROW = 16
 #: Number of slots of ``work.ints``.
-N_INT_SLOTS = 18
+N_INT_SLOTS = 17
 
 # Status codes returned by solve_interval.
 #: The interval was integrated to its end.
@@ -208,15 +205,13 @@ def make_workspace(n, log_size=0, eval_capacity=0):
         How many accepted step times to keep (:func:`step_times`; for tests).
     eval_capacity : int
         Most evaluation times one step may serve without the integrator allocating
-        scratch for them (RK23/RK45's interpolant, evaluated as numpy does).
+        scratch for them (RK23/RK45's interpolant, evaluated as numpy does: at most four
+        powers and ``n`` states per time, at the end of ``floats``).
     """
-    size = (N_FLOAT_SLOTS + (_N_VECTORS + DENSE_ROWS) * n + log_size
-            + (4 + n) * eval_capacity)
-    floats = np.zeros(size)
+    floats = np.zeros(_log_at(n) + log_size + (4 + n) * eval_capacity)
     stages_flat = np.zeros(STAGE_ROWS * n)
     ints = np.zeros(N_INT_SLOTS, dtype=np.int64)
     ints[_LOG_SIZE] = log_size
-    ints[_EVAL_CAPACITY] = eval_capacity
     floats[_RUN_START] = math.nan
     floats[_RUN_END] = math.nan
     return Workspace(floats, stages_flat.reshape((STAGE_ROWS, n)), stages_flat, ints)
@@ -278,8 +273,7 @@ def stage_input(work):
 
 @jit(inline=True)
 def state(work):
-    """The state at the last time reached, ``work.floats[TIME_REACHED]`` (a view).
-    """
+    """The state at the last time reached, ``work.floats[TIME_REACHED]`` (a view)."""
     n = work.stages.shape[1]
     start = _at(_Y, n)
     return work.floats[start : start + n]
@@ -287,8 +281,7 @@ def state(work):
 
 @jit(inline=True)
 def step_times(work):
-    """The first ``log_size`` accepted step times, in order (a view; :func:`make_workspace`).
-    """
+    """The first ``log_size`` accepted step times, in order (a view; :func:`make_workspace`)."""
     n = work.stages.shape[1]
     kept = min(work.ints[N_ACCEPTED], work.ints[_LOG_SIZE])
     return work.floats[_log_at(n) : _log_at(n) + kept]
@@ -314,8 +307,6 @@ def _arguments_valid(t_eval, y_eval, f, K, st):
     if f[_RTOL_GIVEN] != f[_RTOL_GIVEN]:
         return False
     if st[_METHOD] < 0 or st[_METHOD] >= len(TABLEAUX):
-        return False
-    if K.shape[0] < STAGE_ROWS:
         return False
     i_eval = st[NEXT_EVAL]
     if i_eval < 0 or i_eval > t_eval.shape[0]:
