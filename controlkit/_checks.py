@@ -3,13 +3,15 @@
 Every function raises a ``ValueError`` whose message names the offending
 argument and says what is allowed, so that a student who mistypes a
 parameter is told which one and why; :func:`install_hint` says what to install
-when an optional package is missing.
+when an optional package is missing; :func:`warn_caller` warns at the user's own line.
 """
 
 from __future__ import annotations
 
+import inspect
 import math
 import os
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 
@@ -31,6 +33,29 @@ def install_hint(package: str, extra: str) -> str:
     shown = f'"{package}"' if "[" in package else package
     return (f'pip install {shown} (or, in the folder of your controlkit clone, '
             f'pip install ".[{extra}]")')
+
+
+#: controlkit's own folder: frames there are not the user's.
+_PACKAGE = os.path.dirname(os.path.abspath(__file__)) + os.sep
+
+
+def warn_caller(message: str, category=UserWarning) -> None:
+    """:func:`warnings.warn` at the line that called into controlkit (a notebook cell, a
+    script), however deep in the package the warning is raised: the line a reader can
+    act on, not one of the engine's.
+
+    Examples
+    --------
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     warn_caller("runs as Python")
+    >>> caught[0].filename.startswith(_PACKAGE), str(caught[0].message)
+    (False, 'runs as Python')
+    """
+    frame, level = inspect.currentframe().f_back, 2
+    while frame.f_back is not None and frame.f_code.co_filename.startswith(_PACKAGE):
+        frame, level = frame.f_back, level + 1
+    warnings.warn(message, category, stacklevel=level)
 
 
 def positive_scalar(name: str, value, *, allow_zero: bool = False) -> float:

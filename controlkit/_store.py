@@ -26,9 +26,9 @@ import json
 import math
 import os
 import re
-import warnings
 from pathlib import Path
 
+from ._checks import warn_caller
 from ._lock import FolderLock, LockHeld
 from .outputs.export import atomic, json_default
 
@@ -199,9 +199,8 @@ class RunStore:
         try:
             if self._lock.taken_over:
                 pid = self._lock.taken_over.get("pid")
-                warnings.warn(f"store {self.folder}: the sweep that held it (process {pid}) "
-                              "ended without letting go; its finished runs are kept",
-                              StoreWarning, stacklevel=3)
+                warn_caller(f"store {self.folder}: the sweep that held it (process {pid}) "
+                            "ended without letting go; its finished runs are kept", StoreWarning)
             self.check()  # again, now that no one else can change it
             for leftover in self.folder.glob(f".{SPEC_FILE}.*.partial"):
                 leftover.unlink(missing_ok=True)  # of a sweep killed while writing it
@@ -214,10 +213,10 @@ class RunStore:
             if problems:
                 shown = "; ".join(f"line {n}: {why}" for n, why in problems[:SHOWN_PROBLEMS])
                 more = len(problems) - SHOWN_PROBLEMS
-                warnings.warn(f"{self.runs_file}: {len(problems)} line(s) skipped - {shown}"
-                              + (f"; and {more} more" if more > 0 else "")
-                              + " (they stay in the file; a run with no whole row is made "
-                                "again)", StoreWarning, stacklevel=3)
+                warn_caller(f"{self.runs_file}: {len(problems)} line(s) skipped - {shown}"
+                            + (f"; and {more} more" if more > 0 else "")
+                            + " (they stay in the file; a run with no whole row is made "
+                              "again)", StoreWarning)
             self._fd = os.open(self.runs_file, os.O_RDWR | os.O_APPEND | os.O_CREAT, 0o644)
             size = os.fstat(self._fd).st_size
             self._fresh_line = size == 0 or os.pread(self._fd, 1, size - 1) == b"\n"
@@ -241,10 +240,10 @@ class RunStore:
                     kept = self.spec.with_name(f"{SPEC_FILE}.damaged.{n}")
                 os.replace(self.spec, kept)
             if finished:
-                warnings.warn(f"store {self.folder}: {SPEC_FILE} was {problem}; rebuilt from "
-                              f"the {len(finished)} row(s) of {RUNS_FILE}, which all match "
-                              "this sweep's runs (the function itself cannot be checked "
-                              "from rows)", StoreWarning, stacklevel=4)
+                warn_caller(f"store {self.folder}: {SPEC_FILE} was {problem}; rebuilt from "
+                            f"the {len(finished)} row(s) of {RUNS_FILE}, which all match "
+                            "this sweep's runs (the function itself cannot be checked "
+                            "from rows)", StoreWarning)
         with atomic(self.spec) as partial:
             partial.write_text(json.dumps({"key": self.key}) + "\n")
 
@@ -369,10 +368,10 @@ class RunStore:
         if not self.spec.exists():
             with atomic(self.spec) as partial:
                 partial.write_text(json.dumps({"key": self.key}) + "\n")
-        warnings.warn(f"{self.runs_file} was removed or replaced while this sweep ran; its "
-                      "rows go to the file now under that name (the rows of the removed "
-                      "file are gone with it: a resume makes those runs again; the table "
-                      "this sweep returns has them all)", StoreWarning, stacklevel=4)
+        warn_caller(f"{self.runs_file} was removed or replaced while this sweep ran; its "
+                    "rows go to the file now under that name (the rows of the removed "
+                    "file are gone with it: a resume makes those runs again; the table "
+                    "this sweep returns has them all)", StoreWarning)
 
     def append(self, row: dict, line: str | None = None) -> None:
         """Append ``row`` (or its ready ``line``): one write of one complete line, synced."""

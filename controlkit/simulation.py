@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import sys as _sys
 import time
-import warnings
 from collections.abc import Callable
 
 import control as ct
@@ -160,9 +159,8 @@ def simulate(
         try:
             return backend.simulate(sys, T, X0, U, compile=compile, **options)
         except UnsupportedSystem as reason:
-            warnings.warn(f"{engine} engine not used, running python-control instead: "
-                          f"{reason} (controlkit.engines.fast.explain(sys) lists every "
-                          f"block's tier)", stacklevel=2)
+            _warn(f"{engine} engine not used, running python-control instead: {reason} "
+                  "(controlkit.engines.fast.explain(sys) lists every block's tier)")
     return engines.backend("python-control").simulate(sys, T, X0, U, **options)
 
 
@@ -255,7 +253,7 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
     if engine == "fast" and t_eval is not None:  # (None: python-control's solver's steps)
         if compile is None and not engines.fast_start_pays(sys, np.size(T), _LONGEST[0]):
             return _python_control(sys, T, U, X0, options)
-        fast = _fast_response(sys, T, U, X0, options, "python-control", stacklevel=3,
+        fast = _fast_response(sys, T, U, X0, options, "python-control",
                               advice=" (controlkit.explain(sys) lists every block's tier)",
                               compile=compile)
         if fast is not None:
@@ -268,6 +266,14 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
 _LONGEST = [0.0]
 
 
+def _warn(message: str) -> None:
+    """:func:`controlkit._checks.warn_caller`, imported when a warning is first given (a
+    fresh script's first call does not pay for it)."""
+    from ._checks import warn_caller
+
+    warn_caller(message)
+
+
 def _python_control(sys, T, U, X0, options):
     """python-control's own run, timed for :data:`_LONGEST`; ``engine_mode``
     ``"python-control"``."""
@@ -278,16 +284,15 @@ def _python_control(sys, T, U, X0, options):
     return resp
 
 
-def _fast_response(sys, T, U, X0, options, instead, *, stacklevel, advice="", compile=None):
+def _fast_response(sys, T, U, X0, options, instead, *, advice="", compile=None):
     """The fast backend's response, or None after a warning that names why it cannot run
-    ``sys`` and what runs ``instead`` (``stacklevel`` as seen from this function)."""
+    ``sys`` and what runs ``instead``."""
     from .engines.contract import UnsupportedSystem
 
     try:
         return engines.backend("fast").response(sys, T, U, X0, compile=compile, **options)
     except UnsupportedSystem as reason:
-        warnings.warn(f"fast engine not used, running {instead} instead: {reason}{advice}",
-                      stacklevel=stacklevel)
+        _warn(f"fast engine not used, running {instead} instead: {reason}{advice}")
         return None
 
 
@@ -343,8 +348,7 @@ def _many(sys, T, U, X0, runs, engine, options, compile):
                                               t_eval=t_eval, method=method,
                                               compile=compile, **solver)
         except UnsupportedSystem as reason:
-            warnings.warn(f"fast engine not used, running python-control instead: {reason}",
-                          stacklevel=3)
+            _warn(f"fast engine not used, running python-control instead: {reason}")
         else:
             for r, error in enumerate(errors):
                 if error is not None:
@@ -370,7 +374,7 @@ def _sampled_data_response(sys, T, U, X0, engine, options, compile):
     arguments = python_control_arguments(sys, T, U, X0, options)
     if engine == "fast":
         fast = _fast_response(sys, T, U, X0, options, "controlkit's Python reference",
-                              stacklevel=4, compile=compile)
+                              compile=compile)
         if fast is not None:
             return fast
     T, U, X0, t_eval, method, solve_ivp_kwargs = arguments

@@ -13,11 +13,10 @@ gives the discrete-time model that is exact at its sampling instants.
 
 from __future__ import annotations
 
-import warnings
-
 import control as ct
 import numpy as np
 
+from .._checks import warn_caller
 from .diagram import compose, compose_sampled, flatten, signals, stack
 from .jacobians import block_jacobians
 
@@ -204,8 +203,8 @@ def _vector(name, legacy, value, size, labels) -> np.ndarray:
         raise ValueError(f"{name} must have {size} values ({shown}), got {value.size}")
     if value.size < size:
         if value.size and value[-1] != 0:
-            warnings.warn(f"{legacy} too short; padding with zeros ({name} has {value.size} "
-                          f"values for {size}: {shown})", UserWarning, stacklevel=4)
+            warn_caller(f"{legacy} too short; padding with zeros ({name} has {value.size} "
+                        f"values for {size}: {shown})", UserWarning)
         value = np.concatenate([value, np.zeros(size - value.size)])
     if not np.all(np.isfinite(value)):
         bad = [labels[i] for i in np.flatnonzero(~np.isfinite(value))]

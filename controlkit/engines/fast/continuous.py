@@ -12,12 +12,11 @@ the choice of compiling act between pieces.
 
 from __future__ import annotations
 
-import warnings
-
 import control as ct
 import numpy as np
 
 from ... import _jit
+from ..._checks import warn_caller
 from ...sampled_data import sample_times
 from ..contract import UnsupportedSystem, recorded_indices
 from ..contract import response as base_response
@@ -99,8 +98,8 @@ def solver_options(n, span, rtol=1e-3, atol=1e-6, max_step=np.inf, first_step=No
     if first_step is not None and first_step > abs(span):
         raise ValueError("`first_step` exceeds bounds.")
     if rtol < rk.RTOL_FLOOR:
-        warnings.warn("At least one element of `rtol` is too small. Setting "
-                      f"`rtol = np.maximum(rtol, {rk.RTOL_FLOOR})`.", stacklevel=2)
+        warn_caller("At least one element of `rtol` is too small. Setting "
+                    f"`rtol = np.maximum(rtol, {rk.RTOL_FLOOR})`.")
     atol = np.asarray(atol, dtype=float)
     atol = np.full(n, float(atol)) if atol.ndim == 0 else atol.reshape(-1)
     if atol.size != n:

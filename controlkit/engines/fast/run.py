@@ -17,7 +17,6 @@ differ, the run goes on as Python.
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass, field
 from types import SimpleNamespace
 
@@ -25,6 +24,7 @@ import control as ct
 import numpy as np
 
 from ... import _jit
+from ..._checks import warn_caller
 from .. import PYTHON_CONTROL_SLOWER
 from ..contract import UnsupportedSystem, check_compile
 from . import reuse, store
@@ -286,8 +286,7 @@ class Runner:
             if isinstance(candidate, str):
                 self.decided = True
                 if compile:
-                    warnings.warn(f"running {sys.name!r} as Python: {candidate}",
-                                  stacklevel=4)
+                    warn_caller(f"running {sys.name!r} as Python: {candidate}")
             elif compile or candidate.source in _COMPILED:
                 self.compiled, self.decided = candidate, True
                 _TWINS[self.python.source] = candidate.source
@@ -378,8 +377,8 @@ class Runner:
         """The run goes on as Python, and says why."""
         self.compiled = None
         self.decided = True
-        warnings.warn(f"{self.sys.name!r} runs as Python: {why} (controlkit.explain "
-                      f"lists every block's tier)", stacklevel=5)
+        warn_caller(f"{self.sys.name!r} runs as Python: {why} (controlkit.explain lists "
+                    f"every block's tier)")
 
 
 def explain(sys, params=None) -> list[BlockTier]:

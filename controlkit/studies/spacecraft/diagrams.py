@@ -7,10 +7,9 @@ swap one (another plant, another controller) without touching the wiring.
 
 from __future__ import annotations
 
-import warnings
-
 import control as ct
 
+from ..._checks import warn_caller
 from ...blocks import frit, mec
 from ...blocks import spacecraft as sc
 from ...sampled_data import interconnect as sampled_data_interconnect
@@ -339,9 +338,9 @@ def _frit_filter_constant(controller):
     """
     if hasattr(controller, "F"):
         return controller.F
-    warnings.warn(
-        f"mec_loop(K=\"frit\"): controller {controller.name!r} has no attribute F, so the "
-        f"FRIT tuner's reference model M = F/(s+F) uses the paper's F = {sc.F_PAPER} 1/s; "
-        f"for another, pass K=controlkit.blocks.frit.frit_tuner(F, Ts, h0=h0) or set "
-        f"{controller.name}.F", UserWarning, stacklevel=3)
+    warn_caller(
+      f"mec_loop(K=\"frit\"): controller {controller.name!r} has no attribute F, so the "
+      f"FRIT tuner's reference model M = F/(s+F) uses the paper's F = {sc.F_PAPER} 1/s; "
+      f"for another, pass K=controlkit.blocks.frit.frit_tuner(F, Ts, h0=h0) or set "
+      f"{controller.name}.F", UserWarning)
     return sc.F_PAPER
