@@ -231,8 +231,7 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
     options = dict(params=params, ignore_errors=ignore_errors, transpose=transpose,
                    return_states=return_x, squeeze=squeeze, evaluation_times=t_eval,
                    solve_ivp_kwargs=dict(solve_ivp_kwargs or {}), **kwargs)
-    if engine not in engines.ENGINES:
-        raise ValueError(f"engine must be one of {engines.ENGINES}, got {engine!r}")
+    engines.check_engine(engine)
     from .engines.contract import check_compile
 
     check_compile(compile)

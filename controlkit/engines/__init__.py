@@ -40,9 +40,20 @@ def backend(name: str):
     ...
     ValueError: engine must be one of ('fast', 'python-control'), got 'matlab'
     """
+    return importlib.import_module(BACKENDS[check_engine(name)])
+
+
+def check_engine(name):
+    """``name``, or a ValueError naming the engines there are (nothing imported).
+
+    Examples
+    --------
+    >>> check_engine("fast")
+    'fast'
+    """
     if name not in BACKENDS:
         raise ValueError(f"engine must be one of {ENGINES}, got {name!r}")
-    return importlib.import_module(BACKENDS[name])
+    return name
 
 
 #: python-control takes at least this many times as long as the fast engine's Python run
