@@ -232,9 +232,7 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
                    return_states=return_x, squeeze=squeeze, evaluation_times=t_eval,
                    solve_ivp_kwargs=dict(solve_ivp_kwargs or {}), **kwargs)
     engines.check_engine(engine)
-    from .engines.contract import check_compile
-
-    check_compile(compile)
+    engines.check_compile(compile)
     if isinstance(sys, list | tuple):
         return TimeResponseList([input_output_response(s, T, U, X0, engine=engine,
                                                        compile=compile, **options)

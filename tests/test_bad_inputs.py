@@ -14,7 +14,7 @@ from controlkit import cli
 from controlkit.blocks import cmg, frit, mec
 from controlkit.blocks import spacecraft as sc
 from controlkit.blocks.sampling import time_grid
-from controlkit.simulation import initial_state, simulate
+from controlkit.simulation import initial_state, input_output_response, simulate
 from controlkit.studies import STUDIES
 from controlkit.studies.frit import scenario as frit_study
 from controlkit.studies.registry import UsageError
@@ -131,6 +131,10 @@ API_CASES = {
                            r"initial state of block 'plant' must have 4 values"),
     "engine name": (lambda: simulate(output_zeroing_loop(), [0.0, 0.1], X0=[1, 0, 0, 0],
                                      engine="gpu"), r"engine must be one of"),
+    "compile word": (lambda: input_output_response(output_zeroing_loop(), [0.0, 0.1],
+                                                   initial_state=[1, 0, 0, 0], compile="yes"),
+                     r"compile must be True, False or None \(decided by the run's length\), "
+                     r"got 'yes'"),
     # an initial state the block refuses, and text where numbers are expected
     "initial quaternion not unit": (lambda: initial_state(output_zeroing_loop(),
                                                           plant=[2, 0, 0, 0]),

@@ -43,6 +43,22 @@ def backend(name: str):
     return importlib.import_module(BACKENDS[check_engine(name)])
 
 
+def check_compile(compile) -> None:
+    """Refuse a ``compile`` argument other than True, False or None (here, not in
+    :mod:`.contract`: a call python-control makes alone imports nothing more).
+
+    Examples
+    --------
+    >>> check_compile("yes")
+    Traceback (most recent call last):
+    ...
+    ValueError: compile must be True, False or None (decided by the run's length), got 'yes'
+    """
+    if compile not in (None, True, False):
+        raise ValueError(f"compile must be True, False or None (decided by the run's "
+                         f"length), got {compile!r}")
+
+
 def check_engine(name):
     """``name``, or a ValueError naming the engines there are (nothing imported).
 

@@ -113,21 +113,6 @@ def check_arguments(sys, T, X0, U=0.0):
     return T, X0, U
 
 
-def check_compile(compile) -> None:
-    """Refuse a ``compile`` argument other than True, False or None.
-
-    Examples
-    --------
-    >>> check_compile("yes")
-    Traceback (most recent call last):
-    ...
-    ValueError: compile must be True, False or None (decided by the run's length), got 'yes'
-    """
-    if compile not in (None, True, False):
-        raise ValueError(f"compile must be True, False or None (decided by the run's "
-                         f"length), got {compile!r}")
-
-
 def chunk_bounds(n: int, chunks: int) -> np.ndarray:
     """Where ``n`` steps are cut into ``chunks`` near-equal runs (at least one step each).
 

@@ -25,8 +25,8 @@ import numpy as np
 
 from ... import _jit
 from ..._checks import warn_caller
-from .. import PYTHON_CONTROL_SLOWER
-from ..contract import UnsupportedSystem, check_compile
+from .. import PYTHON_CONTROL_SLOWER, check_compile
+from ..contract import UnsupportedSystem
 from . import reuse, store
 from .codegen import generate
 from .pieces import PIECE_SECONDS
