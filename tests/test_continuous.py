@@ -136,21 +136,33 @@ def test_compile_true_runs_a_short_continuous_diagram_compiled():
     assert modes == ["compiled", "compiled"]
 
 
+@pytest.fixture
+def differing_compiled(monkeypatch):
+    """The compiled continuous module made to differ from Python (its integrator's stages
+    and served states scaled by 1 + 1e-6 after each compiled piece), in a process that
+    has checked and refused no module yet."""
+    from controlkit.engines.fast import continuous, run
+
+    def differing(job, args):
+        compiled(job, args)
+        next(a for a in args if hasattr(a, "stages")).stages[...] *= 1.0 + 1e-6
+        args[-2][...] *= 1.0 + 1e-6  # the states served at the output times
+
+    compiled = continuous._run_compiled
+    monkeypatch.setattr(continuous, "_run_compiled", differing)
+    monkeypatch.setattr(run, "DIFFERS", {})
+    checked = set(run.CHECKED)
+    run.CHECKED.clear()
+    yield
+    run.CHECKED.update(checked)
+
+
 def test_a_compiled_module_that_differs_inside_its_first_step_is_left_for_python(
-        monkeypatch):
+        differing_compiled):
     # the check piece is short (32 evaluations): for a continuous loop it may end inside
     # the integrator's first step, writing no output and no state. A compiled module whose
     # right-hand side differs from Python's is then seen in the integrator's stages, which
     # are compared too (they once were not, and such a module went on compiled)
-    from controlkit.engines.fast import continuous
-
-    def differing(job, args):
-        compiled(job, args)
-        work = next(a for a in args if hasattr(a, "stages"))
-        work.stages[...] *= 1.0 + 1e-6
-
-    compiled = continuous._run_compiled
-    monkeypatch.setattr(continuous, "_run_compiled", differing)
     loop, T, X0, U = CONTINUOUS["mrac"]()
     U = np.broadcast_to(U, (loop.ninputs, T.size))
     ref = ct.input_output_response(loop, T, U, X0)
@@ -159,6 +171,34 @@ def test_a_compiled_module_that_differs_inside_its_first_step_is_left_for_python
     assert ours.engine_mode == "python"
     assert scaled_error(ours.y, ref.y) <= 1e-9
     assert said[0].filename == __file__  # the line that called, not one of the engine's
+
+
+def test_a_rejected_compiled_piece_leaves_none_of_its_states_behind(differing_compiled):
+    # the integrator serves states at the output times as it steps and writes them as
+    # outputs when its interval ends; a compiled piece rejected by the check had served
+    # some over Python's (from the same start), and one of them once stayed in the result
+    loop, _, X0, _ = CONTINUOUS["pi_first_order"]()
+    T = np.linspace(0.0, 10.0, 2001)
+    U = np.ones((loop.ninputs, T.size))
+    ref = ct.input_output_response(loop, T, U, X0)
+    with pytest.warns(UserWarning, match="its compiled numbers differ from Python's"):
+        ours = controlkit.input_output_response(loop, T, U, X0, compile=True)
+    assert ours.engine_mode == "python"
+    assert scaled_error(ours.y, ref.y) <= 1e-9
+
+
+def test_many_runs_go_on_as_python_when_the_first_run_s_check_rejects_the_module(
+        differing_compiled):
+    # the first of many runs is compiled and checked alone; rejected, the others once went
+    # on compiled all the same (with the numbers the check had refused)
+    loop, T, X0, U = CONTINUOUS["mrac"]()
+    U = np.broadcast_to(U, (loop.ninputs, T.size))
+    X0s = np.array([X0, 0.5 * np.asarray(X0, dtype=float) + 0.1])
+    with pytest.warns(UserWarning, match="its compiled numbers differ from Python's"):
+        ours = controlkit.input_output_response(loop, T, U, X0s, compile=True)
+    for resp, x0 in zip(ours, X0s, strict=True):
+        assert resp.engine_mode == "python"
+        assert scaled_error(resp.y, ct.input_output_response(loop, T, U, x0).y) <= 1e-9
 
 
 @pytest.mark.parametrize("method", ["LSODA", "BDF", "Radau"])

@@ -338,7 +338,9 @@ def _switch(runner, job, run, pieces):
     run.piece(runner.python, budget)
     python = run.snapshot()
     n1 = int(run.ctrl[NEXT_TIME])
-    results = [a[:, n0:n1].copy() for a in (run.Y, run.X, run.Uo)]
+    # (with the states the integrator served past the piece's last output, not yet written
+    # as outputs: the compiled piece from the same start writes over them)
+    results = [a[:, n0:n1].copy() for a in (run.Y, run.X, run.Uo)] + [run.y_eval[n0:].copy()]
     if run.status[1] != -1:  # Python stopped in this piece: it says why
         return
     run.restore(saved)
@@ -356,6 +358,7 @@ def _switch(runner, job, run, pieces):
     # first step, before any output or state is written
     agree = (run.status[1] == -1 and int(run.ctrl[NEXT_TIME]) == n1
              and same_numbers(run.Y[:, n0:n1], results[0], CONTINUOUS_RTOL)
+             and same_numbers(run.y_eval[n0:], results[3], CONTINUOUS_RTOL)
              and all(same_numbers(mine, theirs, CONTINUOUS_RTOL)
                      for mine, theirs in zip(run.snapshot(), python, strict=True)))
     if not agree:
@@ -370,7 +373,7 @@ def _switch(runner, job, run, pieces):
 
 def _back_to(run, state, results, n0, n1):
     run.restore(state)
-    run.Y[:, n0:n1], run.X[:, n0:n1], run.Uo[:, n0:n1] = results
+    run.Y[:, n0:n1], run.X[:, n0:n1], run.Uo[:, n0:n1], run.y_eval[n0:] = results
 
 
 def _failed(job, run):

@@ -125,6 +125,10 @@ def run_many(sys, T, U, X0s, params_list, *, t_eval=None, method="RK45", compile
     if todo and job.source not in CHECKED:  # the first run alone: compiled, and compared
         alone(todo[0], True)                  # with Python on its first piece
         todo = todo[1:]
+        if job.source not in CHECKED:  # they differed (it said so): the others as Python
+            for r in todo:
+                alone(r, False)
+            return responses, errors
     if todo:  # then the others on every core
         one(todo[0])  # (compiled before the threads start)
         with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
