@@ -632,5 +632,57 @@ def test_an_imported_helper_s_frozen_globals_name_the_kernel(tmp_path, monkeypat
     assert helper_digest(((1.0, 2.0), 3), 2.0) == first
     assert helper_digest(((1.0, 2.5), 3), 2.0) != first  # a value in a nested tuple
     assert helper_digest(((1.0, 2.0), 3), 4.0) != first  # a module's attribute it reads
+
+    def defaults_and_enum(k, boost):
+        (tmp_path / "frozen_enum.py").write_text(
+            "import enum\n\n"
+            f"class Mode(enum.IntEnum):\n    BOOST = {boost}\n\n"
+            f"def gain(e, k={k!r}):\n    return k * Mode.BOOST * e\n")
+        sys.modules.pop("frozen_enum", None)
+        importlib.invalidate_caches()
+        return _runs(importlib.import_module("frozen_enum").gain)
+
+    first = defaults_and_enum(2.0, 2)
+    assert defaults_and_enum(2.0, 2) == first
+    assert defaults_and_enum(3.0, 2) != first  # a default argument
+    assert defaults_and_enum(2.0, 3) != first  # an enumeration's member
+    sys.modules.pop("frozen_enum", None)
     for name in ("frozen_consts", "frozen_helper"):
         sys.modules.pop(name, None)
+
+
+@pytest.mark.parametrize("value", [np.array([10**6], dtype=np.int32),
+                                   np.array([0.1], dtype=np.float32), np.float16(0.5)])
+def test_a_value_numpy_keeps_under_64_bits_leaves_its_block_to_python(value):
+    # numpy computes in an int32 or a float32 (a product wraps, or rounds to 24 bits),
+    # compiled code in 64 bits: the numbers part ways, maybe only late in a run, where the
+    # check piece does not look (an int32 product: 3.0e9 against numpy's -1.3e9 at the end)
+    def output(t, x, u, params):
+        return value[0] * 1000 * u[0] if np.ndim(value) else value * u[0]
+
+    block = ct.nlsys(None, output, inputs="u", outputs="y", name="narrow", dt=1.0)
+    loop = ct.interconnect([block], inputs="u", outputs="y")
+    rows = engine.explain(loop)
+    assert rows[0].tier == "python"
+    assert re.search(r"of type (int32|float32|float16): numpy computes in it, compiled code "
+                     r"in 64 bits", rows[0].reason)
+
+
+def test_an_enumeration_s_member_read_by_a_user_function_compiles_as_its_number():
+    import enum
+
+    class Mode(enum.IntEnum):
+        BOOST = 3
+
+    boost = Mode.BOOST
+
+    def output(t, x, u, params):
+        return boost * u[0]
+
+    block = ct.nlsys(None, output, inputs="u", outputs="y", name="boost", dt=1.0)
+    loop = ct.interconnect([block], inputs="u", outputs="y")
+    T = np.arange(5.0)
+    ours = controlkit.input_output_response(loop, T, np.ones(5), compile=True)
+    assert ours.engine_mode == "compiled"
+    np.testing.assert_array_equal(ours.outputs,
+                                  ct.input_output_response(loop, T, np.ones(5)).outputs)

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import ast
 import hashlib
+import inspect
 import types as pytypes
 
 import numpy as np
@@ -70,11 +71,15 @@ def _literal(name, value, lines, imports):
         if not _dotted(value.__name__):
             raise NotCompilable(f"it reads a module named {value.__name__!r}")
         imports.append(f"import {value.__name__} as {name}")
-    elif value is None or isinstance(value, bool | str):
+    elif value is None or isinstance(value, bool):
         lines.append(f"{name} = {value!r}")
+    elif isinstance(value, str):  # (a str enumeration's member: its text)
+        lines.append(f"{name} = {str.__str__(value)!r}")
     elif isinstance(value, np.bool_):
         lines.append(f"{name} = _np_.bool_({bool(value)!r})")
-    elif isinstance(value, int) or type(value) is float:  # (a numpy float keeps its type)
+    elif isinstance(value, int):  # (an int enumeration's member: its number)
+        lines.append(f"{name} = {int(value)!r}")
+    elif type(value) is float:  # (a numpy float keeps its type)
         lines.append(f"{name} = {numbers(value, '_np_')}")
     elif isinstance(value, complex):
         lines.append(f"{name} = complex({numbers(value.real, '_np_')}, "
@@ -83,6 +88,12 @@ def _literal(name, value, lines, imports):
         array = np.asarray(value)
         if array.dtype.kind not in "biufc":
             raise NotCompilable(f"it reads {name.split('_', 2)[-1]!r}, which is not numeric")
+        if array.dtype.kind != "b" and array.dtype.str[1:] not in ("i8", "f8", "c16"):
+            # numpy computes in the array's own type (a product of int32 wraps), compiled
+            # code in 64 bits: the numbers part ways, maybe late in a run
+            raise NotCompilable(f"it reads {name.split('_', 2)[-1]!r}, of type "
+                                f"{array.dtype.name}: numpy computes in it, compiled code in "
+                                f"64 bits")
         text = (repr(array.tolist()) if array.dtype.kind == "c"
                 else numbers(array.tolist(), "_np_"))
         if isinstance(value, np.ndarray | list | tuple):
@@ -135,24 +146,32 @@ def code_digest(code, digest) -> None:
 
 
 def _runs(function) -> str:
-    """A digest of what ``function`` (imported by a kernel) runs: its code, and the code
-    and the values of what it reads by global name (numba freezes them into the compiled
-    code: numbers, strings, arrays, tuples, a module's attributes), followed into the
-    functions it calls that way."""
+    """A digest of what ``function`` (imported by a kernel) runs: its code, its defaults,
+    numba's options for it, and the values of what it reads by global name (numba freezes
+    them into the compiled code: numbers, strings, arrays, tuples, a module's or a class's
+    attributes such as an enumeration's members), followed into the functions it calls
+    that way."""
     digest = hashlib.sha256()
     todo, seen = [function], set()
     while todo:
-        fn = _jit.python_function(todo.pop())
+        called = todo.pop()
+        fn = _jit.python_function(called)
         code = getattr(fn, "__code__", None)
         if code is None or id(fn) in seen:
             continue
         seen.add(id(fn))
         code_digest(code, digest)
+        options = getattr(_jit.dispatcher(called), "targetoptions", None) or {}
+        digest.update(repr(sorted((key, sorted(map(repr, value)) if isinstance(
+            value, set | frozenset) else repr(value)) for key, value in options.items())).encode())
         namespace = getattr(fn, "__globals__", {})
         names = _global_names(code)
         cells = zip(code.co_freevars, fn.__closure__ or (), strict=False)
         reads = [(name, namespace.get(name)) for name in names]
         reads += [(name, _cell(cell)) for name, cell in cells]  # (an empty one: None)
+        reads += [("(defaults)", getattr(fn, "__defaults__", None) or ()),
+                  ("(keyword defaults)", tuple(sorted((getattr(fn, "__kwdefaults__", None)
+                                                       or {}).items())))]
         for name, value in reads:
             _feed(digest, name, value, names, todo, seen)
     return digest.hexdigest()[:16]
@@ -160,8 +179,9 @@ def _runs(function) -> str:
 
 def _feed(digest, name, value, names, todo, seen) -> None:
     """Feed the value ``name`` reads into ``digest``; a function it may call into ``todo``.
-    A module's attributes are fed by the names the code reads (``consts.G``), but not
-    numpy's, math's or numba's (numba compiles those itself)."""
+    A module's or a class's attributes are fed by the names the code reads (``consts.G``,
+    ``Mode.BOOST``), but not numpy's, math's, numba's or Python's own (numba compiles
+    those itself)."""
     if isinstance(value, bool | int | float | complex | str | bytes) or value is None:
         digest.update(repr((name, value)).encode())
     elif isinstance(value, np.ndarray | np.generic):
@@ -171,15 +191,21 @@ def _feed(digest, name, value, names, todo, seen) -> None:
         digest.update(repr((name, "tuple", len(value))).encode())
         for i, item in enumerate(value):
             _feed(digest, f"{name}[{i}]", item, names, todo, seen)
-    elif isinstance(value, pytypes.ModuleType):
-        if id(value) not in seen and value.__name__.split(".")[0] not in (
-                *NUMERIC_MODULES, "numba"):
+    elif isinstance(value, pytypes.ModuleType | type):
+        owner = value.__name__ if isinstance(value, pytypes.ModuleType) else value.__module__
+        if id(value) not in seen and str(owner).split(".")[0] not in (
+                *NUMERIC_MODULES, "numba", "builtins"):
             seen.add(id(value))
             for attr in names:
-                if attr in vars(value):
-                    _feed(digest, f"{name}.{attr}", vars(value)[attr], names, todo, seen)
-    elif callable(value) and not isinstance(value, type):
+                found = inspect.getattr_static(value, attr, _ABSENT)
+                if found is not _ABSENT:
+                    _feed(digest, f"{name}.{attr}", found, names, todo, seen)
+    elif callable(value):
         todo.append(value)
+
+
+#: What :func:`inspect.getattr_static` answers for an attribute that is not there.
+_ABSENT = object()
 
 
 def _global_names(code):
