@@ -4,6 +4,7 @@ the cases that once gave a wrong answer, crashed or refused valid input do not a
 import functools
 import os
 import re
+import shutil
 import sys
 
 import control as ct
@@ -616,6 +617,10 @@ def test_an_imported_helper_s_frozen_globals_name_the_kernel(tmp_path, monkeypat
 
     monkeypatch.syspath_prepend(str(tmp_path))
 
+    def forget_bytecode():  # a file rewritten within its second at the same size would
+        shutil.rmtree(tmp_path / "__pycache__", ignore_errors=True)  # load its old bytecode
+        importlib.invalidate_caches()
+
     def helper_digest(table, gain):
         (tmp_path / "frozen_consts.py").write_text(f"G = {gain!r}\n")
         (tmp_path / "frozen_helper.py").write_text(
@@ -625,7 +630,7 @@ def test_an_imported_helper_s_frozen_globals_name_the_kernel(tmp_path, monkeypat
             "    return TABLE[0][1] * frozen_consts.G * e\n")
         for name in ("frozen_consts", "frozen_helper"):
             sys.modules.pop(name, None)
-        importlib.invalidate_caches()
+        forget_bytecode()
         return _runs(importlib.import_module("frozen_helper").gain)
 
     first = helper_digest(((1.0, 2.0), 3), 2.0)
@@ -639,7 +644,7 @@ def test_an_imported_helper_s_frozen_globals_name_the_kernel(tmp_path, monkeypat
             f"class Mode(enum.IntEnum):\n    BOOST = {boost}\n\n"
             f"def gain(e, k={k!r}):\n    return k * Mode.BOOST * e\n")
         sys.modules.pop("frozen_enum", None)
-        importlib.invalidate_caches()
+        forget_bytecode()
         return _runs(importlib.import_module("frozen_enum").gain)
 
     first = defaults_and_enum(2.0, 2)
