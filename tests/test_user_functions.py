@@ -691,3 +691,23 @@ def test_an_enumeration_s_member_read_by_a_user_function_compiles_as_its_number(
     assert ours.engine_mode == "compiled"
     np.testing.assert_array_equal(ours.outputs,
                                   ct.input_output_response(loop, T, np.ones(5)).outputs)
+
+
+@pytest.mark.parametrize("dt", [0, 1.0])
+def test_a_function_writing_into_its_arguments_is_left_to_python_control(dt):
+    # python-control hands a block views of its own arrays: what a function that writes
+    # into them computes depends on those arrays (x += 1 gave 1.0 against 2.0, in Python
+    # as compiled), so python-control runs such a diagram itself, with a warning
+    def update(t, x, u, params):
+        x += 0.1 * u[0]
+        return 0.5 * x
+
+    plant = ct.nlsys(update, None, inputs="u", outputs="y", states=1, name="mutating", dt=dt)
+    loop = ct.interconnect([plant], inputs="u", outputs="y")
+    T = np.arange(20.0) if dt else np.linspace(0.0, 2.0, 21)
+    with pytest.warns(UserWarning, match="it writes into its argument 'x'; python-control "
+                                         "runs the diagram"):
+        ours = controlkit.input_output_response(loop, T, 1.0, [1.0])
+    assert ours.engine_mode == "python-control"
+    np.testing.assert_array_equal(ours.outputs,
+                                  ct.input_output_response(loop, T, 1.0, [1.0]).outputs)

@@ -127,14 +127,15 @@ def _python_kernels(block, local, reason):
 def _user_kernels(block, local, compiled):
     """A user's ``nlsys``: its functions as Python kernels, or compiled from their source
     for the types of its parameters (their values packed into ``p`` at run time). One
-    whose function has effects outside itself (a ``print``) is refused: python-control
-    runs the diagram, so that it is called as many times, in the same order."""
+    whose function has effects outside itself (a ``print``) or writes into its arguments
+    is refused: python-control runs the diagram, so that it is called as many times, in
+    the same order, on python-control's own arrays."""
     for fn in (block.outfcn, block.updfcn if block.nstates else None):
         effect = source.side_effect(fn) if fn is not None else None
         if effect is not None:
-            raise UnsupportedSystem(f"block {block.name!r}: {effect}, which python-control "
-                                    f"calls as many times as it sweeps the diagram: "
-                                    f"python-control runs it")
+            raise UnsupportedSystem(f"block {block.name!r}: {effect}; python-control runs "
+                                    f"the diagram, so that the block is called as many "
+                                    f"times, in the same order, on the same arrays")
     output = (usercode.UserKernel(block.outfcn, local, block.name, "output")
               if block.outfcn is not None else None)
     update = (usercode.UserKernel(block.updfcn, local, block.name, "update")

@@ -12,6 +12,7 @@ import weakref
 from dataclasses import dataclass, field
 
 from .reading import (
+    MUTATORS,
     PARAMS,
     Frozen,
     NotCompilable,
@@ -271,6 +272,37 @@ def reads_input(fn):
 _READS_INPUT: dict = {}
 
 
+def _argument_written(body, code) -> str | None:
+    """The argument (``x``, ``u``...) the function writes into (``x[0] = ...``, ``x += 1``,
+    ``x.fill(0)``) without first binding its name to something of its own, else None:
+    python-control hands it views of its own arrays, so what it then computes depends on
+    python-control's arrays, which only python-control's run reproduces."""
+    arguments = set(code.co_varnames[:code.co_argcount + code.co_kwonlyargcount])
+    nodes = list(walk(ast.Module(body, [])))
+    rebound = {n.id for n in nodes if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Store)
+               and not any(isinstance(a, ast.AugAssign) and a.target is n for a in nodes)}
+
+    def base(target):
+        while isinstance(target, ast.Subscript | ast.Attribute):
+            target = target.value
+        return target.id if isinstance(target, ast.Name) else None
+
+    for node in nodes:
+        if isinstance(node, ast.Assign | ast.AugAssign | ast.AnnAssign):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            for target in targets:
+                name = base(target)
+                if name in arguments and name not in rebound and (
+                        isinstance(node, ast.AugAssign) or not isinstance(target, ast.Name)):
+                    return name
+        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) \
+                and node.func.attr in MUTATORS:
+            name = base(node.func.value)
+            if name in arguments and name not in rebound:
+                return name
+    return None
+
+
 def side_effect(fn) -> str | None:
     """What ``fn`` does outside itself, as its source says (a ``print``, a file, a change
     to an object from outside), or None. Such a function's calls are seen, so a diagram
@@ -286,6 +318,11 @@ def side_effect(fn) -> str | None:
     'it calls print()'
     >>> side_effect(lambda t, x, u, params: 2 * x) is None
     True
+    >>> def in_place(t, x, u, params):
+    ...     x[0] += u[0]
+    ...     return x
+    >>> side_effect(in_place)
+    "it writes into its argument 'x'"
     """
     try:
         target, _, _ = call_target(fn)
@@ -298,4 +335,7 @@ def side_effect(fn) -> str | None:
         effect = _outside_effect(node, local) if isinstance(node, ast.Call) else None
         if effect is not None:
             return effect[0]
+    written = _argument_written(body, target.__code__)
+    if written is not None:
+        return f"it writes into its argument {written!r}"
     return None
