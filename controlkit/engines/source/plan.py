@@ -272,15 +272,16 @@ def reads_input(fn):
 _READS_INPUT: dict = {}
 
 
-def _argument_written(body, code) -> str | None:
+def _argument_written(nodes, code) -> str | None:
     """The argument (``x``, ``u``...) the function writes into (``x[0] = ...``, ``x += 1``,
     ``x.fill(0)``) without first binding its name to something of its own, else None:
     python-control hands it views of its own arrays, so what it then computes depends on
-    python-control's arrays, which only python-control's run reproduces."""
+    python-control's arrays, which only python-control's run reproduces. ``nodes``: every
+    node of the function's body."""
     arguments = set(code.co_varnames[:code.co_argcount + code.co_kwonlyargcount])
-    nodes = list(walk(ast.Module(body, [])))
+    augmented = {id(n.target) for n in nodes if isinstance(n, ast.AugAssign)}
     rebound = {n.id for n in nodes if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Store)
-               and not any(isinstance(a, ast.AugAssign) and a.target is n for a in nodes)}
+               and id(n) not in augmented}
 
     def base(target):
         while isinstance(target, ast.Subscript | ast.Attribute):
@@ -329,13 +330,14 @@ def side_effect(fn) -> str | None:
         _, body = _definition(target.__code__, copy=False)
     except NotCompilable:
         return None
-    local = {n.id for n in walk(ast.Module(body, [])) if isinstance(n, ast.Name)
+    nodes = list(walk(ast.Module(body, [])))
+    local = {n.id for n in nodes if isinstance(n, ast.Name)
              and isinstance(n.ctx, ast.Store)} | set(target.__code__.co_varnames)
-    for node in walk(ast.Module(body, [])):
+    for node in nodes:
         effect = _outside_effect(node, local) if isinstance(node, ast.Call) else None
         if effect is not None:
             return effect[0]
-    written = _argument_written(body, target.__code__)
+    written = _argument_written(nodes, target.__code__)
     if written is not None:
         return f"it writes into its argument {written!r}"
     return None

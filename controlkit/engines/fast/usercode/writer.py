@@ -78,7 +78,7 @@ def _literal(name, value, lines, imports):
     elif isinstance(value, np.bool_):
         lines.append(f"{name} = _np_.bool_({bool(value)!r})")
     elif isinstance(value, int):  # (an int enumeration's member: its number)
-        lines.append(f"{name} = {int(value)!r}")
+        lines.append(f"{name} = {int.__int__(value)!r}")
     elif type(value) is float:  # (a numpy float keeps its type)
         lines.append(f"{name} = {numbers(value, '_np_')}")
     elif isinstance(value, complex):
