@@ -656,6 +656,31 @@ def test_an_imported_helper_s_frozen_globals_name_the_kernel(tmp_path, monkeypat
         sys.modules.pop(name, None)
 
 
+def test_a_numba_helper_compiled_before_leaves_its_block_to_python():
+    # numba froze what the helper read (k = 2) when it was first called; its source, compiled
+    # again into a kernel, read k as it is now (3): 6.0 against python-control's 4.0
+    numba = pytest.importorskip("numba")
+    k = 2.0
+
+    @numba.njit
+    def helper(t, x):
+        return k * x if t >= 3.0 else x
+
+    assert helper(4.0, 2.0) == 4.0
+    k = 3.0  # noqa: F841 - read by the helper's closure, which numba froze at 2.0
+    block = ct.nlsys(lambda t, x, u, p: [0.5 * x[0] + 1.0],
+                     lambda t, x, u, p: [helper(t, x[0])], inputs="u", outputs="y",
+                     states=1, dt=1.0, name="late")
+    loop = ct.interconnect([block], inputs="u", outputs="y")
+    assert engine.explain(loop)[0].tier == "python"
+    assert "numba froze then what it reads (k)" in engine.explain(loop)[0].reason
+    T = np.arange(6.0)
+    with pytest.warns(UserWarning, match="as Python: block .late.: it calls .helper."):
+        ours = controlkit.input_output_response(loop, T, 0.0, [0.0], compile=True)
+    np.testing.assert_array_equal(ours.outputs, ct.input_output_response(loop, T, 0.0,
+                                                                         [0.0]).outputs)
+
+
 @pytest.mark.parametrize("value", [np.array([10**6], dtype=np.int32),
                                    np.array([0.1], dtype=np.float32), np.float16(0.5)])
 def test_a_value_numpy_keeps_under_64_bits_leaves_its_block_to_python(value):

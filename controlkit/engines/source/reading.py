@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 from ... import _jit
 from .rewrites import copy_tree, function_def, walk
-from .values import _Marker
+from .values import _is_numeric_function, _Marker
 
 
 class NotCompilable(Exception):
@@ -206,6 +206,12 @@ def call_target(fn):
     >>> target is f, bound, keywords
     (True, [], {'gain': 2.0})
     """
+    frozen = _frozen_by_numba(fn)
+    if frozen:
+        raise NotCompilable(
+            f"it calls {fn.__name__!r}, a numba function compiled already in this process: "
+            f"numba froze then what it reads ({', '.join(frozen)}), whose values now may "
+            "differ")
     fn = _jit.python_function(fn)
     if isinstance(fn, types.FunctionType):
         return fn, [], {}
@@ -220,6 +226,19 @@ def call_target(fn):
     if isinstance(call, types.FunctionType):
         return call, [fn], {}
     raise NotCompilable(f"it is a {type(fn).__name__}, not a Python function")
+
+
+def _frozen_by_numba(fn) -> list[str]:
+    """The names a numba function ``fn`` already compiled reads from outside itself (its
+    module's values, its closure), which numba froze at that compile
+    (:meth:`numba.core.dispatcher.Dispatcher.recompile` says so): its source, compiled
+    again, would read them as they are now. Empty for anything else."""
+    if not (hasattr(fn, "py_func") and getattr(fn, "signatures", None)):
+        return []
+    code, module = fn.py_func.__code__, fn.py_func.__globals__
+    return [name for name in code.co_names if name in module and not (
+        isinstance(module[name], types.ModuleType) or _is_numeric_function(module[name]))
+    ] + list(code.co_freevars)
 
 
 # --- how a call binds the arguments ------------------------------------------------------
