@@ -615,3 +615,40 @@ def test_a_stopped_run_raises_the_interrupt_it_was_stopped_by_with_what_was_comp
         controlkit.input_output_response(loop, T, 1.0, 0.0)
     kept = raised.value.response.time  # the pieces finished before t = 50 s
     assert 0 < kept.size <= 200 and np.array_equal(kept, T[:kept.size])
+
+
+def _zeros_like_update(t, x, u, params):
+    new = np.zeros_like(x)  # integers when python-control hands it an integer state
+    new[0] = 0.5 * x[0] + u[0]
+    new[1] = 0.8 * x[1] + 0.25 * x[0]
+    return new
+
+
+@pytest.mark.parametrize("lone", [True, False])
+def test_an_integer_initial_state_that_python_control_keeps_runs_on_python_control(lone):
+    # python-control keeps X0=[1, 3] as integers in a discrete run's first step (a single
+    # block: in every step), so np.zeros_like(x) truncates: 4.15 where it gives 3.0
+    block = ct.nlsys(_zeros_like_update, lambda t, x, u, p: [x[0] + x[1]], inputs="u",
+                     states=2, outputs="y", dt=1, name="truncating")
+    sys_ = block if lone else ct.interconnect([block], inputs="u", outputs="y")
+    T = np.arange(8.0)
+    ref = ct.input_output_response(sys_, T, 1.0, [1, 3])
+    with pytest.warns(UserWarning, match=r"running python-control instead: X0 holds "
+                                         r"integers.*X0=\[1\.0, 3\.0\]\) runs on the fast"):
+        ours = controlkit.input_output_response(sys_, T, 1.0, [1, 3], compile=False)
+    np.testing.assert_array_equal(ours.outputs, ref.outputs)
+    assert ours.outputs[1] != controlkit.input_output_response(sys_, T, 1.0,
+                                                               [1.0, 3.0]).outputs[1]
+
+
+def test_an_integer_initial_state_that_changes_nothing_stays_on_the_fast_engine():
+    block = ct.nlsys(lambda t, x, u, p: 0.5 * x + u[0], lambda t, x, u, p: [x[0] + x[1]],
+                     inputs="u", states=2, outputs="y", dt=1, name="floats")
+    loop = ct.interconnect([block], inputs="u", outputs="y")
+    T = np.arange(8.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        ours = controlkit.input_output_response(loop, T, 1.0, [1, 3], compile=False)
+    assert ours.engine_mode == "python"
+    np.testing.assert_array_equal(ours.outputs,
+                                  ct.input_output_response(loop, T, 1.0, [1, 3]).outputs)

@@ -223,6 +223,31 @@ def python_control_arguments(sys, T, U, X0, options):
     return T, U, np.asarray(X0, dtype=float), t_eval, method, kwargs
 
 
+def integer_state(X0, nstates):
+    """The integer dtype python-control keeps a discrete run's initial state in, or None.
+
+    python-control reads a list of integers (``X0=[0, 1]``) or an integer array as it is
+    (a short one is padded with float zeros, a scalar broadcast into floats) and hands it
+    to the first step's functions: ``np.zeros_like(x)`` there fills integers.
+
+    Examples
+    --------
+    >>> integer_state([0, 1], 2), integer_state([0, 1.0], 2), integer_state(0, 2)
+    (dtype('int64'), None, None)
+    """
+    if isinstance(X0, list | tuple):
+        try:
+            values = np.array([v for part in X0 for v in np.ravel(np.array(part)).tolist()])
+        except (TypeError, ValueError):
+            return None
+    elif isinstance(X0, np.ndarray):
+        values = X0.reshape(-1)
+    else:
+        return None
+    fits = values.size == (nstates or 0) and values.size > 0
+    return values.dtype if fits and values.dtype.kind in "biu" else None
+
+
 def result_flags(options) -> dict:
     """The keywords of :class:`control.TimeResponseData` that python-control passes on.
 

@@ -7,7 +7,12 @@ from __future__ import annotations
 import control as ct
 import numpy as np
 
-from ..contract import python_control_arguments, result_flags
+from ..contract import (
+    UnsupportedSystem,
+    integer_state,
+    python_control_arguments,
+    result_flags,
+)
 from ..contract import response as base_response
 from .continuous import run_continuous
 from .discrete import simulate
@@ -30,13 +35,21 @@ def response(sys, T, U, X0, *, compile=None, **options) -> ct.TimeResponseData:
     >>> response(loop, np.arange(3.0), 1.0, 1.0).outputs.tolist()
     [1.0, 1.5, 1.75]
     """
-    given, sys = sys, as_interconnect(sys)  # the response keeps a single block's labels
+    given, sys, given_X0 = sys, as_interconnect(sys), X0  # a single block's labels are kept
     T, U, X0, t_eval, method, solver = python_control_arguments(sys, T, U, X0, options)
     params = options.get("params")
     if sys.isdtime(strict=True):
         if not np.array_equal(t_eval, T):  # python-control interpolates U at t_eval
             U = interpolated(T, U, t_eval)
         resp = simulate(sys, t_eval, X0, U, params=params, compile=compile)
+        integers = integer_state(given_X0, sys.nstates)
+        if integers is not None and _integers_count(given, t_eval[0], X0, integers, U[:, 0],
+                                                    params):
+            raise UnsupportedSystem(
+                f"X0 holds integers, which python-control keeps in its first step, where a "
+                f"function of this system computes other numbers from them than from floats "
+                f"(np.zeros_like(x) fills integers); X0 given as floats "
+                f"(X0={np.asarray(X0).tolist()}) runs on the fast engine")
     else:
         resp = run_continuous(sys, T, U, X0, params=params, t_eval=t_eval, method=method,
                               compile=compile, **solver)
@@ -50,6 +63,23 @@ def response(sys, T, U, X0, *, compile=None, **options) -> ct.TimeResponseData:
     relabelled = base_response(given, resp.t, resp.y, resp.x, resp.u, **flags)
     relabelled.engine_mode = resp.engine_mode
     return relabelled
+
+
+def _integers_count(given, t, X0, integers, u, params) -> bool:
+    """Whether python-control's first step of ``given`` from the initial state held as
+    ``integers`` (see :func:`.contract.integer_state`) gives other numbers than from
+    floats, or (a single block) a state still held as integers. The functions run after
+    the engine's own run, which refused any that acts outside itself (a print, a write)."""
+    x_given = X0.astype(integers)
+    try:
+        step = np.asarray(given.dynamics(t, x_given, u, params=params))
+        out = np.asarray(given.output(t, x_given, u, params=params))
+    except Exception:  # noqa: BLE001 - python-control's run raises it, as it does
+        return True
+    if step.dtype.kind != "f" and not isinstance(given, ct.InterconnectedSystem):
+        return True  # a block's update returns integers: its state stays integers
+    return not (np.array_equal(step, given.dynamics(t, X0, u, params=params))
+                and np.array_equal(out, given.output(t, X0, u, params=params)))
 
 
 def interpolated(T, U, times):
