@@ -112,7 +112,20 @@ def real_scalar(name: str, value) -> float:
     return x
 
 
-def diverged(t: float, detail: str) -> FloatingPointError:
+class Diverged(FloatingPointError, RuntimeError):
+    """A run whose numbers became non-finite: a ``FloatingPointError``, and a
+    ``RuntimeError`` as python-control raises for an interconnect whose signals do (its
+    sweep of the signals cannot settle on a NaN: "algebraic loop detected"), so that
+    ``except RuntimeError`` written for python-control catches it too.
+
+    Examples
+    --------
+    >>> isinstance(Diverged("the loop diverged"), RuntimeError | FloatingPointError)
+    True
+    """
+
+
+def diverged(t: float, detail: str) -> Diverged:
     """The error a block raises when the loop feeding it has diverged.
 
     ``detail`` says what was seen, in the block's terms. A diverged loop is
@@ -128,7 +141,7 @@ likely a gain too high for the sample time (or an unstable loop)
     >>> error.time
     12.5
     """
-    error = FloatingPointError(
+    error = Diverged(
         f"the loop diverged at t = {t:g} s: {detail}; likely a gain too high for the "
         f"sample time (or an unstable loop)")
     error.time = float(t)

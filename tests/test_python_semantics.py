@@ -652,3 +652,20 @@ def test_an_integer_initial_state_that_changes_nothing_stays_on_the_fast_engine(
     assert ours.engine_mode == "python"
     np.testing.assert_array_equal(ours.outputs,
                                   ct.input_output_response(loop, T, 1.0, [1, 3]).outputs)
+
+
+def test_a_loop_that_diverges_in_its_first_checked_piece_raises_as_every_run_does():
+    # x <- 10 x^3 + u overflows at t = 6 s, inside the first piece of a module new to the
+    # process (run both ways to check it): that piece returned inf, where every other run
+    # raises; python-control raises a RuntimeError, which the divergence also is
+    cubic = ct.nlsys(lambda t, x, u, p: [10.0 * x[0] ** 3 + u[0]], lambda t, x, u, p: [x[0]],
+                     inputs="u", states=1, outputs="y", dt=1, name="cubic_first_piece")
+    loop = ct.interconnect([cubic], inputs="u", outputs="y")
+    T = np.arange(40.0)
+    with np.errstate(all="ignore"), pytest.raises(RuntimeError, match="algebraic loop detected"):
+        ct.input_output_response(loop, T, 1.0, 1.0)
+    for compile in (True, False, True):
+        with np.errstate(all="ignore"), pytest.raises(
+                RuntimeError, match="the loop diverged at t = 6 s: the state of block "
+                                    "'cubic_first_piece' became non-finite"):
+            controlkit.input_output_response(loop, T, 1.0, 1.0, compile=compile)

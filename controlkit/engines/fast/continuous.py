@@ -16,7 +16,7 @@ import control as ct
 import numpy as np
 
 from ... import _jit
-from ..._checks import warn_caller
+from ..._checks import Diverged, warn_caller
 from ...sampled_data import sample_times
 from ..contract import UnsupportedSystem, recorded_indices
 from ..contract import response as base_response
@@ -417,7 +417,7 @@ def _integrator_error(job, run):
             f"{float(status[3]):.2g} steps. Use an implicit method: "
             f"solve_ivp_method='BDF' (or 'LSODA', 'Radau')")
     if code == rk.NON_FINITE:
-        return FloatingPointError(
+        return Diverged(
             f"{sys.name!r}: the state of {state} became non-finite after t = {where:g} s "
             f"(the loop diverged, or a block's equation is undefined there)")
     return RuntimeError(f"{sys.name!r}: {rk.STATUS_MESSAGES.get(code, code)}")

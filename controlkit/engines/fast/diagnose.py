@@ -66,16 +66,17 @@ def explain_failure(job, t, x, u, block_index, k=0):
         if not held_logic(job.sys):  # python-control's own evaluation, as its path would
             try:
                 job.sys.output(t, x, u)
-            except RuntimeError:  # its sweep cannot settle on non-finite signals
-                pass
+            except RuntimeError as error:  # its sweep cannot settle on non-finite signals
+                if isinstance(error, _checks.Diverged):
+                    raise  # (a block's own words)
         ui, _ = signals_at(job, t, x, u, k)
         inputs = ui[b.u0:b.u0 + block.ninputs]
         if np.isfinite(inputs).all():  # the block's own words
             block.output(t, x[b.x0:b.x0 + block.nstates], inputs)
-    raise FloatingPointError(f"block {block.name!r} returned NaN at t = {t:g} s")
+    raise _checks.Diverged(f"block {block.name!r} returned NaN at t = {t:g} s")
 
 
-def diverged(job, t, x) -> FloatingPointError:
+def diverged(job, t, x) -> _checks.Diverged:
     """The error of a loop whose state became non-finite at ``t`` (``x``: the state then),
     naming the first block whose state did.
 

@@ -199,7 +199,8 @@ def _switch(runner, job, T, x, U, Y, X, k, n, pieces):
     status = np.full(2, -1, dtype=np.int64)
     x_python = _run(runner.python, (T, x, U, runner.python.P, Y, X, status, k, k1))
     Yp, Xp = Y[:, k:k1].copy(), X[:, k:k1].copy()
-    if status[0] >= 0:  # Python stopped in this piece: said by the piece run again
+    if status[0] >= 0 or not np.isfinite(x_python).all():
+        # Python stopped or diverged in this piece: said by the piece run again
         runner.decided = True
         return k, x
     args = (T, x, U, job.P, Y, X, np.full(2, -1, dtype=np.int64), k, k1)
