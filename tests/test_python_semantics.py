@@ -669,3 +669,19 @@ def test_a_loop_that_diverges_in_its_first_checked_piece_raises_as_every_run_doe
                 RuntimeError, match="the loop diverged at t = 6 s: the state of block "
                                     "'cubic_first_piece' became non-finite"):
             controlkit.input_output_response(loop, T, 1.0, 1.0, compile=compile)
+
+
+def test_a_single_system_whose_state_overflows_answers_as_python_control_does():
+    # python-control runs a single system on with inf and NaN (only an interconnect's sweep
+    # of its signals stops on them); the engine's divergence hands the call back to it
+    cubic = ct.nlsys(lambda t, x, u, p: [10.0 * x[0] ** 3 + u[0]], lambda t, x, u, p: [x[0]],
+                     inputs="u", states=1, outputs="y", dt=1, name="cubic_alone")
+    T = np.arange(12.0)
+    with np.errstate(all="ignore"):
+        ref = ct.input_output_response(cubic, T, 1.0, 1.0)
+        with pytest.warns(UserWarning, match="running python-control instead: the loop "
+                                             "diverged at t = 6 s"):
+            ours = controlkit.input_output_response(cubic, T, 1.0, 1.0, compile=False)
+    assert ours.engine_mode == "python-control"
+    np.testing.assert_array_equal(ours.outputs, ref.outputs)
+    assert np.isinf(ours.outputs[6])

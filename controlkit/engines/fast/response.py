@@ -7,6 +7,7 @@ from __future__ import annotations
 import control as ct
 import numpy as np
 
+from ..._checks import Diverged
 from ..contract import (
     UnsupportedSystem,
     integer_state,
@@ -35,7 +36,19 @@ def response(sys, T, U, X0, *, compile=None, **options) -> ct.TimeResponseData:
     >>> response(loop, np.arange(3.0), 1.0, 1.0).outputs.tolist()
     [1.0, 1.5, 1.75]
     """
-    given, sys, given_X0 = sys, as_interconnect(sys), X0  # a single block's labels are kept
+    given, sys = sys, as_interconnect(sys)  # the response keeps a single block's labels
+    try:
+        return _response(given, sys, T, U, X0, compile, options)
+    except Diverged as error:
+        if isinstance(given, ct.InterconnectedSystem):
+            raise  # (python-control's sweep of the signals cannot settle on them either)
+        raise UnsupportedSystem(f"{error}; python-control runs a single system on with "
+                                "non-finite numbers") from None
+
+
+def _response(given, sys, T, U, X0, compile, options):
+    """:func:`response` of ``given`` run as the interconnect ``sys``."""
+    given_X0 = X0
     T, U, X0, t_eval, method, solver = python_control_arguments(sys, T, U, X0, options)
     params = options.get("params")
     if sys.isdtime(strict=True):
