@@ -685,3 +685,23 @@ def test_a_single_system_whose_state_overflows_answers_as_python_control_does():
     assert ours.engine_mode == "python-control"
     np.testing.assert_array_equal(ours.outputs, ref.outputs)
     assert np.isinf(ours.outputs[6])
+
+
+def test_a_user_output_that_becomes_infinite_stops_an_interconnect_as_python_control():
+    # exp(27^2) overflows: python-control's interconnect cannot settle its signals on inf
+    # ("algebraic loop detected"); the engine answered inf. Both raise a RuntimeError now,
+    # the engine's naming the block and the time; a single system answers inf in both
+    growing = ct.nlsys(lambda t, x, u, p: [x[0] + u[0]], lambda t, x, u, p: [np.exp(x[0] ** 2)],
+                       inputs="u", states=1, outputs="y", dt=1, name="exp_square")
+    loop = ct.interconnect([growing], inputs="u", outputs="y")
+    T = np.arange(40.0)
+    with np.errstate(all="ignore"):
+        with pytest.raises(RuntimeError, match="algebraic loop detected"):
+            ct.input_output_response(loop, T, 1.0, 0.0)
+        for compile in (True, False):
+            with pytest.raises(RuntimeError, match="block 'exp_square' returned inf at t = 27 s"):
+                controlkit.input_output_response(loop, T, 1.0, 0.0, compile=compile)
+        ref = ct.input_output_response(growing, T, 1.0, 0.0)
+        with pytest.warns(UserWarning, match="running python-control instead"):
+            alone = controlkit.input_output_response(growing, T, 1.0, 0.0, compile=False)
+    np.testing.assert_array_equal(alone.outputs, ref.outputs)

@@ -365,11 +365,16 @@ def _generate(plan, held_logic, P, identities):
     # kernels keeps LLVM from pruning their slices' reference counts (servo loop of
     # benchmarks/bench_hand_written.py: 112 -> 32 ns a step). A user's function never sees a
     # NaN made upstream in the same step, as before.
+    # A user's function that returns inf or NaN in any output stops it too: python-control's
+    # interconnect cannot settle its signals on one (0 * inf in its connection map).
     evaluate, unchecked = [], []
 
     def checks():
-        lines = [line for y0, b in unchecked
-                 for line in (f"if np.isnan({ref('ys', y0)}):", f"    return {b}")]
+        lines = []
+        for y0, ny_user, b in unchecked:
+            bad = " or ".join(f"not np.isfinite({ref('ys', y)})"
+                              for y in range(y0, y0 + ny_user)) or f"np.isnan({ref('ys', y0)})"
+            lines += [f"if {bad}:", f"    return {b}"]
         unchecked.clear()
         return lines
 
@@ -386,7 +391,7 @@ def _generate(plan, held_logic, P, identities):
         evaluate += loads  # the states these lines read, loaded once at the top level
         loads.clear()
         if row.NY:
-            unchecked.append((row.Y0, b))
+            unchecked.append((row.Y0, 0 if row.OUT in trusted else row.NY, b))
         if held:
             fires = "k >= 0" if row.EVERY == 1 else f"k >= 0 and k % {row.EVERY} == 0"
             evaluate += [f"if {fires}:", *["    " + c for c in call],

@@ -37,7 +37,8 @@ def signals_at(job, t, x, u, k):
 
 
 def explain_failure(job, t, x, u, block_index, k=0):
-    """A kernel returned NaN at ``t``: let the block's own function say why.
+    """A kernel returned NaN (a user's function: inf too) at ``t``: let the block's own
+    function say why.
 
     Raises
     ------
@@ -69,11 +70,14 @@ def explain_failure(job, t, x, u, block_index, k=0):
             except RuntimeError as error:  # its sweep cannot settle on non-finite signals
                 if isinstance(error, _checks.Diverged):
                     raise  # (a block's own words)
-        ui, _ = signals_at(job, t, x, u, k)
+        ui, ys = signals_at(job, t, x, u, k)
         inputs = ui[b.u0:b.u0 + block.ninputs]
         if np.isfinite(inputs).all():  # the block's own words
             block.output(t, x[b.x0:b.x0 + block.nstates], inputs)
-    raise _checks.Diverged(f"block {block.name!r} returned NaN at t = {t:g} s")
+    returned = ys[b.y0:b.y0 + block.noutputs]
+    bad = returned[np.isinf(returned)]  # (a NaN otherwise)
+    raise _checks.Diverged(f"block {block.name!r} returned {f'{bad[0]:g}' if bad.size else 'NaN'}"
+                           f" at t = {t:g} s")
 
 
 def diverged(job, t, x) -> _checks.Diverged:
