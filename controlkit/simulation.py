@@ -228,6 +228,8 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
     unknown = {k: v for k, v in kwargs.items() if k not in ("solve_ivp_method", "method")}
     if unknown:  # python-control's words, before any run (its own refuses them so)
         raise TypeError("unrecognized keyword(s): ", str(unknown))
+    if kwargs.get("solve_ivp_method") and kwargs.get("method"):  # (python-control's words)
+        raise ValueError("ivp_method specified more than once")
     options = dict(params=params, ignore_errors=ignore_errors, transpose=transpose,
                    return_states=return_x, squeeze=squeeze, evaluation_times=t_eval,
                    solve_ivp_kwargs=dict(solve_ivp_kwargs or {}), **kwargs)

@@ -596,6 +596,17 @@ def test_an_unknown_keyword_is_refused_as_python_control_refuses_it(dt):
     assert str(raised.value) == str(error)
 
 
+def test_a_method_given_twice_is_refused_as_python_control_refuses_it():
+    block = ct.nlsys(lambda t, x, u, p: -x, None, states=1, inputs=1, outputs=1, name="decay")
+    T = np.linspace(0.0, 1.0, 5)
+    options = dict(method="RK23", solve_ivp_method="RK45")
+    error = python_control_error(block, T, 0.0, 1.0, **options)
+    assert type(error) is ValueError and str(error) == "ivp_method specified more than once"
+    for compile in (True, False, None):
+        with pytest.raises(ValueError, match="^ivp_method specified more than once$"):
+            controlkit.input_output_response(block, T, 0.0, 1.0, compile=compile, **options)
+
+
 class Terminated(KeyboardInterrupt):
     """What a command raises on ``kill PID`` (``controlkit reproduce``'s own kind)."""
 
