@@ -28,7 +28,11 @@ import numpy as np
 import pytest
 from processes import wait_for
 
+# The engine started, as in a session after one long run: a fresh process leaves short
+# runs to python-control itself until one took over 50 ms, which on a quiet machine none
+# of these does (their answers would be python-control's own, whatever the engine does).
 import controlkit
+import controlkit.engines.fast  # noqa: F401
 
 DT = 0.25
 
@@ -605,6 +609,17 @@ def test_a_method_given_twice_is_refused_as_python_control_refuses_it():
     for compile in (True, False, None):
         with pytest.raises(ValueError, match="^ivp_method specified more than once$"):
             controlkit.input_output_response(block, T, 0.0, 1.0, compile=compile, **options)
+
+
+def test_uneven_time_steps_of_a_dt_true_system_are_refused_as_python_control_refuses_them():
+    block = ct.nlsys(lambda t, x, u, p: 0.5 * x + u, None, states=1, inputs=1, outputs=1,
+                     dt=True, name="any_rate")
+    T = np.array([0.0, 1.0, 3.0, 4.0])
+    assert isinstance(python_control_error(block, T, 1.0, 1.0), ValueError)
+    for compile in (True, False):
+        with pytest.raises(ValueError, match="time steps of T must be equal .*dt=True.*from "
+                                             "1 to 2"):
+            controlkit.input_output_response(block, T, 1.0, 1.0, compile=compile)
 
 
 class Terminated(KeyboardInterrupt):

@@ -85,6 +85,10 @@ def check_arguments(sys, T, X0, U=0.0):
             and not np.allclose([shortest, longest], sys.dt)):
         raise ValueError(f"time steps of T must equal the sampling time {sys.dt} of "
                          f"{sys.name!r}, got steps from {shortest:g} to {longest:g}")
+    if (sys.isdtime(strict=True) and sys.dt is True and T.size > 1
+            and not np.allclose([shortest, longest], T[1] - T[0])):
+        raise ValueError(f"time steps of T must be equal (the sampling time of {sys.name!r} "
+                         f"is dt=True), got steps from {shortest:g} to {longest:g}")
     X0 = _checks.float_array("X0", X0 if X0 is not None else 0.0)
     if X0.ndim == 0 and sys.nstates != 1 and X0 == 0:
         X0 = np.zeros(sys.nstates)
