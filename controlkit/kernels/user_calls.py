@@ -55,7 +55,11 @@ def _overloads(numba):
                 for i in range(out.size):
                     out[i] = flat[i]
                 return out
-        elif isinstance(r, _nbtypes.UniTuple | _nbtypes.List | _nbtypes.Tuple):
+        elif isinstance(r, _nbtypes.BaseTuple):
+            if not all(isinstance(e, _nbtypes.Number | _nbtypes.Boolean) for e in r):
+                return None
+            impl = _tuple_store(len(r))
+        elif isinstance(r, _nbtypes.List):
             def impl(r, out):
                 for i in range(len(r)):
                     out[i] = r[i]
@@ -63,6 +67,19 @@ def _overloads(numba):
         else:
             return None
         return impl
+
+    def _tuple_store(n):
+        """``store`` of a tuple of ``n`` numbers (of one type or several: indexed by
+        constants), which must fill ``out`` (else the compiled run stops, and Python
+        says what is wrong)."""
+        lines = ["def impl(r, out):",
+                 f"    if out.size != {n}:",
+                 "        raise IndexError('a result of another size than the block declares')",
+                 *(f"    out[{i}] = r[{i}]" for i in range(n)),
+                 "    return out"]
+        scope = {}
+        exec("\n".join(lines), scope)  # noqa: S102 - the text above, n an int
+        return scope["impl"]
 
     def _none(bound):
         return bound is None or isinstance(bound, _nbtypes.NoneType | _nbtypes.Omitted)
