@@ -241,7 +241,8 @@ def kernel_source(plan: Plan, layout: ParamLayout) -> str:
         written[layout.entries] = _functions(plan, layout)
     imports = ["import numpy as _np_",
                "from controlkit.engines.fast.usercode import missing_parameter as _ck_missing",
-               "from controlkit.engines.fast.usercode import store"]
+               "from controlkit.engines.fast.usercode import store",
+               "from controlkit.engines.fast.usercode import matmul as _ck_matmul"]
     lines = []
     for each in plan.tree():  # read now: an array may have been changed in place
         for name, value in each.frozen.items():
@@ -420,13 +421,28 @@ def _numpy_array(func, frozen) -> bool:
     return False
 
 
+class _Products(ast.NodeTransformer):
+    """``a @ b`` -> ``_ck_matmul(a, b)`` (:func:`..user_calls.matmul`: numpy's sums)."""
+
+    def __init__(self):
+        self.used = False
+
+    def visit_BinOp(self, node):
+        node = self.generic_visit(node)
+        if not isinstance(node.op, ast.MatMult):
+            return node
+        self.used = True
+        return ast.copy_location(ast.Call(ast.Name("_ck_matmul", ast.Load()),
+                                          [node.left, node.right], []), node)
+
+
 def _functions(plan, layout):
     """The text of the plan's functions, params read from ``p``."""
     reads = _Reads(layout)
     texts = []
     for each in plan.tree():
         body = _appended_lists(_read_only_lists(
-            [reads.visit(stmt) for stmt in copy_tree(each.body)]))
+            [_Products().visit(reads.visit(stmt)) for stmt in copy_tree(each.body)]))
         if each is plan:
             body = _stored_returns(body, each.frozen)
         texts.append(ast.unparse(function_def(each.name, each.arguments, body)))
