@@ -770,3 +770,25 @@ def test_one_row_products_lists_and_returned_arrays_give_python_controls_numbers
     assert ours.engine_mode == "compiled"
     np.testing.assert_array_equal(ours.outputs, ref.outputs)
     np.testing.assert_array_equal(ours.states, ref.states)
+
+
+def appended_then_set(t, x, u, params):
+    values = []
+    values.append(x[0])
+    values.append(params["k"])
+    values[0] += TS * u[0]  # set after the appends: stays a list
+    growth, k = [], []
+    growth.append(values[0])
+    k.append(values[1])
+    return [growth[0] * (1.0 - TS * k[0]), len(values)]
+
+
+def test_a_list_built_by_appends_then_set_compiles_as_a_list():
+    block = ct.nlsys(appended_then_set, None, inputs="u", outputs=["y", "n"], states=2,
+                     dt=TS, name="block", params={"k": 0.4})
+    loop = ct.interconnect([block], inputs="u", outputs=["y", "n"])
+    T = np.arange(50) * TS
+    ref = ct.input_output_response(loop, T, np.sin(T), [1.0, 0.0])
+    ours = controlkit.input_output_response(loop, T, np.sin(T), [1.0, 0.0], compile=True)
+    assert ours.engine_mode == "compiled"
+    np.testing.assert_array_equal(ours.outputs, ref.outputs)

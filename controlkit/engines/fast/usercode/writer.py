@@ -339,9 +339,9 @@ def _appended_lists(body):
                        and not any(isinstance(e, ast.Starred) for e in t.elts)
                        for t in parent.targets)
         if isinstance(parent, ast.Subscript) and parent.value is node:
-            index = parent.slice
-            return (isinstance(index, ast.Constant) and type(index.value) is int
-                    and -count <= index.value < count)
+            index = parent.slice  # (read: a tuple's items cannot be set)
+            return (isinstance(parent.ctx, ast.Load) and isinstance(index, ast.Constant)
+                    and type(index.value) is int and -count <= index.value < count)
         return (isinstance(parent, ast.Call) and isinstance(parent.func, ast.Name)
                 and parent.func.id == "len" and parent.args == [node])
 
