@@ -40,7 +40,9 @@ def clip(a, a_min, a_max):
 def matmul(a, b):
     """``a @ b``, which compiled user functions call instead: numba's takes a one-row
     matrix times a vector to BLAS's matrix-vector product, numpy's to its dot product,
-    whose last bits differ (a third of the time for two terms).
+    whose last bits differ (a third of the time for two terms); a one-column matrix
+    times a one-element vector is a product a row, summed from 0 as both sum it, without
+    BLAS's call.
 
     Examples
     --------
@@ -104,6 +106,11 @@ def _overloads(numba):
                 if a.shape[0] == 1 and a.shape[1] == b.shape[0] and b.shape[0] > 0:
                     out = np.empty(1)
                     out[0] = np.dot(a[0], b)
+                    return out
+                if a.shape[1] == 1 and b.shape[0] == 1:  # one term a row: 0 + a b, as
+                    out = np.empty(a.shape[0])       # numpy's (and BLAS's gemv) sum it
+                    for i in range(a.shape[0]):
+                        out[i] = 0.0 + a[i, 0] * b[0]
                     return out
                 return a @ b
             return impl
