@@ -736,3 +736,59 @@ def test_a_function_writing_into_its_arguments_is_left_to_python_control(dt):
     assert ours.engine_mode == "python-control"
     np.testing.assert_array_equal(ours.outputs,
                                   ct.input_output_response(loop, T, 1.0, [1.0]).outputs)
+
+
+GAIN_ROW = np.array([[0.0596767275019363, -0.03379733760894157]])
+
+
+def appended_and_returned(t, x, u, params):
+    values = []
+    for key in ("a", "b"):
+        values.append(params[key])
+    a, b = values
+    return np.array([x[0] + TS * (a * x[1] - b * x[0] ** 2), 1])  # an int among floats
+
+
+def one_row_feedback(t, x, u, params):
+    return -GAIN_ROW @ (u - np.array([20.5, 29.5])) + x[0]
+
+
+def test_one_row_products_lists_and_returned_arrays_give_python_controls_numbers():
+    # numba's own `K @ v` for a one-row K is BLAS's gemv, numpy's (python-control's) its
+    # dot product: their last bits differ a third of the time; the list built by appends
+    # and the returned array are tuples in the compiled kernel
+    plant = ct.nlsys(appended_and_returned, None, inputs="v", outputs=["p", "one"],
+                     states=2, dt=TS, name="plant", params={"a": 0.7, "b": 0.3})
+    feedback = ct.nlsys(one_row_feedback, lambda t, x, u, params: x[0], inputs=["p", "one"],
+                        outputs="v", states=1, dt=TS, name="feedback")
+    loop = ct.interconnect([plant, feedback], inputs=[], outputs=["p", "v"])
+    T = np.arange(400) * TS
+    X0 = [20.0, 1.3, 0.1]
+    ref = ct.input_output_response(loop, T, np.zeros((0, T.size)), X0)
+    ours = controlkit.input_output_response(loop, T, np.zeros((0, T.size)), X0,
+                                            compile=True)
+    assert ours.engine_mode == "compiled"
+    np.testing.assert_array_equal(ours.outputs, ref.outputs)
+    np.testing.assert_array_equal(ours.states, ref.states)
+
+
+def appended_then_set(t, x, u, params):
+    values = []
+    values.append(x[0])
+    values.append(params["k"])
+    values[0] += TS * u[0]  # set after the appends: stays a list
+    growth, k = [], []
+    growth.append(values[0])
+    k.append(values[1])
+    return [growth[0] * (1.0 - TS * k[0]), len(values)]
+
+
+def test_a_list_built_by_appends_then_set_compiles_as_a_list():
+    block = ct.nlsys(appended_then_set, None, inputs="u", outputs=["y", "n"], states=2,
+                     dt=TS, name="block", params={"k": 0.4})
+    loop = ct.interconnect([block], inputs="u", outputs=["y", "n"])
+    T = np.arange(50) * TS
+    ref = ct.input_output_response(loop, T, np.sin(T), [1.0, 0.0])
+    ours = controlkit.input_output_response(loop, T, np.sin(T), [1.0, 0.0], compile=True)
+    assert ours.engine_mode == "compiled"
+    np.testing.assert_array_equal(ours.outputs, ref.outputs)

@@ -37,6 +37,22 @@ def clip(a, a_min, a_max):
     return np.clip(a, a_min, a_max)
 
 
+def matmul(a, b):
+    """``a @ b``, which compiled user functions call instead: numba's takes a one-row
+    matrix times a vector to BLAS's matrix-vector product, numpy's to its dot product,
+    whose last bits differ (a third of the time for two terms); a one-column matrix
+    times a one-element vector is a product a row, summed from 0 as both sum it, without
+    BLAS's call.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> matmul(np.array([[1.0, 2.0]]), np.array([3.0, 4.0])).tolist()
+    [11.0]
+    """
+    return a @ b
+
+
 @_jit.on_numba_import
 def _overloads(numba):
     """numba's implementations of :func:`store` and :func:`clip` (made when numba loads)."""
@@ -55,13 +71,52 @@ def _overloads(numba):
                 for i in range(out.size):
                     out[i] = flat[i]
                 return out
-        elif isinstance(r, _nbtypes.UniTuple | _nbtypes.List | _nbtypes.Tuple):
+        elif isinstance(r, _nbtypes.BaseTuple):
+            if not all(isinstance(e, _nbtypes.Number | _nbtypes.Boolean) for e in r):
+                return None
+            impl = _tuple_store(len(r))
+        elif isinstance(r, _nbtypes.List):
             def impl(r, out):
                 for i in range(len(r)):
                     out[i] = r[i]
                 return out
         else:
             return None
+        return impl
+
+    def _tuple_store(n):
+        """``store`` of a tuple of ``n`` numbers (of one type or several: indexed by
+        constants), which must fill ``out`` (else the compiled run stops, and Python
+        says what is wrong)."""
+        lines = ["def impl(r, out):",
+                 f"    if out.size != {n}:",
+                 "        raise IndexError('a result of another size than the block declares')",
+                 *(f"    out[{i}] = r[{i}]" for i in range(n)),
+                 "    return out"]
+        scope = {}
+        exec("\n".join(lines), scope)  # noqa: S102 - the text above, n an int
+        return scope["impl"]
+
+    @overload(matmul, inline="always")
+    def _matmul_overload(a, b):
+        if (isinstance(a, _nbtypes.Array) and isinstance(b, _nbtypes.Array)
+                and a.ndim == 2 and b.ndim == 1 and a.layout == "C" and b.layout == "C"
+                and a.dtype == b.dtype == _nbtypes.float64):
+            def impl(a, b):  # numpy's matmul: one row by a vector is a dot product
+                if a.shape[0] == 1 and a.shape[1] == b.shape[0] and b.shape[0] > 0:
+                    out = np.empty(1)
+                    out[0] = np.dot(a[0], b)
+                    return out
+                if a.shape[1] == 1 and b.shape[0] == 1:  # one term a row: 0 + a b, as
+                    out = np.empty(a.shape[0])       # numpy's (and BLAS's gemv) sum it
+                    for i in range(a.shape[0]):
+                        out[i] = 0.0 + a[i, 0] * b[0]
+                    return out
+                return a @ b
+            return impl
+
+        def impl(a, b):
+            return a @ b
         return impl
 
     def _none(bound):
@@ -113,6 +168,6 @@ def missing_parameter(key):
 # controlkit.engines.fast.usercode import clip``), as they did before it was split, and
 # numba's cache refers to them by module: the package is their home, so that a kernel
 # module's text, and with it its name in the cache, does not depend on this file's name.
-for _public in (store, clip, missing_parameter):
+for _public in (store, clip, matmul, missing_parameter):
     _public.__module__ = "controlkit.engines.fast.usercode"
 del _public

@@ -89,19 +89,43 @@ def interpolate(T, U, t, out):
     [[0.5]]
     """
     n = T.shape[0]
+    if U.shape[0] == 0:  # no inputs: nothing to search for
+        return out
     if n == 1:
         for i in range(U.shape[0]):
             out[i, 0] = U[i, 0]
         return out
+    idx = _segment(T, t)
+    dt = (t - T[idx - 1]) / (T[idx] - T[idx - 1])
+    for i in range(U.shape[0]):
+        out[i, 0] = U[i, idx - 1] * (1.0 - dt) + U[i, idx] * dt
+    return out
+
+
+@jit(inline=True)
+def _segment(T, t):
+    """``searchsorted(T, t, "left")`` clipped to ``[1, len(T) - 1]`` (``len(T) >= 2``):
+    first the segment where ``t`` would be if the points were evenly spaced (as
+    python-control asks them to be), taken if ``T[idx - 1] < t <= T[idx]`` holds there
+    (the one index that does in increasing points), else numpy's binary search."""
+    n = T.shape[0]
+    span = T[n - 1] - T[0]
+    if span > 0.0 and t == t:
+        guess = (t - T[0]) / span * (n - 1)
+        if 0.0 < guess < n - 1:  # (NaN-free, within the points: an index is safe)
+            idx = int(math.ceil(guess))
+            if idx >= 1 and T[idx - 1] < t and not (T[idx] < t):
+                return idx
+            if idx + 1 <= n - 1 and T[idx] < t and not (T[idx + 1] < t):
+                return idx + 1
+            if idx - 1 >= 1 and T[idx - 2] < t and not (T[idx - 1] < t):
+                return idx - 1
     idx = np.searchsorted(T, t)
     if idx < 1:
         idx = 1
     if idx > n - 1:
         idx = n - 1
-    dt = (t - T[idx - 1]) / (T[idx] - T[idx - 1])
-    for i in range(U.shape[0]):
-        out[i, 0] = U[i, idx - 1] * (1.0 - dt) + U[i, idx] * dt
-    return out
+    return idx
 
 
 @jit(inline=True)

@@ -19,7 +19,7 @@ module's text), :mod:`.compiling` (:class:`UserKernel`); what compiled code call
 :mod:`controlkit.kernels.user_calls`, re-exported here.
 """
 
-from ....kernels.user_calls import clip, missing_parameter, store
+from ....kernels.user_calls import clip, matmul, missing_parameter, store
 from .compiling import UserKernel, block_layout
 
-__all__ = ["UserKernel", "block_layout", "clip", "missing_parameter", "store"]
+__all__ = ["UserKernel", "block_layout", "clip", "matmul", "missing_parameter", "store"]

@@ -241,7 +241,8 @@ def kernel_source(plan: Plan, layout: ParamLayout) -> str:
         written[layout.entries] = _functions(plan, layout)
     imports = ["import numpy as _np_",
                "from controlkit.engines.fast.usercode import missing_parameter as _ck_missing",
-               "from controlkit.engines.fast.usercode import store"]
+               "from controlkit.engines.fast.usercode import store",
+               "from controlkit.engines.fast.usercode import matmul as _ck_matmul"]
     lines = []
     for each in plan.tree():  # read now: an array may have been changed in place
         for name, value in each.frozen.items():
@@ -299,10 +300,150 @@ def _read_only_lists(body):
     return body
 
 
+def _appended_lists(body):
+    """``name = []`` then ``name.append(a)``, ``name.append(b)`` -> ``name = (a, b)``
+    where ``name`` is bound there only and otherwise only unpacked whole, indexed by a
+    constant or measured by ``len``.
+
+    Compiled, a list is built at every call (a new list, grown as it is appended to):
+    what a loop over literal ``params`` keys, written out one copy per key
+    (:mod:`...source.rewrites`), leaves of ``values = []; for key in (..): values.append(
+    params[key])``. A tuple holds the same values, each of its own type as in Python.
+    """
+    tree = ast.Module(body, [])
+    stores, uses = {}, {}
+    for node in walk(tree):
+        if isinstance(node, ast.Name):
+            if isinstance(node.ctx, ast.Store):
+                stores[node.id] = stores.get(node.id, 0) + 1
+            else:
+                uses.setdefault(node.id, []).append(node)
+    parents = {child: parent for parent in walk(tree)
+               for child in ast.iter_child_nodes(parent)}
+
+    def appended(stmt, name):
+        call = stmt.value if isinstance(stmt, ast.Expr) else None
+        return (isinstance(call, ast.Call) and isinstance(call.func, ast.Attribute)
+                and call.func.attr == "append" and isinstance(call.func.value, ast.Name)
+                and call.func.value.id == name and len(call.args) == 1
+                and not call.keywords and not isinstance(call.args[0], ast.Starred)
+                and not any(isinstance(n, ast.Name) and n.id == name
+                            for n in walk(call.args[0])))
+
+    def read_whole(node, count, receivers):
+        parent = parents.get(node)
+        if node in receivers:
+            return True
+        if isinstance(parent, ast.Assign) and parent.value is node:
+            return all(isinstance(t, ast.Tuple | ast.List) and len(t.elts) == count
+                       and not any(isinstance(e, ast.Starred) for e in t.elts)
+                       for t in parent.targets)
+        if isinstance(parent, ast.Subscript) and parent.value is node:
+            index = parent.slice  # (read: a tuple's items cannot be set)
+            return (isinstance(parent.ctx, ast.Load) and isinstance(index, ast.Constant)
+                    and type(index.value) is int and -count <= index.value < count)
+        return (isinstance(parent, ast.Call) and isinstance(parent.func, ast.Name)
+                and parent.func.id == "len" and parent.args == [node])
+
+    for block in [body] + [getattr(n, f) for n in walk(tree)
+                           for f in ("body", "orelse", "finalbody")
+                           if n is not tree and isinstance(getattr(n, f, None), list)]:
+        i = 0
+        while i < len(block):
+            stmt = block[i]
+            name = (stmt.targets[0].id if isinstance(stmt, ast.Assign)
+                    and len(stmt.targets) == 1 and isinstance(stmt.targets[0], ast.Name)
+                    and isinstance(stmt.value, ast.List) and not stmt.value.elts else None)
+            j = i + 1
+            while name is not None and j < len(block) and appended(block[j], name):
+                j += 1
+            if name is None or j == i + 1 or stores.get(name) != 1:
+                i += 1
+                continue
+            receivers = {block[k].value.func.value for k in range(i + 1, j)}
+            if all(read_whole(n, j - i - 1, receivers) for n in uses.get(name, [])):
+                items = [block[k].value.args[0] for k in range(i + 1, j)]
+                stmt.value = ast.copy_location(ast.Tuple(items, ast.Load()), stmt.value)
+                del block[i + 1:j]
+            i += 1
+    return body
+
+
+def _stored_returns(body, frozen):
+    """``return np.array([a, b])`` or ``return [a, b]`` -> ``return (a, b)`` in the
+    function whose result ``kernel`` stores, when every return of it is written so.
+
+    Compiled, the array (or list) is a new one at every call, only to be copied into
+    ``out``; the tuple is stored element by element (:func:`..user_calls.store`), each
+    number converted to a float as ``np.array`` converts it and storing it does (an
+    element that is an array is refused by both). Only a flat display (no nested list,
+    no ``*``) of a call without other arguments is changed.
+    """
+    returns, nested = [], False
+    todo = list(body)
+    while todo:
+        node = todo.pop()
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.Lambda
+                      | ast.ClassDef):
+            continue  # (a return in there is another function's)
+        if isinstance(node, ast.Return):
+            returns.append(node)
+        if isinstance(node, ast.Name) and node.id == "user":
+            nested = True  # it calls itself: its result is used as a value
+        todo.extend(ast.iter_child_nodes(node))
+
+    def display(value):
+        if (isinstance(value, ast.Call) and len(value.args) == 1 and not value.keywords
+                and _numpy_array(value.func, frozen)):
+            value = value.args[0]
+        if isinstance(value, ast.List) and value.elts and not any(
+                isinstance(e, ast.List | ast.Tuple | ast.Set | ast.Starred
+                           | ast.ListComp | ast.GeneratorExp) for e in value.elts):
+            return value.elts
+        return None
+
+    elements = [display(node.value) for node in returns]
+    if nested or not returns or any(e is None for e in elements):
+        return body
+    for node, elts in zip(returns, elements, strict=True):
+        node.value = ast.copy_location(ast.Tuple(elts, ast.Load()), node.value)
+    return body
+
+
+def _numpy_array(func, frozen) -> bool:
+    """Whether ``func`` names ``numpy.array`` (or ``asarray``) in the kernel's module."""
+    if isinstance(func, ast.Attribute) and func.attr in ("array", "asarray") \
+            and isinstance(func.value, ast.Name):
+        module = np if func.value.id == "_np_" else frozen.get(func.value.id)
+        return module is np
+    if isinstance(func, ast.Name):
+        return frozen.get(func.id) in (np.array, np.asarray)
+    return False
+
+
+class _Products(ast.NodeTransformer):
+    """``a @ b`` -> ``_ck_matmul(a, b)`` (:func:`..user_calls.matmul`: numpy's sums)."""
+
+    def __init__(self):
+        self.used = False
+
+    def visit_BinOp(self, node):
+        node = self.generic_visit(node)
+        if not isinstance(node.op, ast.MatMult):
+            return node
+        self.used = True
+        return ast.copy_location(ast.Call(ast.Name("_ck_matmul", ast.Load()),
+                                          [node.left, node.right], []), node)
+
+
 def _functions(plan, layout):
     """The text of the plan's functions, params read from ``p``."""
     reads = _Reads(layout)
-    return "\n\n\n".join(
-        ast.unparse(function_def(each.name, each.arguments, _read_only_lists(
-            [reads.visit(stmt) for stmt in copy_tree(each.body)])))
-        for each in plan.tree())
+    texts = []
+    for each in plan.tree():
+        body = _appended_lists(_read_only_lists(
+            [_Products().visit(reads.visit(stmt)) for stmt in copy_tree(each.body)]))
+        if each is plan:
+            body = _stored_returns(body, each.frozen)
+        texts.append(ast.unparse(function_def(each.name, each.arguments, body)))
+    return "\n\n\n".join(texts)
