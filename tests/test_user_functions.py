@@ -792,3 +792,31 @@ def test_a_list_built_by_appends_then_set_compiles_as_a_list():
     ours = controlkit.input_output_response(loop, T, np.sin(T), [1.0, 0.0], compile=True)
     assert ours.engine_mode == "compiled"
     np.testing.assert_array_equal(ours.outputs, ref.outputs)
+
+
+KEYS_READ = ["k1", "k2"]
+
+
+def test_a_list_of_keys_changed_in_place_is_read_again():
+    # the loop over KEYS_READ is written out one copy per key: after an append, the same
+    # diagram run again in the process answered with the old keys (0.6 against 1.4)
+    def output(t, x, u, p):
+        total = 0.0
+        for name in KEYS_READ:
+            total += p[name]
+        return total * u[0]
+
+    block = ct.nlsys(None, output, inputs="u", outputs="y", dt=1.0, name="keyed",
+                     params={"k1": 0.1, "k2": 0.2, "k3": 0.4})
+    loop = ct.interconnect([block], inputs="u", outputs="y")
+    T = np.arange(4.0)
+    try:
+        for edit in (lambda: None, lambda: KEYS_READ.append("k3"),
+                     lambda: KEYS_READ.__setitem__(0, "k3")):
+            edit()
+            ours = controlkit.input_output_response(loop, T, 2.0, compile=True)
+            assert ours.engine_mode == "compiled"
+            np.testing.assert_array_equal(ours.outputs,
+                                          ct.input_output_response(loop, T, 2.0).outputs)
+    finally:
+        KEYS_READ[:] = ["k1", "k2"]

@@ -29,6 +29,11 @@ from .values import (
 )
 
 
+def _items(value):
+    """A list's items as they are now (a tuple), else None."""
+    return tuple(value) if isinstance(value, list) else None
+
+
 class _OutsideReads:
     """Methods of :class:`~.translator._Translator` for names read from outside the function
     and calls to helper functions (it provides ``build``, ``fn``, ``fixed``, ``local``,
@@ -40,6 +45,10 @@ class _OutsideReads:
         found, value, getter = self._lookup_getter(name)
         if getter is not None:  # (a builtin is checked for not being shadowed since)
             self.plan.checks.append((getter, getter()))
+        if isinstance(value, list):  # its strings may be written into the plan (a loop over
+            # keys unrolled): changed in place, they are another plan
+            read = getter or (lambda: value)
+            self.plan.checks.append((lambda: _items(read()), _items(value)))
         return found, value
 
     def _lookup_getter(self, name):

@@ -135,6 +135,8 @@ def _same(a, b) -> bool:
         return np.asarray(a).tobytes() == np.asarray(b).tobytes() or bool(a != a and b != b)
     if isinstance(a, types.MethodType):  # a new bound method object at each read
         return a.__func__ is b.__func__ and a.__self__ is b.__self__
+    if isinstance(a, tuple):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
     return False
 
 
