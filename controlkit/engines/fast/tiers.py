@@ -100,6 +100,38 @@ def _probe_feedthrough(block, output, p=None):
     return False
 
 
+def _feeds_through(system) -> bool:
+    """Whether ``system``'s output may move with its input at the same instant, read from
+    its structure: an LTI block's ``D``, a user function's source (whether it reads ``u``),
+    a nested interconnect's paths through such blocks. True where it cannot be told (a
+    function whose source is not available): a trial of the function at some points
+    cannot tell (a dead zone of width 1 at inputs within 1, a switch on the time), and
+    the block that reads it would be computed a step late (python-control repeats its
+    pass over the blocks until the signals settle, so its order never matters)."""
+    if system.ninputs == 0 or system.noutputs == 0:
+        return False
+    if isinstance(system, ct.StateSpace):
+        return bool(np.any(system.D != 0))
+    if isinstance(system, ct.InterconnectedSystem):
+        inputs = np.any(system.input_map != 0, axis=1)  # the blocks' inputs it moves
+        outputs = np.zeros(system.connect_map.shape[1], dtype=bool)
+        feeds = [_feeds_through(s) for s in system.syslist]
+        for _ in range(len(system.syslist) + 1):
+            u0 = y0 = 0
+            for sub, feed in zip(system.syslist, feeds, strict=True):
+                if feed and inputs[u0:u0 + sub.ninputs].any():
+                    outputs[y0:y0 + sub.noutputs] = True
+                u0, y0 = u0 + sub.ninputs, y0 + sub.noutputs
+            inputs = inputs | np.any(system.connect_map[:, outputs] != 0, axis=1)
+        read = np.concatenate([outputs, inputs])  # its outputs read blocks' outputs, inputs
+        return bool(np.any(system.output_map[:, read] != 0))
+    if isinstance(system, ct.NonlinearIOSystem):
+        if system.outfcn is None:
+            return False  # its output is its state
+        return source.reads_input(system.outfcn) is not False
+    return True
+
+
 class NotCompiled(Exception):
     """A block that cannot be compiled (the message names it and says why).
 
@@ -121,7 +153,7 @@ def _python_kernels(block, local, reason):
         return out
 
     return (BlockKernels(output, update if block.nstates else None, np.zeros(0),
-                         _probe_feedthrough(block, output)), "python", reason)
+                         _feeds_through(block)), "python", reason)
 
 
 def _user_kernels(block, local, compiled):
@@ -140,9 +172,7 @@ def _user_kernels(block, local, compiled):
               if block.outfcn is not None else None)
     update = (usercode.UserKernel(block.updfcn, local, block.name, "update")
               if block.nstates and block.updfcn is not None else None)
-    feed = source.reads_input(block.outfcn) if block.outfcn is not None else False
-    if feed is None:  # its source does not say: ask the function itself
-        feed = _probe_feedthrough(block, output)
+    feed = _feeds_through(block)
     if block.nstates and update is None:
         raise UnsupportedSystem(f"block {block.name!r} has states but no update function")
     mine = [k for k in (output, update) if k is not None]
