@@ -204,8 +204,9 @@ class KernelBlock(ct.NonlinearIOSystem):
         outfcn = self._wrap(output, p, check, output=True)
         updfcn = None if update is None else self._wrap(update, p, None, output=False)
         super().__init__(updfcn, outfcn, **nlsys_kwargs)
+        self.feedthrough = bool(feedthrough)  # (rule 8; also when it runs as Python)
         self.kernels = None if uncompiled else BlockKernels(output, update, p,
-                                                            bool(feedthrough))
+                                                            self.feedthrough)
         self.check = check
         self.check_state = check_state
         self.uncompiled_reason = uncompiled

@@ -110,6 +110,10 @@ def _feeds_through(system) -> bool:
     pass over the blocks until the signals settle, so its order never matters)."""
     if system.ninputs == 0 or system.noutputs == 0:
         return False
+    if isinstance(system, KernelBlock):
+        return system.feedthrough  # declared (the block contract's rule 8)
+    if isinstance(system, SampledSystem):
+        return _feeds_through(system.continuous)
     if isinstance(system, ct.StateSpace):
         return bool(np.any(system.D != 0))
     if isinstance(system, ct.InterconnectedSystem):
