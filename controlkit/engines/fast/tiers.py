@@ -76,7 +76,7 @@ def _local_params(sys, block, params):
     return local
 
 
-def _probe_feedthrough(block, output, p=None):
+def _probe_feedthrough(block, output, p):
     """Whether ``block``'s kernel ``output(t, x, u, p, out)`` moves with ``u`` at random
     trial points (True where it cannot be evaluated there, or gives a non-finite value,
     which says nothing about ``u``: the safe answer; ``log(u[0] - 2)`` is NaN at every

@@ -258,6 +258,21 @@ def kernel_source(plan: Plan, layout: ParamLayout) -> str:
     ])
 
 
+def _names(tree):
+    """``(stores, uses, parents)`` of ``tree``: how often each name is bound, the nodes
+    that read each name, and each node's parent."""
+    stores, uses = {}, {}
+    for node in walk(tree):
+        if isinstance(node, ast.Name):
+            if isinstance(node.ctx, ast.Store):
+                stores[node.id] = stores.get(node.id, 0) + 1
+            else:
+                uses.setdefault(node.id, []).append(node)
+    parents = {child: parent for parent in walk(tree)
+               for child in ast.iter_child_nodes(parent)}
+    return stores, uses, parents
+
+
 def _read_only_lists(body):
     """``name = [1, 2, 3]`` -> ``name = (1, 2, 3)`` where ``name`` is only ever indexed.
 
@@ -268,15 +283,7 @@ def _read_only_lists(body):
     or ``len(name)`` is changed: Python reads the two alike.
     """
     tree = ast.Module(body, [])
-    stores, uses = {}, {}
-    for node in walk(tree):
-        if isinstance(node, ast.Name):
-            if isinstance(node.ctx, ast.Store):
-                stores[node.id] = stores.get(node.id, 0) + 1
-            else:
-                uses.setdefault(node.id, []).append(node)
-    parents = {child: parent for parent in walk(tree)
-               for child in ast.iter_child_nodes(parent)}
+    stores, uses, parents = _names(tree)
 
     def read_only(name):
         for node in uses.get(name, []):
@@ -311,15 +318,7 @@ def _appended_lists(body):
     params[key])``. A tuple holds the same values, each of its own type as in Python.
     """
     tree = ast.Module(body, [])
-    stores, uses = {}, {}
-    for node in walk(tree):
-        if isinstance(node, ast.Name):
-            if isinstance(node.ctx, ast.Store):
-                stores[node.id] = stores.get(node.id, 0) + 1
-            else:
-                uses.setdefault(node.id, []).append(node)
-    parents = {child: parent for parent in walk(tree)
-               for child in ast.iter_child_nodes(parent)}
+    stores, uses, parents = _names(tree)
 
     def appended(stmt, name):
         call = stmt.value if isinstance(stmt, ast.Expr) else None
@@ -369,9 +368,10 @@ def _appended_lists(body):
     return body
 
 
-def _stored_returns(body, frozen):
+def _stored_returns(body, frozen, name):
     """``return np.array([a, b])`` or ``return [a, b]`` -> ``return (a, b)`` in the
-    function whose result ``kernel`` stores, when every return of it is written so.
+    function ``name`` whose result ``kernel`` stores, when every return of it is written
+    so.
 
     Compiled, the array (or list) is a new one at every call, only to be copied into
     ``out``; the tuple is stored element by element (:func:`..user_calls.store`), each
@@ -388,7 +388,7 @@ def _stored_returns(body, frozen):
             continue  # (a return in there is another function's)
         if isinstance(node, ast.Return):
             returns.append(node)
-        if isinstance(node, ast.Name) and node.id == "user":
+        if isinstance(node, ast.Name) and node.id == name:
             nested = True  # it calls itself: its result is used as a value
         todo.extend(ast.iter_child_nodes(node))
 
@@ -424,14 +424,10 @@ def _numpy_array(func, frozen) -> bool:
 class _Products(ast.NodeTransformer):
     """``a @ b`` -> ``_ck_matmul(a, b)`` (:func:`..user_calls.matmul`: numpy's sums)."""
 
-    def __init__(self):
-        self.used = False
-
     def visit_BinOp(self, node):
         node = self.generic_visit(node)
         if not isinstance(node.op, ast.MatMult):
             return node
-        self.used = True
         return ast.copy_location(ast.Call(ast.Name("_ck_matmul", ast.Load()),
                                           [node.left, node.right], []), node)
 
@@ -444,6 +440,6 @@ def _functions(plan, layout):
         body = _appended_lists(_read_only_lists(
             [_Products().visit(reads.visit(stmt)) for stmt in copy_tree(each.body)]))
         if each is plan:
-            body = _stored_returns(body, each.frozen)
+            body = _stored_returns(body, each.frozen, each.name)
         texts.append(ast.unparse(function_def(each.name, each.arguments, body)))
     return "\n\n\n".join(texts)
