@@ -9,10 +9,11 @@ over ``--horizon`` seconds with drawn model errors, through
 caller before the workers start, and the workers load them). Each measurement is a fresh
 process (as ``controlkit sweep`` is): the time of the ``study`` call (the warm-up, the
 pool's start and the runs) and the process's wall time (imports and exit too), in the
-caller (``executor="serial"``), on 1 worker process and on 2; with ``--before DIR``
-another checkout measured the same way, interleaved, each with its own store. The
-speed-up is the 1-worker time over the 2-worker time, within one round (the machine is
-shared: a loaded machine shifts both).
+caller (``executor="serial"``), on 1 worker process and on 2, on 1 thread and on 2 (a
+study's default where numba compiles); with ``--before DIR`` another checkout measured
+the same way, interleaved, each with its own store. The speed-ups are one setup's time
+over another's within one round (the machine is shared: a loaded machine shifts both):
+1 worker over 2, 1 thread over 2, and 2 workers over 2 threads.
 """
 
 from __future__ import annotations
@@ -28,7 +29,10 @@ from timing import add_checkout_arguments, checkout_env, load, run_child
 
 CASES = ["without_mec", "mec_fixed", "proposed"]
 SETUPS = {"in the caller": ("serial", None), "1 worker": ("processes", 1),
-          "2 workers": ("processes", 2)}
+          "2 workers": ("processes", 2), "1 thread": ("threads", 1),
+          "2 threads": ("threads", 2)}
+#: The speed-ups printed: (numerator setup, denominator setup), within one round.
+RATIOS = (("1 worker", "2 workers"), ("1 thread", "2 threads"), ("2 workers", "2 threads"))
 
 
 def child(samples, horizon, executor, workers):
@@ -82,9 +86,8 @@ def main(argv=None):
                 print(f"# {who} {setup}: {json.dumps(out)}", file=sys.stderr, flush=True)
     print(f"\n{args.runs} spacecraft runs of {args.horizon:g} s, {args.rounds} round(s): "
           f"the study call (runs/s), and the process's wall time; medians")
-    print("| engine | in the caller | 1 worker | 2 workers | 2 workers / 1 worker "
-          "(study call; each round) | same, wall | load |")
-    print("|---|---|---|---|---|---|---|")
+    print("| engine | " + " | ".join(SETUPS) + " | load |")
+    print("|---|" + "---|" * len(SETUPS) + "---|")
     for who in versions:
         cells, loads = [], []
         for setup in SETUPS:
@@ -92,14 +95,20 @@ def main(argv=None):
             loads += [r["load"] for r in runs]
             study = statistics.median(r["study_s"] for r in runs)
             wall = statistics.median(r["wall"] for r in runs)
-            cells.append(f"{study:.1f} s ({args.runs / study:.1f} runs/s), wall {wall:.1f} s")
-        one, two = results[(who, "1 worker")], results[(who, "2 workers")]
-        speedups = [a["study_s"] / b["study_s"] for a, b in zip(one, two, strict=True)]
-        walls = [a["wall"] / b["wall"] for a, b in zip(one, two, strict=True)]
-        print(f"| {who} | " + " | ".join(cells)
-              + f" | {statistics.median(speedups):.2f}x "
-                f"({', '.join(f'{s:.2f}' for s in speedups)}) | "
-                f"{statistics.median(walls):.2f}x | {min(loads)}-{max(loads)} |")
+            cells.append(f"{study:.2f} s ({args.runs / study:.1f} runs/s), wall {wall:.1f} s")
+        print(f"| {who} | " + " | ".join(cells) + f" | {min(loads)}-{max(loads)} |")
+    print("\nSpeed-ups of the study call (median; each round), and of the wall time (median)")
+    print("| engine | " + " | ".join(f"{b} over {a}" for a, b in RATIOS) + " |")
+    print("|---|" + "---|" * len(RATIOS))
+    for who in versions:
+        cells = []
+        for slow, fast in RATIOS:
+            pairs = list(zip(results[(who, slow)], results[(who, fast)], strict=True))
+            study = [a["study_s"] / b["study_s"] for a, b in pairs]
+            wall = statistics.median(a["wall"] / b["wall"] for a, b in pairs)
+            cells.append(f"{statistics.median(study):.2f}x "
+                         f"({', '.join(f'{x:.2f}' for x in study)}), wall {wall:.2f}x")
+        print(f"| {who} | " + " | ".join(cells) + " |")
     return 0
 
 

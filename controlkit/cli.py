@@ -123,7 +123,8 @@ def _add_sweep(subparsers) -> None:
                         + "); with :N it is an N-point grid crossed with the draws")
     p.add_argument("--workers", type=int, metavar="N", help="workers (default: all cores)")
     p.add_argument("--executor", choices=["processes", "threads", "serial", "dask"],
-                   default="processes", help="where runs go (default: local processes)")
+                   help="where runs go (default: threads where numba compiles the runs' "
+                        "loops, which release Python's lock; else local processes)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="a running Dask scheduler, e.g. tcp://host:8786 (with --executor dask)")
     p.add_argument("--timeout", type=float, metavar="SECONDS",

@@ -104,11 +104,13 @@ def _study(executor, **kwargs):
     return table.drop(columns="wall_time_s"), summary
 
 
-def test_same_seed_same_rows_serial_processes_and_dask():
+def test_same_seed_same_rows_serial_processes_threads_and_dask():
     serial, summary = _study("serial")
     assert len(serial) == 6 and (serial["error"] == "").all()
     processes, _ = _study("processes", workers=2)
     pd.testing.assert_frame_equal(serial, processes)
+    default, _ = _study(None, workers=2)  # threads where numba compiles, else processes
+    pd.testing.assert_frame_equal(serial, default)
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                   dashboard_address=None) as cluster, \
@@ -116,6 +118,13 @@ def test_same_seed_same_rows_serial_processes_and_dask():
         on_dask, _ = _study(client.get_executor())
     pd.testing.assert_frame_equal(serial, on_dask)
     assert summary["proposed"]["runs"] == 3
+
+
+def test_a_study_runs_on_threads_where_numba_compiles_its_loops(monkeypatch):
+    pytest.importorskip("numba")
+    assert robustness.default_executor() == "threads"
+    monkeypatch.setenv("CONTROLKIT_DISABLE_NUMBA", "1")  # runs in Python hold the lock
+    assert robustness.default_executor() == "processes"
 
 
 def test_user_executor_is_used_and_not_closed():
