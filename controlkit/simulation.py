@@ -249,7 +249,8 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
                              "for a sampled-data diagram, integrated between its instants: "
                              "give the times, or 'T'")
         return _sampled_data_response(sys, T, U, X0, engine, options, compile)
-    if engine == "fast" and t_eval is not None:  # (None: python-control's solver's steps)
+    if engine == "fast" and t_eval is not None and not _python_control_s_own(sys, T, options):
+        # (t_eval None: python-control's solver's steps)
         if compile is None and not engines.fast_start_pays(sys, np.size(T), _LONGEST[0]):
             return _python_control(sys, T, U, X0, options)
         fast = _fast_response(sys, T, U, X0, options, "python-control",
@@ -258,6 +259,27 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
         if fast is not None:
             return fast
     return _python_control(sys, T, U, X0, options)
+
+
+def _python_control_s_own(sys, T, options) -> bool:
+    """Whether the call's arguments take a form python-control answers in its own way
+    (an error, or integrating backwards), which the engine, whose time points increase,
+    leaves to it: a list ``T`` for a discrete system (python-control subtracts lists),
+    a single time point, time points that do not increase, ``t_eval`` in
+    ``solve_ivp_kwargs``. Rare forms: python-control's own run answers them exactly."""
+    sampling = _sys.modules.get("controlkit.blocks.sampling")  # (imported for a grid)
+    if sampling is not None and isinstance(T, sampling.TimeGrid):
+        return False  # increasing by construction, and kept lazy
+    if "t_eval" in options["solve_ivp_kwargs"] or np.size(T) < 2:
+        return True
+    isdtime = getattr(sys, "isdtime", None)  # (not a system: python-control's error)
+    if not isinstance(T, np.ndarray) and (isdtime is None or isdtime(strict=True)):
+        return True
+    try:
+        steps = np.diff(np.asarray(T, dtype=float).reshape(-1))
+    except (TypeError, ValueError):  # (not numbers: python-control's error)
+        return True
+    return not (steps > 0).all()
 
 
 #: The longest run :func:`input_output_response` left to python-control in this process,

@@ -622,6 +622,39 @@ def test_uneven_time_steps_of_a_dt_true_system_are_refused_as_python_control_ref
             controlkit.input_output_response(block, T, 1.0, 1.0, compile=compile)
 
 
+def _outcome(function, sys_, T, **kwargs):
+    """What a call answers: its exception's type and message, or its time and outputs."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            resp = function(sys_, T, 1.0, 1.0, **kwargs)
+        except Exception as error:  # noqa: BLE001 - compared
+            return type(error), str(error)
+    return np.asarray(resp.time).tolist(), np.asarray(resp.outputs).tolist()
+
+
+_DECAY = dict(states=1, inputs=1, outputs=1, name="decay")
+
+
+@pytest.mark.parametrize("dt, T, solver", [
+    (DT, [0.0, 0.25, 0.5], {}),  # a list: python-control subtracts lists (TypeError)
+    (DT, np.array([0.0]), {}),  # one time point (IndexError)
+    (0, np.array([0.0]), {}),  # (python-control's "algebraic loop detected")
+    (0, np.linspace(1.0, 0.0, 5), {}),  # decreasing: python-control integrates backwards
+    (DT, np.arange(0.75, -0.25, -0.25), {}),  # (python-control's "sampling time" error)
+    (0, np.linspace(0.0, 1.0, 5), {"t_eval": np.linspace(0.0, 1.0, 3)}),  # (its ValueError)
+], ids=["list-discrete", "one-point-discrete", "one-point", "decreasing", "decreasing-discrete",
+        "t_eval-in-solve_ivp_kwargs"])
+def test_argument_forms_python_control_answers_its_own_way_are_its_own(dt, T, solver):
+    block = ct.nlsys(lambda t, x, u, p: -x + u, lambda t, x, u, p: x, dt=dt, **_DECAY)
+    loop = ct.interconnect([block], inputs="u[0]", outputs="y[0]")
+    options = {"solve_ivp_kwargs": solver} if solver else {}
+    expected = _outcome(ct.input_output_response, loop, T, **options)
+    for compile in (True, False, None):
+        assert _outcome(controlkit.input_output_response, loop, T, compile=compile,
+                        **options) == expected
+
+
 class Terminated(KeyboardInterrupt):
     """What a command raises on ``kill PID`` (``controlkit reproduce``'s own kind)."""
 
