@@ -266,7 +266,8 @@ def _python_control_s_own(sys, T, options) -> bool:
     (an error, or integrating backwards), which the engine, whose time points increase,
     leaves to it: a list ``T`` for a discrete system (python-control subtracts lists),
     a single time point, time points that do not increase, ``t_eval`` in
-    ``solve_ivp_kwargs``. Rare forms: python-control's own run answers them exactly."""
+    ``solve_ivp_kwargs``, time points of another float type than float64 (python-control
+    evaluates the functions at them). Rare forms: python-control's own run answers them exactly."""
     sampling = _sys.modules.get("controlkit.blocks.sampling")  # (imported for a grid)
     if sampling is not None and isinstance(T, sampling.TimeGrid):
         return False  # increasing by construction, and kept lazy
@@ -275,6 +276,8 @@ def _python_control_s_own(sys, T, options) -> bool:
     isdtime = getattr(sys, "isdtime", None)  # (not a system: python-control's error)
     if not isinstance(T, np.ndarray) and (isdtime is None or isdtime(strict=True)):
         return True
+    if isinstance(T, np.ndarray) and T.dtype != np.float64 and T.dtype.kind not in "iu":
+        return True  # float32, longdouble: python-control computes the times in them
     try:
         steps = np.diff(np.asarray(T, dtype=float).reshape(-1))
     except (TypeError, ValueError):  # (not numbers: python-control's error)

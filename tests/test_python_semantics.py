@@ -643,10 +643,13 @@ _DECAY = dict(states=1, inputs=1, outputs=1, name="decay")
     (0, np.linspace(1.0, 0.0, 5), {}),  # decreasing: python-control integrates backwards
     (DT, np.arange(0.75, -0.25, -0.25), {}),  # (python-control's "sampling time" error)
     (0, np.linspace(0.0, 1.0, 5), {"t_eval": np.linspace(0.0, 1.0, 3)}),  # (its ValueError)
+    (DT, np.arange(0.0, 2.5, DT, dtype=np.float32) + np.float32(1e-3), {}),  # sin(float32)
+    (0, np.linspace(0.0, 1.0, 5, dtype=np.longdouble), {}),
 ], ids=["list-discrete", "one-point-discrete", "one-point", "decreasing", "decreasing-discrete",
-        "t_eval-in-solve_ivp_kwargs"])
+        "t_eval-in-solve_ivp_kwargs", "float32-discrete", "longdouble"])
 def test_argument_forms_python_control_answers_its_own_way_are_its_own(dt, T, solver):
-    block = ct.nlsys(lambda t, x, u, p: -x + u, lambda t, x, u, p: x, dt=dt, **_DECAY)
+    block = ct.nlsys(lambda t, x, u, p: -x + np.sin(t) * u, lambda t, x, u, p: x, dt=dt,
+                     **_DECAY)
     loop = ct.interconnect([block], inputs="u[0]", outputs="y[0]")
     options = {"solve_ivp_kwargs": solver} if solver else {}
     expected = _outcome(ct.input_output_response, loop, T, **options)
