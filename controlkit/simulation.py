@@ -279,10 +279,11 @@ def _python_control_s_own(sys, T, options) -> bool:
     if isinstance(T, np.ndarray) and T.dtype != np.float64 and T.dtype.kind not in "iu":
         return True  # float32, longdouble: python-control computes the times in them
     try:
-        steps = np.diff(np.asarray(T, dtype=float).reshape(-1))
+        times = np.asarray(T, dtype=float).reshape(-1)
     except (TypeError, ValueError):  # (not numbers: python-control's error)
         return True
-    return not (steps > 0).all()
+    # (NaN or inf: python-control refuses in its solver's words, the engine names T)
+    return np.isfinite(times).all() and not (np.diff(times) > 0).all()
 
 
 #: The longest run :func:`input_output_response` left to python-control in this process,

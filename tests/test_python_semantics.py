@@ -658,6 +658,28 @@ def test_argument_forms_python_control_answers_its_own_way_are_its_own(dt, T, so
                         **options) == expected
 
 
+_TABLE = np.array([1.0, 2.0, 3.0, 4.0, 5.0, 6.0])
+
+
+@pytest.mark.parametrize("update, dt", [
+    (lambda t, x, u, p: x + _TABLE[t], 1),  # a table indexed by the time: floats fail
+    (lambda t, x, u, p: x + t // 2 + u, 1),  # the same numbers from a float t
+    (lambda t, x, u, p: -x + u, 0),  # continuous: python-control's time points as given
+], ids=["indexed-by-t", "same-numbers", "continuous"])
+def test_integer_time_points_answer_as_python_control_s(update, dt):
+    block = ct.nlsys(update, lambda t, x, u, p: x, dt=dt, **_DECAY)
+    loop = ct.interconnect([block], inputs="u[0]", outputs="y[0]")
+    T = np.arange(5)
+    expected = ct.input_output_response(loop, T, 1.0, 1.0)
+    assert expected.time.dtype.kind == "i"
+    for compile in (True, False, None):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # (the first: python-control runs it, and says)
+            ours = controlkit.input_output_response(loop, T, 1.0, 1.0, compile=compile)
+        assert np.array_equal(ours.outputs, expected.outputs)
+        assert ours.time.dtype == expected.time.dtype and np.array_equal(ours.time, T)
+
+
 class Terminated(KeyboardInterrupt):
     """What a command raises on ``kill PID`` (``controlkit reproduce``'s own kind)."""
 

@@ -98,9 +98,10 @@ def test_the_drop_in_accepts_a_params_key_no_block_reads_as_python_control_does(
     np.testing.assert_array_equal(misspelt.outputs, default.outputs)
     own = output_zeroing_loop(controller=sc.outer_controller(0.5))
     X0 = initial_state(own, plant=initial_attitude())
-    bound = controlkit.input_output_response(own, [0.0, 0.1, 0.2], 0.0, X0, params={"F": 10})
+    T = np.array([0.0, 0.1, 0.2])  # (a list: python-control subtracts lists, TypeError)
+    bound = controlkit.input_output_response(own, T, 0.0, X0, params={"F": 10})
     np.testing.assert_array_equal(
-        bound.outputs, controlkit.input_output_response(own, [0.0, 0.1, 0.2], 0.0, X0).outputs)
+        bound.outputs, controlkit.input_output_response(own, T, 0.0, X0).outputs)
 
 
 @pytest.mark.parametrize("which", ENGINES)

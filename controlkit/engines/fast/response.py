@@ -48,21 +48,35 @@ def response(sys, T, U, X0, *, compile=None, **options) -> ct.TimeResponseData:
 
 def _response(given, sys, T, U, X0, compile, options):
     """:func:`response` of ``given`` run as the interconnect ``sys``."""
-    given_X0 = X0
+    given_X0, given_times = X0, options.get("evaluation_times", "T")
+    given_times = T if isinstance(given_times, str) else given_times
     T, U, X0, t_eval, method, solver = python_control_arguments(sys, T, U, X0, options)
     params = options.get("params")
     if sys.isdtime(strict=True):
         if not np.array_equal(t_eval, T):  # python-control interpolates U at t_eval
             U = interpolated(T, U, t_eval)
-        resp = simulate(sys, t_eval, X0, U, params=params, compile=compile)
+        # python-control hands its functions the time points as given: integers stay so
+        integer_times = isinstance(given_times, np.ndarray) and given_times.dtype.kind in "iu"
+        try:
+            resp = simulate(sys, t_eval, X0, U, params=params, compile=compile)
+        except UnsupportedSystem:
+            raise
+        except Exception as error:
+            if integer_times:  # (a table indexed by t, say): python-control's own answer
+                raise UnsupportedSystem(_INTEGER_TIMES.format(
+                    f"fails on a float one ({type(error).__name__})")) from None
+            raise
         integers = integer_state(given_X0, sys.nstates)
-        if integers is not None and _integers_count(given, t_eval[0], X0, integers, U[:, 0],
-                                                    params):
+        if integers is not None and _integers_count(given, t_eval[0], X0, X0.astype(integers),
+                                                    U[:, 0], params):
             raise UnsupportedSystem(
                 f"X0 holds integers, which python-control keeps in its first step, where a "
                 f"function of this system computes other numbers from them than from floats "
                 f"(np.zeros_like(x) fills integers); X0 given as floats "
                 f"(X0={np.asarray(X0).tolist()}) runs on the fast engine")
+        if integer_times and _integers_count(given, given_times[0], X0, X0, U[:, 0], params,
+                                             t_given=given_times[0]):
+            raise UnsupportedSystem(_INTEGER_TIMES.format("computes other numbers from it"))
     else:
         resp = run_continuous(sys, T, U, X0, params=params, t_eval=t_eval, method=method,
                               compile=compile, **solver)
@@ -72,21 +86,30 @@ def _response(given, sys, T, U, X0, compile, options):
         # one cost more than a fast discrete loop (8 of 43 ms for 10^6 steps of a servo)
         for name, value in flags.items():
             setattr(resp, name, value)
-        return resp
-    relabelled = base_response(given, resp.t, resp.y, resp.x, resp.u, **flags)
-    relabelled.engine_mode = resp.engine_mode
-    return relabelled
+    else:
+        relabelled = base_response(given, resp.t, resp.y, resp.x, resp.u, **flags)
+        relabelled.engine_mode, resp = resp.engine_mode, relabelled
+    if isinstance(given_times, np.ndarray) and given_times.dtype.kind in "iu":
+        resp.t = given_times.reshape(-1)  # python-control's time points, as given
+    return resp
 
 
-def _integers_count(given, t, X0, integers, u, params) -> bool:
-    """Whether python-control's first step of ``given`` from the initial state held as
-    ``integers`` (see :func:`.contract.integer_state`) gives other numbers than from
-    floats, or (a single block) a state still held as integers. The functions run after
+#: Why a discrete run whose time points are integers goes to python-control.
+_INTEGER_TIMES = ("T holds integers, which python-control hands to the functions as the time "
+                  "t, and a function of this system {} than from a float t; T given as "
+                  "floats (T.astype(float)) runs on the fast engine")
+
+
+def _integers_count(given, t, X0, x_given, u, params, *, t_given=None) -> bool:
+    """Whether python-control's first step of ``given`` at the time and from the initial
+    state as it holds them (``t_given``, ``x_given``: integers, see
+    :func:`.contract.integer_state`) gives other numbers than at the floats ``t`` and
+    ``X0``, or (a single block) a state still held as integers. The functions run after
     the engine's own run, which refused any that acts outside itself (a print, a write)."""
-    x_given = X0.astype(integers)
+    t_given, t = (t if t_given is None else t_given), float(t)
     try:
-        step = np.asarray(given.dynamics(t, x_given, u, params=params))
-        out = np.asarray(given.output(t, x_given, u, params=params))
+        step = np.asarray(given.dynamics(t_given, x_given, u, params=params))
+        out = np.asarray(given.output(t_given, x_given, u, params=params))
     except Exception:  # noqa: BLE001 - python-control's run raises it, as it does
         return True
     if step.dtype.kind != "f" and not isinstance(given, ct.InterconnectedSystem):
