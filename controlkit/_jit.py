@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import functools
 import os
+import threading
 
 import numpy as np
 
@@ -22,6 +23,10 @@ import numpy as np
 _NUMBA: list = []
 #: Functions to call with numba's module when it is first imported (overloads, typing).
 _ON_IMPORT: list = []
+#: Held while numba is imported and controlkit's additions registered (re-entrant: they
+#: ask for numba's module themselves); ``_READY`` once they all are.
+_STARTING = threading.RLock()
+_READY: list = []
 
 
 def available() -> bool:
@@ -54,25 +59,28 @@ def numba_module():
     >>> available() == (numba_module() is not None) if available() else True
     True
     """
-    if not _NUMBA:
-        if not available():
-            raise ImportError("numba is not installed (pip install \".[fast]\") or is "
-                              "switched off by CONTROLKIT_DISABLE_NUMBA")
-        import numba
-        from numba.extending import typeof_impl
+    if not _READY:
+        with _STARTING:  # (another thread waits until every addition is registered)
+            if not _NUMBA:
+                if not available():
+                    raise ImportError("numba is not installed (pip install \".[fast]\") or "
+                                      "is switched off by CONTROLKIT_DISABLE_NUMBA")
+                import numba
+                from numba.extending import typeof_impl
 
-        from . import compat
+                from . import compat
 
-        compat.unique_function_ids(numba)
+                compat.unique_function_ids(numba)
 
-        @typeof_impl.register(Jitted)
-        def _typeof_jitted(value, context):  # compiled code calling a Jitted calls numba's
-            return typeof_impl(value.dispatcher, context)
+                @typeof_impl.register(Jitted)
+                def _typeof_jitted(value, context):  # compiled code calling it calls numba's
+                    return typeof_impl(value.dispatcher, context)
 
-        _NUMBA.append(numba)
-        _compiled_only(numba)
-        for register in _ON_IMPORT:
-            register(numba)
+                _NUMBA.append(numba)
+                _compiled_only(numba)
+                for register in _ON_IMPORT:
+                    register(numba)
+                _READY.append(True)
     return _NUMBA[0]
 
 
@@ -87,9 +95,10 @@ def on_numba_import(register):
     >>> len(seen) == (1 if _NUMBA else 0)
     True
     """
-    _ON_IMPORT.append(register)
-    if _NUMBA:
-        register(_NUMBA[0])
+    with _STARTING:
+        _ON_IMPORT.append(register)
+        if _NUMBA:
+            register(_NUMBA[0])
     return register
 
 

@@ -17,6 +17,14 @@ python-control (0.10.x):
   ``control.nlsys._process_vector_argument``: lists of per-signal parts, a short
   initial state padded with zeros and its warning).
 
+- :data:`SYSTEM_CALLS`: a python-control system keeps the ``params`` of its last
+  ``output``/``dynamics`` call on itself (``_current_params``; an interconnect hands them
+  to its subsystems the same way), so two threads calling one system with different
+  parameters read each other's. controlkit calls python-control's systems (its own runs,
+  Python blocks of the engine, the reference) under this lock, one thread at a time, so
+  that a run on threads answers as the same run alone. Would go if python-control passed
+  ``params`` down its calls instead.
+
 numba (0.59-0.68):
 
 - :func:`unique_function_ids`: numba names the compiled code of a function after it and
@@ -28,7 +36,12 @@ numba (0.59-0.68):
 
 from __future__ import annotations
 
+import threading
 import uuid
+
+#: Held while controlkit calls a python-control system (see the module's description):
+#: re-entrant, as a user's function may run a diagram of its own.
+SYSTEM_CALLS = threading.RLock()
 
 
 def timeresp_arguments(kwargs, timepts, inputs, initial_state, return_states,

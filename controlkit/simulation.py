@@ -242,7 +242,9 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
     runs = _runs(sys, X0, params)
     if runs is not None:
         return _many(sys, T, U, X0, runs, engine, options, compile)
-    mixed = _sys.modules.get("controlkit.sampled_data")  # (not imported: no such diagram)
+    mixed = None
+    if "controlkit.sampled_data" in _sys.modules:  # (not imported: no such diagram)
+        from . import sampled_data as mixed  # (waits for a thread still importing it)
     if mixed is not None and isinstance(sys, mixed.SampledDataSystem):
         if t_eval is None:
             raise ValueError("evaluation_times=None (the solver's own steps) has no meaning "
@@ -268,9 +270,11 @@ def _python_control_s_own(sys, T, options) -> bool:
     a single time point, time points that do not increase, ``t_eval`` in
     ``solve_ivp_kwargs``, time points of another float type than float64 (python-control
     evaluates the functions at them). Rare forms: python-control's own run answers them exactly."""
-    sampling = _sys.modules.get("controlkit.blocks.sampling")  # (imported for a grid)
-    if sampling is not None and isinstance(T, sampling.TimeGrid):
-        return False  # increasing by construction, and kept lazy
+    if "controlkit.blocks.sampling" in _sys.modules:  # (imported for a grid)
+        from .blocks.sampling import TimeGrid  # (waits for a thread still importing it)
+
+        if isinstance(T, TimeGrid):
+            return False  # increasing by construction, and kept lazy
     if "t_eval" in options["solve_ivp_kwargs"] or np.size(T) < 2:
         return True
     isdtime = getattr(sys, "isdtime", None)  # (not a system: python-control's error)
@@ -302,8 +306,11 @@ def _warn(message: str) -> None:
 def _python_control(sys, T, U, X0, options):
     """python-control's own run, timed for :data:`_LONGEST`; ``engine_mode``
     ``"python-control"``."""
+    from .compat import SYSTEM_CALLS
+
     start = time.perf_counter()
-    resp = ct.input_output_response(sys, T, U, X0, **options)
+    with SYSTEM_CALLS:  # (its systems keep a call's params on themselves)
+        resp = ct.input_output_response(sys, T, U, X0, **options)
     _LONGEST[0] = max(_LONGEST[0], time.perf_counter() - start)
     resp.engine_mode = "python-control"
     return resp

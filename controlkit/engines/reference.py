@@ -9,6 +9,7 @@ from __future__ import annotations
 import control as ct
 import numpy as np
 
+from ..compat import SYSTEM_CALLS
 from ..sampled_data import sample_times
 from .contract import chunk_bounds, recorded_indices, response
 
@@ -34,7 +35,8 @@ def simulate(sys, T, X0, U, *, params=None, progress=None, chunks=1, record_ever
     x = np.asarray(X0, dtype=float)
     pieces = []
     for k, (i0, i1) in enumerate(zip(bounds[:-1], bounds[1:], strict=True)):
-        resp = ct.input_output_response(sys, T[i0 : i1 + 1], U[:, i0 : i1 + 1], x,
+        with SYSTEM_CALLS:
+            resp = ct.input_output_response(sys, T[i0 : i1 + 1], U[:, i0 : i1 + 1], x,
                                         params=params, squeeze=False)
         first = 0 if k == 0 else 1  # the previous chunk already holds this sample
         states = resp.x if resp.x is not None else np.zeros((0, resp.time.size))
@@ -120,13 +122,14 @@ def simulate_sampled_data(sys, T, X0, U, *, params=None, t_eval=None, method="RK
     xt, yc, y_eval = np.zeros(nx), np.zeros(cidx.size), np.zeros((m, cidx.size))
     rtol, atol, max_step, first_step = solver_options(cidx.size, T[-1] - T[0],
                                                       **(solve_ivp_kwargs or {}))
-    loops.scipy_loop(
-        evaluator.evaluate, evaluator.update, evaluator.outputs, evaluator.derivatives, None,
-        ((), x, xt, cidx, T, U, ubuf, None, ys, ui, held, np.zeros(nx)),
-        (instants, 0, instants.size, float(T[-1]), T, U, t_eval, eval_instant), (Y, X, Uo),
-        (x, None, held), (ys, ui, np.zeros(nx), None, xt, cidx, yc, y_eval, ubuf,
-                          make_workspace(cidx.size)),
-        (method, rtol, atol, max_step, first_step), ctrl, status)
+    with SYSTEM_CALLS:  # (python-control's systems keep a call's params on themselves)
+        loops.scipy_loop(
+            evaluator.evaluate, evaluator.update, evaluator.outputs, evaluator.derivatives, None,
+            ((), x, xt, cidx, T, U, ubuf, None, ys, ui, held, np.zeros(nx)),
+            (instants, 0, instants.size, float(T[-1]), T, U, t_eval, eval_instant), (Y, X, Uo),
+            (x, None, held), (ys, ui, np.zeros(nx), None, xt, cidx, yc, y_eval, ubuf,
+                              make_workspace(cidx.size)),
+            (method, rtol, atol, max_step, first_step), ctrl, status)
     return response(sys, t_eval, Y, X, Uo)
 
 

@@ -289,11 +289,13 @@ def generate(plan, held_logic):
            plan.ny, plan.nu, identities, plan.sys.noutputs,
            plan.sys.nstates, tuple(s.name for s in plan.sys.syslist),
            (P == 0.0).tobytes(), (abs(P) == 1.0).tobytes())
-    if key not in _GENERATED:  # a diagram called again writes the same text (0.1 ms)
+    text = _GENERATED.get(key)  # a diagram called again writes the same text (0.1 ms)
+    if text is None:
+        text = _generate(plan, held_logic, P, identities)
         if len(_GENERATED) >= 1024:
             _GENERATED.clear()
-        _GENERATED[key] = _generate(plan, held_logic, P, identities)
-    return _GENERATED[key]
+        _GENERATED[key] = text
+    return text
 
 
 #: Sources written in this process, by everything :func:`_generate` reads of a plan.

@@ -283,13 +283,15 @@ def _run_compiled(job, args):
     """``job``'s module's ``run_continuous`` on ``args``, compiled: its four functions
     compiled for the instants' loop (:meth:`.run.Job.compiled_once`), handed to the loop
     compiled once for every diagram (:func:`.store.instants_loop`)."""
-    if job.continuous is None:
-        job.continuous = [store.import_module(store.module_file(job.source, "diagram"),
-                                              job.kernels()), None]
-    module = job.continuous[0]
+    with store.LOCK:  # (threads running the same job share what it keeps)
+        if job.continuous is None:
+            job.continuous = [store.import_module(store.module_file(job.source, "diagram"),
+                                                  job.kernels()), None]
+    kept = job.continuous
+    module = kept[0]
 
     def loop(evaluate, update, outputs, derivatives, *rest):
-        if job.continuous[1] is None:  # (a run's arrays are of the same types every run)
+        if kept[1] is None:  # (a run's arrays are of the same types every run)
             numba = _jit.numba_module()
             _, rhs_args, _, results, state, buffers, _, _, _ = rest
             signatures, types = loops.evaluator_signatures(numba, rhs_args, results, state,
@@ -298,8 +300,8 @@ def _run_compiled(job, args):
                 (evaluate, update, outputs, derivatives), signatures, path,
                 blocks=len(job.blocks)))
             types = (*types, *(numba.typeof(a) for a in rest))
-            job.continuous[1] = (store.instants_loop(types), functions)
-        compiled_loop, functions = job.continuous[1]
+            kept[1] = (store.instants_loop(types), functions)
+        compiled_loop, functions = kept[1]
         compiled_loop(*functions, *rest)
 
     module.run_continuous(*args, store.step_machine(), loop)

@@ -8,6 +8,7 @@ import control as ct
 import numpy as np
 
 from ..._checks import Diverged
+from ...compat import SYSTEM_CALLS
 from ..contract import (
     UnsupportedSystem,
     integer_state,
@@ -107,15 +108,16 @@ def _integers_count(given, t, X0, x_given, u, params, *, t_given=None) -> bool:
     ``X0``, or (a single block) a state still held as integers. The functions run after
     the engine's own run, which refused any that acts outside itself (a print, a write)."""
     t_given, t = (t if t_given is None else t_given), float(t)
-    try:
-        step = np.asarray(given.dynamics(t_given, x_given, u, params=params))
-        out = np.asarray(given.output(t_given, x_given, u, params=params))
-    except Exception:  # noqa: BLE001 - python-control's run raises it, as it does
-        return True
-    if step.dtype.kind != "f" and not isinstance(given, ct.InterconnectedSystem):
-        return True  # a block's update returns integers: its state stays integers
-    return not (np.array_equal(step, given.dynamics(t, X0, u, params=params))
-                and np.array_equal(out, given.output(t, X0, u, params=params)))
+    with SYSTEM_CALLS:  # (python-control's systems keep a call's params on themselves)
+        try:
+            step = np.asarray(given.dynamics(t_given, x_given, u, params=params))
+            out = np.asarray(given.output(t_given, x_given, u, params=params))
+        except Exception:  # noqa: BLE001 - python-control's run raises it, as it does
+            return True
+        if step.dtype.kind != "f" and not isinstance(given, ct.InterconnectedSystem):
+            return True  # a block's update returns integers: its state stays integers
+        return not (np.array_equal(step, given.dynamics(t, X0, u, params=params))
+                    and np.array_equal(out, given.output(t, X0, u, params=params)))
 
 
 def interpolated(T, U, times):

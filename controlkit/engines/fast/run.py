@@ -131,20 +131,22 @@ class Job:
         """``compile_it(path)`` (``path``: the module's file in the store), once a process
         per ``key``: saying so when the estimate is seconds; when numba fails, the module
         runs as Python from then on (:class:`NotCompiled`, why kept for ``explain``)."""
-        entries = _COMPILED.setdefault(self.source, {})
-        if key not in entries:
-            path = store.module_file(self.source, "diagram")
-            if store.record(path) is None:
-                expected = compile_estimate(self)
-                if expected >= 2.0:
-                    store._say(f"compiling the diagram {self.sys.name!r} (about "
-                               f"{expected:.0f} s, once: later runs load it)")
-            try:
-                entries[key] = compile_it(path)
-            except Exception as error:  # noqa: BLE001 - numba's: the diagram runs as Python
-                DIFFERS[self.source] = f"numba could not compile it ({_first_line(error)})"
-                raise NotCompiled(DIFFERS[self.source]) from error
-        return entries[key]
+        with store.LOCK:  # (one thread compiles; the others then load what it made)
+            entries = _COMPILED.setdefault(self.source, {})
+            if key not in entries:
+                path = store.module_file(self.source, "diagram")
+                if store.record(path) is None:
+                    expected = compile_estimate(self)
+                    if expected >= 2.0:
+                        store._say(f"compiling the diagram {self.sys.name!r} (about "
+                                   f"{expected:.0f} s, once: later runs load it)")
+                try:
+                    entries[key] = compile_it(path)
+                except Exception as error:  # noqa: BLE001 - numba's: runs as Python
+                    DIFFERS[self.source] = (f"numba could not compile it "
+                                            f"({_first_line(error)})")
+                    raise NotCompiled(DIFFERS[self.source]) from error
+            return entries[key]
 
     def is_compiled(self) -> bool:
         """Whether its module is compiled already (in this process, or in the store)."""

@@ -26,6 +26,7 @@ import json
 import os
 import stat
 import sys as pysys
+import threading
 import time
 import warnings
 from pathlib import Path
@@ -178,6 +179,11 @@ def name_of(text: str, kind: str) -> str:
     return f"{kind}_{hashlib.sha256(key.encode()).hexdigest()[:24]}"
 
 
+#: Held while a thread writes, imports or compiles a store module (threads share them):
+#: re-entrant, as compiling a diagram imports its kernels' modules.
+LOCK = threading.RLock()
+
+
 def module_file(text: str, kind: str) -> Path:
     """The store file of ``text``, written (whole, atomically) unless it is there.
 
@@ -187,11 +193,12 @@ def module_file(text: str, kind: str) -> Path:
     'VALUE = 1\\n'
     """
     path = folder() / f"{name_of(text, kind)}.py"
-    if not path.exists():  # never rewritten: numba's cache index keys on the file's date
-        tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp")
-        with open(tmp, "x") as file:
-            file.write(text)
-        os.replace(tmp, path)
+    with LOCK:
+        if not path.exists():  # never rewritten: numba's cache index keys on its date
+            tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp")
+            with open(tmp, "x") as file:
+                file.write(text)
+            os.replace(tmp, path)
     return path
 
 
@@ -206,18 +213,19 @@ def import_module(path: Path, names: dict | None = None):
     1
     """
     name = f"controlkit_store_{Path(path).stem}"
-    module = pysys.modules.get(name)
-    if module is None:
-        folder()  # checked again at each import
-        spec = importlib.util.spec_from_file_location(name, path)
-        module = importlib.util.module_from_spec(spec)
-        vars(module).update(names or {})
-        pysys.modules[name] = module
-        try:
-            spec.loader.exec_module(module)
-        except BaseException:
-            del pysys.modules[name]
-            raise
+    with LOCK:  # (another thread sees the module once it has run)
+        module = pysys.modules.get(name)
+        if module is None:
+            folder()  # checked again at each import
+            spec = importlib.util.spec_from_file_location(name, path)
+            module = importlib.util.module_from_spec(spec)
+            vars(module).update(names or {})
+            pysys.modules[name] = module
+            try:
+                spec.loader.exec_module(module)
+            except BaseException:
+                del pysys.modules[name]
+                raise
     return module
 
 
@@ -380,13 +388,14 @@ def step_machine():
     >>> step_machine() is step_machine() if _jit.available() else True
     True
     """
-    if not _MACHINE:
-        numba = _jit.numba_module()
-        _MACHINE.append(_kept_once(
-            _MACHINE_TEXT, "machine", "the integrator's step machine",
-            MACHINE_COMPILE_SECONDS,
-            lambda module: numba.cfunc(MACHINE_SIGNATURE, cache=True,
-                                       nogil=True)(module.machine)))
+    with LOCK:
+        if not _MACHINE:
+            numba = _jit.numba_module()
+            _MACHINE.append(_kept_once(
+                _MACHINE_TEXT, "machine", "the integrator's step machine",
+                MACHINE_COMPILE_SECONDS,
+                lambda module: numba.cfunc(MACHINE_SIGNATURE, cache=True,
+                                           nogil=True)(module.machine)))
     return _MACHINE[0]
 
 
@@ -439,16 +448,17 @@ def instants_loop(argument_types):
     >>> bool(_LOOPS) == (response.engine_mode == "compiled")
     True
     """
-    if argument_types not in _LOOPS:
-        numba = _jit.numba_module()
+    with LOCK:
+        if argument_types not in _LOOPS:
+            numba = _jit.numba_module()
 
-        def compile_it(module):
-            with _first_class_functions(numba):
-                return numba.njit(numba.types.none(*argument_types), cache=True,
-                                  nogil=True)(module.instants_loop)
+            def compile_it(module):
+                with _first_class_functions(numba):
+                    return numba.njit(numba.types.none(*argument_types), cache=True,
+                                      nogil=True)(module.instants_loop)
 
-        _LOOPS[argument_types] = _kept_once(_LOOP_TEXT, "loop", "the integrator's loop",
-                                            LOOP_COMPILE_SECONDS, compile_it)
+            _LOOPS[argument_types] = _kept_once(_LOOP_TEXT, "loop", "the integrator's loop",
+                                                LOOP_COMPILE_SECONDS, compile_it)
     return _LOOPS[argument_types]
 
 

@@ -20,6 +20,7 @@ import numpy as np
 from ... import _jit
 from ...blocks.contract import BlockKernels, KernelBlock
 from ...blocks.sampling import SampledSystem
+from ...compat import SYSTEM_CALLS
 from ...kernels import common, lti
 from .. import source
 from ..contract import UnsupportedSystem
@@ -147,13 +148,17 @@ class NotCompiled(Exception):
 
 
 def _python_kernels(block, local, reason):
-    """A block python-control runs itself, called through its public functions."""
+    """A block python-control runs itself, called through its public functions (one thread
+    at a time: it keeps a call's ``params`` on itself, :data:`controlkit.compat.
+    SYSTEM_CALLS`)."""
     def output(t, x, u, p, out):
-        out[:] = block.output(t, x, u, local)
+        with SYSTEM_CALLS:
+            out[:] = block.output(t, x, u, local)
         return out
 
     def update(t, x, u, p, out):
-        out[:] = block.dynamics(t, x, u, local)
+        with SYSTEM_CALLS:
+            out[:] = block.dynamics(t, x, u, local)
         return out
 
     return (BlockKernels(output, update if block.nstates else None, np.zeros(0),

@@ -93,14 +93,16 @@ class UserKernel:
         calls it): the user's functions are pasted into it, and its indexes checked
         (``boundscheck``), so that an index outside an array is Python's ``IndexError``,
         not a read of other memory."""
-        module = store.import_module(store.module_file(self._text, "user"))
-        if not isinstance(module.kernel, _jit.Jitted):  # (once a process)
-            for name, value in list(vars(module).items()):
-                if isinstance(value, FunctionType) and value.__module__ == module.__name__:
-                    options = (dict(boundscheck=True, error_model="numpy", cache=True)
-                               if name == "kernel"
-                               else dict(inline="always", error_model="numpy"))
-                    setattr(module, name, _jit.Jitted(value, options))
+        with store.LOCK:  # (another thread sees the module's functions all wrapped)
+            module = store.import_module(store.module_file(self._text, "user"))
+            if not isinstance(module.kernel, _jit.Jitted):  # (once a process)
+                for name, value in list(vars(module).items()):
+                    if isinstance(value, FunctionType) and \
+                            value.__module__ == module.__name__:
+                        options = (dict(boundscheck=True, error_model="numpy", cache=True)
+                                   if name == "kernel"
+                                   else dict(inline="always", error_model="numpy"))
+                        setattr(module, name, _jit.Jitted(value, options))
         return module.kernel
 
 
