@@ -1,18 +1,14 @@
 """A diagram's own module: its evaluator written out line by line, kernels pasted in.
 
-python-control steps an interconnect by sweeping every block's output function until
-the signals stop changing. For a diagram whose blocks declare their feedthrough the
-order in which outputs can be computed is known in advance (:func:`.plan.evaluation_order`):
-blocks whose output reads only their state first, then the feedthrough blocks in
-dependency order. :func:`generate` writes that order out as the four functions of an
-evaluator (:mod:`.loops`) with every index a literal and every kernel pasted in by numba
-(``inline="always"``), and two entry points that hand them to the loops of
-:mod:`.loops`: ``run_discrete``, compiled with the discrete loop pasted in (a discrete
-diagram whose blocks all fire at every step has its step written out in its own loop
-instead, :func:`_step`), and ``run_continuous``, which makes the run's arrays and hands
-the four functions to the instants' loop, compiled once for every diagram
-(:func:`.store.instants_loop`). A wiring compiles in a second or two and is cached on
-disk; the parameters stay values at run time (``P``), so a new value never recompiles.
+python-control sweeps every block's output until the signals settle; with declared
+feedthrough the order is known in advance (:func:`.plan.evaluation_order`).
+:func:`generate` writes it out as the four functions of an evaluator (:mod:`.loops`),
+every index a literal, every kernel pasted in (``inline="always"``), and two entry points:
+``run_discrete`` (the discrete loop pasted in; or, when every block fires at every step,
+the step written out in its own loop, :func:`_step`) and ``run_continuous`` (the four
+functions handed to the instants' loop, compiled once for every diagram,
+:func:`.store.instants_loop`). The parameters stay values at run time (``P``), so a new
+value never recompiles.
 """
 
 from __future__ import annotations
@@ -51,14 +47,11 @@ LTI_TERMS_WRITTEN_OUT = 256
 
 
 def _lti_sums(P, kernel, row, ref):
-    """The right-hand sides of an LTI block's outputs (``kernel`` is
-    :func:`~controlkit.kernels.lti.lti_output`) or next state (``lti_update``) with the
-    plan's parameters ``P``, one per row, with every index a literal (``ref(array, i)``
-    names ``x[i]`` or ``ui[i]``); None for another kernel, a large block, or one whose
-    sums numpy's BLAS could order otherwise (:func:`.plan.exact_sum`: the kernel then
-    makes them as numpy does).
-
-    Written out, a small block costs a few nanoseconds a step instead of ~10."""
+    """The right-hand sides of an LTI block's outputs (``kernel`` is ``lti_output``) or
+    next state (``lti_update``), one per row, every index a literal (``ref(array, i)``
+    names ``x[i]`` or ``ui[i]``); None for another kernel, a large block, or sums numpy's
+    BLAS could order otherwise (:func:`.plan.exact_sum`). Written out, a small block costs
+    a few nanoseconds a step instead of ~10."""
     n, m, q = row.NX, row.NU, row.NY
     if kernel is lti.lti_output:
         first = row.P0 + 3 + n * n + n * m  # C, then D (see lti.pack)
@@ -88,18 +81,15 @@ def _lti_lines(P, kernel, row, out, start, ref=lambda array, i: f"{array}[{i}]")
 
 
 def _step(plan, P, rows, names, evaluate, ref, loads, args, view):
-    """The loop of ``run_discrete`` for a discrete diagram whose blocks all fire at every
-    step (python-control's discrete simulation), each step written out in the loop.
+    """The loop of ``run_discrete`` when every block fires at every step, each step
+    written out in it (not inlined into :func:`.loops.discrete_run`: servo loop of
+    benchmarks/bench_hand_written.py 21.0 -> 15.9 ns a step).
 
-    A step is ``evaluate``'s lines, then the diagram's outputs and the blocks' updates,
-    which read the signals and states ``evaluate`` keeps in locals (``ref``): LLVM cannot
-    forward a store into one array to a load from another that might alias it. Written-out
-    LTI blocks write their next state straight into ``x`` (each reads only its own states,
-    loaded into locals before); a kernel's update writes ``xn``, copied into ``x`` at the
-    end. The operations and their order are ``evaluate``, ``outputs`` and ``update``'s:
-    the same numbers to the bit. In the loop itself, not in a function numba inlines into
-    :func:`.loops.discrete_run` (24 ns a step that way); servo loop of
-    benchmarks/bench_hand_written.py: 21.0 -> 15.9 ns a step.
+    ``evaluate``'s lines, then the outputs and updates, which read the signals and states
+    kept in locals (``ref``): LLVM cannot forward a store into one array to a load from
+    another that might alias it. Written-out LTI blocks write their next state straight
+    into ``x`` (their own states loaded before); a kernel's update writes ``xn``, copied
+    into ``x`` at the end. The same operations in the same order: the same bits.
     """
     n = plan.sys.nstates
     if n <= STATES_HELD_IN_LOCALS:
@@ -194,14 +184,10 @@ STATES_HELD_IN_LOCALS = 64
 
 
 def _rk4_lines(kernel, row, h, view):
-    """Lines of a sampled block's update: ``row.SUB`` steps of
-    :func:`~controlkit.kernels.common.rk4_step` of length ``h``, written out.
-
-    The same operations in the same order as ``rk4_step`` (which
-    :func:`~controlkit.blocks.sampling.sample_nlsys` calls), so the numbers agree to the
-    bit, at about half the cost (cruise loop of ``benchmarks/bench_hand_written.py``: ~190
-    -> ~80 ns). ``scratch`` holds ``k1 .. k4`` and the trial state, ``n`` values each.
-    """
+    """A sampled block's update: ``row.SUB`` steps of length ``h`` of
+    :func:`~controlkit.kernels.common.rk4_step` written out, its operations in its order
+    (the same bits, at half the cost: cruise loop ~190 -> ~80 ns). ``scratch`` holds
+    ``k1 .. k4`` and the trial state, ``n`` values each."""
     n, x0 = row.NX, row.X0
     k = [view("scratch", j * n, n) for j in range(5)]
     rest = f"{view('ui', row.U0, row.NU)}, {view('P', row.P0, row.NP)}"
@@ -265,13 +251,10 @@ def _source_digest(function) -> str:
 def generate(plan, held_logic):
     """The source of ``plan``'s module (see the module's description).
 
-    The text names each kernel ``kernel_<i>`` and says in a comment which kernel it is
-    (:func:`kernel_identity`); the engine hands the module its kernels, compiled or as
-    Python. Names written into the text are ``repr``-quoted in comments; everything else
-    is generated identifiers and numbers. ``held_logic``: :func:`.plan.held_logic`
-    (without it every block fires at every step, as in python-control's discrete
-    simulation). A NaN output stops the run (a kernel's failure signal, block contract
-    rule 6), named at its block before any later user function sees the NaN.
+    Kernels are named ``kernel_<i>``, a comment says which (:func:`kernel_identity`); the
+    engine hands them in, compiled or as Python. Names appear ``repr``-quoted in comments
+    only. ``held_logic``: :func:`.plan.held_logic` (without it every block fires at every
+    step). A NaN output stops the run at its block (block contract rule 6).
 
     Examples
     --------

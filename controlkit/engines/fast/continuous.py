@@ -1,13 +1,11 @@
 """Diagrams with continuous states (and of several rates) on the fast engine.
 
 :func:`run_continuous` runs the instants' loop of :mod:`.loops` through the diagram's
-module (as Python or compiled, :mod:`.run`): the continuous states are integrated between
-the instants of the discrete blocks by the Runge-Kutta methods of :mod:`.rk` (``RK45``,
-python-control's default, ``RK23`` and ``DOP853``: scipy's steps, so python-control's
-numbers), or by scipy's stiff solvers (``LSODA``, ``BDF``, ``Radau``), which the same loop
-calls as Python (:func:`.loops.scipy_interval`). A run goes in pieces of about a tenth
-of a second, an interval paused and resumed inside if need be: progress, Ctrl-C and
-the choice of compiling act between pieces.
+module (as Python or compiled, :mod:`.run`), integrating between the discrete instants by
+the Runge-Kutta methods of :mod:`.rk` (``RK45``, ``RK23``, ``DOP853``: scipy's steps) or by
+scipy's stiff solvers (``LSODA``, ``BDF``, ``Radau``: :func:`.loops.scipy_interval`, as
+Python). A run goes in pieces of about a tenth of a second, an interval paused inside if
+need be: progress, Ctrl-C and the choice of compiling act between pieces.
 """
 
 from __future__ import annotations
@@ -134,8 +132,8 @@ class _Run:
         self.solver = solver_options(nc, T[-1] - T[0], **solver)
 
     def arrays(self):
-        """The state of the run between pieces (the results are written by index, and a
-        piece run again writes the same columns again)."""
+        """The run's state between pieces (results are written by index: a piece run again
+        writes the same columns again)."""
         return (self.x, self.held, self.ctrl, self.status, *self.work, self.yc)
 
     def snapshot(self):
@@ -159,8 +157,7 @@ class _Run:
         return float(np.clip((t - self.T[0]) / span, 0.0, 1.0))
 
     def piece(self, job, budget):
-        """One piece of the run on ``job`` (at most ``budget`` evaluations in an interval):
-        the stiff methods by scipy's solvers, which the loop calls as Python."""
+        """One piece of the run on ``job`` (at most ``budget`` evaluations in an interval)."""
         self.ctrl[BUDGET] = budget
         stiff = self.method in STIFF_METHODS
         args = (self.instants, 0, self.instants.size, float(self.T[-1]), self.T, self.U,
@@ -280,9 +277,9 @@ def run_continuous(sys, T, U, X0, *, params=None, t_eval=None, method="RK45",
 
 
 def _run_compiled(job, args):
-    """``job``'s module's ``run_continuous`` on ``args``, compiled: its four functions
-    compiled for the instants' loop (:meth:`.run.Job.compiled_once`), handed to the loop
-    compiled once for every diagram (:func:`.store.instants_loop`)."""
+    """``job``'s ``run_continuous`` compiled: its four functions compiled for the
+    instants' loop (:meth:`.run.Job.compiled_once`), handed to the loop compiled once for every
+    diagram (:func:`.store.instants_loop`)."""
     with store.LOCK:  # (threads running the same job share what it keeps)
         if job.continuous is None:
             job.continuous = [store.import_module(store.module_file(job.source, "diagram"),
@@ -308,10 +305,8 @@ def _run_compiled(job, args):
 
 
 def compile_integrator() -> str:
-    """Compile (or load) what every compiled continuous run needs, the integrator's step
-    machine and the instants' loop (:func:`.store.instants_loop`), by running a
-    first-order lag compiled; returns how it ran (``"compiled"``, or ``"python"`` where
-    nothing can be compiled). For ``controlkit warmup``.
+    """Compile (or load) the step machine and the instants' loop by running a lag compiled,
+    for ``controlkit warmup``; returns ``"compiled"``, or ``"python"`` where nothing compiles.
 
     Examples
     --------
@@ -325,8 +320,8 @@ def compile_integrator() -> str:
 
 
 def _python_from_here(runner, run, pieces):
-    """A compiled piece stopped: run it again as Python from where it began (Python's own
-    error if there is one), and the rest of the run as Python."""
+    """A compiled piece stopped: run it again as Python (which raises Python's own error
+    if there is one), and the rest of the run as Python."""
     run.restore(runner.last_snapshot)
     runner.compiled = None
     run.piece(runner.python, pieces.next())

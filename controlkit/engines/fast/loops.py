@@ -18,20 +18,16 @@ diagram (``plan`` is theirs to read; the generated ones ignore it):
 ``derivatives(t, x, ui, P, dx, plan)``
     The continuous blocks' right-hand sides into ``dx`` at their states' places.
 
-The same loops serve a diagram's own module (:mod:`.codegen`), compiled or run as Python,
-and the reference's evaluator of python-control's own block functions
-(:mod:`controlkit.engines.reference`). Compiled, the discrete loop is pasted into its
-caller with the evaluator as a compile-time constant; the instants' loop
-(:func:`instants_loop`) is compiled once for every diagram and takes the evaluator's
-functions as numba's first-class functions (docs/architecture.md, *The engine*).
+The same loops serve a diagram's own module (:mod:`.codegen`) and the reference's
+evaluator of python-control's own block functions (:mod:`controlkit.engines.reference`).
+Compiled, the discrete loop is pasted into its caller; the instants' loop is compiled once
+for every diagram and takes the evaluator as numba's first-class functions.
 
-Semantics: :func:`controlkit.engines.reference.simulate_sampled_data` tells them; the
-continuous states are integrated between instants by ``integrate``
+Between instants the continuous states are integrated by ``integrate``
 (:func:`controlkit.engines.fast.rk.solve_interval`, or :func:`scipy_interval`), a fresh
 ``solve_ivp`` per interval, so a diagram with no discrete block makes python-control's
-one call over ``[T[0], T[-1]]``. Which evaluation times fall on an instant
-(:func:`instant_of`) and the inputs between time points (:func:`interpolate`) are
-defined here only.
+one call over ``[T[0], T[-1]]``. :func:`instant_of` and :func:`interpolate` are the only
+definitions of which times fall on an instant and of the inputs between time points.
 """
 
 from __future__ import annotations
@@ -76,11 +72,8 @@ def instant_of(t_eval, times, h):
 
 @jit(inline=True)
 def interpolate(T, U, t, out):
-    """``out[:, 0] = u(t)``, linear between the points of ``T`` as python-control does.
-
-    python-control's ``ufun``: the index is ``searchsorted(T, t, "left")`` clipped to
-    ``[1, len(T) - 1]``, so times outside ``T`` extrapolate the end segments; a single
-    time point holds its input.
+    """``out[:, 0] = u(t)``, linear between the points of ``T`` as python-control's
+    ``ufun``: times outside ``T`` extrapolate the end segments; one time point holds.
 
     Examples
     --------
@@ -105,9 +98,8 @@ def interpolate(T, U, t, out):
 @jit(inline=True)
 def _segment(T, t):
     """``searchsorted(T, t, "left")`` clipped to ``[1, len(T) - 1]`` (``len(T) >= 2``):
-    first the segment where ``t`` would be if the points were evenly spaced (as
-    python-control asks them to be), taken if ``T[idx - 1] < t <= T[idx]`` holds there
-    (the one index that does in increasing points), else numpy's binary search."""
+    the segment ``t`` is in if the points were evenly spaced (as python-control asks), or
+    a neighbour, checked by ``T[idx - 1] < t <= T[idx]``; else a binary search."""
     n = T.shape[0]
     span = T[n - 1] - T[0]
     if span > 0.0 and t == t:
@@ -167,11 +159,8 @@ def _record(evaluate, outputs, plan, t, x, T, U, ubuf, P, ys, ui, held, j, Y, X,
 
 @jit(inline=True)
 def diagram_rhs(t, y, args, out):
-    """The continuous states' derivatives at ``(t, y)``: the integrator's right-hand side.
-
-    ``args = (evaluate, derivatives, plan, x, xt, cidx, T, U, ubuf, P, ys, ui, held,
-    dx)``: the diagram's evaluator; the full state ``x`` gives the held discrete states,
-    ``y`` the continuous ones (at ``cidx``).
+    """The integrator's right-hand side: the continuous states' derivatives at ``(t, y)``
+    (``y`` at ``cidx`` of ``x``, whose other states are held; ``args`` as unpacked below).
     """
     evaluate, derivatives, plan, x, xt, cidx, T, U, ubuf, P, ys, ui, held, dx = args
     for i in range(x.shape[0]):
@@ -305,13 +294,10 @@ def continuous_run(evaluate, update, outputs, integrate, machine, plan, rhs_args
 @jit(inline=True)
 def instants_loop(evaluate, update, outputs, derivatives, machine, rhs_args, times, results,
                   state, buffers, solver, ctrl, status):
-    """:func:`continuous_run` integrated by the engine's Runge-Kutta methods
-    (:func:`controlkit.engines.fast.rk.solve_interval`): what a diagram's module calls.
-
-    Compiled, it is compiled once (:func:`controlkit.engines.fast.store.instants_loop`)
-    and takes the diagram's evaluator as numba's first-class functions, of the types
-    :func:`evaluator_signatures` gives: a new diagram compiles its own four functions,
-    not the loop. As Python, it is this function.
+    """:func:`continuous_run` integrated by :func:`controlkit.engines.fast.rk.solve_interval`,
+    what a diagram's module calls. Compiled once (:func:`.store.instants_loop`), it takes
+    the evaluator as first-class functions (:func:`evaluator_signatures`): a new diagram
+    compiles its own four functions, not the loop.
     """
     continuous_run(evaluate, update, outputs, solve_interval, machine, (),
                    (evaluate, derivatives) + rhs_args, times, results, state, buffers,
@@ -378,14 +364,9 @@ def scipy_interval(machine, rhs, args, method, t0, t1, y0, rtol, atol, max_step,
                    first_step, t_eval, i_eval, closed_right, y_eval, y_end, work, budget,
                    resume):
     """:func:`controlkit.engines.fast.rk.solve_interval`'s contract kept by
-    :func:`scipy.integrate.solve_ivp` (Python only): one interval, the evaluation times
-    ``t_eval[i_eval:]`` it serves into ``y_eval``, the state at ``t1`` into ``y_end``.
-
-    ``method`` is scipy's method name (the implicit ones, ``BDF``, ``LSODA``,
-    ``Radau``, or an explicit one for the reference); ``work`` (a workspace of
-    :mod:`.rk`) counts the evaluations; ``machine``, ``budget`` and ``resume`` are
-    not used (scipy's call is never paused). ``rhs`` is called as ``rhs(t, y, args,
-    out)``. The last interval (``closed_right``) is served as python-control's call, by
+    :func:`scipy.integrate.solve_ivp` (Python only; never paused: ``machine``, ``budget``
+    and ``resume`` unused). ``method`` is scipy's name; ``work`` counts the evaluations.
+    The last interval (``closed_right``) is served as python-control's call, by
     ``t_eval``; the state at its end is the last time served.
 
     Raises

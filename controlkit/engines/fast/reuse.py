@@ -241,11 +241,5 @@ class _Kept:
     def __init__(self):
         self.jobs = {}
 
-    def __reduce__(self):
+    def __reduce__(self):  # (copy and deepcopy too)
         return (_Kept, ())
-
-    def __copy__(self):
-        return _Kept()
-
-    def __deepcopy__(self, memo):
-        return _Kept()

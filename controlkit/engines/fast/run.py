@@ -1,18 +1,11 @@
 """Running a diagram's module: as Python, or compiled, and when each.
 
-:func:`prepare` turns a diagram into a :class:`Job`: its blocks with their kernels
-(:mod:`.tiers`), its plan (:mod:`.plan`) and its module's text (:mod:`.codegen`). A job
-runs its module one of two ways, as Simulink runs a model in normal or accelerator mode:
-as Python (``job.functions()``: nothing to compile, so the first call of a new diagram
-costs what its steps cost), or compiled by numba and kept in the store (:mod:`.store`),
-so that any later run of the wiring loads it in milliseconds.
-
-:class:`Runner` decides each call by :data:`RULE`, between the pieces of a run
-(:mod:`.pieces`); as Python also when a block cannot be compiled (:func:`explain` says
-why). The compile happens in the call, said when it takes seconds, and a call that
-compiles stays under python-control's time (numba's start is made by runs as Python
-before it). A compiled module is first run beside Python on one piece: if their numbers
-differ, the run goes on as Python.
+:func:`prepare` turns a diagram into a :class:`Job`: its blocks (:mod:`.tiers`), plan
+(:mod:`.plan`) and module text (:mod:`.codegen`). A job runs as Python
+(``job.functions()``: nothing to compile) or compiled by numba and kept in the store
+(:mod:`.store`), as Simulink runs a model in normal or accelerator mode. :class:`Runner`
+decides between the pieces of a run by :data:`RULE`; a compiled module is first run beside
+Python on one piece, and if their numbers differ the run goes on as Python.
 """
 
 from __future__ import annotations
@@ -128,9 +121,8 @@ class Job:
             blocks=len(self.blocks)))
 
     def compiled_once(self, key, compile_it):
-        """``compile_it(path)`` (``path``: the module's file in the store), once a process
-        per ``key``: saying so when the estimate is seconds; when numba fails, the module
-        runs as Python from then on (:class:`NotCompiled`, why kept for ``explain``)."""
+        """``compile_it(path)`` of the module's store file, once a process per ``key``, said
+        when it takes seconds; when numba fails, :class:`NotCompiled` (kept for ``explain``)."""
         with store.LOCK:  # (one thread compiles; the others then load what it made)
             entries = _COMPILED.setdefault(self.source, {})
             if key not in entries:
@@ -327,8 +319,8 @@ class Runner:
             room -= seconds
 
     def check_first(self) -> Job | None:
-        """The compiled job, taken back, when it runs first in this process and must be
-        compared with Python on the run's first piece (the caller switches to it then)."""
+        """The compiled job, taken back when it is new in this process: the caller compares
+        it with Python on the first piece."""
         job = self.compiled
         if job is None or job.source in CHECKED:
             return None
@@ -370,8 +362,7 @@ class Runner:
             PYTHON_RUNS[source] = PYTHON_RUNS.get(source, 0) + 1
 
     def differs(self, job, why: str) -> None:
-        """The compiled module cannot be trusted (its numbers differ from Python's, or it
-        does not compile): Python from now on, with a warning (once per module)."""
+        """The compiled module cannot be trusted: Python from now on, with a warning."""
         DIFFERS[job.source] = why
         self.python_from_now(why)
 

@@ -1,20 +1,17 @@
 """The store: one folder of the user's where compiled code is kept, found by its content.
 
 Compiled code comes from modules of the store, each a text numba compiles once and keeps
-in its ``__pycache__``, so that any later run, in this process or another, loads it in
-milliseconds: a diagram's module (:mod:`.codegen`), the user functions compiled for it
-(:mod:`.usercode`), the integrator's step machine and the instants' loop. A module's file
-name is a digest of its text, of controlkit's source files that it can hold and of the
-versions of Python, numpy and scipy (whose Runge-Kutta coefficients the machine holds), so
-an edit or an upgrade makes new modules, never a stale one; files are written whole and
-never changed, and nothing has to be deleted by hand. After its first compile a module
-gets a record (``<name>.json``: how long the compile took), by which the engine knows that
-it is compiled.
+in its ``__pycache__``: a diagram's module (:mod:`.codegen`), the user functions compiled
+for it (:mod:`.usercode`), the step machine and the instants' loop. A module's file name
+is a digest of its text, of controlkit's source files it can hold and of the versions of
+Python, numpy and scipy, so an edit or an upgrade makes new modules, never a stale one;
+files are written whole and never changed. After its first compile a module gets a record
+(``<name>.json``: how long the compile took), by which the engine knows it is compiled.
 
 Code is imported from the store only if the folder, and numba's cache folder
 (``NUMBA_CACHE_DIR``, if set), is the user's own (:func:`not_own`), checked at each use;
-else the engine compiles nothing and runs diagrams as Python, with a warning that says
-why. ``CONTROLKIT_CACHE_DIR`` sets the folder (default ``~/.cache/controlkit/store``).
+else the engine compiles nothing and says why. ``CONTROLKIT_CACHE_DIR`` sets the folder
+(default ``~/.cache/controlkit/store``).
 """
 
 from __future__ import annotations

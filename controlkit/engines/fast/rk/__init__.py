@@ -9,14 +9,10 @@ error norm, the acceptance test, the step-size factors, the clipping at the end 
 interval and the dense output are scipy 1.17's [5]_, operation for operation, and so
 is the arithmetic: the results are scipy's to the last bit.
 
-Modules: :mod:`~controlkit.engines.fast.rk.tableaux` (the methods as
-:class:`~controlkit.engines.fast.rk.tableaux.Tableau` records of scipy's own
-coefficients: a method is its tableau, as in scipy),
-:mod:`~controlkit.engines.fast.rk.workspace` (the arrays the integrator works in, their
-slots, the status codes), :mod:`~controlkit.engines.fast.rk.machine` (the step machine),
-:mod:`~controlkit.engines.fast.rk.interval` (the loop around it),
-:mod:`~controlkit.engines.fast.rk.arithmetic` (the stage combinations, error norm and
-interpolants) and :mod:`~controlkit.engines.fast.rk.stiffness`.
+Modules: :mod:`.tableaux` (scipy's own coefficients: a method is its tableau),
+:mod:`.workspace` (the integrator's arrays, their slots, the status codes), :mod:`.machine`
+(the step machine), :mod:`.interval` (the loop around it), :mod:`.arithmetic` (stage
+combinations, error norm, interpolants) and :mod:`.stiffness`.
 
 Design
 ------
@@ -52,16 +48,12 @@ comments in :mod:`~controlkit.engines.fast.rk.workspace`.
 
 Comparing with python-control
 -----------------------------
-Bit-for-bit agreement needs the right-hand side to compute the same bits too. At loose
-tolerances a last-bit difference in it is amplified as one in the summation order is:
-numpy's own ``exp``, ``tanh``, ``log1p`` differ from the C library (what numba calls)
-by 1 ulp for 5%, 25% and 6% of arguments on an AVX-512 machine, and numba computes
-``x**3`` by multiplications where Python calls ``pow``. Van der Pol with ``2 tanh(y0)``
-integrated with ``math.tanh`` compiled against scipy with ``numpy.tanh`` differs by
-2.4e-10 (RK45) and 1.6e-5 (DOP853) after 20 s at ``rtol = 1e-3``, 5.8e-8 and 2.7e-2
-after 200 s, and by at most 4e-13 at ``rtol = 1e-8`` (``benchmarks/rk_ulp_effect.py``).
-Equality with python-control at its default ``rtol = 1e-3`` therefore asks for a
-compiled right-hand side that reproduces numpy's bits, not merely its formulas.
+Bit-for-bit agreement needs the right-hand side to compute the same bits too: at loose
+tolerances the step-size control amplifies a last-bit difference in it (numpy's ``tanh``
+against the C library's compiled: 2.4e-10 after 20 s of Van der Pol at ``rtol = 1e-3``,
+measured in benchmarks/README.md, *Last bits and adaptive steps*). Equality at
+python-control's default ``rtol = 1e-3`` asks for a compiled right-hand side that
+reproduces numpy's bits, not merely its formulas.
 
 Without numba (or with ``CONTROLKIT_DISABLE_NUMBA=1``) the same functions run as plain
 Python and take the same steps.

@@ -1,15 +1,10 @@
 """The three explicit methods of ``solve_ivp`` as tableaux, and the step-size constants.
 
-scipy's explicit Runge-Kutta methods are defined by their coefficients alone: a method
-*is* its tableau. The coefficients are read from scipy's own classes
-(:class:`scipy.integrate.RK23`, :class:`~scipy.integrate.RK45`,
-:class:`~scipy.integrate.DOP853`: their ``C``, ``A``, ``B``, ``E``, ``P`` and DOP853's
-``E5``, ``E3``, ``D``, ``A_EXTRA``, ``C_EXTRA``), so they are the doubles scipy steps
-with, whatever its version. Here :data:`RK23`, :data:`RK45` and :data:`DOP853` are
-:class:`Tableau` records, found by name in :data:`METHODS` and by number in
-:data:`TABLEAUX` (the form compiled code selects them in: numba freezes the tuple and its
-arrays as constants of the step machine, which takes the method as a run-time index,
-:data:`METHOD_INDEX`). The methods' sources are listed in :mod:`controlkit.engines.fast.rk`.
+A method *is* its tableau, read from scipy's own classes (``RK23``, ``RK45``, ``DOP853``:
+their ``C``, ``A``, ``B``, ``E``, ``P`` and DOP853's ``E5``, ``E3``, ``D``, ``A_EXTRA``,
+``C_EXTRA``), so they are the doubles scipy steps with, whatever its version. Found by name
+in :data:`METHODS` and by number in :data:`TABLEAUX`: numba freezes the tuple as constants
+of the step machine, which takes the method as a run-time index (:data:`METHOD_INDEX`).
 """
 
 from __future__ import annotations
