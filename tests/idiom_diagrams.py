@@ -18,6 +18,7 @@ import control as ct
 import numpy as np
 
 from controlkit.blocks.sampling import sample_nlsys
+from controlkit.engines.source.values import parts_from_c_library
 
 TS = 0.05
 
@@ -454,3 +455,23 @@ DIAGRAMS = {
     "state estimation": estimation,
     "heater (partial, object, methods, decorator)": heating,
 }
+
+
+#: The blocks of these diagrams whose functions call numpy's tan (python-control's own
+#: examples do): where numpy computes it with code of its own, whose last bits compiled
+#: code (the C library's tan) would not give, those blocks run as Python.
+NUMPY_TAN = {"steering (gain scheduled)": ("bicycle",), "steering": ("bicycle",),
+             "state estimation": ("car", "estimator")}
+
+
+def expected_tier(diagram, block):
+    """``"python"`` for a block of :data:`NUMPY_TAN` on a machine where numpy's tan is its
+    own, else ``"compiled"``.
+
+    Examples
+    --------
+    >>> expected_tier("cruise control (car, PI with anti-windup)", "car")
+    'compiled'
+    """
+    calls_tan = block in NUMPY_TAN.get(diagram, ())
+    return "python" if calls_tan and parts_from_c_library("tan") else "compiled"

@@ -680,6 +680,32 @@ def test_integer_time_points_answer_as_python_control_s(update, dt):
         assert ours.time.dtype == expected.time.dtype and np.array_equal(ours.time, T)
 
 
+@pytest.mark.parametrize("module", [np, math], ids=["numpy", "math"])
+def test_a_tanh_gives_python_control_s_last_bits(module):
+    # numba computes np.tanh with the C library's tanh, as math.tanh is; numpy has code of
+    # its own on CPUs with wide registers (a fifth of values differ in the last bit): a
+    # block calling np.tanh runs as Python there, and says why
+    from controlkit.engines.source.values import parts_from_c_library
+
+    tanh = module.tanh
+    block = ct.nlsys(lambda t, x, u, p: [0.9 * x[0] + 0.3 * tanh(x[0] + u[0])],
+                     lambda t, x, u, p: x, dt=DT, **_DECAY)
+    loop = ct.interconnect([block], inputs="u[0]", outputs="y[0]")
+    T = np.arange(2000) * DT
+    U = np.sin(0.05 * np.arange(2000)) * 2.0
+    expected = ct.input_output_response(loop, T, U, 0.5)
+    (row,) = controlkit.explain(loop)
+    own = module is np and parts_from_c_library("tanh") > 0
+    assert row.tier == ("python" if own else "compiled")
+    assert ("numpy.tanh" in row.reason) == own and ("math.tanh" in row.reason) == own
+    for compile in (True, False, None):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # (compile=True where it runs as Python says so)
+            ours = controlkit.input_output_response(loop, T, U, 0.5, compile=compile)
+        assert np.array_equal(ours.outputs, expected.outputs)
+        assert ours.engine_mode == ("compiled" if compile and not own else ours.engine_mode)
+
+
 class Terminated(KeyboardInterrupt):
     """What a command raises on ``kill PID`` (``controlkit reproduce``'s own kind)."""
 

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 from idiom_diagrams import DIAGRAMS as IDIOM_DIAGRAMS
+from idiom_diagrams import expected_tier
 from user_diagrams import DIAGRAMS
 
 from controlkit.engines import fast as engine
@@ -307,8 +308,10 @@ def test_the_diagrams_module_compiled_gives_its_numbers_run_as_python(name, monk
     engine.simulate(loop, T, X0, U, params=params, compile=True)  # compiled, checked once
     runs = {mode: engine.simulate(loop, T, X0, U, params=params, compile=mode == "compiled")
             for mode in ("compiled", "python")}  # then compiled throughout
-    assert {mode: r.engine_mode for mode, r in runs.items()} == {"compiled": "compiled",
-                                                                 "python": "python"}
+    # (a block calling numpy's tan, where numpy has its own: the module runs as Python)
+    compiles = all(expected_tier(name, s.name) == "compiled" for s in loop.syslist)
+    assert {mode: r.engine_mode for mode, r in runs.items()} == {
+        "compiled": "compiled" if compiles else "python", "python": "python"}
     compiled, python = runs["compiled"], runs["python"]
     tolerance = 1e-12 if name in NOT_TO_THE_BIT else 0.0
     np.testing.assert_allclose(compiled.outputs, python.outputs, rtol=0, atol=tolerance)

@@ -26,6 +26,7 @@ from .values import (
     _is_numba_function,
     _is_plain,
     _reevaluate,
+    numpy_last_bits,
 )
 
 
@@ -80,6 +81,9 @@ class _OutsideReads:
             return node
         if getattr(builtins, name, None) is value and name in vars(builtins):
             return node  # a builtin numba knows (or reports)
+        if numpy_last_bits(value):
+            self._problem(numpy_last_bits(value))
+            return node
         if isinstance(value, types.FunctionType | functools.partial) \
                 or _is_numba_function(value) and not self._importable(value):
             return self._helper_name(value, node)
@@ -152,11 +156,15 @@ class _OutsideReads:
             if found and isinstance(value, types.ModuleType) \
                     and value.__name__.split(".")[0] in NUMERIC_MODULES:
                 try:
-                    if _evaluate(value, parts[1]) is np.clip:
-                        return ast.copy_location(ast.Name(self._freeze_value(
-                            "clip", clip), ast.Load()), node)
+                    target = _evaluate(value, parts[1])
                 except Exception:  # noqa: BLE001 - numba reports what does not exist
-                    pass
+                    return None
+                if target is np.clip:
+                    return ast.copy_location(ast.Name(self._freeze_value(
+                        "clip", clip), ast.Load()), node)
+                if numpy_last_bits(target):
+                    self._problem(numpy_last_bits(target))
+                    return node
                 return None
         try:
             reached = self._outside(node)

@@ -5,8 +5,10 @@ valid, and the markers of a value not known or not there.
 
 from __future__ import annotations
 
+import functools
 import importlib
 import keyword
+import math
 import types
 
 import numpy as np
@@ -145,3 +147,72 @@ def _same_items(now, then) -> bool:
     if now is None or then is None:
         return now is None and then is None
     return now.keys() == then.keys() and all(_same(now[k], then[k]) for k in now)
+
+
+#: numpy's functions of numbers that compiled code computes with the C library's function
+#: (numba calls it, as Python's math module does), by the math module's name for it.
+C_LIBRARY = {"exp": "exp", "exp2": "exp2", "expm1": "expm1", "log": "log", "log2": "log2",
+             "log10": "log10", "log1p": "log1p", "sin": "sin", "cos": "cos", "tan": "tan",
+             "arcsin": "asin", "arccos": "acos", "arctan": "atan", "sinh": "sinh",
+             "cosh": "cosh", "tanh": "tanh", "arcsinh": "asinh", "arccosh": "acosh",
+             "arctanh": "atanh", "cbrt": "cbrt", "arctan2": "atan2", "hypot": "hypot"}
+
+
+def _sample_points(name):
+    """The points :func:`parts_from_c_library` compares ``name`` at: 20 000 in its domain,
+    most where a model's numbers are (within a few units), seeded (the same every time)."""
+    rng = np.random.default_rng(20261128)
+    if name in ("arcsin", "arccos", "arctanh"):
+        return (rng.uniform(-1.0, 1.0, 20000),)
+    if name in ("arctan2", "hypot"):
+        return rng.uniform(-4.0, 4.0, 20000), rng.uniform(-4.0, 4.0, 20000)
+    low, wide = {"log": (1e-3, 1e-6), "log2": (1e-3, 1e-6), "log10": (1e-3, 1e-6),
+                 "log1p": (-0.99, 1e-6), "arccosh": (1.0, 1.0)}.get(name, (-4.0, None))
+    spread = (np.geomspace(wide, 1e6, 5000) if wide is not None
+              else np.linspace(-19.0, 19.0, 5000))
+    return (np.concatenate([rng.uniform(low, 4.0, 15000), spread]),)
+
+
+@functools.cache
+def parts_from_c_library(name: str) -> float:
+    """The share of sample points at which numpy's function ``name`` (a key of
+    :data:`C_LIBRARY`) gives other numbers than the C library's, called on numbers and on
+    an array: 0 where numpy calls the C library, more where it has code of its own for
+    this machine (vectorised with the CPU's wide registers: exp, tanh, ... on AVX-512),
+    whose last bits compiled code would not reproduce.
+
+    Examples
+    --------
+    >>> parts_from_c_library("sin") >= 0.0
+    True
+    """
+    function, c_function = getattr(np, name), getattr(math, C_LIBRARY[name])
+    points = [p.ravel() for p in _sample_points(name)]
+    expected = np.array([c_function(*map(float, p)) for p in zip(*points, strict=True)])
+    on_numbers = np.array([function(*p) for p in zip(*points, strict=True)])
+    on_array = function(*points)
+    differ = ~((on_numbers == expected) & (on_array == expected))
+    return float(np.mean(differ))
+
+
+def numpy_last_bits(value) -> str | None:
+    """Why compiled code would not give ``value``'s numbers, when it is a numpy function
+    whose own implementation here differs from the C library's in the last bits (see
+    :func:`parts_from_c_library`); else None.
+
+    Examples
+    --------
+    >>> numpy_last_bits(np.clip) is None
+    True
+    """
+    name = getattr(value, "__name__", None)
+    if not isinstance(value, np.ufunc) or name not in C_LIBRARY or getattr(np, name) \
+            is not value:
+        return None
+    share = parts_from_c_library(name)
+    if not share:
+        return None
+    return (f"it calls numpy.{name}, which numpy computes here with code of its own "
+            f"({share:.1%} of sample values differ in the last bits from the C library's "
+            f"{name}, which compiled code calls); math.{C_LIBRARY[name]} on numbers is the "
+            f"C library's in Python too, and compiles")
