@@ -706,6 +706,46 @@ def test_a_tanh_gives_python_control_s_last_bits(module):
         assert ours.engine_mode == ("compiled" if compile and not own else ours.engine_mode)
 
 
+CALLS = {"n": 0}
+COUNT = 0
+
+
+def _counts_in_a_dict(t, x, u, params):
+    CALLS["n"] += 1
+    return [-x[0] + u[0] + 0.1 * (CALLS["n"] % 2)]
+
+
+def _counts_in_a_global(t, x, u, params):
+    global COUNT
+    COUNT += 1
+    return [-x[0] + u[0] + 0.1 * (COUNT % 2)]
+
+
+@pytest.mark.parametrize("update", [_counts_in_a_dict, _counts_in_a_global],
+                         ids=["dict", "global"])
+def test_a_function_changing_a_value_outside_itself_is_called_as_python_control_calls_it(
+        update):
+    # explain said "compiled" for CALLS["n"] += 1 (the compile then failed, and the run
+    # went on as Python): it is python-control's to run, as for a print
+    global COUNT
+    loop = ct.interconnect([ct.nlsys(update, None, **{**_DECAY, "name": "counter"})],
+                           inputs="u[0]", outputs="y[0]")
+    T = np.linspace(0.0, 5.0, 51)
+    (row,) = controlkit.explain(loop)
+    assert row.tier == "python-control", row
+    assert "outside itself" in row.reason or "from outside" in row.reason, row
+    CALLS["n"] = COUNT = 0
+    expected = ct.input_output_response(loop, T, 1.0)
+    calls = (CALLS["n"], COUNT)
+    for compile in (True, False, None):
+        CALLS["n"] = COUNT = 0
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # (it says python-control runs it)
+            ours = controlkit.input_output_response(loop, T, 1.0, compile=compile)
+        assert np.array_equal(ours.outputs, expected.outputs)
+        assert (CALLS["n"], COUNT) == calls
+
+
 class Terminated(KeyboardInterrupt):
     """What a command raises on ``kill PID`` (``controlkit reproduce``'s own kind)."""
 

@@ -282,26 +282,43 @@ def _argument_written(nodes, code) -> str | None:
     augmented = {id(n.target) for n in nodes if isinstance(n, ast.AugAssign)}
     rebound = {n.id for n in nodes if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Store)
                and id(n) not in augmented}
-
-    def base(target):
-        while isinstance(target, ast.Subscript | ast.Attribute):
-            target = target.value
-        return target.id if isinstance(target, ast.Name) else None
-
     for node in nodes:
-        if isinstance(node, ast.Assign | ast.AugAssign | ast.AnnAssign):
-            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
-            for target in targets:
-                name = base(target)
-                if name in arguments and name not in rebound and (
-                        isinstance(node, ast.AugAssign) or not isinstance(target, ast.Name)):
-                    return name
-        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) \
+        for target in _targets(node):
+            name = _base_name(target)
+            if name in arguments and name not in rebound and (
+                    isinstance(node, ast.AugAssign) or not isinstance(target, ast.Name)):
+                return name
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) \
                 and node.func.attr in MUTATORS:
-            name = base(node.func.value)
+            name = _base_name(node.func.value)
             if name in arguments and name not in rebound:
                 return name
     return None
+
+
+def _targets(node):
+    """What an assignment (or ``del``) ``node`` writes, tuples unpacked; else nothing."""
+    if isinstance(node, ast.Assign | ast.Delete):
+        todo = list(node.targets)
+    elif isinstance(node, ast.AugAssign | ast.AnnAssign):
+        todo = [node.target]
+    else:
+        return []
+    targets = []
+    while todo:
+        target = todo.pop()
+        if isinstance(target, ast.Tuple | ast.List):
+            todo.extend(target.elts)
+        else:
+            targets.append(target.value if isinstance(target, ast.Starred) else target)
+    return targets
+
+
+def _base_name(target):
+    """The name ``x`` of ``x[0].a``, ``x.a[1]`` or ``x``, else None."""
+    while isinstance(target, ast.Subscript | ast.Attribute):
+        target = target.value
+    return target.id if isinstance(target, ast.Name) else None
 
 
 def side_effect(fn) -> str | None:
@@ -337,6 +354,12 @@ def side_effect(fn) -> str | None:
         effect = _outside_effect(node, local) if isinstance(node, ast.Call) else None
         if effect is not None:
             return effect[0]
+        if isinstance(node, ast.Global | ast.Nonlocal):
+            return f"it assigns {', '.join(node.names)} outside itself"
+        for written in _targets(node):
+            name = _base_name(written)
+            if not isinstance(written, ast.Name) and name is not None and name not in local:
+                return f"it changes an object from outside ({ast.unparse(written)[:40]})"
     written = _argument_written(nodes, target.__code__)
     if written is not None:
         return f"it writes into its argument {written!r}"
