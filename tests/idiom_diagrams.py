@@ -18,7 +18,6 @@ import control as ct
 import numpy as np
 
 from controlkit.blocks.sampling import sample_nlsys
-from controlkit.engines.source.values import parts_from_c_library
 
 TS = 0.05
 
@@ -473,5 +472,8 @@ def expected_tier(diagram, block):
     >>> expected_tier("cruise control (car, PI with anti-windup)", "car")
     'compiled'
     """
+    # (imported here: the benchmarks build these diagrams for older engines too)
+    from controlkit.engines.source.values import parts_from_c_library
+
     calls_tan = block in NUMPY_TAN.get(diagram, ())
     return "python" if calls_tan and parts_from_c_library("tan") else "compiled"
