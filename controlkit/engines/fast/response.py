@@ -51,13 +51,13 @@ def _response(given, sys, T, U, X0, compile, options):
     """:func:`response` of ``given`` run as the interconnect ``sys``."""
     given_X0, given_times = X0, options.get("evaluation_times", "T")
     given_times = T if isinstance(given_times, str) else given_times
+    # python-control hands its functions the time points as given: integers stay so
+    integer_times = isinstance(given_times, np.ndarray) and given_times.dtype.kind in "iu"
     T, U, X0, t_eval, method, solver = python_control_arguments(sys, T, U, X0, options)
     params = options.get("params")
     if sys.isdtime(strict=True):
         if not np.array_equal(t_eval, T):  # python-control interpolates U at t_eval
             U = interpolated(T, U, t_eval)
-        # python-control hands its functions the time points as given: integers stay so
-        integer_times = isinstance(given_times, np.ndarray) and given_times.dtype.kind in "iu"
         try:
             resp = simulate(sys, t_eval, X0, U, params=params, compile=compile)
         except UnsupportedSystem:
@@ -68,15 +68,15 @@ def _response(given, sys, T, U, X0, compile, options):
                     f"fails on a float one ({type(error).__name__})")) from None
             raise
         integers = integer_state(given_X0, sys.nstates)
-        if integers is not None and _integers_count(given, t_eval[0], X0, X0.astype(integers),
-                                                    U[:, 0], params):
+        if integers is not None and _integers_count(given, t_eval[0], X0, U[:, 0], params,
+                                                    t_eval[0], X0.astype(integers)):
             raise UnsupportedSystem(
                 f"X0 holds integers, which python-control keeps in its first step, where a "
                 f"function of this system computes other numbers from them than from floats "
                 f"(np.zeros_like(x) fills integers); X0 given as floats "
                 f"(X0={np.asarray(X0).tolist()}) runs on the fast engine")
-        if integer_times and _integers_count(given, given_times[0], X0, X0, U[:, 0], params,
-                                             t_given=given_times[0]):
+        if integer_times and _integers_count(given, t_eval[0], X0, U[:, 0], params,
+                                             given_times[0], X0):
             raise UnsupportedSystem(_INTEGER_TIMES.format("computes other numbers from it"))
     else:
         resp = run_continuous(sys, T, U, X0, params=params, t_eval=t_eval, method=method,
@@ -90,7 +90,7 @@ def _response(given, sys, T, U, X0, compile, options):
     else:
         relabelled = base_response(given, resp.t, resp.y, resp.x, resp.u, **flags)
         relabelled.engine_mode, resp = resp.engine_mode, relabelled
-    if isinstance(given_times, np.ndarray) and given_times.dtype.kind in "iu":
+    if integer_times:
         resp.t = given_times.reshape(-1)  # python-control's time points, as given
     return resp
 
@@ -101,13 +101,12 @@ _INTEGER_TIMES = ("T holds integers, which python-control hands to the functions
                   "floats (T.astype(float)) runs on the fast engine")
 
 
-def _integers_count(given, t, X0, x_given, u, params, *, t_given=None) -> bool:
+def _integers_count(given, t, X0, u, params, t_given, x_given) -> bool:
     """Whether python-control's first step of ``given`` at the time and from the initial
     state as it holds them (``t_given``, ``x_given``: integers, see
-    :func:`.contract.integer_state`) gives other numbers than at the floats ``t`` and
-    ``X0``, or (a single block) a state still held as integers. The functions run after
-    the engine's own run, which refused any that acts outside itself (a print, a write)."""
-    t_given, t = (t if t_given is None else t_given), float(t)
+    :func:`.contract.integer_state`) gives other numbers than at the engine's floats ``t``
+    and ``X0``, or (a single block) a state still held as integers. The functions run
+    after the engine's own run, which refused any that acts outside itself (a print)."""
     with SYSTEM_CALLS:  # (python-control's systems keep a call's params on themselves)
         try:
             step = np.asarray(given.dynamics(t_given, x_given, u, params=params))

@@ -81,8 +81,9 @@ class _OutsideReads:
             return node
         if getattr(builtins, name, None) is value and name in vars(builtins):
             return node  # a builtin numba knows (or reports)
-        if numpy_last_bits(value):
-            self._problem(numpy_last_bits(value))
+        why = numpy_last_bits(value)
+        if why:
+            self._problem(why)
             return node
         if isinstance(value, types.FunctionType | functools.partial) \
                 or _is_numba_function(value) and not self._importable(value):
@@ -162,8 +163,9 @@ class _OutsideReads:
                 if target is np.clip:
                     return ast.copy_location(ast.Name(self._freeze_value(
                         "clip", clip), ast.Load()), node)
-                if numpy_last_bits(target):
-                    self._problem(numpy_last_bits(target))
+                why = numpy_last_bits(target)
+                if why:
+                    self._problem(why)
                     return node
                 return None
         try:

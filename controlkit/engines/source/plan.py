@@ -348,14 +348,16 @@ def side_effect(fn) -> str | None:
     except NotCompilable:
         return None
     nodes = list(walk(ast.Module(body, [])))
-    local = {n.id for n in nodes if isinstance(n, ast.Name)
-             and isinstance(n.ctx, ast.Store)} | set(target.__code__.co_varnames)
+    stored = {n.id for n in nodes if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Store)}
+    local = stored | set(target.__code__.co_varnames)
     for node in nodes:
         effect = _outside_effect(node, local) if isinstance(node, ast.Call) else None
         if effect is not None:
             return effect[0]
         if isinstance(node, ast.Global | ast.Nonlocal):
-            return f"it assigns {', '.join(node.names)} outside itself"
+            assigned = [name for name in node.names if name in stored]
+            if assigned:
+                return f"it assigns {', '.join(assigned)} outside itself"
         for written in _targets(node):
             name = _base_name(written)
             if not isinstance(written, ast.Name) and name is not None and name not in local:
