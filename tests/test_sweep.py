@@ -11,8 +11,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from controlkit.blocks.spacecraft import pointing_error_deg, quaternion_from_axis_angle
 from controlkit.studies import robustness
 from controlkit.studies.spacecraft import robustness as sc_robustness
+from controlkit.studies.spacecraft import scenario
 from controlkit.sweep import draw_points, plan, sweep, wilson_interval
 
 CALLS = []
@@ -193,6 +195,30 @@ def test_trajectories_are_kept_per_run():
     assert sorted(table.attrs["trajectories"]) == [0, 1]
     assert len(table.attrs["trajectories"][0]["time"]) == 11
     assert "trajectory" not in table
+
+
+@pytest.mark.parametrize("case", ["without_mec", "proposed"])
+def test_streamed_metrics_equal_those_of_the_whole_response(case):
+    # the study's run sees its outputs chunk by chunk; its numbers must be those of the
+    # run's full response, bit for bit (a long run is cut into 20 chunks)
+    options = dict(inertia_error_x=2.5, momentum_scale=3.0, axis_x=-1.0, angle_deg=50.0)
+    metrics = sc_robustness.run(case, horizon=2500.0, keep_every=9, **options)
+    resp = scenario.run(case, horizon=2500.0, q_initial=quaternion_from_axis_angle(
+        [-1.0, 2.0, 3.0], 50.0), plant_options={"inertia_error_scale": [2.5, 1.0, 1.0],
+                                               "momentum_scale": 3.0})
+    labels = list(resp.output_labels)
+    q = resp.outputs[[labels.index(f"q[{i}]") for i in range(4)]]
+    error = pointing_error_deg(q)
+    K = [labels.index(f"K[{i}]") for i in range(4) if f"K[{i}]" in labels]
+    u = resp.outputs[[labels.index("u[0]"), labels.index("u[1]")]]
+    assert metrics.pop("trajectory")["error_deg"].tolist() == error[::9].tolist()
+    assert metrics == {
+        "max_pointing_error_last_half_deg": float(error[resp.time >= 1250.0].max()),
+        "final_pointing_error_deg": float(error[-1]),
+        "requirement_met_last_half": bool(error[resp.time >= 1250.0].max() <= 0.05),
+        "peak_abs_u_rad_s": float(np.abs(u).max()),
+        "max_abs_K": float(np.abs(resp.outputs[K]).max()) if K else 0.0}
+    assert len(resp.time) == 25_001 and (case == "proposed") == bool(K)
 
 
 def test_wilson_interval():

@@ -34,10 +34,10 @@ def default_executor() -> str:
     ``"threads"`` where numba compiles the runs' loops: a compiled loop releases Python's
     lock, so threads of this process share the cores, with no process to start nor
     imports and compiled code to load in each (``benchmarks/bench_sweep.py``, 48
-    spacecraft runs on 2 cores: of the paper's 20 000 s, two threads 1.5x faster than
-    one and 1.7x faster than two processes; of 2 000 s, 1.1x and 2.8x, the runs' Python
-    part, which holds the lock, weighing more). ``"processes"`` otherwise: runs made in
-    Python hold the lock.
+    spacecraft runs on 2 cores: of the paper's 20 000 s, two threads 1.6x faster than
+    one and 1.9x faster than two processes; of 2 000 s, 1.2x and 3.0x, numba's start and
+    the runs' Python part, which holds the lock, weighing more). ``"processes"``
+    otherwise: runs made in Python hold the lock.
 
     Examples
     --------
