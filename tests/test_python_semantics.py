@@ -706,6 +706,62 @@ def test_a_tanh_gives_python_control_s_last_bits(module):
         assert ours.engine_mode == ("compiled" if compile and not own else ours.engine_mode)
 
 
+def _cubic_spring(t, x, u, params):
+    k = params.get("k", 2)  # an integer power read from params, and literal ones
+    return [x[0] + 0.01 * x[1],
+            x[1] + 0.01 * (-0.5 * x[0] ** 3 - 0.2 * math.pow(x[0], 2) * x[1]
+                           - 0.1 * (x[1] ** 2 + 1.0) ** -2 - x[0] ** (k - 1) + u[0])]
+
+
+def _linear(t, x, u, params):
+    return [x[0] + 0.01 * x[1], x[1] - 0.01 * (x[0] + 0.2 * x[1] - u[0])]
+
+
+def _squares_in_place(t, x, u, params):
+    y = x[0]
+    y **= 2
+    return [y, x[1]]
+
+
+@pytest.mark.parametrize("update, output", [(_cubic_spring, None),
+                                            (_linear, _squares_in_place)],
+                         ids=["literal and parameter powers", "in place"])
+def test_a_power_of_a_number_gives_python_s_last_bits(update, output):
+    # Python raises a number to a power with the C library's pow; numba multiplied (x ** 3
+    # as x * x * x: a quarter of values differ in the last bit), and LLVM turns pow(x, 2.0)
+    # into x * x (0.1 % differ): compiled code now calls pow as Python does
+    block = ct.nlsys(update, output, inputs=1, states=2, outputs=2, dt=0.01, name="spring")
+    T = np.arange(5000) * 0.01
+    U = np.sin(T)
+    expected = ct.input_output_response(block, T, U, [0.3, 0.2])
+    (row,) = controlkit.explain(block)
+    assert row.tier == "compiled", row.reason
+    ours = controlkit.input_output_response(block, T, U, [0.3, 0.2], compile=True)
+    assert ours.engine_mode == "compiled"
+    assert np.array_equal(ours.outputs, expected.outputs)
+
+
+def test_an_arrays_power_is_numpys_to_the_last_bit():
+    # numpy raises a float array to a power (other than 2, -1 and 0.5) with code of its
+    # own where the CPU has wide registers: compiled code cannot give its last bits there,
+    # and the block runs as Python, saying why; elsewhere it compiles, with numpy's numbers
+    from controlkit.engines.source.values import parts_from_c_library
+
+    block = ct.nlsys(lambda t, x, u, p: 0.99 * x - 0.01 * x ** 3 + 0.001 * x ** 2 + u[0],
+                     None, inputs=1, states=2, outputs=2, dt=0.01, name="cubes")
+    T = np.arange(2000) * 0.01
+    U = np.sin(T)
+    expected = ct.input_output_response(block, T, U, [0.5, -0.4])
+    own = parts_from_c_library("power") > 0
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        ours = controlkit.input_output_response(block, T, U, [0.5, -0.4], compile=True)
+    assert np.array_equal(ours.outputs, expected.outputs)
+    assert ours.engine_mode == ("python" if own else "compiled")
+    said = " ".join(str(w.message) for w in caught)
+    assert ("float array to a power other than 2 and -1" in said) == own
+
+
 CALLS = {"n": 0}
 COUNT = 0
 

@@ -275,7 +275,8 @@ def bound_covariance(x, o, p_min, p_max):
     [10.0, 0.0, 0.0, 0.001]
     """
     a, b, d = x[o], 0.5 * (x[o + 1] + x[o + 2]), x[o + 3]
-    mean, half = 0.5 * (a + d), math.sqrt(0.25 * (a - d) ** 2 + b * b)
+    mean, half = 0.5 * (a + d), math.sqrt(0.25 * ((a - d) * (a - d)) + b * b)  # (not ** 2:
+    # Python squares with the C library's pow, compiled code multiplies; this is both)
     l1, l2 = mean + half, mean - half
     c1, c2 = min(max(l1, p_min), p_max), min(max(l2, p_min), p_max)
     if c1 == l1 and c2 == l2:

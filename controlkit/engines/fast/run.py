@@ -152,6 +152,11 @@ def _first_line(error) -> str:
     """The line of a compiler's error that says what went wrong."""
     lines = [line.strip() for line in str(error).splitlines() if line.strip()]
     useful = [line for line in lines if not line.startswith(("Failed in", "During:"))]
+    # an implementation's own refusal (controlkit.kernels.user_calls) says more than
+    # numba's "No implementation of function ..." around it
+    useful = [after.removeprefix("TypingError: ")
+              for before, after in zip(lines, lines[1:], strict=False)
+              if before.endswith("raised a specific error:")] + useful
     return f"{type(error).__name__}: {(useful or lines or [''])[0][:200]}"
 
 

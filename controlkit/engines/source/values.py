@@ -155,7 +155,8 @@ C_LIBRARY = {"exp": "exp", "exp2": "exp2", "expm1": "expm1", "log": "log", "log2
              "log10": "log10", "log1p": "log1p", "sin": "sin", "cos": "cos", "tan": "tan",
              "arcsin": "asin", "arccos": "acos", "arctan": "atan", "sinh": "sinh",
              "cosh": "cosh", "tanh": "tanh", "arcsinh": "asinh", "arccosh": "acosh",
-             "arctanh": "atanh", "cbrt": "cbrt", "arctan2": "atan2", "hypot": "hypot"}
+             "arctanh": "atanh", "cbrt": "cbrt", "arctan2": "atan2", "hypot": "hypot",
+             "power": "pow"}
 
 
 def _sample_points(name):
@@ -166,6 +167,8 @@ def _sample_points(name):
         return (rng.uniform(-1.0, 1.0, 20000),)
     if name in ("arctan2", "hypot"):
         return rng.uniform(-4.0, 4.0, 20000), rng.uniform(-4.0, 4.0, 20000)
+    if name == "power":  # (numpy's shortcuts for 2, -1 and 0.5 are the same everywhere)
+        return rng.uniform(1e-3, 4.0, 20000), rng.uniform(-4.0, 4.0, 20000)
     low, wide = {"log": (1e-3, 1e-6), "log2": (1e-3, 1e-6), "log10": (1e-3, 1e-6),
                  "log1p": (-0.99, 1e-6), "arccosh": (1.0, 1.0)}.get(name, (-4.0, None))
     spread = (np.geomspace(wide, 1e6, 5000) if wide is not None

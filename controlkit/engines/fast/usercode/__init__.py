@@ -13,7 +13,15 @@ Python for the numpy numbers ``x`` and ``u`` hold (where Python raises, for two 
 floats, the piece whose state goes non-finite is run again as Python, which raises).
 """
 
-from ....kernels.user_calls import clip, matmul, missing_parameter, store
+from ....kernels.user_calls import (
+    clip,
+    matmul,
+    missing_parameter,
+    power,
+    power_of_numbers,
+    store,
+)
 from .compiling import UserKernel, block_layout
 
-__all__ = ["UserKernel", "block_layout", "clip", "matmul", "missing_parameter", "store"]
+__all__ = ["UserKernel", "block_layout", "clip", "matmul", "missing_parameter", "power",
+           "power_of_numbers", "store"]

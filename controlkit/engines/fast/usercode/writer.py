@@ -8,13 +8,20 @@ from __future__ import annotations
 import ast
 import hashlib
 import inspect
+import math
 import types as pytypes
 
 import numpy as np
 
 from .... import _jit
 from ...source import PARAM_READ, NotCompilable, Plan, copy_tree, function_def, walk
-from ...source.values import NUMERIC_MODULES, _cell, _dotted, _import_name
+from ...source.values import (
+    NUMERIC_MODULES,
+    _cell,
+    _dotted,
+    _import_name,
+    parts_from_c_library,
+)
 from ..codegen import numbers
 from .layout import ParamLayout
 
@@ -242,7 +249,12 @@ def kernel_source(plan: Plan, layout: ParamLayout) -> str:
     imports = ["import numpy as _np_",
                "from controlkit.engines.fast.usercode import missing_parameter as _ck_missing",
                "from controlkit.engines.fast.usercode import store",
-               "from controlkit.engines.fast.usercode import matmul as _ck_matmul"]
+               "from controlkit.engines.fast.usercode import matmul as _ck_matmul",
+               # where numpy raises arrays to powers with its own code, compiled code
+               # cannot give its numbers: a float array's power is then Python's to run
+               "from controlkit.engines.fast.usercode import "
+               f"{'power_of_numbers' if parts_from_c_library('power') else 'power'} "
+               "as _ck_power"]
     lines = []
     for each in plan.tree():  # read now: an array may have been changed in place
         for name, value in each.frozen.items():
@@ -422,14 +434,41 @@ def _numpy_array(func, frozen) -> bool:
 
 
 class _Products(ast.NodeTransformer):
-    """``a @ b`` -> ``_ck_matmul(a, b)`` (:func:`..user_calls.matmul`: numpy's sums)."""
+    """``a @ b`` -> ``_ck_matmul(a, b)`` (:func:`..user_calls.matmul`: numpy's sums) and
+    ``a ** b`` -> ``_ck_power(a, b)`` (:func:`..user_calls.power`: Python's ``pow``)."""
+
+    CALLS = {ast.MatMult: "_ck_matmul", ast.Pow: "_ck_power"}
+
+    def __init__(self, frozen):
+        self.frozen = frozen
+
+    def visit_Call(self, node):  # math.pow(a, b) -> _ck_power(float(a), float(b))
+        node = self.generic_visit(node)
+        f = node.func
+        named = self.frozen.get(f.value.id) if isinstance(f, ast.Attribute) and isinstance(
+            f.value, ast.Name) and f.attr == "pow" else None
+        if (named is math or isinstance(f, ast.Name) and self.frozen.get(f.id) is math.pow) \
+                and len(node.args) == 2 and not node.keywords:
+            floats = [ast.Call(ast.Name("float", ast.Load()), [a], []) for a in node.args]
+            return ast.copy_location(ast.Call(ast.Name("_ck_power", ast.Load()), floats, []),
+                                     node)
+        return node
 
     def visit_BinOp(self, node):
         node = self.generic_visit(node)
-        if not isinstance(node.op, ast.MatMult):
+        name = self.CALLS.get(type(node.op))
+        if name is None:
             return node
-        return ast.copy_location(ast.Call(ast.Name("_ck_matmul", ast.Load()),
+        return ast.copy_location(ast.Call(ast.Name(name, ast.Load()),
                                           [node.left, node.right], []), node)
+
+    def visit_AugAssign(self, node):  # y **= 3, the same as y = y ** 3 for a name
+        node = self.generic_visit(node)
+        if type(node.op) not in self.CALLS or not isinstance(node.target, ast.Name):
+            return node
+        value = self.visit_BinOp(ast.copy_location(ast.BinOp(
+            ast.Name(node.target.id, ast.Load()), node.op, node.value), node))
+        return ast.copy_location(ast.Assign([node.target], value), node)
 
 
 def _functions(plan, layout):
@@ -438,7 +477,7 @@ def _functions(plan, layout):
     texts = []
     for each in plan.tree():
         body = _appended_lists(_read_only_lists(
-            [_Products().visit(reads.visit(stmt)) for stmt in copy_tree(each.body)]))
+            [_Products(each.frozen).visit(reads.visit(stmt)) for stmt in copy_tree(each.body)]))
         if each is plan:
             body = _stored_returns(body, each.frozen, each.name)
         texts.append(ast.unparse(function_def(each.name, each.arguments, body)))
