@@ -762,6 +762,40 @@ def test_an_arrays_power_is_numpys_to_the_last_bit():
     assert ("float array to a power other than 2 and -1" in said) == own
 
 
+_WEIGHTS = np.linspace(-1.0, 1.0, 12).reshape(3, 4)
+_SUMS_AND_NORMS = {
+    "np.sum": (lambda x: np.sum(_WEIGHTS * x[0] + x[1]), "compiled"),
+    "a.mean()": (lambda x: (_WEIGHTS[0] * x[0] - x[1]).mean(), "compiled"),
+    "np.linalg.norm": (lambda x: np.linalg.norm(x), "compiled"),
+    "np.linalg.inv": (lambda x: (np.linalg.inv(_WEIGHTS[:2, :2] + 3.0 + x[0]) @ x)[0], "python"),
+    "np.std": (lambda x: np.std(_WEIGHTS * x[0] + x[1]), "python"),
+    "math.hypot": (lambda x: math.hypot(x[0], x[1]), "python"),
+}
+
+
+@pytest.mark.parametrize("name", list(_SUMS_AND_NORMS))
+def test_sums_norms_and_inverses_give_numpys_last_bits(name):
+    # numba adds an array's values in order, numpy pairwise (from 8 values on: a third of
+    # sums of 20 differ in the last bit); numba's norm is LAPACK's, numpy's the root of a
+    # dot product; its inverse, variance and math.hypot take other methods: sums, means and
+    # norms now compile in numpy's order, the others run as Python
+    expression, tier = _SUMS_AND_NORMS[name]
+    block = ct.nlsys(lambda t, x, u, p: [x[0] + 0.01 * x[1],
+                                         x[1] + 0.01 * (-x[0] - 0.2 * x[1] + u[0])],
+                     lambda t, x, u, p: [x[0], expression(x)],
+                     inputs=1, states=2, outputs=2, dt=0.01, name="b")
+    T = np.arange(3000) * 0.01
+    U = np.sin(T)
+    expected = ct.input_output_response(block, T, U, [0.3, 0.2])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # (compile=True on a block that runs as Python)
+        ours = controlkit.input_output_response(block, T, U, [0.3, 0.2], compile=True)
+    assert np.array_equal(ours.outputs, expected.outputs)
+    assert ours.engine_mode == tier
+    (row,) = controlkit.explain(block)
+    assert row.tier == tier, row.reason
+
+
 CALLS = {"n": 0}
 COUNT = 0
 

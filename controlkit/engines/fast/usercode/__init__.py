@@ -17,11 +17,14 @@ from ....kernels.user_calls import (
     clip,
     matmul,
     missing_parameter,
+    numpy_mean,
+    numpy_norm,
+    numpy_sum,
     power,
     power_of_numbers,
     store,
 )
 from .compiling import UserKernel, block_layout
 
-__all__ = ["UserKernel", "block_layout", "clip", "matmul", "missing_parameter", "power",
-           "power_of_numbers", "store"]
+__all__ = ["UserKernel", "block_layout", "clip", "matmul", "missing_parameter", "numpy_mean",
+           "numpy_norm", "numpy_sum", "power", "power_of_numbers", "store"]

@@ -8,7 +8,6 @@ from __future__ import annotations
 import ast
 import hashlib
 import inspect
-import math
 import types as pytypes
 
 import numpy as np
@@ -23,6 +22,7 @@ from ...source.values import (
     parts_from_c_library,
 )
 from ..codegen import numbers
+from .calls import Calls
 from .layout import ParamLayout
 
 
@@ -250,6 +250,9 @@ def kernel_source(plan: Plan, layout: ParamLayout) -> str:
                "from controlkit.engines.fast.usercode import missing_parameter as _ck_missing",
                "from controlkit.engines.fast.usercode import store",
                "from controlkit.engines.fast.usercode import matmul as _ck_matmul",
+               "from controlkit.engines.fast.usercode import numpy_sum as _ck_sum",
+               "from controlkit.engines.fast.usercode import numpy_mean as _ck_mean",
+               "from controlkit.engines.fast.usercode import numpy_norm as _ck_norm",
                # where numpy raises arrays to powers with its own code, compiled code
                # cannot give its numbers: a float array's power is then Python's to run
                "from controlkit.engines.fast.usercode import "
@@ -433,51 +436,13 @@ def _numpy_array(func, frozen) -> bool:
     return False
 
 
-class _Products(ast.NodeTransformer):
-    """``a @ b`` -> ``_ck_matmul(a, b)`` (:func:`..user_calls.matmul`: numpy's sums) and
-    ``a ** b`` -> ``_ck_power(a, b)`` (:func:`..user_calls.power`: Python's ``pow``)."""
-
-    CALLS = {ast.MatMult: "_ck_matmul", ast.Pow: "_ck_power"}
-
-    def __init__(self, frozen):
-        self.frozen = frozen
-
-    def visit_Call(self, node):  # math.pow(a, b) -> _ck_power(float(a), float(b))
-        node = self.generic_visit(node)
-        f = node.func
-        named = self.frozen.get(f.value.id) if isinstance(f, ast.Attribute) and isinstance(
-            f.value, ast.Name) and f.attr == "pow" else None
-        if (named is math or isinstance(f, ast.Name) and self.frozen.get(f.id) is math.pow) \
-                and len(node.args) == 2 and not node.keywords:
-            floats = [ast.Call(ast.Name("float", ast.Load()), [a], []) for a in node.args]
-            return ast.copy_location(ast.Call(ast.Name("_ck_power", ast.Load()), floats, []),
-                                     node)
-        return node
-
-    def visit_BinOp(self, node):
-        node = self.generic_visit(node)
-        name = self.CALLS.get(type(node.op))
-        if name is None:
-            return node
-        return ast.copy_location(ast.Call(ast.Name(name, ast.Load()),
-                                          [node.left, node.right], []), node)
-
-    def visit_AugAssign(self, node):  # y **= 3, the same as y = y ** 3 for a name
-        node = self.generic_visit(node)
-        if type(node.op) not in self.CALLS or not isinstance(node.target, ast.Name):
-            return node
-        value = self.visit_BinOp(ast.copy_location(ast.BinOp(
-            ast.Name(node.target.id, ast.Load()), node.op, node.value), node))
-        return ast.copy_location(ast.Assign([node.target], value), node)
-
-
 def _functions(plan, layout):
     """The text of the plan's functions, params read from ``p``."""
     reads = _Reads(layout)
     texts = []
     for each in plan.tree():
         body = _appended_lists(_read_only_lists(
-            [_Products(each.frozen).visit(reads.visit(stmt)) for stmt in copy_tree(each.body)]))
+            [Calls(each.frozen).visit(reads.visit(stmt)) for stmt in copy_tree(each.body)]))
         if each is plan:
             body = _stored_returns(body, each.frozen, each.name)
         texts.append(ast.unparse(function_def(each.name, each.arguments, body)))

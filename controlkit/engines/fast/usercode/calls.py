@@ -1,0 +1,87 @@
+"""What a user function's compiled text calls instead of numba's own operations, where
+numba's numbers are not Python's or numpy's (:mod:`controlkit.kernels.user_calls`): ``a @ b``,
+``a ** b``, ``math.pow``, ``np.sum``, ``np.mean``, ``np.linalg.norm``, ``a.sum()``,
+``a.mean()``; and ``a.var()``, ``a.std()`` refused.
+"""
+
+from __future__ import annotations
+
+import ast
+import math
+import types as pytypes
+
+import numpy as np
+
+from ...source import NotCompilable
+
+
+class Calls(ast.NodeTransformer):
+    """The rewrites of a function's statements, ``frozen`` its values from outside:
+    ``a @ b`` -> ``_ck_matmul(a, b)`` (numpy's sums), ``a ** b`` and ``math.pow(a, b)`` ->
+    ``_ck_power`` (Python's ``pow``), ``np.sum``, ``np.mean``, ``np.linalg.norm``,
+    ``a.sum()``, ``a.mean()`` -> ``_ck_sum``, ``_ck_mean``, ``_ck_norm`` (numpy's order).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> tree = Calls({"np": np}).visit(ast.parse("y = np.sum(x ** 3) + v.mean()"))
+    >>> ast.unparse(tree)
+    'y = _ck_sum(_ck_power(x, 3)) + _ck_mean(v)'
+    """
+
+    #: Operators and what is called instead
+    CALLS = {ast.MatMult: "_ck_matmul", ast.Pow: "_ck_power"}
+    #: numpy's functions whose order of sums numba does not keep: what is called instead
+    NUMPY = {np.sum: "_ck_sum", np.mean: "_ck_mean", np.linalg.norm: "_ck_norm"}
+
+    def __init__(self, frozen):
+        self.frozen = frozen
+
+    def _target(self, f):
+        """What ``f`` names among the module's frozen values (a module's attribute too)."""
+        if isinstance(f, ast.Name):
+            return np if f.id == "_np_" else self.frozen.get(f.id)
+        if isinstance(f, ast.Attribute):
+            module = self._target(f.value)
+            if isinstance(module, pytypes.ModuleType):
+                return getattr(module, f.attr, None)
+        return None
+
+    def visit_Call(self, node):
+        node = self.generic_visit(node)
+        f, target = node.func, self._target(node.func)
+        name = self.NUMPY.get(target) if callable(target) else None
+        if target is math.pow and len(node.args) == 2 and not node.keywords:
+            # math.pow(a, b) -> _ck_power(float(a), float(b))
+            floats = [ast.Call(ast.Name("float", ast.Load()), [a], []) for a in node.args]
+            return ast.copy_location(ast.Call(ast.Name("_ck_power", ast.Load()), floats, []),
+                                     node)
+        if name is not None:
+            return ast.copy_location(ast.Call(ast.Name(name, ast.Load()), node.args,
+                                              node.keywords), node)
+        if isinstance(f, ast.Attribute) and f.attr in ("var", "std") and target is None \
+                and not isinstance(self._target(f.value), pytypes.ModuleType):
+            raise NotCompilable(f"it calls .{f.attr}() of an array, which numba sums in "
+                                "another order than numpy, with other last bits")
+        if isinstance(f, ast.Attribute) and f.attr in ("sum", "mean") and target is None \
+                and not isinstance(self._target(f.value), pytypes.ModuleType):
+            # an array's own a.sum(), a.mean()
+            return ast.copy_location(ast.Call(ast.Name(f"_ck_{f.attr}", ast.Load()),
+                                              [f.value, *node.args], node.keywords), node)
+        return node
+
+    def visit_BinOp(self, node):
+        node = self.generic_visit(node)
+        name = self.CALLS.get(type(node.op))
+        if name is None:
+            return node
+        return ast.copy_location(ast.Call(ast.Name(name, ast.Load()),
+                                          [node.left, node.right], []), node)
+
+    def visit_AugAssign(self, node):  # y **= 3, the same as y = y ** 3 for a name
+        node = self.generic_visit(node)
+        if type(node.op) not in self.CALLS or not isinstance(node.target, ast.Name):
+            return node
+        value = self.visit_BinOp(ast.copy_location(ast.BinOp(
+            ast.Name(node.target.id, ast.Load()), node.op, node.value), node))
+        return ast.copy_location(ast.Assign([node.target], value), node)
