@@ -770,6 +770,10 @@ _SUMS_AND_NORMS = {
     "np.linalg.inv": (lambda x: (np.linalg.inv(_WEIGHTS[:2, :2] + 3.0 + x[0]) @ x)[0], "python"),
     "np.std": (lambda x: np.std(_WEIGHTS * x[0] + x[1]), "python"),
     "math.hypot": (lambda x: math.hypot(x[0], x[1]), "python"),
+    "np.dot one row": (lambda x: np.dot(_WEIGHTS[:1, :2], x)[0], "compiled"),
+    "a.dot one row": (lambda x: _WEIGHTS[:1, :2].dot(x)[0], "compiled"),
+    "vector @ column": (lambda x: (x @ _WEIGHTS[:1, :2].T)[0], "compiled"),
+    "np.convolve": (lambda x: np.convolve(x, _WEIGHTS[0])[2], "python"),
 }
 
 

@@ -33,10 +33,9 @@ SOLVER_OPTIONS = ("rtol", "atol", "max_step", "first_step")
 #: Evaluations of the right-hand side in the piece a newly compiled module is checked on
 #: (run both ways): a short one, so that a run that fits in one piece does not run twice.
 CHECK_EVALUATIONS = 32
-#: How close a compiled piece must come to the same piece run as Python (relative): the
-#: kernels' last bits (libm against numpy's own) may move the step sizes a little, by far
-#: less in one piece: the closeness the differential fuzzer asks of whole runs.
-CONTINUOUS_RTOL = 1e-9
+#: How close a compiled piece must come to the same piece run as Python: the same numbers,
+#: as for a discrete run (:data:`.discrete.DISCRETE_RTOL`).
+CONTINUOUS_RTOL = 0.0
 
 
 class StiffProblem(RuntimeError):

@@ -17,6 +17,7 @@ from ....kernels.user_calls import (
     clip,
     matmul,
     missing_parameter,
+    numpy_dot,
     numpy_mean,
     numpy_norm,
     numpy_sum,
@@ -26,5 +27,5 @@ from ....kernels.user_calls import (
 )
 from .compiling import UserKernel, block_layout
 
-__all__ = ["UserKernel", "block_layout", "clip", "matmul", "missing_parameter", "numpy_mean",
-           "numpy_norm", "numpy_sum", "power", "power_of_numbers", "store"]
+__all__ = ["UserKernel", "block_layout", "clip", "matmul", "missing_parameter", "numpy_dot",
+           "numpy_mean", "numpy_norm", "numpy_sum", "power", "power_of_numbers", "store"]

@@ -32,7 +32,8 @@ class Calls(ast.NodeTransformer):
     #: Operators and what is called instead
     CALLS = {ast.MatMult: "_ck_matmul", ast.Pow: "_ck_power"}
     #: numpy's functions whose order of sums numba does not keep: what is called instead
-    NUMPY = {np.sum: "_ck_sum", np.mean: "_ck_mean", np.linalg.norm: "_ck_norm"}
+    NUMPY = {np.sum: "_ck_sum", np.mean: "_ck_mean", np.linalg.norm: "_ck_norm",
+             np.dot: "_ck_dot"}
 
     def __init__(self, frozen):
         self.frozen = frozen
@@ -63,9 +64,10 @@ class Calls(ast.NodeTransformer):
                 and not isinstance(self._target(f.value), pytypes.ModuleType):
             raise NotCompilable(f"it calls .{f.attr}() of an array, which numba sums in "
                                 "another order than numpy, with other last bits")
-        if isinstance(f, ast.Attribute) and f.attr in ("sum", "mean") and target is None \
+        if isinstance(f, ast.Attribute) and f.attr in ("sum", "mean", "dot") \
+                and target is None \
                 and not isinstance(self._target(f.value), pytypes.ModuleType):
-            # an array's own a.sum(), a.mean()
+            # an array's own a.sum(), a.mean(), a.dot(b)
             return ast.copy_location(ast.Call(ast.Name(f"_ck_{f.attr}", ast.Load()),
                                               [f.value, *node.args], node.keywords), node)
         return node

@@ -250,6 +250,7 @@ def kernel_source(plan: Plan, layout: ParamLayout) -> str:
                "from controlkit.engines.fast.usercode import missing_parameter as _ck_missing",
                "from controlkit.engines.fast.usercode import store",
                "from controlkit.engines.fast.usercode import matmul as _ck_matmul",
+               "from controlkit.engines.fast.usercode import numpy_dot as _ck_dot",
                "from controlkit.engines.fast.usercode import numpy_sum as _ck_sum",
                "from controlkit.engines.fast.usercode import numpy_mean as _ck_mean",
                "from controlkit.engines.fast.usercode import numpy_norm as _ck_norm",
