@@ -249,10 +249,9 @@ def _overloads(numba):
 
     def _power_overload(refuse_arrays):
         def typer(a, b):
-            integers = (_nbtypes.Integer, _nbtypes.Boolean)
             if isinstance(a, _nbtypes.Float | _nbtypes.Integer) and isinstance(
                     b, _nbtypes.Float | _nbtypes.Integer) and not (
-                    isinstance(a, integers) and isinstance(b, integers)):
+                    isinstance(a, _nbtypes.Integer) and isinstance(b, _nbtypes.Integer)):
                 def impl(a, b):
                     return _c_pow(float(a), float(b))
                 return impl
@@ -331,8 +330,8 @@ def _overloads(numba):
         if not _flat_floats(a):
             _refused("a mean of other than a float array")
 
-        def impl(a):
-            return _pairwise_sum(a.ravel(), 0, a.size) / a.size
+        def impl(a):  # numpy's: its sum over the count
+            return numpy_sum(a) / a.size
         return impl
 
     @overload(numpy_norm, inline="always")

@@ -228,7 +228,8 @@ COMPUTED_OTHERWISE = {
 
 
 def numpy_last_bits(value) -> str | None:
-    """Why compiled code would not give ``value``'s numbers, when it is a numpy function
+    """Why compiled code would not give ``value``'s numbers, when it is a function that
+    numba computes by another method (:data:`COMPUTED_OTHERWISE`), or a numpy function
     whose own implementation here differs from the C library's in the last bits (see
     :func:`parts_from_c_library`); else None.
 
@@ -236,6 +237,8 @@ def numpy_last_bits(value) -> str | None:
     --------
     >>> numpy_last_bits(np.clip) is None
     True
+    >>> numpy_last_bits(np.linalg.inv).split(":")[0]
+    'it calls numpy.linalg.inv'
     """
     try:
         otherwise = COMPUTED_OTHERWISE.get(value)
