@@ -137,10 +137,64 @@ def numpy_norm(x):
     return np.linalg.norm(x)
 
 
+def numpy_trace(a):
+    """``np.trace(a)`` and ``a.trace()``: numpy's sum of the diagonal, in numpy's order
+    (:func:`numpy_sum`), where numba adds one term after the other.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> float(numpy_trace(np.eye(3)))
+    3.0
+    """
+    return np.trace(a)
+
+
+#: The most rows of a matrix whose LU factors numba (scipy's LAPACK) and numpy give with the
+#: same last bits, measured: from 6x6 on 4-80 % of random matrices differ.
+LU_SAME_UP_TO = 5
+
+
+def numpy_solve(a, b):
+    """``np.linalg.solve(a, b)``, compiled up to :data:`LU_SAME_UP_TO` rows: beyond, compiled
+    code stops and the run goes on as Python (so do :func:`numpy_det`, :func:`numpy_slogdet`).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> numpy_solve(2.0 * np.eye(2), np.array([1.0, 3.0])).tolist()
+    [0.5, 1.5]
+    """
+    return np.linalg.solve(a, b)
+
+
+def numpy_det(a):
+    """``np.linalg.det(a)``, compiled up to :data:`LU_SAME_UP_TO` rows (:func:`numpy_solve`).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> float(numpy_det(2.0 * np.eye(2)))
+    4.0
+    """
+    return np.linalg.det(a)
+
+
+def numpy_slogdet(a):
+    """``np.linalg.slogdet(a)``, compiled up to :data:`LU_SAME_UP_TO` rows (:func:`numpy_solve`).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> [float(v) for v in numpy_slogdet(np.eye(2))]
+    [1.0, 0.0]
+    """
+    return np.linalg.slogdet(a)
+
+
 @_jit.on_numba_import
 def _overloads(numba):
-    """numba's implementations of :func:`store`, :func:`clip`, :func:`matmul` and
-    :func:`power` (made when numba loads)."""
+    """numba's implementations of the functions above (made when numba loads)."""
     from llvmlite import ir
     from numba import types as _nbtypes
     from numba.core.errors import TypingError
@@ -344,6 +398,49 @@ def _overloads(numba):
             return np.sqrt(np.dot(flat, flat))
         return impl
 
+    @overload(numpy_trace, inline="always")
+    def _trace_overload(a):
+        if not (isinstance(a, _nbtypes.Array) and a.ndim == 2
+                and a.dtype == _nbtypes.float64):
+            _refused("the trace of other than a float matrix")
+
+        def impl(a):
+            return _diagonal_sum(a)
+        return impl
+
+    @numba.njit
+    def _diagonal_sum(a):  # (not inlined: its branch made numba's SSA pass warn inlined)
+        n = min(a.shape[0], a.shape[1])
+        diagonal = np.empty(n)
+        for i in range(n):
+            diagonal[i] = a[i, i]
+        return _pairwise_sum(diagonal, 0, n) if n else 0.0
+
+    @numba.njit
+    def _lu_same(a):
+        if a.shape[-1] > LU_SAME_UP_TO:
+            raise ValueError("a matrix of more than 5 rows factored by LU (solve, det, "
+                             "slogdet): compiled code's LAPACK gives other last bits than "
+                             "numpy's there, and the run goes on as Python")
+
+    @overload(numpy_solve, inline="always")
+    def _solve_overload(a, b):
+        def impl(a, b):
+            _lu_same(a)
+            return np.linalg.solve(a, b)
+        return impl
+
+    def _of_one_matrix(numpy_function):
+        def typer(a):
+            def impl(a):
+                _lu_same(a)
+                return numpy_function(a)
+            return impl
+        return typer
+
+    overload(numpy_det, inline="always")(_of_one_matrix(np.linalg.det))
+    overload(numpy_slogdet, inline="always")(_of_one_matrix(np.linalg.slogdet))
+
     overload(power, inline="always")(_power_overload(refuse_arrays=False))
     overload(power_of_numbers, inline="always")(_power_overload(refuse_arrays=True))
 
@@ -397,6 +494,7 @@ def missing_parameter(key):
 # numba's cache refers to them by module: the package is their home, so that a kernel
 # module's text, and with it its name in the cache, does not depend on this file's name.
 for _public in (store, clip, matmul, missing_parameter, power, power_of_numbers, numpy_dot,
-                numpy_sum, numpy_mean, numpy_norm):
+                numpy_sum, numpy_mean, numpy_norm, numpy_trace, numpy_solve, numpy_det,
+                numpy_slogdet):
     _public.__module__ = "controlkit.engines.fast.usercode"
 del _public

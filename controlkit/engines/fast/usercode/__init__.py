@@ -17,15 +17,20 @@ from ....kernels.user_calls import (
     clip,
     matmul,
     missing_parameter,
+    numpy_det,
     numpy_dot,
     numpy_mean,
     numpy_norm,
+    numpy_slogdet,
+    numpy_solve,
     numpy_sum,
+    numpy_trace,
     power,
     power_of_numbers,
     store,
 )
 from .compiling import UserKernel, block_layout
 
-__all__ = ["UserKernel", "block_layout", "clip", "matmul", "missing_parameter", "numpy_dot",
-           "numpy_mean", "numpy_norm", "numpy_sum", "power", "power_of_numbers", "store"]
+__all__ = ["UserKernel", "block_layout", "clip", "matmul", "missing_parameter", "numpy_det",
+           "numpy_dot", "numpy_mean", "numpy_norm", "numpy_slogdet", "numpy_solve",
+           "numpy_sum", "numpy_trace", "power", "power_of_numbers", "store"]

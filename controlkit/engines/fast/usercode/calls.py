@@ -1,7 +1,8 @@
 """What a user function's compiled text calls instead of numba's own operations, where
 numba's numbers are not Python's or numpy's (:mod:`controlkit.kernels.user_calls`): ``a @ b``,
-``a ** b``, ``math.pow``, ``np.sum``, ``np.mean``, ``np.linalg.norm``, ``a.sum()``,
-``a.mean()``; and ``a.var()``, ``a.std()`` refused.
+``a ** b``, ``math.pow``, ``np.sum``, ``np.mean``, ``np.linalg.norm``, ``np.trace``, their
+methods, and the LU of ``np.linalg.solve``, ``det``, ``slogdet``; ``a.var()``, ``a.std()``
+refused.
 """
 
 from __future__ import annotations
@@ -33,7 +34,13 @@ class Calls(ast.NodeTransformer):
     CALLS = {ast.MatMult: "_ck_matmul", ast.Pow: "_ck_power"}
     #: numpy's functions whose order of sums numba does not keep: what is called instead
     NUMPY = {np.sum: "_ck_sum", np.mean: "_ck_mean", np.linalg.norm: "_ck_norm",
-             np.dot: "_ck_dot"}
+             np.dot: "_ck_dot", np.trace: "_ck_trace", np.linalg.solve: "_ck_solve",
+             np.linalg.det: "_ck_det", np.linalg.slogdet: "_ck_slogdet"}
+    #: What the rewritten text calls, by :mod:`controlkit.kernels.user_calls`'s names
+    IMPORTS = {"_ck_matmul": "matmul", "_ck_dot": "numpy_dot", "_ck_sum": "numpy_sum",
+               "_ck_mean": "numpy_mean", "_ck_norm": "numpy_norm", "_ck_trace": "numpy_trace",
+               "_ck_solve": "numpy_solve", "_ck_det": "numpy_det",
+               "_ck_slogdet": "numpy_slogdet"}
 
     def __init__(self, frozen):
         self.frozen = frozen
@@ -64,10 +71,10 @@ class Calls(ast.NodeTransformer):
                 and not isinstance(self._target(f.value), pytypes.ModuleType):
             raise NotCompilable(f"it calls .{f.attr}() of an array, which numba sums in "
                                 "another order than numpy, with other last bits")
-        if isinstance(f, ast.Attribute) and f.attr in ("sum", "mean", "dot") \
+        if isinstance(f, ast.Attribute) and f.attr in ("sum", "mean", "dot", "trace") \
                 and target is None \
                 and not isinstance(self._target(f.value), pytypes.ModuleType):
-            # an array's own a.sum(), a.mean(), a.dot(b)
+            # an array's own a.sum(), a.mean(), a.dot(b), a.trace()
             return ast.copy_location(ast.Call(ast.Name(f"_ck_{f.attr}", ast.Load()),
                                               [f.value, *node.args], node.keywords), node)
         return node

@@ -249,11 +249,8 @@ def kernel_source(plan: Plan, layout: ParamLayout) -> str:
     imports = ["import numpy as _np_",
                "from controlkit.engines.fast.usercode import missing_parameter as _ck_missing",
                "from controlkit.engines.fast.usercode import store",
-               "from controlkit.engines.fast.usercode import matmul as _ck_matmul",
-               "from controlkit.engines.fast.usercode import numpy_dot as _ck_dot",
-               "from controlkit.engines.fast.usercode import numpy_sum as _ck_sum",
-               "from controlkit.engines.fast.usercode import numpy_mean as _ck_mean",
-               "from controlkit.engines.fast.usercode import numpy_norm as _ck_norm",
+               *(f"from controlkit.engines.fast.usercode import {function} as {name}"
+                 for name, function in Calls.IMPORTS.items()),
                # where numpy raises arrays to powers with its own code, compiled code
                # cannot give its numbers: a float array's power is then Python's to run
                "from controlkit.engines.fast.usercode import "
