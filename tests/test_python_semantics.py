@@ -833,6 +833,31 @@ def test_traces_and_lu_factors_give_numpys_last_bits(function, size):
         assert any("more than 5 rows factored by LU" in str(w.message) for w in said), said
 
 
+def test_a_first_piece_that_differs_names_the_block_whose_state_differs_first():
+    # np.arange with a float step: numpy fills start + i * ((start + step) - start), numba
+    # start + i * step; no rule knows it, the exact check of the first piece catches it,
+    # and the warning names where the numbers parted, not only the piece
+    def ranged(t, x, u, params):
+        grid = np.arange(0.3, 2.0, 0.1)
+        return [x[0] + 0.01 * (grid[7] * x[1] - x[0]), x[1] + 0.01 * (u[0] - x[1])]
+
+    lag = ct.nlsys(lambda t, x, u, p: [x[0] + 0.01 * (u[0] - x[0])], None, inputs=1,
+                   states=1, outputs=1, dt=0.01, name="lag")
+    block = ct.nlsys(ranged, lambda t, x, u, p: x[0], inputs=1, states=2, outputs=1,
+                     dt=0.01, name="ranged")
+    loop = ct.interconnect([lag, block], connections=[["ranged.u[0]", "lag.y[0]"]],
+                           inplist=["lag.u[0]"], outlist=["ranged.y[0]"], inputs=1,
+                           outputs=1)
+    T = np.arange(3000) * 0.01
+    expected = ct.input_output_response(loop, T, np.sin(T), 0.1)
+    with pytest.warns(UserWarning, match=r"compiled numbers differ from Python's between "
+                                         r"t = 0 and [\d.]+ s; first at t = [\d.]+ s, in "
+                                         r"the state of 'ranged' \("):
+        ours = controlkit.input_output_response(loop, T, np.sin(T), 0.1, compile=True)
+    assert ours.engine_mode == "python"
+    assert np.array_equal(ours.outputs, expected.outputs)
+
+
 CALLS = {"n": 0}
 COUNT = 0
 

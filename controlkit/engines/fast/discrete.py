@@ -14,7 +14,7 @@ import numpy as np
 from ..contract import UnsupportedSystem, check_arguments, chunk_bounds, recorded_indices
 from ..contract import response as base_response
 from .diagnose import diverged, explain_failure, sampled_block_blew_up
-from .pieces import Pieces, interrupted, now, quiet_numbers, same_numbers
+from .pieces import Pieces, interrupted, now, quiet_numbers, same_numbers, where_they_part
 from .run import CHECKED, Runner
 from .tiers import NotCompiled
 
@@ -220,7 +220,8 @@ def _switch(runner, job, T, x, U, Y, X, k, n, pieces):
     if not (same_numbers(Y[:, k:k1], Yp, DISCRETE_RTOL)
             and same_numbers(X[:, k:k1], Xp, DISCRETE_RTOL)):
         runner.differs(job, f"its compiled numbers differ from Python's between t = "
-                            f"{T[k]:g} and {T[k1 - 1]:g} s")
+                            f"{T[k]:g} and {T[k1 - 1]:g} s"
+                            + where_they_part(job.blocks, T[k:k1], X[:, k:k1], Xp))
         Y[:, k:k1], X[:, k:k1] = Yp, Xp
         return k1, x_python
     runner.compiled = job

@@ -28,6 +28,32 @@ def same_numbers(a, b, rtol) -> bool:
     return bool(np.allclose(a, b, rtol=rtol, atol=rtol * scale, equal_nan=True))
 
 
+def where_they_part(blocks, times, mine, theirs) -> str:
+    """Where a compiled piece's states ``mine`` first differ from Python's ``theirs`` (one
+    column a time of ``times``): the time, and the blocks whose states differ there, whose
+    compiled code answered otherwise or was fed by code that did ("" where they agree).
+    For a discrete run, where a step's update reads the states of the step before (an
+    integrator's adaptive steps would spread a difference over every state).
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace as NS
+    >>> blocks = [NS(x0=0, system=NS(name="plant", nstates=2)),
+    ...           NS(x0=2, system=NS(name="pi", nstates=1))]
+    >>> where_they_part(blocks, [0.0, 0.1], np.zeros((3, 2)), [[0, 0], [0, 0], [0, 1e-16]])
+    "; first at t = 0.1 s, in the state of 'pi'"
+    """
+    mine, theirs = np.asarray(mine, dtype=float), np.asarray(theirs, dtype=float)
+    differ = (mine != theirs) & ~(np.isnan(mine) & np.isnan(theirs))
+    columns = np.nonzero(differ.any(axis=0))[0]
+    if not columns.size:
+        return ""
+    rows = set(np.nonzero(differ[:, columns[0]])[0].tolist())
+    names = [repr(b.system.name) for b in blocks
+             if rows & set(range(b.x0, b.x0 + b.system.nstates))]
+    return f"; first at t = {times[columns[0]]:g} s, in the state of {', '.join(names)}"
+
+
 class Pieces:
     """Piece sizes of about :data:`PIECE_SECONDS`, learnt from the pieces run so far.
 
