@@ -4,9 +4,8 @@ Compiled code comes from modules of the store, each a text numba compiles once a
 in its ``__pycache__``: a diagram's module (:mod:`.codegen`), the user functions compiled
 for it (:mod:`.usercode`), the step machine and the instants' loop. A module's file name
 is a digest of its text, of controlkit's source files it can hold and of the versions of
-Python, numpy and scipy, so an edit or an upgrade makes new modules, never a stale one;
-files are written whole and never changed. After its first compile a module gets a record
-(``<name>.json``: how long the compile took), by which the engine knows it is compiled.
+Python, numpy and scipy: an edit or an upgrade makes new modules, never a stale one. Files
+are written whole (again if found changed); a compiled module has a record (``<name>.json``).
 
 Code is imported from the store only if the folder, and numba's cache folder
 (``NUMBA_CACHE_DIR``, if set), is the user's own (:func:`not_own`), checked at each use;
@@ -182,19 +181,23 @@ LOCK = threading.RLock()
 
 
 def module_file(text: str, kind: str) -> Path:
-    """The store file of ``text``, written (whole, atomically) unless it is there.
+    """The store file of ``text``, written (whole, atomically) unless it is there with that
+    text; StoreRefused for a text Python would read otherwise (a coding line in it).
 
     Examples
     --------
     >>> module_file("VALUE = 1\\n", "diagram").read_text()
     'VALUE = 1\\n'
     """
+    data = text.encode()
+    if importlib.util.decode_source(data) != text:  # (names and values are data: never code)
+        raise StoreRefused("a module text that Python would read as other code")
     path = folder() / f"{name_of(text, kind)}.py"
-    with LOCK:
-        if not path.exists():  # never rewritten: numba's cache index keys on its date
+    with LOCK:  # (rewritten only if changed: numba's cache index keys on its date)
+        if not path.exists() or path.read_bytes() != data:
             tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp")
-            with open(tmp, "x") as file:
-                file.write(text)
+            with open(tmp, "xb") as file:
+                file.write(data)
             os.replace(tmp, path)
     return path
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 import ast
 import contextlib
 import copy
+import re
 import weakref
 from dataclasses import dataclass, field
 
@@ -196,7 +197,8 @@ class _Build:
         if key in self.plans:
             return self.plans[key]
         self.count += 1
-        plan = Plan(fn, name or f"_h{self.count}_{fn.__name__.strip('<>')}", self.count,
+        name = name or f"_h{self.count}_{re.sub(r'[^0-9A-Za-z_]', '', fn.__name__)}"
+        plan = Plan(fn, name, self.count,  # (a name is data: only letters of identifiers)
                     code=fn.__code__, defaults=fn.__defaults__,
                     kwdefaults=copy.copy(fn.__kwdefaults__))  # (changed in place)
         self.plans[key] = plan

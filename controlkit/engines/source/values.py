@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import cmath
 import functools
-import importlib
 import keyword
 import math
+import sys
 import types
 
 import numpy as np
@@ -76,11 +76,9 @@ def _import_name(value):
     numpy, math or numba function), else None; checked before anything is imported."""
     fn = _jit.python_function(value)
     module, name = getattr(fn, "__module__", None), getattr(fn, "__name__", "")
-    try:
-        found = _dotted(module) and name.isidentifier() and getattr(
-            importlib.import_module(module), name, None) is value
-    except ImportError:
-        return None
+    # (a module imported already: a name read from an attribute is data, never imported)
+    found = _dotted(module) and name.isidentifier() and getattr(
+        sys.modules.get(module), name, None) is value
     return (module, name) if found else None
 
 

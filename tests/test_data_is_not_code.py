@@ -1,0 +1,151 @@
+"""A diagram's names, a function's defaults and the values it reads are data, whoever wrote
+them: none of them becomes code in the modules the fast engine writes and imports.
+
+Each case is an attack a review made work (the payload creates a file); each asserts that
+the file is not created and that the run still gives python-control's numbers.
+"""
+
+from __future__ import annotations
+
+import sys
+import types
+import warnings
+
+import control as ct
+import numpy as np
+import pytest
+
+import controlkit
+from controlkit.engines.fast import store
+
+T = np.linspace(0.0, 1.0, 11)
+
+
+def _touch(path) -> str:
+    return f"import os; os.system('touch {path}')"
+
+
+def _gain_loop(out, name="d"):
+    g = ct.nlsys(None, out, inputs="u", outputs="y", name="g")
+    return ct.interconnect([g], inputs="u", outputs="y", name=name)
+
+
+def _run_both(loop, compile=True):
+    expected = ct.input_output_response(loop, T, np.ones_like(T))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # (a block that runs as Python says so)
+        ours = controlkit.input_output_response(loop, T, np.ones_like(T), compile=compile)
+    np.testing.assert_array_equal(ours.outputs, expected.outputs)
+    return ours
+
+
+@pytest.mark.parametrize("coding", ["unicode_escape", "utf-7"])
+def test_a_diagram_name_cannot_declare_the_coding_of_its_module(tmp_path, coding):
+    # the name was written on the module's first line, where Python reads a coding
+    # declaration: under unicode_escape repr's "\n" is a newline again, under utf-7 "+AAo-"
+    target = tmp_path / "ran"
+    payload = (f"coding:{coding}\n{_touch(target)}#" if coding == "unicode_escape" else
+               f"coding:utf-7 +AAo-import os+ADs-os+AC4-system('touch {target}')#")
+    loop = _gain_loop(lambda t, x, u, p: [2.0 * u[0]], name=payload)
+    assert _run_both(loop).engine_mode == "compiled"
+    controlkit.explain(loop)
+    assert not target.exists()
+
+
+def test_a_function_s_qualified_name_cannot_declare_the_coding_of_its_module(tmp_path):
+    target = tmp_path / "ran"
+
+    def out(t, x, u, params):
+        return [3.0 * u[0]]
+
+    out.__qualname__ = f"coding:unicode_escape\n{_touch(target)}#"
+    loop = _gain_loop(out)
+    controlkit.explain(loop)
+    _run_both(loop)
+    assert not target.exists()
+
+
+def test_the_store_refuses_a_module_text_python_would_read_as_other_code(tmp_path):
+    text = f"# coding: unicode_escape\n# \\n{_touch(tmp_path / 'ran')}\n"
+    with pytest.raises(store.StoreRefused, match="other code"):
+        store.module_file(text, "diagram")
+
+
+def test_a_string_whose_class_writes_code_as_its_repr_runs_as_python(tmp_path):
+    target = tmp_path / "ran"
+
+    class Label(str):
+        def __repr__(self):
+            return f"__import__('os').system('touch {target}') and 'fast'"
+
+    def out(t, x, u, params, mode=Label("fast")):  # noqa: B008 - the attack itself
+        return [2.0 * u[0]] if mode == "fast" else [u[0]]
+
+    loop = _gain_loop(out)
+    (row,) = controlkit.explain(loop)
+    assert row.tier == "python" and "of type 'Label'" in row.reason, row
+    assert _run_both(loop).engine_mode == "python"
+    assert not target.exists()
+
+
+def test_a_complex_number_is_written_by_its_own_two_floats(tmp_path):
+    target = tmp_path / "ran"
+
+    class Hostile(float):
+        def __repr__(self):
+            return f"__import__('os').system('touch {target}')"
+
+    class Pole(complex):
+        @property
+        def real(self):
+            return Hostile(-1.0)
+
+    pole = Pole(-1.0, 2.0)
+
+    def out(t, x, u, params):
+        return [(pole * u[0]).imag]
+
+    assert _run_both(_gain_loop(out)).engine_mode == "compiled"
+    assert not target.exists()
+
+
+def test_a_helper_s_name_is_not_written_as_code(tmp_path):
+    target = tmp_path / "ran"
+
+    def gain(v):
+        return 2.0 * v
+
+    gain.__name__ = f'a + """,)\n{_touch(target)}\ndef q'
+
+    def out(t, x, u, params):
+        return [gain(u[0])]
+
+    assert _run_both(_gain_loop(out)).engine_mode == "compiled"
+    assert not target.exists()
+
+
+def test_a_module_is_never_imported_by_a_name_read_from_an_attribute(tmp_path, monkeypatch):
+    target = tmp_path / "ran"
+    (tmp_path / "ck_not_the_one.py").write_text(_touch(target) + "\nk = 5.0\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    namespace = types.ModuleType("ck_not_the_one")  # a namespace made from data
+    namespace.k = 2.0
+
+    def out(t, x, u, params):
+        m = namespace  # (the module itself, not its number, goes into the kernel's text)
+        return [m.k * u[0]]
+
+    loop = _gain_loop(out)
+    (row,) = controlkit.explain(loop)
+    assert row.tier == "python" and "ck_not_the_one" in row.reason, row
+    _run_both(loop)
+    assert not target.exists() and "ck_not_the_one" not in sys.modules
+
+
+def test_a_store_file_that_is_not_its_text_is_written_again(tmp_path):
+    target = tmp_path / "ran"
+    text = "SWAPPED_IN_A_TEST = 1\n"
+    path = store.module_file(text, "diagram")
+    path.write_text(_touch(target) + "\n" + text)  # changed behind the store's back
+    assert store.module_file(text, "diagram").read_text() == text
+    assert not target.exists()
