@@ -65,6 +65,24 @@ def test_a_function_s_qualified_name_cannot_declare_the_coding_of_its_module(tmp
     assert not target.exists()
 
 
+def test_a_name_of_a_string_class_is_written_as_its_text(tmp_path):
+    # a function's __qualname__ may be a str subclass, whose repr wrote a line of code
+    # into the module's header
+    target = tmp_path / "ran"
+
+    class Name(str):
+        def __repr__(self):
+            return f"'x'\n{_touch(target)}\n#"
+
+    def out(t, x, u, params):
+        return [3.0 * u[0]]
+
+    out.__qualname__ = Name("out")
+    loop = _gain_loop(out)
+    assert _run_both(loop).engine_mode == "compiled"
+    assert not target.exists()
+
+
 def test_the_store_refuses_a_module_text_python_would_read_as_other_code(tmp_path):
     text = f"# coding: unicode_escape\n# \\n{_touch(tmp_path / 'ran')}\n"
     with pytest.raises(store.StoreRefused, match="other code"):

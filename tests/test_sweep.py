@@ -248,6 +248,19 @@ def test_bad_sweep_arguments_are_refused(kwargs, message):
         sweep(damped, progress=False, **kwargs)
 
 
+def test_cli_sweep_refuses_a_horizon_of_more_steps_than_a_float_holds(tmp_path, capsys):
+    # 1e308 s at 0.1 s: horizon / Ts overflowed to inf, and the command failed with an
+    # OverflowError, leaving its empty folder behind
+    from controlkit.cli import main
+
+    out = tmp_path / "out"
+    assert main(["sweep", "spacecraft", "--samples", "1", "--horizon", "1e308", "--out",
+                 str(out)]) == 2
+    assert "horizon / Ts must be a finite number of steps, got 1e+308 / 0.1" in \
+        capsys.readouterr().err
+    assert not out.exists()
+
+
 def test_cli_sweep_writes_table_summary_and_figures(tmp_path, capsys):
     from controlkit.cli import main
 

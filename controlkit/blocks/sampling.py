@@ -239,6 +239,9 @@ def time_grid(horizon, Ts, *, lazy=False):
     """
     horizon = _checks.positive_scalar("horizon", horizon)
     Ts = _checks.positive_scalar("Ts", Ts)
+    if not math.isfinite(horizon / Ts):  # (1e308 s at 0.1 s: more steps than a float holds)
+        raise ValueError(f"horizon / Ts must be a finite number of steps, got {horizon:g} / "
+                         f"{Ts:g}")
     steps = round(horizon / Ts)
     if steps < 1 or not math.isclose(steps * Ts, horizon, rel_tol=1e-9):
         raise ValueError(f"horizon must be a positive multiple of Ts = {Ts:g}, got {horizon:g}")
