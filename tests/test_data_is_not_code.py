@@ -83,6 +83,32 @@ def test_a_name_of_a_string_class_is_written_as_its_text(tmp_path):
     assert not target.exists()
 
 
+def test_a_kernel_s_identity_of_a_string_class_is_written_as_its_text(tmp_path):
+    # a kernel block's identity (read from its function) was written by its repr into a
+    # comment of the diagram's module, where a newline in it began a line of code
+    from controlkit._jit import jit
+    from controlkit.blocks.contract import KernelBlock
+
+    target = tmp_path / "ran"
+
+    class Name(str):
+        def __repr__(self):
+            return f"'x'\n{_touch(target)}\n#"
+
+    @jit
+    def doubled(t, x, u, p, out):
+        out[0] = 2.0 * u[0]
+        return out
+
+    doubled.identity = Name("doubled")
+    block = KernelBlock(doubled, feedthrough=True, dt=None, name="dbl", inputs=["u"],
+                        outputs=["y"])
+    loop = ct.interconnect([block], inputs="u", outputs="y", name="kernel_identity")
+    ours = controlkit.input_output_response(loop, T, np.ones_like(T), compile=True)
+    assert ours.engine_mode == "compiled" and ours.outputs.tolist() == [2.0] * T.size
+    assert not target.exists()
+
+
 def test_the_store_refuses_a_module_text_python_would_read_as_other_code(tmp_path):
     text = f"# coding: unicode_escape\n# \\n{_touch(tmp_path / 'ran')}\n"
     with pytest.raises(store.StoreRefused, match="other code"):
