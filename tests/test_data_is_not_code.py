@@ -109,6 +109,20 @@ def test_a_kernel_s_identity_of_a_string_class_is_written_as_its_text(tmp_path):
     assert not target.exists()
 
 
+def test_a_name_read_from_a_code_object_must_be_an_identifier(tmp_path):
+    # a lambda's parameters are read from its code object, where a name need not be an
+    # identifier: written out, "p=<code>" was a default argument run at import
+    target = tmp_path / "ran"
+    out = lambda t, x, u, params: [2.0 * u[0]]  # noqa: E731 - python-control's idiom
+    out.__code__ = out.__code__.replace(
+        co_varnames=("t", "x", "u", f"p=__import__('os').system('touch {target}')"))
+    loop = _gain_loop(out)
+    (row,) = controlkit.explain(loop)
+    assert row.tier == "python" and "not an identifier" in row.reason, row
+    assert _run_both(loop).engine_mode == "python"
+    assert not target.exists()
+
+
 def test_the_store_refuses_a_module_text_python_would_read_as_other_code(tmp_path):
     text = f"# coding: unicode_escape\n# \\n{_touch(tmp_path / 'ran')}\n"
     with pytest.raises(store.StoreRefused, match="other code"):

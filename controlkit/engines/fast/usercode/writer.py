@@ -455,11 +455,16 @@ PLAIN = (str, int, float, complex, bool, bytes, type(None), type(Ellipsis))
 
 def _plain(tree):
     """``tree``, whose constants (values read from outside, frozen in) are all of the
-    :data:`PLAIN` types themselves: the text writes them by ``repr``, which another class
-    may make any code (NotCompilable: the function runs as Python)."""
+    :data:`PLAIN` types themselves, and whose names are identifiers: the text writes them
+    as they are, which another class, or a name read from a code object, may make any code
+    (NotCompilable: the function runs as Python)."""
     for node in ast.walk(tree):
         if isinstance(node, ast.Constant) and type(node.value) not in PLAIN:
             raise NotCompilable(f"it reads a value of type {type(node.value).__name__!r} "
                                 "(a subclass of a number or a string), which compiled code "
                                 "would write as its class's repr")
+        for name in (getattr(node, field, "") for field in ("id", "arg", "attr", "name")):
+            if name and not (type(name) is str and _dotted(name)
+                             and ("." not in name or isinstance(node, ast.alias))):
+                raise NotCompilable("it has a name that is not an identifier")
     return tree
