@@ -207,3 +207,76 @@ def test_a_store_file_that_is_not_its_text_is_written_again(tmp_path):
     path.write_text(_touch(target) + "\n" + text)  # changed behind the store's back
     assert store.module_file(text, "diagram").read_text() == text
     assert not target.exists()
+
+
+def test_a_module_s_name_is_written_by_its_text(tmp_path, monkeypatch):
+    # a str subclass's __format__ wrote code where an f-string put the module's name
+    target = tmp_path / "ran"
+
+    class Name(str):
+        def __format__(self, spec):
+            return f"{str(self)} as _unused\n{_touch(target)}\nimport {str(self)}"
+
+    namespace = types.ModuleType("ck_formatted")
+    namespace.k = 2.0
+    monkeypatch.setitem(sys.modules, "ck_formatted", namespace)
+    namespace.__name__ = Name("ck_formatted")
+
+    def out(t, x, u, params):
+        m = namespace
+        return [m.k * u[0]]
+
+    assert _run_both(_gain_loop(out)).engine_mode == "compiled"
+    assert not target.exists()
+
+
+def _backslash_in_an_f_string(t, x, u, params, where="C:\\runs"):
+    note = f"{where}"  # noqa: F841 - what Python 3.11 cannot write back inside an f-string
+    return [2.0 * u[0]]
+
+
+def test_a_text_that_cannot_be_written_out_runs_as_python():
+    # ast.unparse raised "Unable to avoid backslash in f-string expression part" (or wrote
+    # text that did not parse), out of explain and of compile=True
+    loop = _gain_loop(_backslash_in_an_f_string)
+    (row,) = controlkit.explain(loop)
+    assert row.tier == "python" and "cannot be written out" in row.reason, row
+    assert _run_both(loop).engine_mode == "python"
+
+
+COMPLEX_POLES = np.array([complex(np.inf, 0.0), 1j, complex(0.0, np.nan)])
+
+
+def test_a_complex_array_with_an_infinity_is_written_as_its_numbers():
+    # repr wrote (inf+0j), a name the module does not have: NameError out of explain
+    def out(t, x, u, params):
+        return [COMPLEX_POLES[1].imag * u[0]]
+
+    assert _run_both(_gain_loop(out)).engine_mode == "compiled"
+
+
+def test_a_lambda_whose_file_changed_since_its_import_runs_as_python(tmp_path, monkeypatch):
+    # a lambda's text is cut from its file: a file edited after the import held code
+    # other than what runs, and that text was compiled
+    (tmp_path / "ck_edited.py").write_text("out = lambda t, x, u, params: [2.0 * u[0]]\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    import ck_edited
+
+    monkeypatch.delitem(sys.modules, "ck_edited")
+    (tmp_path / "ck_edited.py").write_text("out = lambda t, x, u, params: [3.0 * u[0]]\n")
+    loop = _gain_loop(ck_edited.out)
+    (row,) = controlkit.explain(loop)
+    assert row.tier == "python" and "changed after it was imported" in row.reason, row
+    assert _run_both(loop).engine_mode == "python"
+
+
+def test_a_compile_record_of_other_types_is_ignored(tmp_path, monkeypatch):
+    # a record is data: {"seconds": "1"} raised a TypeError, and every compiled run of the
+    # store went to Python under that message
+    (tmp_path / "diagram_x.json").write_text('{"seconds": "1", "blocks": 1, "entry": '
+                                             '"run_discrete"}')
+    (tmp_path / "diagram_y.json").write_text('{"seconds": 2.0, "blocks": 4, "entry": '
+                                             '"run_discrete"}')
+    monkeypatch.setattr(store, "folder", lambda: tmp_path)
+    monkeypatch.setattr(store, "_TIMES", {})
+    assert store.compile_times("run_discrete") == [0.5]

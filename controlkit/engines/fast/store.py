@@ -353,10 +353,10 @@ def compile_times(entry: str) -> list[float]:
         except (StoreRefused, OSError):
             paths = []
         for path in paths:
-            kept = record(path.with_suffix(".py"))
-            if kept and kept.get("seconds", 0) > 0 and kept.get("blocks", 0) > 0:
-                _TIMES.setdefault(kept.get("entry", ""), []).append(
-                    kept["seconds"] / kept["blocks"])
+            kept = record(path.with_suffix(".py")) or {}
+            seconds, blocks = kept.get("seconds"), kept.get("blocks")  # (checked: data)
+            if type(seconds) is float and type(blocks) is int and seconds > 0 and blocks > 0:
+                _TIMES.setdefault(str(kept.get("entry")), []).append(seconds / blocks)
         _TIMES[None] = []  # read (an empty store included)
     return _TIMES.get(entry, [])[-50:]
 

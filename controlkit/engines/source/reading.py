@@ -91,8 +91,12 @@ def _parse_definition(code):
         if code.co_flags & (inspect.CO_VARARGS | inspect.CO_VARKEYWORDS) \
                 or code.co_kwonlyargcount:
             raise NotCompilable("it is a lambda taking *args or keyword-only arguments")
-        node = function_def("f", code.co_varnames[:code.co_argcount],
-                            [ast.Return(_lambda_body(code))])
+        body, names = _lambda_body(code), code.co_varnames[:code.co_argcount]
+        if not _runs_this_text(f"_ = (lambda {', '.join(names)}: {ast.unparse(body)})\n",
+                               code):  # (its file edited since, or names not its text's)
+            raise NotCompilable("its source file was changed after it was imported: the "
+                                "text is not the code that runs")
+        node = function_def("f", names, [ast.Return(body)])
         return node.args, node.body
     text = "".join(_source_lines(code))
     if text[:1] in (" ", "\t"):  # a nested def: parse it inside a block, not dedented

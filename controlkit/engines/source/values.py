@@ -76,6 +76,9 @@ def _import_name(value):
     numpy, math or numba function), else None; checked before anything is imported."""
     fn = _jit.python_function(value)
     module, name = getattr(fn, "__module__", None), getattr(fn, "__name__", "")
+    if not (isinstance(module, str) and isinstance(name, str)):
+        return None
+    module, name = str.__str__(module), str.__str__(name)  # (their text alone)
     # (a module imported already: a name read from an attribute is data, never imported)
     found = _dotted(module) and name.isidentifier() and getattr(
         sys.modules.get(module), name, None) is value
