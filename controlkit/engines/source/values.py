@@ -71,14 +71,24 @@ def _dotted(name) -> bool:
                                          for part in name.split("."))
 
 
+def name_text(name) -> str:
+    """``name``'s own text, "" for other than a ``str``: a subclass's ``__str__``,
+    ``__format__`` or ``__repr__`` is never asked (a name is data, written as module text).
+
+    Examples
+    --------
+    >>> name_text("numpy"), name_text(None)
+    ('numpy', '')
+    """
+    return str.__str__(name) if isinstance(name, str) else ""
+
+
 def _import_name(value):
     """``(module, name)`` that ``from module import name`` gives ``value`` itself by (a
     numpy, math or numba function), else None; checked before anything is imported."""
     fn = _jit.python_function(value)
-    module, name = getattr(fn, "__module__", None), getattr(fn, "__name__", "")
-    if not (isinstance(module, str) and isinstance(name, str)):
-        return None
-    module, name = str.__str__(module), str.__str__(name)  # (their text alone)
+    module = name_text(getattr(fn, "__module__", None))
+    name = name_text(getattr(fn, "__name__", None))
     # (a module imported already: a name read from an attribute is data, never imported)
     found = _dotted(module) and name.isidentifier() and getattr(
         sys.modules.get(module), name, None) is value

@@ -20,6 +20,7 @@ from ...source.values import (
     _cell,
     _dotted,
     _import_name,
+    name_text,
     parts_from_c_library,
 )
 from ..codegen import CODING, numbers, quoted
@@ -76,8 +77,7 @@ class _Reads(ast.NodeTransformer):
 def _literal(name, value, lines, imports):
     """A module-level line freezing ``value`` as ``name`` (or NotCompilable)."""
     if isinstance(value, pytypes.ModuleType):
-        module = value.__name__
-        module = str.__str__(module) if isinstance(module, str) else ""  # (its text alone)
+        module = name_text(value.__name__)
         if not _dotted(module) or pysys.modules.get(module) is not value:
             raise NotCompilable(f"it reads a module named {module!r}")
         imports.append(f"import {module} as {name}")
