@@ -1,5 +1,7 @@
-"""What compiled user code calls: the result stored into ``out``, numbers clipped, and a
-missing parameter raising ``KeyError``; each with its numba implementation.
+"""What compiled user code calls where numba's numbers are not Python's: the result stored
+into ``out``, numbers clipped, products and powers, integers of floats, and a missing
+parameter raising ``KeyError``; each with its numba implementation (numpy's are in
+:mod:`.numpy_calls`).
 
 The kernel modules written by :mod:`controlkit.engines.fast.usercode.writer` import these by
 the name of the package that re-exports them (``controlkit.engines.fast.usercode``).
@@ -96,100 +98,23 @@ def numpy_dot(a, b):
     return np.dot(a, b)
 
 
-def numpy_sum(a):
-    """``np.sum(a)`` and ``a.sum()``, which compiled user functions call instead: numba adds
-    an array's values one after the other, numpy in numpy's pairwise order (eight running
-    sums, then halves of 128 and more), whose last bits differ from eight values on (a
-    third of the time for twenty).
+#: The floats that convert to a 64-bit integer: ``-2**63 <= x < 2**63``.
+INT64_RANGE = (-2.0 ** 63, 2.0 ** 63)
+
+
+def within_int64(x):
+    """``x``, which compiled user code converts to an integer (``int(x)``, ``round(x)``,
+    ``math.floor``, ``ceil``, ``trunc``) after this call: numba turns a float outside
+    :data:`INT64_RANGE`, or NaN, into ``-2**63`` without a word, where Python's integer
+    holds any size (or raises for NaN and infinities). Compiled, such a float stops
+    compiled code, and the run goes on as Python.
 
     Examples
     --------
-    >>> import numpy as np
-    >>> float(numpy_sum(np.arange(10.0)))
-    45.0
+    >>> within_int64(2.5), within_int64(7)
+    (2.5, 7)
     """
-    return np.sum(a)
-
-
-def numpy_mean(a):
-    """``np.mean(a)`` and ``a.mean()``: numpy's sum (:func:`numpy_sum`) over the count.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> float(numpy_mean(np.arange(10.0)))
-    4.5
-    """
-    return np.mean(a)
-
-
-def numpy_norm(x):
-    """``np.linalg.norm(x)``, which compiled user functions call instead: numpy's is the
-    square root of ``x.dot(x)``, numba's LAPACK's scaled sum of squares (the last bit
-    differs on a sixth of vectors of two).
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> float(numpy_norm(np.array([3.0, 4.0])))
-    5.0
-    """
-    return np.linalg.norm(x)
-
-
-def numpy_trace(a):
-    """``np.trace(a)`` and ``a.trace()``: numpy's sum of the diagonal, in numpy's order
-    (:func:`numpy_sum`), where numba adds one term after the other.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> float(numpy_trace(np.eye(3)))
-    3.0
-    """
-    return np.trace(a)
-
-
-#: The most rows of a matrix whose LU factors numba (scipy's LAPACK) and numpy give with the
-#: same last bits, measured: from 6x6 on 4-80 % of random matrices differ.
-LU_SAME_UP_TO = 5
-
-
-def numpy_solve(a, b):
-    """``np.linalg.solve(a, b)``, compiled up to :data:`LU_SAME_UP_TO` rows: beyond, compiled
-    code stops and the run goes on as Python (so do :func:`numpy_det`, :func:`numpy_slogdet`).
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> numpy_solve(2.0 * np.eye(2), np.array([1.0, 3.0])).tolist()
-    [0.5, 1.5]
-    """
-    return np.linalg.solve(a, b)
-
-
-def numpy_det(a):
-    """``np.linalg.det(a)``, compiled up to :data:`LU_SAME_UP_TO` rows (:func:`numpy_solve`).
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> float(numpy_det(2.0 * np.eye(2)))
-    4.0
-    """
-    return np.linalg.det(a)
-
-
-def numpy_slogdet(a):
-    """``np.linalg.slogdet(a)``, compiled up to :data:`LU_SAME_UP_TO` rows (:func:`numpy_solve`).
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> [float(v) for v in numpy_slogdet(np.eye(2))]
-    [1.0, 0.0]
-    """
-    return np.linalg.slogdet(a)
+    return x
 
 
 @_jit.on_numba_import
@@ -338,108 +263,17 @@ def _overloads(numba):
             return impl
         return typer
 
-    @numba.njit
-    def _pairwise_sum(a, start, n):
-        """numpy's order of adding ``a[start:start + n]`` (its ``pairwise_sum``)."""
-        if n < 8:
-            total = -0.0
-            for i in range(start, start + n):
-                total += a[i]
-            return total
-        if n <= 128:
-            r = a[start:start + 8].copy()
-            i = 8
-            while i < n - n % 8:
-                for j in range(8):
-                    r[j] += a[start + i + j]
-                i += 8
-            total = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
-            for k in range(i, n):
-                total += a[start + k]
-            return total
-        half = n // 2
-        half -= half % 8
-        return _pairwise_sum(a, start, half) + _pairwise_sum(a, start + half, n - half)
-
-    def _flat_floats(a):
-        """Whether numpy sums ``a`` as one row of floats: one dimension, or C order."""
-        return isinstance(a, _nbtypes.Array) and a.dtype == _nbtypes.float64 and (
-            a.ndim == 1 or a.layout == "C")
-
-    def _refused(what):
-        raise TypingError(f"{what}: numba's order of sums is not numpy's, whose last bits "
-                          "compiled code gives for a float array alone, all its values")
-
-    @overload(numpy_sum, inline="always")
-    def _sum_overload(a):
-        if not _flat_floats(a):
-            _refused("a sum of other than a float array")
-
-        def impl(a):
-            return _pairwise_sum(a.ravel(), 0, a.size) if a.size else 0.0
-        return impl
-
-    @overload(numpy_mean, inline="always")
-    def _mean_overload(a):
-        if not _flat_floats(a):
-            _refused("a mean of other than a float array")
-
-        def impl(a):  # numpy's: its sum over the count
-            return numpy_sum(a) / a.size
-        return impl
-
-    @overload(numpy_norm, inline="always")
-    def _norm_overload(x):
-        if not _flat_floats(x):
-            _refused("the norm of other than a float array")
+    @overload(within_int64, inline="always")
+    def _within_int64_overload(x):
+        if not isinstance(x, _nbtypes.Float):
+            return lambda x: x
 
         def impl(x):
-            flat = x.ravel()
-            return np.sqrt(np.dot(flat, flat))
+            if not INT64_RANGE[0] <= x < INT64_RANGE[1]:  # (NaN too)
+                raise OverflowError("a float made an integer beyond 64 bits (or NaN), "
+                                    "which Python's int holds and compiled code does not")
+            return x
         return impl
-
-    @overload(numpy_trace, inline="always")
-    def _trace_overload(a):
-        if not (isinstance(a, _nbtypes.Array) and a.ndim == 2
-                and a.dtype == _nbtypes.float64):
-            _refused("the trace of other than a float matrix")
-
-        def impl(a):
-            return _diagonal_sum(a)
-        return impl
-
-    @numba.njit
-    def _diagonal_sum(a):  # (not inlined: its branch made numba's SSA pass warn inlined)
-        n = min(a.shape[0], a.shape[1])
-        diagonal = np.empty(n)
-        for i in range(n):
-            diagonal[i] = a[i, i]
-        return _pairwise_sum(diagonal, 0, n) if n else 0.0
-
-    @numba.njit
-    def _lu_same(a):
-        if a.shape[-1] > LU_SAME_UP_TO:
-            raise ValueError("a matrix of more than 5 rows factored by LU (solve, det, "
-                             "slogdet): compiled code's LAPACK gives other last bits than "
-                             "numpy's there, and the run goes on as Python")
-
-    @overload(numpy_solve, inline="always")
-    def _solve_overload(a, b):
-        def impl(a, b):
-            _lu_same(a)
-            return np.linalg.solve(a, b)
-        return impl
-
-    def _of_one_matrix(numpy_function):
-        def typer(a):
-            def impl(a):
-                _lu_same(a)
-                return numpy_function(a)
-            return impl
-        return typer
-
-    overload(numpy_det, inline="always")(_of_one_matrix(np.linalg.det))
-    overload(numpy_slogdet, inline="always")(_of_one_matrix(np.linalg.slogdet))
 
     overload(power, inline="always")(_power_overload(refuse_arrays=False))
     overload(power_of_numbers, inline="always")(_power_overload(refuse_arrays=True))
@@ -494,7 +328,6 @@ def missing_parameter(key):
 # numba's cache refers to them by module: the package is their home, so that a kernel
 # module's text, and with it its name in the cache, does not depend on this file's name.
 for _public in (store, clip, matmul, missing_parameter, power, power_of_numbers, numpy_dot,
-                numpy_sum, numpy_mean, numpy_norm, numpy_trace, numpy_solve, numpy_det,
-                numpy_slogdet):
+                within_int64):
     _public.__module__ = "controlkit.engines.fast.usercode"
 del _public

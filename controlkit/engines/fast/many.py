@@ -23,6 +23,7 @@ from ..contract import response as base_response
 from .continuous import STIFF_METHODS, _failed, _Run, run_continuous
 from .discrete import simulate
 from .pieces import now
+from .response import read_inputs
 from .run import CHECKED, PAYS, compiled_cost, compiled_job
 from .tiers import _local_params
 
@@ -74,6 +75,8 @@ def run_many(sys, T, U, X0s, params_list, *, t_eval=None, method="RK45", compile
     runs = X0s.shape[0]
     t_eval = T if t_eval is None else np.ascontiguousarray(t_eval, dtype=float)
     discrete = sys.isdtime(strict=True)
+    if discrete:  # python-control's discrete run reads U at its evaluation times
+        U = read_inputs(T, U, t_eval)
     responses, errors = [None] * runs, [None] * runs
 
     def alone(r, compiled):

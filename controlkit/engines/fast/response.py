@@ -56,8 +56,7 @@ def _response(given, sys, T, U, X0, compile, options):
     T, U, X0, t_eval, method, solver = python_control_arguments(sys, T, U, X0, options)
     params = options.get("params")
     if sys.isdtime(strict=True):
-        if not np.array_equal(t_eval, T):  # python-control interpolates U at t_eval
-            U = interpolated(T, U, t_eval)
+        U = read_inputs(T, U, t_eval)
         try:
             resp = simulate(sys, t_eval, X0, U, params=params, compile=compile)
         except UnsupportedSystem:
@@ -119,14 +118,27 @@ def _integers_count(given, t, X0, u, params, t_given, x_given) -> bool:
                     and np.array_equal(out, given.output(t, X0, u, params=params)))
 
 
-def interpolated(T, U, times):
-    """``U`` at ``times``, interpolated as python-control does (:func:`.loops.interpolate`).
+def read_inputs(T, U, times):
+    """``U`` at ``times`` as python-control's input function reads it for a discrete run:
+    interpolated (:func:`.loops.interpolate`); at ``T``'s own points,
+    ``U[:, k - 1] * 0.0 + U[:, k] * 1.0`` (``U[:, 0] * 1.0 + U[:, 1] * 0.0`` at the first):
+    the numbers given, save that a ``-0.0`` after a positive value reads ``0.0`` (which a
+    block's ``atan2`` or ``1 / u`` tells apart).
 
     Examples
     --------
-    >>> interpolated(np.array([0.0, 2.0]), np.array([[0.0, 4.0]]), np.array([1.0])).tolist()
+    >>> read_inputs(np.array([0.0, 2.0]), np.array([[0.0, 4.0]]), np.array([1.0])).tolist()
     [[2.0]]
+    >>> read_inputs(np.arange(3.0), np.array([[1.0, -0.0, -0.0]]), np.arange(3.0)).tolist()
+    [[1.0, 0.0, -0.0]]
     """
+    if np.array_equal(times, T):
+        if U.shape[1] < 2 or not (np.signbit(U) & (U == 0.0)).any():
+            return U  # (no negative zero: read as given, without a copy)
+        read = np.empty(U.shape)
+        read[:, 1:] = U[:, :-1] * 0.0 + U[:, 1:] * 1.0
+        read[:, 0] = U[:, 0] * 1.0 + U[:, 1] * 0.0
+        return read
     out = np.zeros((U.shape[0], len(times)))
     column = np.zeros((U.shape[0], 1))
     for j, t in enumerate(times):

@@ -1,13 +1,16 @@
 """What a user function's compiled text calls instead of numba's own operations, where
-numba's numbers are not Python's or numpy's (:mod:`controlkit.kernels.user_calls`): ``a @ b``,
-``a ** b``, ``math.pow``, ``np.sum``, ``np.mean``, ``np.linalg.norm``, ``np.trace``, their
-methods, and the LU of ``np.linalg.solve``, ``det``, ``slogdet``; ``a.var()``, ``a.std()``
-refused.
+numba's numbers are not Python's or numpy's (:mod:`controlkit.kernels.user_calls`,
+:mod:`controlkit.kernels.numpy_calls`): ``a @ b``, ``a ** b``, ``math.pow``, ``np.sum``,
+``np.mean``, ``np.linalg.norm``, ``np.trace``, their methods, the LU of
+``np.linalg.solve``, ``det``, ``slogdet``, numpy's signed zeros (``np.sign``, ``maximum``,
+``minimum``, ``mod``, ``floor_divide``, ``divmod``), and integers of floats (``int``,
+``round``, ``math.floor``, ``ceil``, ``trunc``); ``a.var()``, ``a.std()`` refused.
 """
 
 from __future__ import annotations
 
 import ast
+import builtins
 import math
 import types as pytypes
 
@@ -35,20 +38,30 @@ class Calls(ast.NodeTransformer):
     #: numpy's functions whose order of sums numba does not keep: what is called instead
     NUMPY = {np.sum: "_ck_sum", np.mean: "_ck_mean", np.linalg.norm: "_ck_norm",
              np.dot: "_ck_dot", np.trace: "_ck_trace", np.linalg.solve: "_ck_solve",
-             np.linalg.det: "_ck_det", np.linalg.slogdet: "_ck_slogdet"}
-    #: What the rewritten text calls, by :mod:`controlkit.kernels.user_calls`'s names
+             np.linalg.det: "_ck_det", np.linalg.slogdet: "_ck_slogdet",
+             np.sign: "_ck_sign", np.maximum: "_ck_maximum", np.minimum: "_ck_minimum",
+             np.mod: "_ck_mod", np.floor_divide: "_ck_floor_divide", np.divmod: "_ck_divmod"}
+    #: Python's functions that make an integer of a float: their argument is checked first
+    INTEGERS = (builtins.int, builtins.round, math.floor, math.ceil, math.trunc)
+    #: What the rewritten text calls, by the names the package re-exports
     IMPORTS = {"_ck_matmul": "matmul", "_ck_dot": "numpy_dot", "_ck_sum": "numpy_sum",
                "_ck_mean": "numpy_mean", "_ck_norm": "numpy_norm", "_ck_trace": "numpy_trace",
                "_ck_solve": "numpy_solve", "_ck_det": "numpy_det",
-               "_ck_slogdet": "numpy_slogdet"}
+               "_ck_slogdet": "numpy_slogdet", "_ck_sign": "numpy_sign",
+               "_ck_maximum": "numpy_maximum", "_ck_minimum": "numpy_minimum",
+               "_ck_mod": "numpy_mod", "_ck_floor_divide": "numpy_floor_divide",
+               "_ck_divmod": "numpy_divmod", "_ck_int64": "within_int64"}
 
     def __init__(self, frozen):
         self.frozen = frozen
 
     def _target(self, f):
-        """What ``f`` names among the module's frozen values (a module's attribute too)."""
+        """What ``f`` names among the module's frozen values (a module's attribute too, a
+        builtin the function does not shadow)."""
         if isinstance(f, ast.Name):
-            return np if f.id == "_np_" else self.frozen.get(f.id)
+            if f.id == "_np_":
+                return np
+            return self.frozen.get(f.id, getattr(builtins, f.id, None))
         if isinstance(f, ast.Attribute):
             module = self._target(f.value)
             if isinstance(module, pytypes.ModuleType):
@@ -67,6 +80,10 @@ class Calls(ast.NodeTransformer):
         if name is not None:
             return ast.copy_location(ast.Call(ast.Name(name, ast.Load()), node.args,
                                               node.keywords), node)
+        if any(target is f for f in self.INTEGERS) and len(node.args) == 1 \
+                and not node.keywords:  # int(x) -> int(_ck_int64(x)); round(x, n) is a float
+            node.args = [ast.Call(ast.Name("_ck_int64", ast.Load()), node.args, [])]
+            return node
         if isinstance(f, ast.Attribute) and f.attr in ("var", "std") and target is None \
                 and not isinstance(self._target(f.value), pytypes.ModuleType):
             raise NotCompilable(f"it calls .{f.attr}() of an array, which numba sums in "
