@@ -878,6 +878,32 @@ def test_signed_zeros_and_integers_of_floats_answer_as_python_does(case):
                                                               else "compiled")
 
 
+def test_pythons_sum_gives_pythons_numbers_on_every_python():
+    # from Python 3.12 on, sum() adds Python's own floats with a compensation of its
+    # rounding and numpy's plainly (compiled code cannot tell them apart: a list of floats
+    # runs as Python there); an array's values and integers are added plainly everywhere
+    def floats(t, x, u, params):
+        terms = [float(x[0]) * 0.1, 0.7 * float(u[0]), 0.3, 1e-17 * float(u[0])]
+        return [0.5 * sum(terms)]
+
+    def plain(t, x, u, params):
+        return [0.5 * sum(x) + 0.1 * sum(u) + sum(range(3)) + sum((1, 2))]
+
+    T = np.arange(500.0)
+    for function, compiles in ((floats, sys.version_info < (3, 12)), (plain, True)):
+        block = ct.nlsys(function, lambda t, x, u, p: x, inputs=1, states=1, outputs=1,
+                         dt=1, name=function.__name__)
+        expected = ct.input_output_response(block, T, np.sin(0.37 * T), [0.0])
+        with warnings.catch_warnings(record=True) as said:
+            warnings.simplefilter("always")
+            ours = controlkit.input_output_response(block, T, np.sin(0.37 * T), [0.0],
+                                                    compile=True)
+        assert np.array_equal(ours.outputs, expected.outputs), function.__name__
+        assert ours.engine_mode == ("compiled" if compiles else "python")
+        assert compiles or any("sum() of floats (3.12 and later)" in str(w.message)
+                               for w in said)
+
+
 def test_a_first_piece_that_differs_names_the_block_whose_state_differs_first():
     # np.arange with a float step: numpy fills start + i * ((start + step) - start), numba
     # start + i * step; no rule knows it, the exact check of the first piece catches it,

@@ -9,6 +9,8 @@ the name of the package that re-exports them (``controlkit.engines.fast.usercode
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 
 from .. import _jit
@@ -115,6 +117,22 @@ def within_int64(x):
     (2.5, 7)
     """
     return x
+
+
+def python_sum(iterable, start=0):
+    """``sum(iterable, start)``, which compiled user functions call instead: from Python
+    3.12 on, ``sum`` adds Python's own floats with a compensation of its rounding
+    (Neumaier's), numpy's plainly, and compiled code cannot tell the two apart; there, a
+    sum of a list or tuple that may hold floats stops the compiler, and the block runs as
+    Python. An array's values (numpy's floats) and integers are added as numba adds them,
+    as Python does.
+
+    Examples
+    --------
+    >>> python_sum([0.1, 0.2, 0.3]) == sum([0.1, 0.2, 0.3])
+    True
+    """
+    return sum(iterable, start)
 
 
 @_jit.on_numba_import
@@ -275,6 +293,26 @@ def _overloads(numba):
             return x
         return impl
 
+    def _whole(kind):
+        return isinstance(kind, _nbtypes.Integer | _nbtypes.Boolean)
+
+    @overload(python_sum, inline="always")
+    def _python_sum_overload(iterable, start=0):
+        if isinstance(iterable, _nbtypes.BaseTuple):
+            whole = all(_whole(kind) for kind in iterable)
+        else:
+            whole = isinstance(iterable, _nbtypes.Array | _nbtypes.RangeType) or _whole(
+                getattr(iterable, "dtype", None))
+        if sys.version_info >= (3, 12) and not (whole and not isinstance(
+                start, _nbtypes.Float)):
+            raise TypingError("Python's sum() of floats (3.12 and later) compensates its "
+                              "rounding for Python's floats and not for numpy's, which "
+                              "compiled code cannot tell apart (a + b + c compiles)")
+
+        def impl(iterable, start=0):
+            return sum(iterable, start)
+        return impl
+
     overload(power, inline="always")(_power_overload(refuse_arrays=False))
     overload(power_of_numbers, inline="always")(_power_overload(refuse_arrays=True))
 
@@ -328,6 +366,6 @@ def missing_parameter(key):
 # numba's cache refers to them by module: the package is their home, so that a kernel
 # module's text, and with it its name in the cache, does not depend on this file's name.
 for _public in (store, clip, matmul, missing_parameter, power, power_of_numbers, numpy_dot,
-                within_int64):
+                within_int64, python_sum):
     _public.__module__ = "controlkit.engines.fast.usercode"
 del _public

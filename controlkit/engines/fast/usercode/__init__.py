@@ -35,6 +35,7 @@ from ....kernels.user_calls import (
     numpy_dot,
     power,
     power_of_numbers,
+    python_sum,
     store,
     within_int64,
 )
@@ -43,5 +44,5 @@ from .compiling import UserKernel, block_layout
 __all__ = ["UserKernel", "block_layout", "clip", "matmul", "missing_parameter", "numpy_det",
            "numpy_divmod", "numpy_dot", "numpy_floor_divide", "numpy_maximum", "numpy_mean",
            "numpy_minimum", "numpy_mod", "numpy_norm", "numpy_sign", "numpy_slogdet",
-           "numpy_solve", "numpy_sum", "numpy_trace", "power", "power_of_numbers", "store",
-           "within_int64"]
+           "numpy_solve", "numpy_sum", "numpy_trace", "power", "power_of_numbers", "python_sum",
+           "store", "within_int64"]

@@ -3,8 +3,9 @@ numba's numbers are not Python's or numpy's (:mod:`controlkit.kernels.user_calls
 :mod:`controlkit.kernels.numpy_calls`): ``a @ b``, ``a ** b``, ``math.pow``, ``np.sum``,
 ``np.mean``, ``np.linalg.norm``, ``np.trace``, their methods, the LU of
 ``np.linalg.solve``, ``det``, ``slogdet``, numpy's signed zeros (``np.sign``, ``maximum``,
-``minimum``, ``mod``, ``floor_divide``, ``divmod``), and integers of floats (``int``,
-``round``, ``math.floor``, ``ceil``, ``trunc``); ``a.var()``, ``a.std()`` refused.
+``minimum``, ``mod``, ``floor_divide``, ``divmod``), integers of floats (``int``,
+``round``, ``math.floor``, ``ceil``, ``trunc``) and Python's ``sum``; ``a.var()``,
+``a.std()`` refused.
 """
 
 from __future__ import annotations
@@ -35,12 +36,13 @@ class Calls(ast.NodeTransformer):
 
     #: Operators and what is called instead
     CALLS = {ast.MatMult: "_ck_matmul", ast.Pow: "_ck_power"}
-    #: numpy's functions whose order of sums numba does not keep: what is called instead
+    #: Functions whose numbers numba's own would not give: what is called instead
     NUMPY = {np.sum: "_ck_sum", np.mean: "_ck_mean", np.linalg.norm: "_ck_norm",
              np.dot: "_ck_dot", np.trace: "_ck_trace", np.linalg.solve: "_ck_solve",
              np.linalg.det: "_ck_det", np.linalg.slogdet: "_ck_slogdet",
              np.sign: "_ck_sign", np.maximum: "_ck_maximum", np.minimum: "_ck_minimum",
-             np.mod: "_ck_mod", np.floor_divide: "_ck_floor_divide", np.divmod: "_ck_divmod"}
+             np.mod: "_ck_mod", np.floor_divide: "_ck_floor_divide", np.divmod: "_ck_divmod",
+             builtins.sum: "_ck_python_sum"}
     #: Python's functions that make an integer of a float: their argument is checked first
     INTEGERS = (builtins.int, builtins.round, math.floor, math.ceil, math.trunc)
     #: What the rewritten text calls, by the names the package re-exports
@@ -50,7 +52,8 @@ class Calls(ast.NodeTransformer):
                "_ck_slogdet": "numpy_slogdet", "_ck_sign": "numpy_sign",
                "_ck_maximum": "numpy_maximum", "_ck_minimum": "numpy_minimum",
                "_ck_mod": "numpy_mod", "_ck_floor_divide": "numpy_floor_divide",
-               "_ck_divmod": "numpy_divmod", "_ck_int64": "within_int64"}
+               "_ck_divmod": "numpy_divmod", "_ck_int64": "within_int64",
+               "_ck_python_sum": "python_sum"}
 
     def __init__(self, frozen):
         self.frozen = frozen
