@@ -878,6 +878,36 @@ def test_signed_zeros_and_integers_of_floats_answer_as_python_does(case):
                                                               else "compiled")
 
 
+def test_numpys_random_numbers_run_as_python_saying_why():
+    # numba draws from a random state of its own: compiled, np.random.randn gave other
+    # numbers (caught by the first piece's check, after a compile), and a Generator's
+    # method was refused as "a cython_function_or_method"; both now say what they draw
+    rng = np.random.default_rng(3)
+
+    def legacy(t, x, u, params):
+        return [0.9 * x[0] + u[0] + 0.01 * np.random.randn()]  # noqa: NPY002 - the case
+
+    def generator(t, x, u, params):
+        return [0.9 * x[0] + u[0] + 0.01 * rng.standard_normal()]
+
+    T = np.arange(200.0)
+    for function, drawn in ((legacy, "randn"), (generator, "standard_normal")):
+        block = ct.nlsys(function, lambda t, x, u, p: x, inputs=1, states=1, outputs=1,
+                         dt=1, name=function.__name__)
+        (row,) = controlkit.explain(block)
+        assert row.tier == "python", row
+        assert f"it draws numpy's random numbers ({drawn}), whose state compiled code " \
+               "does not share" in row.reason, row
+        runs = []
+        for run in (ct.input_output_response, controlkit.input_output_response):
+            np.random.seed(5)  # noqa: NPY002 - the legacy state the block draws from
+            rng.bit_generator.state = np.random.default_rng(3).bit_generator.state
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # (runs as Python, saying so)
+                runs.append(run(block, T, np.sin(T), [0.0]).outputs)
+        assert np.array_equal(*runs)
+
+
 def test_pythons_sum_gives_pythons_numbers_on_every_python():
     # from Python 3.12 on, sum() adds Python's own floats with a compensation of its
     # rounding and numpy's plainly (compiled code cannot tell them apart: a list of floats

@@ -176,6 +176,10 @@ class _OutsideReads:
         if reached is None:
             return None
         value, text, rest = reached
+        why = numpy_last_bits(value)  # (a method: rng.normal of a Generator)
+        if why:
+            self._problem(why)
+            return node
         if isinstance(value, types.FunctionType | types.MethodType | functools.partial) \
                 or _is_numba_function(value):
             if rest:

@@ -248,6 +248,8 @@ def numpy_last_bits(value) -> str | None:
     --------
     >>> numpy_last_bits(np.clip) is None
     True
+    >>> numpy_last_bits(np.random.randn).split(" (")[0]
+    "it draws numpy's random numbers"
     >>> numpy_last_bits(np.linalg.inv).split(":")[0]
     'it calls numpy.linalg.inv'
     """
@@ -257,6 +259,9 @@ def numpy_last_bits(value) -> str | None:
         otherwise = None
     if otherwise is not None:
         return f"it calls {value.__module__}.{value.__name__}: {otherwise}"
+    if isinstance(getattr(value, "__self__", None), np.random.RandomState | np.random.Generator):
+        return (f"it draws numpy's random numbers ({getattr(value, '__name__', value)}), "
+                f"whose state compiled code does not share: numba draws from its own")
     name = getattr(value, "__name__", None)
     if not isinstance(value, np.ufunc) or name not in C_LIBRARY or getattr(np, name) \
             is not value:
