@@ -839,6 +839,9 @@ def test_traces_and_lu_factors_give_numpys_last_bits(function, size):
 _SPECIAL = {
     "np.sign": (lambda v: np.sign(v), -0.0),
     "np.sign of an array": (lambda v: np.sign(np.array([v, 1.0]))[0], -0.0),
+    "np.sign of a -0.0 computed": (lambda v: np.sign(-v), 0.0),
+    "np.sum of -0.0": (lambda v: np.sum(np.array([-v, -0.0])), 0.0),
+    "np.trace of -0.0": (lambda v: np.trace(np.diag(np.array([-v, -0.0]))), 0.0),
     "np.maximum": (lambda v: np.maximum(v, 0.0), -0.0),
     "np.maximum of an array": (lambda v: np.maximum(np.array([[v], [1.0]]), 0.0)[0, 0], -0.0),
     "np.minimum": (lambda v: np.minimum(v, -0.0), 0.0),
@@ -861,8 +864,13 @@ def test_signed_zeros_and_integers_of_floats_answer_as_python_does(case):
     # makes -2**63 of int(1e19). Met late in a run (past the compared first piece), each
     # gave another number without a word (atan2 shows a zero's sign as +-pi)
     call, special = _SPECIAL[case]
-    block = ct.nlsys(lambda t, x, u, p: [call(u[0]), math.atan2(call(u[0]), -1.0)],
-                     lambda t, x, u, p: x, inputs=1, states=2, outputs=2, dt=1, name="b")
+
+    def update(t, x, u, params):
+        value = call(u[0])
+        return [value, math.atan2(value, -1.0)]
+
+    block = ct.nlsys(update, lambda t, x, u, p: x, inputs=1, states=2, outputs=2, dt=1,
+                     name="b")
     T = np.arange(400.0)
     U = np.ones(400)
     U[300] = special
@@ -906,6 +914,41 @@ def test_numpys_random_numbers_run_as_python_saying_why():
                 warnings.simplefilter("ignore")  # (runs as Python, saying so)
                 runs.append(run(block, T, np.sin(T), [0.0]).outputs)
         assert np.array_equal(*runs)
+
+
+LOADED_FROM_THE_STORE = textwrap.dedent("""
+    import sys
+    import control as ct
+    import numpy as np
+    import controlkit
+
+    def summed(t, x, u, params):
+        terms = np.outer(np.array([x[0], u[0], 1.0]), np.array([0.5, x[1], -0.25]))
+        return [0.9 * x[0] + 0.01 * np.sum(np.ones(300) * u[0]) + 0.1 * np.trace(terms),
+                0.8 * x[1] + 0.1 * np.mean(terms) + 0.01 * np.linalg.norm(np.ones(9) * x[0])]
+
+    block = ct.nlsys(summed, lambda t, x, u, p: x, inputs=1, states=2, outputs=2, dt=1,
+                     name="summed")
+    T = np.arange(300.0)
+    ours = controlkit.input_output_response(block, T, np.sin(T), [0.1, 0.2], compile=True)
+    theirs = ct.input_output_response(block, T, np.sin(T), [0.1, 0.2])
+    print(ours.engine_mode, np.array_equal(ours.outputs, theirs.outputs))
+""")
+
+
+def test_numpys_sums_compiled_in_one_process_load_in_the_next(tmp_path):
+    # numpy's pairwise sum of 8 values and more was a recursive jitted function: compiled,
+    # a block's module ran, but loaded from the store by a later process it crashed that
+    # process (a segmentation fault) at its first sum. Each run in a process of its own
+    script = tmp_path / "summed.py"
+    script.write_text(LOADED_FROM_THE_STORE)
+    environment = {**os.environ, "CONTROLKIT_CACHE_DIR": str(tmp_path / "store")}
+    for run in ("compiles", "loads"):
+        result = subprocess.run([sys.executable, str(script)], capture_output=True,
+                                text=True, cwd=tmp_path, timeout=600, env=environment)
+        assert result.returncode == 0, f"the run that {run} ended with status " \
+                                       f"{result.returncode}: {result.stderr[-1500:]}"
+        assert result.stdout.split() == ["compiled", "True"], (run, result.stdout)
 
 
 def test_pythons_sum_gives_pythons_numbers_on_every_python():

@@ -13,6 +13,10 @@ import numpy as np
 
 from .. import _jit
 
+#: What numpy's sum of floats starts from: 0.0 (a sum of negative zeros is 0.0), or -0.0
+#: where a numpy keeps their sign.
+SUM_START = 0.0 if not np.signbit(np.add.reduce(np.array([-0.0, -0.0]))) else -0.0
+
 
 def numpy_sum(a):
     """``np.sum(a)`` and ``a.sum()``, which compiled user functions call instead: numba adds
@@ -202,27 +206,64 @@ def _overloads(numba):
     from numba.extending import overload
 
     @numba.njit
-    def _pairwise_sum(a, start, n):
-        """numpy's order of adding ``a[start:start + n]`` (its ``pairwise_sum``)."""
+    def _block_sum(a, start, n):
+        """numpy's sum of at most 128 values ``a[start:start + n]``: in order below eight,
+        else in eight running sums."""
         if n < 8:
             total = -0.0
             for i in range(start, start + n):
                 total += a[i]
             return total
+        r0, r1, r2, r3 = a[start], a[start + 1], a[start + 2], a[start + 3]
+        r4, r5, r6, r7 = a[start + 4], a[start + 5], a[start + 6], a[start + 7]
+        i = 8
+        while i < n - n % 8:
+            at = start + i
+            r0 += a[at]
+            r1 += a[at + 1]
+            r2 += a[at + 2]
+            r3 += a[at + 3]
+            r4 += a[at + 4]
+            r5 += a[at + 5]
+            r6 += a[at + 6]
+            r7 += a[at + 7]
+            i += 8
+        total = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+        for k in range(i, n):
+            total += a[start + k]
+        return total
+
+    @numba.njit
+    def _pairwise_sum(a, start, n):
+        """numpy's order of adding ``a[start:start + n]`` (its ``pairwise_sum``): blocks of
+        at most 128 values (:func:`_block_sum`), halves (rounded down to eight values) added
+        left + right. numpy's recursion is run on a stack of halves here: a recursive jitted
+        function crashed the process that loaded a module calling it from the store."""
         if n <= 128:
-            r = a[start:start + 8].copy()
-            i = 8
-            while i < n - n % 8:
-                for j in range(8):
-                    r[j] += a[start + i + j]
-                i += 8
-            total = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
-            for k in range(i, n):
-                total += a[start + k]
-            return total
-        half = n // 2
-        half -= half % 8
-        return _pairwise_sum(a, start, half) + _pairwise_sum(a, start + half, n - half)
+            return _block_sum(a, start, n)
+        starts, sizes = np.empty(64, np.int64), np.empty(64, np.int64)
+        lefts, left_done = np.empty(64), np.zeros(64, np.bool_)
+        depth, starts[0], sizes[0] = 0, start, n
+        while True:
+            if sizes[depth] > 128:  # split: its left half first
+                half = sizes[depth] // 2 - (sizes[depth] // 2) % 8
+                left_done[depth] = False
+                starts[depth + 1], sizes[depth + 1] = starts[depth], half
+                depth += 1
+                continue
+            value, right_next = _block_sum(a, starts[depth], sizes[depth]), False
+            while depth > 0 and not right_next:  # a left half waits for its right one,
+                depth -= 1                       # a right half ends its pair
+                if left_done[depth]:
+                    value = lefts[depth] + value
+                    continue
+                lefts[depth], left_done[depth], right_next = value, True, True
+                half = sizes[depth] // 2 - (sizes[depth] // 2) % 8
+                starts[depth + 1] = starts[depth] + half
+                sizes[depth + 1] = sizes[depth] - half
+                depth += 1
+            if not right_next:
+                return value
 
     def _flat_floats(a):
         """Whether numpy sums ``a`` as one row of floats: one dimension, or C order."""
@@ -238,8 +279,8 @@ def _overloads(numba):
         if not _flat_floats(a):
             _refused("a sum of other than a float array")
 
-        def impl(a):
-            return _pairwise_sum(a.ravel(), 0, a.size) if a.size else 0.0
+        def impl(a):  # (numpy adds the sum to its add's identity: a sum of -0.0 is 0.0)
+            return SUM_START + _pairwise_sum(a.ravel(), 0, a.size) if a.size else SUM_START
         return impl
 
     @overload(numpy_mean, inline="always")
@@ -267,17 +308,12 @@ def _overloads(numba):
                 and a.dtype == _nbtypes.float64):
             _refused("the trace of other than a float matrix")
 
+        # numpy's: the sum of the diagonal (a copy). Not a jitted helper of its own that
+        # calls _pairwise_sum: loaded from the store in a later process, the module calling
+        # it crashed (a segmentation fault, numba 0.68)
         def impl(a):
-            return _diagonal_sum(a)
+            return numpy_sum(np.diag(a))
         return impl
-
-    @numba.njit
-    def _diagonal_sum(a):  # (not inlined: its branch made numba's SSA pass warn inlined)
-        n = min(a.shape[0], a.shape[1])
-        diagonal = np.empty(n)
-        for i in range(n):
-            diagonal[i] = a[i, i]
-        return _pairwise_sum(diagonal, 0, n) if n else 0.0
 
     too_large = (f"a matrix of more than {LU_SAME_UP_TO} rows factored by LU (solve, det, "
                  "slogdet): compiled code's LAPACK gives other last bits than numpy's there, "

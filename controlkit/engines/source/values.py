@@ -231,6 +231,7 @@ COMPUTED_OTHERWISE = {
     **{f: f"numba's {f.__name__} is not the one Python calls (73-77 % differ)"
        for f in (math.gamma, math.lgamma)},
     cmath.log: "numba's complex logarithm is not Python's (18 % differ)",
+    np.spacing: "numba's spacing of -0.0 is -5e-324, numpy's 5e-324",
     math.hypot: "Python's math.hypot has a method of its own, not the C library's hypot "
                 "that compiled code calls (0.5 % differ); np.hypot is the C library's in both",
     **({np.trapezoid: "numba's trapezoid rule sums in another order than numpy's (33 % of "
