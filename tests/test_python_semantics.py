@@ -951,6 +951,29 @@ def test_numpys_sums_compiled_in_one_process_load_in_the_next(tmp_path):
         assert result.stdout.split() == ["compiled", "True"], (run, result.stdout)
 
 
+def _numpy_terms(v):
+    m = np.array([[2.0 + v, 0.1], [0.2, 3.0]])
+    return (np.sum(np.array([v, 1.0])) + np.linalg.det(m) + np.mod(v, -2.0) + np.trace(m)
+            + np.sign(np.array([v]))[0] + np.maximum(np.array([v, 0.0]), 0.1)[0])
+
+
+def test_a_helper_with_numpys_rules_called_twice_compiles():
+    # the rules were pasted into their caller (inline="always"): a helper calling them,
+    # called twice in one function, broke numba's inliner ("key already in dictionary")
+    # and the block ran as Python
+    block = ct.nlsys(lambda t, x, u, p: [0.5 * x[0] + 0.01 * _numpy_terms(u[0])
+                                         + 0.001 * _numpy_terms(x[0])],
+                     lambda t, x, u, p: x, inputs=1, states=1, outputs=1, dt=1,
+                     name="twice")
+    T = np.arange(300.0)
+    expected = ct.input_output_response(block, T, np.sin(T), [1.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        ours = controlkit.input_output_response(block, T, np.sin(T), [1.0], compile=True)
+    assert ours.engine_mode == "compiled"
+    assert np.array_equal(ours.outputs, expected.outputs)
+
+
 def test_pythons_sum_gives_pythons_numbers_on_every_python():
     # from Python 3.12 on, sum() adds Python's own floats with a compensation of its
     # rounding and numpy's plainly (compiled code cannot tell them apart: a list of floats

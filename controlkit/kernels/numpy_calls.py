@@ -200,7 +200,10 @@ def numpy_divmod(a, b):
 
 @_jit.on_numba_import
 def _overloads(numba):
-    """numba's implementations of the functions above (made when numba loads)."""
+    """numba's implementations of the functions above (made when numba loads). None is
+    pasted into its caller (``inline="always"``): a helper calling one, called twice in a
+    function, broke numba's inliner ("key already in dictionary"); LLVM inlines them
+    anyway (the same time a step, measured)."""
     from numba import types as _nbtypes
     from numba.core.errors import TypingError
     from numba.extending import overload
@@ -274,7 +277,7 @@ def _overloads(numba):
         raise TypingError(f"{what}: numba's order of sums is not numpy's, whose last bits "
                           "compiled code gives for a float array alone, all its values")
 
-    @overload(numpy_sum, inline="always")
+    @overload(numpy_sum)
     def _sum_overload(a):
         if not _flat_floats(a):
             _refused("a sum of other than a float array")
@@ -283,7 +286,7 @@ def _overloads(numba):
             return SUM_START + _pairwise_sum(a.ravel(), 0, a.size) if a.size else SUM_START
         return impl
 
-    @overload(numpy_mean, inline="always")
+    @overload(numpy_mean)
     def _mean_overload(a):
         if not _flat_floats(a):
             _refused("a mean of other than a float array")
@@ -292,7 +295,7 @@ def _overloads(numba):
             return numpy_sum(a) / a.size
         return impl
 
-    @overload(numpy_norm, inline="always")
+    @overload(numpy_norm)
     def _norm_overload(x):
         if not _flat_floats(x):
             _refused("the norm of other than a float array")
@@ -302,7 +305,7 @@ def _overloads(numba):
             return np.sqrt(np.dot(flat, flat))
         return impl
 
-    @overload(numpy_trace, inline="always")
+    @overload(numpy_trace)
     def _trace_overload(a):
         if not (isinstance(a, _nbtypes.Array) and a.ndim == 2
                 and a.dtype == _nbtypes.float64):
@@ -324,7 +327,7 @@ def _overloads(numba):
         if a.shape[-1] > LU_SAME_UP_TO:
             raise ValueError(too_large)
 
-    @overload(numpy_solve, inline="always")
+    @overload(numpy_solve)
     def _solve_overload(a, b):
         def impl(a, b):
             _lu_same(a)
@@ -339,11 +342,9 @@ def _overloads(numba):
             return impl
         return typer
 
-    overload(numpy_det, inline="always")(_of_one_matrix(np.linalg.det))
-    overload(numpy_slogdet, inline="always")(_of_one_matrix(np.linalg.slogdet))
+    overload(numpy_det)(_of_one_matrix(np.linalg.det))
+    overload(numpy_slogdet)(_of_one_matrix(np.linalg.slogdet))
 
-    # (not pasted in, inline="always": two pasted calls of an array's sign in one function
-    # broke numba's inliner, "key already in dictionary"; LLVM inlines them anyway)
     @overload(numpy_sign)
     def _sign_overload(x):
         if x == _nbtypes.float64:
@@ -406,9 +407,9 @@ def _overloads(numba):
     overload(numpy_minimum)(_extreme(np.minimum, _smaller))
 
     # numba's own % and // are Python's, which numpy's mod and floor_divide follow
-    overload(numpy_mod, inline="always")(lambda a, b: lambda a, b: a % b)
-    overload(numpy_floor_divide, inline="always")(lambda a, b: lambda a, b: a // b)
-    overload(numpy_divmod, inline="always")(lambda a, b: lambda a, b: (a // b, a % b))
+    overload(numpy_mod)(lambda a, b: lambda a, b: a % b)
+    overload(numpy_floor_divide)(lambda a, b: lambda a, b: a // b)
+    overload(numpy_divmod)(lambda a, b: lambda a, b: (a // b, a % b))
 
 
 # Generated kernel modules import these from the package (as user_calls's): their home.
