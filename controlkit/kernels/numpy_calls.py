@@ -14,7 +14,7 @@ import numpy as np
 from .. import _jit
 
 #: What numpy's sum of floats starts from: 0.0 (a sum of negative zeros is 0.0), or -0.0
-#: where a numpy keeps their sign.
+#: where this numpy keeps their sign.
 SUM_START = 0.0 if not np.signbit(np.add.reduce(np.array([-0.0, -0.0]))) else -0.0
 
 
