@@ -237,6 +237,10 @@ def _overloads(numba):
         return total
 
     @numba.njit
+    def _left_half(n):  # numpy's: half of n values, rounded down to eight
+        return n // 2 - (n // 2) % 8
+
+    @numba.njit
     def _pairwise_sum(a, start, n):
         """numpy's order of adding ``a[start:start + n]`` (its ``pairwise_sum``): blocks of
         at most 128 values (:func:`_block_sum`), halves (rounded down to eight values) added
@@ -249,9 +253,8 @@ def _overloads(numba):
         depth, starts[0], sizes[0] = 0, start, n
         while True:
             if sizes[depth] > 128:  # split: its left half first
-                half = sizes[depth] // 2 - (sizes[depth] // 2) % 8
                 left_done[depth] = False
-                starts[depth + 1], sizes[depth + 1] = starts[depth], half
+                starts[depth + 1], sizes[depth + 1] = starts[depth], _left_half(sizes[depth])
                 depth += 1
                 continue
             value, right_next = _block_sum(a, starts[depth], sizes[depth]), False
@@ -261,7 +264,7 @@ def _overloads(numba):
                     value = lefts[depth] + value
                     continue
                 lefts[depth], left_done[depth], right_next = value, True, True
-                half = sizes[depth] // 2 - (sizes[depth] // 2) % 8
+                half = _left_half(sizes[depth])
                 starts[depth + 1] = starts[depth] + half
                 sizes[depth + 1] = sizes[depth] - half
                 depth += 1
@@ -311,10 +314,7 @@ def _overloads(numba):
                 and a.dtype == _nbtypes.float64):
             _refused("the trace of other than a float matrix")
 
-        # numpy's: the sum of the diagonal (a copy). Not a jitted helper of its own that
-        # calls _pairwise_sum: loaded from the store in a later process, the module calling
-        # it crashed (a segmentation fault, numba 0.68)
-        def impl(a):
+        def impl(a):  # numpy's: the sum of the diagonal (a copy)
             return numpy_sum(np.diag(a))
         return impl
 

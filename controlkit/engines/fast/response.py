@@ -18,7 +18,6 @@ from ..contract import (
 from ..contract import response as base_response
 from .continuous import run_continuous
 from .discrete import simulate
-from .loops import interpolate
 from .tiers import as_interconnect
 
 
@@ -119,11 +118,11 @@ def _integers_count(given, t, X0, u, params, t_given, x_given) -> bool:
 
 
 def read_inputs(T, U, times):
-    """``U`` at ``times`` as python-control's input function reads it for a discrete run:
-    interpolated (:func:`.loops.interpolate`); at ``T``'s own points,
-    ``U[:, k - 1] * 0.0 + U[:, k] * 1.0`` (``U[:, 0] * 1.0 + U[:, 1] * 0.0`` at the first):
-    the numbers given, save that a ``-0.0`` after a positive value reads ``0.0`` (which a
-    block's ``atan2`` or ``1 / u`` tells apart).
+    """``U`` at ``times`` as python-control's input function (its ``ufun``) reads it for a
+    discrete run, on every time at once: linear between the points of ``T`` (the end
+    segments extrapolated), so that at a point itself it is
+    ``U[:, k - 1] * 0.0 + U[:, k] * 1.0``: the number given, save that a ``-0.0`` after a
+    positive value reads ``0.0`` (which a block's ``atan2`` or ``1 / u`` tells apart).
 
     Examples
     --------
@@ -132,15 +131,10 @@ def read_inputs(T, U, times):
     >>> read_inputs(np.arange(3.0), np.array([[1.0, -0.0, -0.0]]), np.arange(3.0)).tolist()
     [[1.0, 0.0, -0.0]]
     """
-    if np.array_equal(times, T):
-        if U.shape[1] < 2 or not (np.signbit(U) & (U == 0.0)).any():
-            return U  # (no negative zero: read as given, without a copy)
-        read = np.empty(U.shape)
-        read[:, 1:] = U[:, :-1] * 0.0 + U[:, 1:] * 1.0
-        read[:, 0] = U[:, 0] * 1.0 + U[:, 1] * 0.0
-        return read
-    out = np.zeros((U.shape[0], len(times)))
-    column = np.zeros((U.shape[0], 1))
-    for j, t in enumerate(times):
-        out[:, j] = interpolate(T, U, float(t), column)[:, 0]
-    return out
+    if len(T) < 2:  # one time point holds (:func:`.loops.interpolate`)
+        return np.repeat(U[:, :1], len(times), axis=1)
+    if np.array_equal(times, T) and not np.signbit(U[U == 0.0]).any():
+        return U  # (its own points and no negative zero: U as given, without a copy)
+    idx = np.clip(np.searchsorted(T, times, side="left"), 1, len(T) - 1)
+    dt = (times - T[idx - 1]) / (T[idx] - T[idx - 1])
+    return U[:, idx - 1] * (1.0 - dt) + U[:, idx] * dt

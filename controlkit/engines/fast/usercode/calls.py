@@ -37,12 +37,12 @@ class Calls(ast.NodeTransformer):
     #: Operators and what is called instead
     CALLS = {ast.MatMult: "_ck_matmul", ast.Pow: "_ck_power"}
     #: Functions whose numbers numba's own would not give: what is called instead
-    NUMPY = {np.sum: "_ck_sum", np.mean: "_ck_mean", np.linalg.norm: "_ck_norm",
-             np.dot: "_ck_dot", np.trace: "_ck_trace", np.linalg.solve: "_ck_solve",
-             np.linalg.det: "_ck_det", np.linalg.slogdet: "_ck_slogdet",
-             np.sign: "_ck_sign", np.maximum: "_ck_maximum", np.minimum: "_ck_minimum",
-             np.mod: "_ck_mod", np.floor_divide: "_ck_floor_divide", np.divmod: "_ck_divmod",
-             builtins.sum: "_ck_python_sum"}
+    INSTEAD = {np.sum: "_ck_sum", np.mean: "_ck_mean", np.linalg.norm: "_ck_norm",
+               np.dot: "_ck_dot", np.trace: "_ck_trace", np.linalg.solve: "_ck_solve",
+               np.linalg.det: "_ck_det", np.linalg.slogdet: "_ck_slogdet",
+               np.sign: "_ck_sign", np.maximum: "_ck_maximum", np.minimum: "_ck_minimum",
+               np.mod: "_ck_mod", np.floor_divide: "_ck_floor_divide",
+               np.divmod: "_ck_divmod", builtins.sum: "_ck_python_sum"}
     #: Python's functions that make an integer of a float: their argument is checked first
     INTEGERS = (builtins.int, builtins.round, math.floor, math.ceil, math.trunc)
     #: What the rewritten text calls, by the names the package re-exports
@@ -74,7 +74,7 @@ class Calls(ast.NodeTransformer):
     def visit_Call(self, node):
         node = self.generic_visit(node)
         f, target = node.func, self._target(node.func)
-        name = self.NUMPY.get(target) if callable(target) else None
+        name = self.INSTEAD.get(target) if callable(target) else None
         if target is math.pow and len(node.args) == 2 and not node.keywords:
             # math.pow(a, b) -> _ck_power(float(a), float(b))
             floats = [ast.Call(ast.Name("float", ast.Load()), [a], []) for a in node.args]
