@@ -20,6 +20,7 @@ Workman, *Digital Control of Dynamic Systems*, ch. 4; Astrom & Wittenmark,
 
 from __future__ import annotations
 
+import functools
 import math
 
 import control as ct
@@ -34,10 +35,11 @@ class SampledDataSystem(ct.InterconnectedSystem):
 
     It is an ordinary :class:`control.InterconnectedSystem` with ``dt = 0`` (its
     signals live in continuous time), built by python-control's own signal matching, so
-    it draws, lists its signals and states, and joins a larger :func:`interconnect`
-    like any diagram. What python-control cannot do with it is simulate it: its
-    right-hand side would integrate a discrete block's next state as if it were a
-    derivative, so :meth:`_rhs` and :meth:`_out` refuse, naming the remedy.
+    it draws and lists its signals and states like any diagram. What python-control
+    cannot do with it is simulate it: its right-hand side would integrate a discrete
+    block's next state as if it were a derivative, so :meth:`_rhs` and :meth:`_out`
+    refuse, naming the remedy. For the same reason it cannot be simulated nested in a
+    larger interconnect: build the larger diagram from its blocks (``syslist``) instead.
 
     Attributes
     ----------
@@ -64,8 +66,10 @@ class SampledDataSystem(ct.InterconnectedSystem):
         continuous = [s.name for s in self.syslist if s.isctime(strict=True) and s.nstates]
         raise ValueError(
             f"{self.name!r} is a sampled-data diagram (continuous blocks {continuous}, "
-            f"discrete blocks {self.rates}): python-control cannot simulate it; use "
-            f"controlkit.input_output_response")
+            f"discrete blocks {self.rates}): python-control cannot simulate it, nor an "
+            f"interconnect it is nested in; controlkit.input_output_response simulates it, "
+            f"and a larger diagram built by controlkit.interconnect from its blocks "
+            f"({self.name}.syslist) and the others")
 
     def _rhs(self, t, x, u):
         self._refuse()
@@ -177,11 +181,12 @@ def _rates(systems):
             kinds["continuous"].append(s)
         else:
             kinds["discrete"].append(s)
+    try:  # python-control's own rule of one timebase (periods np.isclose, say)
+        functools.reduce(ct.common_timebase, systems, None)
+        return None
+    except ValueError:
+        pass
     discrete = kinds["discrete"]
-    if not kinds["continuous"] and len({round(s.dt, 12) for s in discrete}) <= 1:
-        return None
-    if not discrete and not kinds["unspecified"]:
-        return None
     if kinds["unspecified"]:
         names = [s.name for s in kinds["unspecified"]]
         raise ValueError(f"blocks {names} are discrete with no sampling period (dt=True); "
@@ -190,9 +195,9 @@ def _rates(systems):
     shortest = min(discrete, key=lambda s: s.dt)
     off = [s for s in discrete if not is_multiple(s.dt, shortest.dt)]
     if off:
-        listed = ", ".join(f"{s.name!r} at {s.dt:g} s" for s in off)
+        listed = ", ".join(f"{s.name!r} at {float(s.dt)!r} s" for s in off)
         raise ValueError(f"the sampling periods must be integer multiples of the shortest "
-                         f"({shortest.dt:g} s of {shortest.name!r}); got {listed}")
+                         f"({float(shortest.dt)!r} s of {shortest.name!r}); got {listed}")
     return {s.name: s.dt for s in discrete}
 
 

@@ -269,7 +269,15 @@ def _python_control_s_own(sys, T, options) -> bool:
     leaves to it: a list ``T`` for a discrete system (python-control subtracts lists),
     a single time point, time points that do not increase, ``t_eval`` in
     ``solve_ivp_kwargs``, time points of another float type than float64 (python-control
-    evaluates the functions at them). Rare forms: python-control's own run answers them exactly."""
+    evaluates the functions at them), a diagram without states (python-control evaluates
+    its outputs point by point and keeps no states or parameters in the response), and
+    numpy told to raise, call or log on a floating-point error (``np.seterr``,
+    ``np.errstate``: python-control's functions run under it; compiled code cannot raise).
+    Rare forms: python-control's own run answers them exactly."""
+    if getattr(sys, "nstates", None) == 0:
+        return True
+    if any(mode not in ("ignore", "warn") for mode in np.geterr().values()):
+        return True
     if "controlkit.blocks.sampling" in _sys.modules:  # (imported for a grid)
         from .blocks.sampling import TimeGrid  # (waits for a thread still importing it)
 

@@ -6,6 +6,7 @@ here from the semantics alone (solve_ivp between sample instants, discrete outpu
 held), at tight tolerances.
 """
 
+import re
 import warnings
 
 import control as ct
@@ -368,9 +369,18 @@ def test_a_sampled_data_diagram_runs_on_the_python_reference_when_asked():
 
 def test_python_control_refuses_a_sampled_data_diagram_with_the_remedy():
     loop, T, X0, U = servo_pi_discrete()
-    with pytest.raises(ValueError, match=r"sampled-data diagram .* use "
-                                         r"controlkit.input_output_response"):
+    with pytest.raises(ValueError, match=r"sampled-data diagram .* "
+                                         r"controlkit.input_output_response simulates it"):
         ct.input_output_response(loop, T, U, X0)
+    # nested in a larger interconnect: python-control's matching builds it, and the run
+    # says the same, naming the blocks to build the larger diagram from
+    sensor = ct.tf([1.0], [0.2, 1.0], name="sensor", inputs=loop.output_labels[0],
+                   outputs="measured")
+    outer = controlkit.interconnect([loop, sensor], inputs=loop.input_labels,
+                                    outputs="measured")
+    with pytest.raises(ValueError, match=r"nor an interconnect it is nested in; .*"
+                                         + re.escape(f"({loop.name}.syslist)")):
+        controlkit.input_output_response(outer, T, U, X0, compile=False)
 
 
 @pytest.mark.parametrize("build", [dc_motor, observer, CONTINUOUS["car_pi"]],
@@ -415,6 +425,13 @@ def test_one_timebase_gives_python_controls_own_interconnect():
     loop, *_ = CONTINUOUS["pi_first_order"]()
     again = controlkit.interconnect(loop.syslist, inputs="r", outputs=["y", "u"])
     assert type(again) is type(loop) and again.dt == 0
+    # periods python-control counts as one (np.isclose): its own diagram, not two rates
+    plant = ct.ss([[0.5]], [[1.0]], [[1.0]], [[0.0]], dt=0.1000001, name="plant",
+                  inputs="u", outputs="y")
+    gain = ct.ss([], [], [], [[0.5]], dt=0.1, name="k", inputs="y", outputs="u")
+    theirs = ct.interconnect([plant, gain], inputs="u", outputs="y")
+    ours = controlkit.interconnect([plant, gain], inputs="u", outputs="y")
+    assert type(ours) is type(theirs) and ours.dt == theirs.dt == 0.1000001
 
 
 def test_a_diverging_continuous_loop_names_the_time_and_the_blocks():

@@ -680,6 +680,86 @@ def test_integer_time_points_answer_as_python_control_s(update, dt):
         assert ours.time.dtype == expected.time.dtype and np.array_equal(ours.time, T)
 
 
+def test_a_list_of_integer_time_points_stays_integers_as_in_python_control():
+    block = ct.nlsys(lambda t, x, u, p: -x + u, lambda t, x, u, p: x, **_DECAY)
+    expected = ct.input_output_response(block, [0, 1, 2, 3], 1.0, 1.0)
+    for compile in (True, False):
+        ours = controlkit.input_output_response(block, [0, 1, 2, 3], 1.0, 1.0,
+                                                compile=compile)
+        assert ours.time.dtype == expected.time.dtype == np.int64
+        assert np.array_equal(ours.outputs, expected.outputs)
+
+
+def _sigmoid_loop():
+    sigmoid = ct.nlsys(lambda t, x, u, p: -x + 1.0 / (1.0 + np.exp(-2000.0 * (u - 0.5))),
+                       lambda t, x, u, p: x, **_DECAY)
+    return ct.interconnect([sigmoid], inputs="u[0]", outputs="y[0]")
+
+
+def _blow_up():
+    return ct.nlsys(lambda t, x, u, p: x ** 2, lambda t, x, u, p: x, **_DECAY)
+
+
+def _static():
+    return ct.interconnect([ct.nlsys(None, lambda t, x, u, p: np.sin(u) * p.get("k", 2.0),
+                                     inputs=1, outputs=1, name="gain")],
+                           inputs="u[0]", outputs="y[0]", name="static")
+
+
+# (name, system, call's arguments): calls whose answer is python-control's own form
+_OWN_ANSWERS = {
+    # python-control evaluates the outputs point by point: no states, no params kept
+    "no states": (_static, dict(U=np.linspace(0.0, 1.0, 21), X0=None,
+                                params={"k": 5.0})),
+    # python-control integrates a complex initial state as complex numbers
+    "complex X0": (lambda: _sigmoid_loop(), dict(U=0.3, X0=[0.3 + 1.0j])),
+    # the solver stops at t = 1: python-control returns the response up to there
+    "ignore_errors": (_blow_up, dict(U=0.0, X0=1.0, ignore_errors=True)),
+    # LSODA's value at the first time point is its own interpolation
+    "LSODA from t = 1": (lambda: _sigmoid_loop(),
+                         dict(T=np.linspace(1.0, 6.0, 51), U=0.8, X0=0.1,
+                              solve_ivp_method="LSODA")),
+    "LSODA, first_step": (lambda: _sigmoid_loop(),
+                          dict(U=0.8, X0=0.1, solve_ivp_method="LSODA",
+                               solve_ivp_kwargs={"first_step": 1e-4})),
+}
+
+
+@pytest.mark.parametrize("case", sorted(_OWN_ANSWERS))
+def test_calls_answered_in_python_control_s_own_form_are_its_answers(case):
+    build, arguments = _OWN_ANSWERS[case]
+    arguments = {"T": np.linspace(0.0, 2.0, 21), **arguments}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # (the casting of X0, the hand-over's warning)
+        expected = ct.input_output_response(build(), **arguments)
+        answers = [controlkit.input_output_response(build(), compile=compile, **arguments)
+                   for compile in (True, False, None)]
+    for ours in answers:
+        assert np.array_equal(ours.time, expected.time)
+        assert np.array_equal(ours.outputs, expected.outputs)
+        assert (ours.x is None) == (expected.x is None)
+        assert ours.x is None or np.array_equal(ours.x, expected.x)
+        assert (ours.params, ours.success, ours.message) == (
+            expected.params, expected.success, expected.message)
+
+
+def test_numpy_told_to_raise_raises_as_in_python_control():
+    T = np.linspace(0.0, 1.0, 11)
+    with np.errstate(over="raise"):  # exp(2000 * 0.5) overflows
+        with pytest.raises(FloatingPointError, match="overflow"):
+            ct.input_output_response(_sigmoid_loop(), T, 0.0, 0.0)
+        for compile in (True, False, None):
+            with pytest.raises(FloatingPointError, match="overflow"):
+                controlkit.input_output_response(_sigmoid_loop(), T, 0.0, 0.0,
+                                                 compile=compile)
+    # numpy's defaults: the same numbers, compiled or not
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # (python-control's: overflow encountered in exp)
+        expected = ct.input_output_response(_sigmoid_loop(), T, 0.0, 0.0)
+    ours = controlkit.input_output_response(_sigmoid_loop(), T, 0.0, 0.0)
+    assert np.array_equal(ours.outputs, expected.outputs)
+
+
 @pytest.mark.parametrize("module", [np, math], ids=["numpy", "math"])
 def test_a_tanh_gives_python_control_s_last_bits(module):
     # numba computes np.tanh with the C library's tanh, as math.tanh is; numpy has code of

@@ -212,7 +212,7 @@ def python_control_arguments(sys, T, U, X0, options):
     if isinstance(U, tuple | list) and len(U) != T.size:
         parts = []
         for i, u in enumerate(U):
-            u = np.array(u, dtype=float)
+            u = _real(np.array(u), "inputs").astype(float, copy=False)
             if u.ndim == 0 or u.ndim == 1 and u.shape[0] != T.shape[0]:
                 u = np.outer(u, np.ones_like(T))
             elif not (u.ndim == 1 and u.shape[0] == T.shape[0]
@@ -223,8 +223,18 @@ def python_control_arguments(sys, T, U, X0, options):
     n = sys.ninputs
     legal = [(T.size,), (1, T.size)] if n is None or n == 1 else [(n, T.size)]
     U, X0 = inputs_and_state(U, legal, X0, sys.nstates)
-    U = np.asarray(U, dtype=float).reshape(-1, T.size)
-    return T, U, np.asarray(X0, dtype=float), t_eval, method, kwargs
+    U = _real(np.asarray(U), "inputs").astype(float, copy=False).reshape(-1, T.size)
+    X0 = _real(np.asarray(X0), "initial state").astype(float, copy=False)
+    return T, U, X0, t_eval, method, kwargs
+
+
+def _real(values: np.ndarray, what: str) -> np.ndarray:
+    """``values``, refused when complex: python-control integrates complex numbers as
+    they are, where the engine's floats would drop their imaginary parts."""
+    if values.dtype.kind == "c":
+        raise UnsupportedSystem(f"complex {what} (python-control integrates them as complex "
+                                f"numbers)")
+    return values
 
 
 def integer_state(X0, nstates):

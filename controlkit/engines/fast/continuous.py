@@ -117,6 +117,10 @@ class _Run:
         self.instants = sample_times(getattr(sys, "base_period", 0.0), T[0], T[-1])
         h = float(getattr(sys, "base_period", 0.0) or 0.0)
         self.eval_instant = loops.instant_of(t_eval, self.instants, h)
+        if method in STIFF_METHODS and not h:
+            # scipy serves the first time too, as in python-control's call: LSODA's value
+            # there is its own interpolation, a last bit off the initial state
+            self.eval_instant[:] = -1
         m, nc = t_eval.size, plan.continuous.size
         self.Y = np.zeros((sys.noutputs, m))
         self.X = np.zeros((sys.nstates, m))

@@ -16,7 +16,7 @@ from ..contract import (
     result_flags,
 )
 from ..contract import response as base_response
-from .continuous import run_continuous
+from .continuous import StiffProblem, run_continuous
 from .discrete import simulate
 from .tiers import as_interconnect
 
@@ -51,6 +51,8 @@ def _response(given, sys, T, U, X0, compile, options):
     given_X0, given_times = X0, options.get("evaluation_times", "T")
     given_times = T if isinstance(given_times, str) else given_times
     # python-control hands its functions the time points as given: integers stay so
+    if isinstance(given_times, list | tuple):  # (a list of integers stays integers too)
+        given_times = np.asarray(given_times)
     integer_times = isinstance(given_times, np.ndarray) and given_times.dtype.kind in "iu"
     T, U, X0, t_eval, method, solver = python_control_arguments(sys, T, U, X0, options)
     params = options.get("params")
@@ -77,8 +79,15 @@ def _response(given, sys, T, U, X0, compile, options):
                                              given_times[0], X0):
             raise UnsupportedSystem(_INTEGER_TIMES.format("computes other numbers from it"))
     else:
-        resp = run_continuous(sys, T, U, X0, params=params, t_eval=t_eval, method=method,
-                              compile=compile, **solver)
+        try:
+            resp = run_continuous(sys, T, U, X0, params=params, t_eval=t_eval,
+                                  method=method, compile=compile, **solver)
+        except RuntimeError as error:
+            if not options.get("ignore_errors") or isinstance(error, StiffProblem):
+                raise  # (a stiff run would take python-control hours)
+            # python-control then answers with what its solver reached, success False
+            raise UnsupportedSystem(f"{error}; with ignore_errors=True python-control's "
+                                    f"run returns the response up to there") from None
     flags = result_flags(options)
     if given is sys and flags["squeeze"] in (None, True, False):
         # the run's own response, labelled for this system: copying its arrays into a second
