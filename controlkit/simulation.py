@@ -411,13 +411,14 @@ def _sampled_data_response(sys, T, U, X0, engine, options, compile):
     from .engines import reference
     from .engines.contract import python_control_arguments, response, result_flags
 
-    arguments = python_control_arguments(sys, T, U, X0, options)
     if engine == "fast":
         fast = _fast_response(sys, T, U, X0, options, "controlkit's Python reference",
                               compile=compile)
         if fast is not None:
             return fast
-    T, U, X0, t_eval, method, solve_ivp_kwargs = arguments
+    # (read here, not before: a short X0's warning is given once)
+    T, U, X0, t_eval, method, solve_ivp_kwargs = python_control_arguments(sys, T, U, X0,
+                                                                          options)
     resp = reference.simulate_sampled_data(sys, T, X0, U, params=options["params"],
                                            t_eval=t_eval, method=method,
                                            solve_ivp_kwargs=solve_ivp_kwargs)
