@@ -269,12 +269,12 @@ def _python_control_s_own(sys, T, options) -> bool:
     leaves to it: a list ``T`` for a discrete system (python-control subtracts lists),
     a single time point, time points that do not increase, ``t_eval`` in
     ``solve_ivp_kwargs``, time points of another float type than float64 (python-control
-    evaluates the functions at them), a diagram without states (python-control evaluates
-    its outputs point by point and keeps no states or parameters in the response), and
-    numpy told to raise, call or log on a floating-point error (``np.seterr``,
-    ``np.errstate``: python-control's functions run under it; compiled code cannot raise).
-    Rare forms: python-control's own run answers them exactly."""
-    if getattr(sys, "nstates", None) == 0:
+    evaluates the functions at them), a discrete diagram without states (python-control
+    evaluates its outputs at any time points, spaced by its period or not), and numpy told
+    to raise, call or log on a floating-point error (``np.seterr``, ``np.errstate``:
+    python-control's functions run under it; compiled code cannot raise). Rare forms:
+    python-control's own run answers them exactly."""
+    if getattr(sys, "nstates", None) == 0 and sys.isdtime(strict=True):
         return True
     if any(mode not in ("ignore", "warn") for mode in np.geterr().values()):
         return True

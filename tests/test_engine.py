@@ -236,6 +236,9 @@ def test_the_rule_counts_the_earlier_python_runs_of_a_module(monkeypatch):
     run.PYTHON_RUNS[first.python.source] = 1000  # short runs: not compiled from the start
     again = run.Runner(loop, None, None)
     assert again.compiled is None
+    # paid for, but a short run: compiling in it would make the call slower than
+    # python-control's (about twice the run as Python: 0.4 s, against 5 s to compile)
+    assert run.Runner(loop, None, None).decide(0.1, 1 / 2) is None
     chosen = again.decide(1.0, 1 / 4)
     assert chosen is not None and chosen.compiled
     forced = run.Runner(loop, None, False)  # compile=False runs are not counted
@@ -382,7 +385,8 @@ def run(sys_, points, **options):
     assert np.array_equal(mine.outputs, theirs.outputs)
     return f"{mine.engine_mode}:{'controlkit.engines.fast' in sys.modules}"
 
-decay = ct.nlsys(slow, None, inputs=1, states=1, outputs=1, name="decay")
+decay = ct.interconnect([ct.nlsys(slow, None, inputs=1, states=1, outputs=1, name="decay")],
+                       inputs="u[0]", outputs="y[0]")
 """
 
 
@@ -412,6 +416,25 @@ def test_a_fresh_script_s_short_runs_are_python_control_s_own_until_the_engine_p
                           "python:True", "python:True"], result
     assert _fresh_script('print("RESULT", run(loop(), 101, compile=False))') == [
         ["python:True"]]
+
+
+def test_a_lone_system_is_python_control_s_unless_its_run_would_be_long():
+    # python-control calls a lone system's own functions, as the engine's Python run
+    # does: only a compiled run gains, after numba's start and a compile (1-2 s)
+    import controlkit
+    from controlkit import engines
+
+    block = ct.nlsys(lambda t, x, u, p: -x + u, None, inputs=1, outputs=1, states=1,
+                     name="lag")
+    T = np.linspace(0.0, 10.0, 1500)
+    expected = ct.input_output_response(block, T, 1.0)
+    for compile, mode in ((None, "python-control"), (False, "python")):
+        ours = controlkit.input_output_response(block, T, 1.0, compile=compile)
+        assert ours.engine_mode == mode
+        assert np.array_equal(ours.outputs, expected.outputs)
+    # 16 us a point at least, against 3 s
+    assert not engines.fast_start_pays(block, 180_000)
+    assert engines.fast_start_pays(block, 200_000) and engines.fast_start_pays(block, 10, 3.5)
 
 
 def test_the_engine_s_start_pays_by_the_run_s_size_or_python_control_s_longest_run():

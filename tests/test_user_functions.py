@@ -268,6 +268,7 @@ def compiles_after_a_piece(tmp_path, monkeypatch):
             monkeypatch.setattr(run, memory, type(getattr(run, memory))())
     monkeypatch.setattr(run, "PIECE_SECONDS", 0.0)
     monkeypatch.setattr(run, "PAYS", 0.0)
+    monkeypatch.setattr(run, "PYTHON_CONTROL_SLOWER", 1e9)  # (any call may compile)
     entry = run.Job.entry
 
     def differing_entry(job, name, args):
@@ -710,7 +711,9 @@ def test_an_enumeration_s_member_read_by_a_user_function_compiles_as_its_number(
     def output(t, x, u, params):
         return boost * u[0]
 
-    block = ct.nlsys(None, output, inputs="u", outputs="y", name="boost", dt=1.0)
+    # (a state kept: a diagram without states is python-control's own to run)
+    block = ct.nlsys(lambda t, x, u, p: x, output, inputs="u", outputs="y", states=1,
+                     name="boost", dt=1.0)
     loop = ct.interconnect([block], inputs="u", outputs="y")
     T = np.arange(5.0)
     ours = controlkit.input_output_response(loop, T, np.ones(5), compile=True)
@@ -807,8 +810,8 @@ def test_a_list_of_keys_changed_in_place_is_read_again():
             total += p[name]
         return total * u[0]
 
-    block = ct.nlsys(None, output, inputs="u", outputs="y", dt=1.0, name="keyed",
-                     params={"k1": 0.1, "k2": 0.2, "k3": 0.4})
+    block = ct.nlsys(lambda t, x, u, p: x, output, inputs="u", outputs="y", states=1,
+                     dt=1.0, name="keyed", params={"k1": 0.1, "k2": 0.2, "k3": 0.4})
     loop = ct.interconnect([block], inputs="u", outputs="y")
     T = np.arange(4.0)
     try:

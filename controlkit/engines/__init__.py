@@ -82,19 +82,28 @@ FAST_START_SECONDS = 0.025
 #: python-control's time per output point and per block of a diagram, at least: 35-130 us
 #: measured on the continuous benchmark rows, 80 us on a discrete one.
 PYTHON_CONTROL_POINT_SECONDS = 35e-6
+#: python-control's time per output point of a lone system (not an interconnect), at
+#: least: 16 us measured on a one-state nlsys. It calls the system's own functions, as
+#: the engine's Python run does, which is then no faster (0.95-1.05x): only a compiled
+#: run gains, after numba's start and a compile (1-2 s), so the engine takes a lone
+#: system's run when python-control's would last longer than :data:`LONE_SECONDS`.
+LONE_POINT_SECONDS = 16e-6
+LONE_SECONDS = 3.0
 
 
 def fast_start_pays(sys, points: int, longest: float = 0.0) -> bool:
     """Whether a call of :func:`controlkit.input_output_response` on ``sys`` starts the
     fast engine, rather than leave the run to python-control.
 
-    Always once the engine has started in this process (its modules imported). Before
-    that, only when python-control would take longer than the engine's start and its own
-    run, ``FAST_START_SECONDS * PYTHON_CONTROL_SLOWER / (PYTHON_CONTROL_SLOWER - 1)`` (50
-    ms): python-control's time estimated as ``points`` times the blocks times
-    :data:`PYTHON_CONTROL_POINT_SECONDS` (its least measured: an estimate that errs
-    towards python-control), or ``longest``, the longest run python-control made in this
-    process (a stiff run of few points).
+    A diagram (an interconnect): always once the engine has started in this process (its
+    modules imported). Before that, only when python-control would take longer than the
+    engine's start and its own run, ``FAST_START_SECONDS * PYTHON_CONTROL_SLOWER /
+    (PYTHON_CONTROL_SLOWER - 1)`` (50 ms): python-control's time estimated as ``points``
+    times the blocks times :data:`PYTHON_CONTROL_POINT_SECONDS` (its least measured: an
+    estimate that errs towards python-control), or ``longest``, the longest run
+    python-control made in this process (a stiff run of few points). A lone system: only
+    when python-control would take longer than :data:`LONE_SECONDS`, estimated as
+    ``points`` times :data:`LONE_POINT_SECONDS`, or ``longest``.
 
     Examples
     --------
@@ -103,10 +112,14 @@ def fast_start_pays(sys, points: int, longest: float = 0.0) -> bool:
     ...                        inputs="u", outputs="y")
     >>> fast_start_pays(loop, 100_000)  # about 3.5 s in python-control
     True
+    >>> fast_start_pays(loop.syslist[0], 100_000)  # a lone system: about 1.6 s
+    False
     """
+    if getattr(sys, "syslist", None) is None:  # a lone system
+        return max(points * LONE_POINT_SECONDS, longest) > LONE_SECONDS
     if "controlkit.engines.fast" in _sys.modules:
         return True
-    blocks = len(getattr(sys, "syslist", None) or [sys])
+    blocks = len(sys.syslist)
     expected = max(points * blocks * PYTHON_CONTROL_POINT_SECONDS, longest)
     slower = PYTHON_CONTROL_SLOWER
     return expected > FAST_START_SECONDS * slower / (slower - 1.0)

@@ -224,6 +224,8 @@ def python_control_arguments(sys, T, U, X0, options):
     legal = [(T.size,), (1, T.size)] if n is None or n == 1 else [(n, T.size)]
     U, X0 = inputs_and_state(U, legal, X0, sys.nstates)
     U = _real(np.asarray(U), "inputs").astype(float, copy=False).reshape(-1, T.size)
+    if sys.nstates == 0:  # (python-control reads X0, None included, and leaves it)
+        X0 = np.zeros(0)
     X0 = _real(np.asarray(X0), "initial state").astype(float, copy=False)
     return T, U, X0, t_eval, method, kwargs
 

@@ -54,7 +54,7 @@ class StiffProblem(RuntimeError):
     >>> lag = ct.tf([1.0], [1e-6, 1.0], inputs="u", outputs="y", name="lag")
     >>> T = np.linspace(0.0, 1e4, 101)
     >>> try:
-    ...     controlkit.input_output_response(lag, T, np.sin(T))
+    ...     controlkit.input_output_response(lag, T, np.sin(T), compile=False)
     ... except StiffProblem as error:
     ...     print(str(error).split("Use ")[-1])
     an implicit method: solve_ivp_method='BDF' (or 'LSODA', 'Radau')

@@ -29,8 +29,9 @@ from .tiers import BlockTier, NotCompiled, _resolve, as_interconnect, blocks_of
 #: How the engine chooses between running a diagram as Python and compiled.
 RULE = ("compiled when asked (compile=True), when the diagram's module is compiled "
         "already, or when the run, with the earlier runs of the same module in this "
-        "process, would take longer as Python than compiling it takes (timed on its "
-        "first tenth of a second); else as Python")
+        "process, would take longer as Python than compiling it takes, and the call "
+        "stays no slower than python-control's (timed on its first tenth of a second); "
+        "else as Python")
 #: Compiling pays when the rest of the run as Python, with the earlier runs of the same
 #: module, would take this many times longer than loading numba and compiling: 1, the
 #: ski-rental rule (a session that goes on pays at most twice what the best choice made
@@ -350,10 +351,16 @@ class Runner:
         # what compiling can save: this run's rest, and as much again for the runs to come
         # when earlier ones of the same module took that long (a sunk cost that predicts)
         saved = rest + before
-        if saved <= PAYS * NUMBA_START_SECONDS:  # (not even worth numba's start)
-            return None
+        # and what this call can spend on it and stay no slower than python-control's run
+        # (about PYTHON_CONTROL_SLOWER times the run as Python)
+        room = PYTHON_CONTROL_SLOWER * (elapsed + rest) - elapsed
+        if saved <= PAYS * NUMBA_START_SECONDS or room <= LOAD_SECONDS:
+            return None  # (not even worth numba's start, or no time for it)
         candidate = compiled_job(self.sys, self.params)
-        if isinstance(candidate, str) or saved <= PAYS * compiled_cost(candidate):
+        if isinstance(candidate, str):
+            return None
+        cost = compiled_cost(candidate)
+        if saved <= PAYS * cost or cost > room:
             return None
         _TWINS[self.python.source] = candidate.source
         return candidate
