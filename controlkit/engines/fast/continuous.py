@@ -33,9 +33,6 @@ SOLVER_OPTIONS = ("rtol", "atol", "max_step", "first_step")
 #: Evaluations of the right-hand side in the piece a newly compiled module is checked on
 #: (run both ways): a short one, so that a run that fits in one piece does not run twice.
 CHECK_EVALUATIONS = 32
-#: How close a compiled piece must come to the same piece run as Python: the same numbers,
-#: as for a discrete run (:data:`.discrete.DISCRETE_RTOL`).
-CONTINUOUS_RTOL = 0.0
 
 
 class StiffProblem(RuntimeError):
@@ -354,9 +351,9 @@ def _switch(runner, job, run, pieces):
     # the whole state compared, the integrator's too: a short piece may end inside its
     # first step, before any output or state is written
     agree = (run.status[1] == -1 and int(run.ctrl[NEXT_TIME]) == n1
-             and same_numbers(run.Y[:, n0:n1], results[0], CONTINUOUS_RTOL)
-             and same_numbers(run.y_eval[n0:], results[3], CONTINUOUS_RTOL)
-             and all(same_numbers(mine, theirs, CONTINUOUS_RTOL)
+             and same_numbers(run.Y[:, n0:n1], results[0])
+             and same_numbers(run.y_eval[n0:], results[3])
+             and all(same_numbers(mine, theirs)
                      for mine, theirs in zip(run.snapshot(), python, strict=True)))
     if not agree:
         _back_to(run, python, results, n0, n1)

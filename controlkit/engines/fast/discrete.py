@@ -20,10 +20,6 @@ from .tiers import NotCompiled
 
 #: Steps simulated per chunk when a run is streamed (bounds the memory of long runs).
 STREAM_CHUNK_STEPS = 20_000
-#: How close a compiled piece must come to the same piece run as Python: the same numbers
-#: (NaN where NaN), so that a last bit that compiled code computes otherwise (an operation
-#: of numba's that none of the engine's rules knows) sends the run to Python, not on.
-DISCRETE_RTOL = 0.0
 
 
 def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
@@ -217,8 +213,7 @@ def _switch(runner, job, T, x, U, Y, X, k, n, pieces):
                             f"{error})")
         Y[:, k:k1], X[:, k:k1] = Yp, Xp
         return k1, x_python
-    if not (same_numbers(Y[:, k:k1], Yp, DISCRETE_RTOL)
-            and same_numbers(X[:, k:k1], Xp, DISCRETE_RTOL)):
+    if not (same_numbers(Y[:, k:k1], Yp) and same_numbers(X[:, k:k1], Xp)):
         runner.differs(job, f"its compiled numbers differ from Python's between t = "
                             f"{T[k]:g} and {T[k1 - 1]:g} s"
                             + where_they_part(job.blocks, T[k:k1], X[:, k:k1], Xp))
