@@ -170,11 +170,9 @@ def response(sys, time, outputs, states, inputs, **overrides) -> ct.TimeResponse
     >>> resp.title, resp.output_labels
     ('Input/output response for gain', ['y[0]'])
     """
-    options = dict(
-        output_labels=sys.output_labels, state_labels=sys.state_labels,
-        input_labels=sys.input_labels, sysname=sys.name, issiso=sys.issiso(),
-        title="Input/output response for " + sys.name, plot_inputs=sys.ninputs > 0,
-    )
+    options = dict(output_labels=sys.output_labels, state_labels=sys.state_labels,
+                   input_labels=sys.input_labels, sysname=sys.name, issiso=sys.issiso(),
+                   title="Input/output response for " + sys.name, plot_inputs=sys.ninputs > 0)
     return ct.TimeResponseData(time, outputs, states, inputs, **{**options, **overrides})
 
 
