@@ -95,8 +95,7 @@ def check_arguments(sys, T, X0, U=0.0):
     X0 = X0.reshape(-1)
     if X0.size != sys.nstates:
         labels = ", ".join(sys.state_labels) if sys.nstates <= 6 else f"{sys.nstates} states"
-        raise ValueError(f"X0 must have {sys.nstates} values ({labels or 'none'}), "
-                         f"got {X0.size}")
+        raise ValueError(f"X0 must have {sys.nstates} values ({labels or 'none'}), got {X0.size}")
     if not np.isfinite(X0).all():
         raise ValueError("X0 must be finite")
     check_initial_state(sys, X0)

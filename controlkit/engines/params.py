@@ -74,8 +74,7 @@ def check_params(sys, params):
     if not params:
         return
     if not isinstance(params, dict):
-        raise ValueError(f"params must be a dict of parameter values, got "
-                         f"{type(params).__name__}")
+        raise ValueError(f"params must be a dict of parameter values, got {type(params).__name__}")
     keys = params_read(sys)
     if keys is None:  # reads not known: python-control's own behaviour
         return

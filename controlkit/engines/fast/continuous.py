@@ -218,8 +218,7 @@ def run_continuous(sys, T, U, X0, *, params=None, t_eval=None, method="RK45",
     # loop takes one type of each
     T = np.require(T, dtype=float, requirements=["C", "W"])
     U = np.require(U, dtype=float, requirements=["C", "W"])
-    t_eval = T if t_eval is None else np.require(t_eval, dtype=float,
-                                                 requirements=["C", "W"])
+    t_eval = T if t_eval is None else np.require(t_eval, dtype=float, requirements=["C", "W"])
     if t_eval.size and (t_eval[0] < T[0] or t_eval[-1] > T[-1]):
         raise ValueError("Values in `t_eval` are not within `t_span`.")
     if np.any(np.diff(t_eval) <= 0):
@@ -267,8 +266,7 @@ def run_continuous(sys, T, U, X0, *, params=None, t_eval=None, method="RK45",
         if on_chunk is not None:
             on_chunk(t_eval, run.Y, run.X)
         kept = recorded_indices(t_eval.size, record_every)
-        resp = base_response(sys, t_eval[kept], run.Y[:, kept], run.X[:, kept],
-                             run.Uo[:, kept])
+        resp = base_response(sys, t_eval[kept], run.Y[:, kept], run.X[:, kept], run.Uo[:, kept])
     return resp
 
 
@@ -381,8 +379,7 @@ def _failed(job, run):
         explain_failure(job, t_eval[j], run.x, u, status[1], -1)
     if run.ctrl[NEXT_TIME] < t_eval.size:
         raise RuntimeError(f"the integration of {job.sys.name!r} stopped at t = "
-                           f"{t_eval[run.ctrl[NEXT_TIME]]:g} s without a reason; please "
-                           f"report it")
+                           f"{t_eval[run.ctrl[NEXT_TIME]]:g} s without a reason; please report it")
 
 
 def _integrator_error(job, run):
@@ -390,8 +387,7 @@ def _integrator_error(job, run):
     sys, status, t_eval, method, x = job.sys, run.status, run.t_eval, run.method, run.x
     code, served = int(status[2]), int(status[0])
     where = t_eval[served - 1] if served > 0 else t_eval[0]
-    blocks = [b.system.name for b in job.blocks if b.system.nstates
-              and b.system.dt == 0]
+    blocks = [b.system.name for b in job.blocks if b.system.nstates and b.system.dt == 0]
     size = float(np.max(np.abs(x[job.plan.continuous]))) if job.plan.continuous.size else 0.0
     state = f"the continuous blocks {blocks}"
     if code == rk.STEP_TOO_SMALL:
@@ -399,8 +395,7 @@ def _integrator_error(job, run):
             f"{sys.name!r}: the step size of {method} fell below the spacing of numbers "
             f"after t = {where:g} s, with the largest state of {state} at {size:.3g}: the "
             f"loop diverges there (a state without bound), or a block is stiff or "
-            f"discontinuous; for a stiff block try solve_ivp_method='BDF' (or 'LSODA', "
-            f"'Radau')")
+            f"discontinuous; for a stiff block try solve_ivp_method='BDF' (or 'LSODA', 'Radau')")
     if code == rk.STIFF:
         return StiffProblem(
             f"{sys.name!r} is stiff for {method}: after t = {where:g} s its steps are held "

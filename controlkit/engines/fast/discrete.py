@@ -55,8 +55,7 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
     """
     if not isinstance(sys, ct.InterconnectedSystem):
         name = getattr(sys, "name", type(sys).__name__)
-        raise UnsupportedSystem(f"{name!r} is a single block; the fast engine runs "
-                                f"interconnects")
+        raise UnsupportedSystem(f"{name!r} is a single block; the fast engine runs interconnects")
     T, X0, U = check_arguments(sys, T, X0, U)  # a lazy TimeGrid stays lazy, U a view
     if not sys.isdtime(strict=True):  # continuous states: the instants' loop
         from .continuous import run_continuous
@@ -209,8 +208,7 @@ def _switch(runner, job, T, x, U, Y, X, k, n, pieces):
         runner.python_from_now(str(why))
         return k1, x_python
     except Exception as error:  # noqa: BLE001 - the run goes on as Python
-        runner.differs(job, f"its compiled module failed ({type(error).__name__}: "
-                            f"{error})")
+        runner.differs(job, f"its compiled module failed ({type(error).__name__}: {error})")
         Y[:, k:k1], X[:, k:k1] = Yp, Xp
         return k1, x_python
     if not (same_numbers(Y[:, k:k1], Yp) and same_numbers(X[:, k:k1], Xp)):

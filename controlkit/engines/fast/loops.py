@@ -65,8 +65,7 @@ def instant_of(t_eval, times, h):
     if not h:
         return np.where(t_eval == times[0], 0, -1).astype(np.int64)
     k = np.rint((t_eval - times[0]) / h).astype(np.int64)
-    on = (k >= 0) & (k < times.size) & (
-        np.abs(t_eval - times[0] - k * h) <= INSTANT_TOLERANCE * h)
+    on = (k >= 0) & (k < times.size) & (np.abs(t_eval - times[0] - k * h) <= INSTANT_TOLERANCE * h)
     return np.where(on, k, -1).astype(np.int64)
 
 

@@ -144,8 +144,7 @@ def run_many(sys, T, U, X0s, params_list, *, t_eval=None, method="RK45", compile
             else:
                 try:
                     _failed(jobs[r], result)
-                    responses[r] = base_response(sys, t_eval, result.Y, result.X,
-                                                 result.Uo)
+                    responses[r] = base_response(sys, t_eval, result.Y, result.X, result.Uo)
                 except (ArithmeticError, RuntimeError, ValueError) as error:
                     errors[r] = error
             if responses[r] is not None:

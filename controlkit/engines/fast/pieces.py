@@ -91,8 +91,7 @@ def interrupted(stop, response_so_far):
     """
     stop.response = response_so_far
     if not stop.args:
-        stop.args = ("the run was stopped; what was computed is on this exception's "
-                     "`response`",)
+        stop.args = ("the run was stopped; what was computed is on this exception's `response`",)
     return stop
 
 

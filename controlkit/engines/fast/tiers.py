@@ -296,8 +296,7 @@ def as_interconnect(sys):
     for what, count in (("inputs", sys.ninputs), ("outputs", sys.noutputs),
                         ("states", sys.nstates)):
         if count is None:
-            raise UnsupportedSystem(f"system {sys.name!r} does not declare its number of "
-                                    f"{what}")
+            raise UnsupportedSystem(f"system {sys.name!r} does not declare its number of {what}")
     return ct.interconnect([sys], inputs=sys.input_labels, outputs=sys.output_labels,
                            name=sys.name, check_unused=False)
 
@@ -316,8 +315,7 @@ def blocks_of(sys, params=None, *, compiled=False):
     """
     if not isinstance(sys, ct.InterconnectedSystem):
         name = getattr(sys, "name", type(sys).__name__)
-        raise UnsupportedSystem(
-            f"{name!r} is a single block; the fast engine runs interconnects")
+        raise UnsupportedSystem(f"{name!r} is a single block; the fast engine runs interconnects")
     blocks, xs, us, ys, ps = [], 0, 0, 0, 0
     for i, block in enumerate(sys.syslist):
         kernel, tier, reason = _resolve(sys, block, params, compiled)

@@ -66,8 +66,7 @@ class UserKernel:
         value = np.asarray(result, dtype=float).reshape(-1)
         if value.size != out.size:  # python-control's words (for a lone system), and where
             raise SizeError(f"inconsistent size of {unit}; system specified {out.size}, "
-                            f"{what} returned {value.size} (block {self.block!r}, at "
-                            f"t = {t:g} s)")
+                            f"{what} returned {value.size} (block {self.block!r}, at t = {t:g} s)")
         out[:] = value
         return out
 

@@ -294,8 +294,7 @@ def _names(tree):
                 stores[node.id] = stores.get(node.id, 0) + 1
             else:
                 uses.setdefault(node.id, []).append(node)
-    parents = {child: parent for parent in walk(tree)
-               for child in ast.iter_child_nodes(parent)}
+    parents = {child: parent for parent in walk(tree) for child in ast.iter_child_nodes(parent)}
     return stores, uses, parents
 
 
