@@ -13,6 +13,9 @@ value never recompiles.
 
 from __future__ import annotations
 
+import hashlib
+import inspect
+
 import numpy as np
 
 from ... import _jit
@@ -247,18 +250,11 @@ def kernel_identity(fn) -> str:
     name = f"{module}.{getattr(py, '__qualname__', getattr(py, '__name__', '?'))}"
     if module.startswith("controlkit."):
         return name
-    return f"{name} (source {_source_digest(py)})"
-
-
-def _source_digest(function) -> str:
-    import hashlib
-    import inspect
-
     try:
-        text = inspect.getsource(inspect.getmodule(function))
+        text = inspect.getsource(inspect.getmodule(py))
     except (OSError, TypeError):
-        text = repr(getattr(function, "__code__", function))
-    return hashlib.sha256(text.encode()).hexdigest()[:16]
+        text = repr(getattr(py, "__code__", py))
+    return f"{name} (source {hashlib.sha256(text.encode()).hexdigest()[:16]})"
 
 
 def generate(plan, held_logic):
