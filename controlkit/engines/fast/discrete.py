@@ -70,8 +70,9 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
     streamed = record_every > 1 or on_chunk is not None
     step = STREAM_CHUNK_STEPS if streamed else N
     Y, X = np.zeros((sys.noutputs, kept.size)), np.zeros((sys.nstates, kept.size))
-    if streamed:
-        Yb, Xb = np.zeros((sys.noutputs, step)), np.zeros((sys.nstates, step))
+    # (streamed: each chunk written into buffers, its kept samples copied out)
+    Yb, Xb = (np.zeros((sys.noutputs, step)), np.zeros((sys.nstates, step))) if streamed \
+        else (Y, X)
     reports = set(chunk_bounds(N - 1, chunks)[1:].tolist()) if progress else set()
     x = X0.astype(float)
     pieces, start, done_steps = Pieces(), now(), 0
@@ -80,8 +81,6 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
         c1 = min(c0 + step, N)
         Tc = np.ascontiguousarray(T[c0:c1], dtype=float)
         Uc = np.require(U[:, c0:c1], dtype=float, requirements=["C", "W"])
-        if not streamed:
-            Yb, Xb = Y, X
         k = 0
         if first is not None:
             k, x = _switch(runner, first, Tc, x, Uc, Yb, Xb, 0, c1 - c0, pieces)
@@ -115,8 +114,7 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
             on_chunk(Tc, Yb[:, :c1 - c0], Xb[:, :c1 - c0])
         if streamed:
             mine = (kept >= c0) & (kept < c1)
-            Y[:, mine] = Yb[:, kept[mine] - c0]
-            X[:, mine] = Xb[:, kept[mine] - c0]
+            Y[:, mine], X[:, mine] = Yb[:, kept[mine] - c0], Xb[:, kept[mine] - c0]
     if progress is not None and reports:
         progress(1.0)
     resp = base_response(sys, T[kept] if streamed else np.asarray(T, dtype=float), Y, X,
