@@ -58,8 +58,7 @@ class StiffProblem(RuntimeError):
     """
 
 
-def solver_options(n, span, rtol=1e-3, atol=1e-6, max_step=np.inf, first_step=None,
-                   **other):
+def solver_options(n, span, rtol=1e-3, atol=1e-6, max_step=np.inf, first_step=None, **other):
     """``(rtol, atol per state, max_step, first_step)`` as the integrator takes them, for
     a run over ``span`` seconds, checked as ``scipy.integrate.solve_ivp`` checks them.
 

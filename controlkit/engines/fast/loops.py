@@ -395,8 +395,7 @@ def scipy_interval(machine, rhs, args, method, t0, t1, y0, rtol, atol, max_step,
         return out
 
     stop = i_eval
-    while stop < t_eval.shape[0] and (t_eval[stop] < t1 or closed_right
-                                      and t_eval[stop] <= t1):
+    while stop < t_eval.shape[0] and (t_eval[stop] < t1 or closed_right and t_eval[stop] <= t1):
         stop += 1
     options = {"rtol": rtol, "atol": atol}
     if math.isfinite(max_step):

@@ -28,8 +28,7 @@ from .run import CHECKED, PAYS, compiled_cost, compiled_job
 from .tiers import _local_params
 
 
-def run_many(sys, T, U, X0s, params_list, *, t_eval=None, method="RK45", compile=None,
-             **solver):
+def run_many(sys, T, U, X0s, params_list, *, t_eval=None, method="RK45", compile=None, **solver):
     """Runs of ``sys``, one per initial state and parameter set; their responses and errors.
 
     Parameters

@@ -133,8 +133,7 @@ class _OutsideReads:
         found, value = self._lookup(root)
         if not found or (_is_plain(value) and not isinstance(value, types.ModuleType)):
             return None
-        if isinstance(value, types.ModuleType) and value.__name__.split(".")[0] \
-                in NUMERIC_MODULES:
+        if isinstance(value, types.ModuleType) and value.__name__.split(".")[0] in NUMERIC_MODULES:
             return None
         done = 0
         while done < len(steps) and not (_is_plain(value) and not isinstance(

@@ -263,8 +263,7 @@ def numpy_last_bits(value) -> str | None:
         return (f"it draws numpy's random numbers ({getattr(value, '__name__', value)}), "
                 f"whose state compiled code does not share: numba draws from its own")
     name = getattr(value, "__name__", None)
-    if not isinstance(value, np.ufunc) or name not in C_LIBRARY or getattr(np, name) \
-            is not value:
+    if not isinstance(value, np.ufunc) or name not in C_LIBRARY or getattr(np, name) is not value:
         return None
     share = parts_from_c_library(name)
     if not share:

@@ -271,8 +271,7 @@ def _arguments_valid(t_eval, y_eval, f, K, st):
     i_eval = st[NEXT_EVAL]
     if i_eval < 0 or i_eval > t_eval.shape[0]:
         return False
-    if i_eval < t_eval.shape[0] and (y_eval.shape[0] != t_eval.shape[0]
-                                     or y_eval.shape[1] != n):
+    if i_eval < t_eval.shape[0] and (y_eval.shape[0] != t_eval.shape[0] or y_eval.shape[1] != n):
         return False
     return True
 
@@ -303,8 +302,7 @@ def _evaluation_end(t0, t1, direction, t_eval, i_eval, closed_right):
 
 
 @jit
-def load(method_index, t0, t1, y0, rtol, atol, max_step, first_step, i_eval, closed_right,
-         work):
+def load(method_index, t0, t1, y0, rtol, atol, max_step, first_step, i_eval, closed_right, work):
     """Put an interval's arguments into ``work``; :func:`machine` then starts on it.
 
     Arguments as :func:`solve_interval`; ``method_index`` is ``METHOD_INDEX[name]``.

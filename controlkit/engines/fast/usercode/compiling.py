@@ -96,8 +96,7 @@ class UserKernel:
             module = store.import_module(store.module_file(self._text, "user"))
             if not isinstance(module.kernel, _jit.Jitted):  # (once a process)
                 for name, value in list(vars(module).items()):
-                    if isinstance(value, FunctionType) and \
-                            value.__module__ == module.__name__:
+                    if isinstance(value, FunctionType) and value.__module__ == module.__name__:
                         options = (dict(boundscheck=True, error_model="numpy", cache=True)
                                    if name == "kernel"
                                    else dict(inline="always", error_model="numpy"))

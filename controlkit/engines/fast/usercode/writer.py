@@ -408,8 +408,7 @@ def _stored_returns(body, frozen, name):
     todo = list(body)
     while todo:
         node = todo.pop()
-        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.Lambda
-                      | ast.ClassDef):
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.Lambda | ast.ClassDef):
             continue  # (a return in there is another function's)
         if isinstance(node, ast.Return):
             returns.append(node)
