@@ -19,10 +19,7 @@ import importlib
 import sys as _sys
 
 #: Backend name to its module (imported when first used: numba loads only when asked for).
-BACKENDS = {
-    "fast": "controlkit.engines.fast",
-    "python-control": "controlkit.engines.reference",
-}
+BACKENDS = {"fast": "controlkit.engines.fast", "python-control": "controlkit.engines.reference"}
 
 #: The backends' names.
 ENGINES = tuple(BACKENDS)

@@ -95,8 +95,7 @@ def check_arguments(sys, T, X0, U=0.0):
     X0 = X0.reshape(-1)
     if X0.size != sys.nstates:
         labels = ", ".join(sys.state_labels) if sys.nstates <= 6 else f"{sys.nstates} states"
-        raise ValueError(f"X0 must have {sys.nstates} values ({labels or 'none'}), "
-                         f"got {X0.size}")
+        raise ValueError(f"X0 must have {sys.nstates} values ({labels or 'none'}), got {X0.size}")
     if not np.isfinite(X0).all():
         raise ValueError("X0 must be finite")
     check_initial_state(sys, X0)
@@ -170,11 +169,9 @@ def response(sys, time, outputs, states, inputs, **overrides) -> ct.TimeResponse
     >>> resp.title, resp.output_labels
     ('Input/output response for gain', ['y[0]'])
     """
-    options = dict(
-        output_labels=sys.output_labels, state_labels=sys.state_labels,
-        input_labels=sys.input_labels, sysname=sys.name, issiso=sys.issiso(),
-        title="Input/output response for " + sys.name, plot_inputs=sys.ninputs > 0,
-    )
+    options = dict(output_labels=sys.output_labels, state_labels=sys.state_labels,
+                   input_labels=sys.input_labels, sysname=sys.name, issiso=sys.issiso(),
+                   title="Input/output response for " + sys.name, plot_inputs=sys.ninputs > 0)
     return ct.TimeResponseData(time, outputs, states, inputs, **{**options, **overrides})
 
 

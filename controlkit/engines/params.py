@@ -2,11 +2,10 @@
 
 python-control silently ignores a ``params`` key that no block reads (a typo, or a
 parameter of a controlkit block, which takes its parameters when it is built). Both
-backends refuse it instead, naming the keys the blocks do read. The reads are found in
-the functions' source (:func:`.source.used_params`: by key, through ``map(params.get,
-...)``, an alias, a key in a variable, helpers handed ``params``); where a block's reads
-cannot be known (a function without source, ``params`` used otherwise than by key), every
-key is accepted, as python-control would.
+backends refuse it instead, naming the keys the blocks do read, found in the functions'
+source (:func:`.source.used_params`); where a block's reads cannot be known (a function
+without source, ``params`` used otherwise than by key), every key is accepted, as
+python-control would.
 """
 
 from __future__ import annotations
@@ -74,8 +73,7 @@ def check_params(sys, params):
     if not params:
         return
     if not isinstance(params, dict):
-        raise ValueError(f"params must be a dict of parameter values, got "
-                         f"{type(params).__name__}")
+        raise ValueError(f"params must be a dict of parameter values, got {type(params).__name__}")
     keys = params_read(sys)
     if keys is None:  # reads not known: python-control's own behaviour
         return

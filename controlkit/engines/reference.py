@@ -45,8 +45,7 @@ def simulate(sys, T, X0, U, *, params=None, progress=None, chunks=1, record_ever
         x = states[:, -1]
         if progress is not None:
             progress(i1 / (len(T) - 1))
-    time, outputs, states, inputs = (np.concatenate(a, axis=-1)
-                                     for a in zip(*pieces, strict=True))
+    time, outputs, states, inputs = (np.concatenate(a, axis=-1) for a in zip(*pieces, strict=True))
     if on_chunk is not None:  # this path holds the whole run anyway
         on_chunk(time, outputs, states)
     if kept is not None:

@@ -13,6 +13,9 @@ value never recompiles.
 
 from __future__ import annotations
 
+import hashlib
+import inspect
+
 import numpy as np
 
 from ... import _jit
@@ -83,8 +86,7 @@ def _lti_sums(P, kernel, row, ref):
     sums = []
     for i in range(count):
         fx = "".join(f" + P[{first + i * n + j}] * {ref('x', row.X0 + j)}" for j in range(n))
-        gu = "".join(f" + P[{second + i * m + j}] * {ref('ui', row.U0 + j)}"
-                     for j in range(m))
+        gu = "".join(f" + P[{second + i * m + j}] * {ref('ui', row.U0 + j)}" for j in range(m))
         sums.append(f"(0.0{fx}) + (0.0{gu})")
     return sums
 
@@ -186,8 +188,7 @@ def _maps(plan) -> list[str]:
                                ("_OUTPUT_MAP", sys.output_map, plan.outputs_exact)):
         if not all(rows):
             array = np.ascontiguousarray(matrix, dtype=float)
-            lines.append(f"{name} = np.array({numbers(array.ravel().tolist())}, "
-                         f"dtype=np.float64)"
+            lines.append(f"{name} = np.array({numbers(array.ravel().tolist())}, dtype=np.float64)"
                          f".reshape({array.shape!r})")
     return (["# python-control's maps: sums not exact in any order are made as it makes them"]
             + lines if lines else [])
@@ -249,18 +250,11 @@ def kernel_identity(fn) -> str:
     name = f"{module}.{getattr(py, '__qualname__', getattr(py, '__name__', '?'))}"
     if module.startswith("controlkit."):
         return name
-    return f"{name} (source {_source_digest(py)})"
-
-
-def _source_digest(function) -> str:
-    import hashlib
-    import inspect
-
     try:
-        text = inspect.getsource(inspect.getmodule(function))
+        text = inspect.getsource(inspect.getmodule(py))
     except (OSError, TypeError):
-        text = repr(getattr(function, "__code__", function))
-    return hashlib.sha256(text.encode()).hexdigest()[:16]
+        text = repr(getattr(py, "__code__", py))
+    return f"{name} (source {hashlib.sha256(text.encode()).hexdigest()[:16]})"
 
 
 def generate(plan, held_logic):
@@ -304,8 +298,7 @@ def _generate(plan, held_logic, P, identities):
     rows, ny = plan.rows(), plan.ny
     names = [f"kernel_{i}" for i in range(len(plan.kernels))]
     # controlkit's own kernels: NaN in, NaN out (their NaN checks can wait, see below)
-    trusted = {i for i, name in enumerate(identities)
-               if name.startswith("controlkit.kernels.")}
+    trusted = {i for i, name in enumerate(identities) if name.startswith("controlkit.kernels.")}
     ptr, cols, gain = plan.inputs
 
     # In evaluate, the signals that written-out lines compute are also kept in locals
@@ -405,8 +398,7 @@ def _generate(plan, held_logic, P, identities):
         if not row.FT:
             evaluate += gather(b)
     evaluate += checks()  # after the last copies: 77 -> 32 ns a step in that servo loop
-    step = None if held_logic else _step(plan, P, rows, names, evaluate, ref, loads, args,
-                                         view)
+    step = None if held_logic else _step(plan, P, rows, names, evaluate, ref, loads, args, view)
     evaluate.append("return -1")
 
     outputs = _output_lines(plan, "j", lambda array, i: f"{array}[{i}]") or ["pass"]
@@ -417,8 +409,7 @@ def _generate(plan, held_logic, P, identities):
     # RK4 steps from xn itself): copying only these saved 2 of 19 ns a step of a servo loop
     update = []
     for row in rows:
-        rewritten = (row.KIND == DISCRETE and row.UPD >= 0
-                     and not (held_logic and row.EVERY > 1))
+        rewritten = (row.KIND == DISCRETE and row.UPD >= 0 and not (held_logic and row.EVERY > 1))
         if not row.NX or rewritten:
             continue
         first, last = row.X0, row.X0 + row.NX
@@ -494,6 +485,5 @@ def _generate(plan, held_logic, P, identities):
             "loop(evaluate, update, outputs, derivatives, machine, args, "
             "(instants, fire0, k1, t_final, T, U, t_eval, eval_instant), "
             "(Y, X, Uo), (x, P, held), (ys, ui, xn, scratch, xt, cidx, yc, y_eval, "
-            "ubuf, work), (method, rtol, atol, max_step, first_step), ctrl, "
-            "status)"])
+            "ubuf, work), (method, rtol, atol, max_step, first_step), ctrl, status)"])
     return "\n".join(text) + "\n"

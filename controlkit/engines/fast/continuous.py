@@ -33,9 +33,6 @@ SOLVER_OPTIONS = ("rtol", "atol", "max_step", "first_step")
 #: Evaluations of the right-hand side in the piece a newly compiled module is checked on
 #: (run both ways): a short one, so that a run that fits in one piece does not run twice.
 CHECK_EVALUATIONS = 32
-#: How close a compiled piece must come to the same piece run as Python: the same numbers,
-#: as for a discrete run (:data:`.discrete.DISCRETE_RTOL`).
-CONTINUOUS_RTOL = 0.0
 
 
 class StiffProblem(RuntimeError):
@@ -61,8 +58,7 @@ class StiffProblem(RuntimeError):
     """
 
 
-def solver_options(n, span, rtol=1e-3, atol=1e-6, max_step=np.inf, first_step=None,
-                   **other):
+def solver_options(n, span, rtol=1e-3, atol=1e-6, max_step=np.inf, first_step=None, **other):
     """``(rtol, atol per state, max_step, first_step)`` as the integrator takes them, for
     a run over ``span`` seconds, checked as ``scipy.integrate.solve_ivp`` checks them.
 
@@ -225,8 +221,7 @@ def run_continuous(sys, T, U, X0, *, params=None, t_eval=None, method="RK45",
     # loop takes one type of each
     T = np.require(T, dtype=float, requirements=["C", "W"])
     U = np.require(U, dtype=float, requirements=["C", "W"])
-    t_eval = T if t_eval is None else np.require(t_eval, dtype=float,
-                                                 requirements=["C", "W"])
+    t_eval = T if t_eval is None else np.require(t_eval, dtype=float, requirements=["C", "W"])
     if t_eval.size and (t_eval[0] < T[0] or t_eval[-1] > T[-1]):
         raise ValueError("Values in `t_eval` are not within `t_span`.")
     if np.any(np.diff(t_eval) <= 0):
@@ -274,8 +269,7 @@ def run_continuous(sys, T, U, X0, *, params=None, t_eval=None, method="RK45",
         if on_chunk is not None:
             on_chunk(t_eval, run.Y, run.X)
         kept = recorded_indices(t_eval.size, record_every)
-        resp = base_response(sys, t_eval[kept], run.Y[:, kept], run.X[:, kept],
-                             run.Uo[:, kept])
+        resp = base_response(sys, t_eval[kept], run.Y[:, kept], run.X[:, kept], run.Uo[:, kept])
     return resp
 
 
@@ -358,9 +352,9 @@ def _switch(runner, job, run, pieces):
     # the whole state compared, the integrator's too: a short piece may end inside its
     # first step, before any output or state is written
     agree = (run.status[1] == -1 and int(run.ctrl[NEXT_TIME]) == n1
-             and same_numbers(run.Y[:, n0:n1], results[0], CONTINUOUS_RTOL)
-             and same_numbers(run.y_eval[n0:], results[3], CONTINUOUS_RTOL)
-             and all(same_numbers(mine, theirs, CONTINUOUS_RTOL)
+             and same_numbers(run.Y[:, n0:n1], results[0])
+             and same_numbers(run.y_eval[n0:], results[3])
+             and all(same_numbers(mine, theirs)
                      for mine, theirs in zip(run.snapshot(), python, strict=True)))
     if not agree:
         _back_to(run, python, results, n0, n1)
@@ -388,8 +382,7 @@ def _failed(job, run):
         explain_failure(job, t_eval[j], run.x, u, status[1], -1)
     if run.ctrl[NEXT_TIME] < t_eval.size:
         raise RuntimeError(f"the integration of {job.sys.name!r} stopped at t = "
-                           f"{t_eval[run.ctrl[NEXT_TIME]]:g} s without a reason; please "
-                           f"report it")
+                           f"{t_eval[run.ctrl[NEXT_TIME]]:g} s without a reason; please report it")
 
 
 def _integrator_error(job, run):
@@ -397,8 +390,7 @@ def _integrator_error(job, run):
     sys, status, t_eval, method, x = job.sys, run.status, run.t_eval, run.method, run.x
     code, served = int(status[2]), int(status[0])
     where = t_eval[served - 1] if served > 0 else t_eval[0]
-    blocks = [b.system.name for b in job.blocks if b.system.nstates
-              and b.system.dt == 0]
+    blocks = [b.system.name for b in job.blocks if b.system.nstates and b.system.dt == 0]
     size = float(np.max(np.abs(x[job.plan.continuous]))) if job.plan.continuous.size else 0.0
     state = f"the continuous blocks {blocks}"
     if code == rk.STEP_TOO_SMALL:
@@ -406,8 +398,7 @@ def _integrator_error(job, run):
             f"{sys.name!r}: the step size of {method} fell below the spacing of numbers "
             f"after t = {where:g} s, with the largest state of {state} at {size:.3g}: the "
             f"loop diverges there (a state without bound), or a block is stiff or "
-            f"discontinuous; for a stiff block try solve_ivp_method='BDF' (or 'LSODA', "
-            f"'Radau')")
+            f"discontinuous; for a stiff block try solve_ivp_method='BDF' (or 'LSODA', 'Radau')")
     if code == rk.STIFF:
         return StiffProblem(
             f"{sys.name!r} is stiff for {method}: after t = {where:g} s its steps are held "

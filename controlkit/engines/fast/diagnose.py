@@ -31,8 +31,7 @@ def signals_at(job, t, x, u, k):
     ys, ui, held = np.zeros(plan.ny), np.zeros(plan.nu), np.zeros(plan.ny)
     U = np.asarray(u, dtype=float).reshape(-1, 1)
     with np.errstate(all="ignore"):  # evaluated where it failed: the error below says why
-        job.functions().evaluate(t, np.asarray(x, dtype=float), U, 0, job.P, ys, ui, held,
-                                 k, ())
+        job.functions().evaluate(t, np.asarray(x, dtype=float), U, 0, job.P, ys, ui, held, k, ())
     return ui, ys
 
 
@@ -96,10 +95,8 @@ def diverged(job, t, x) -> _checks.Diverged:
     """
     bad = ~np.isfinite(np.asarray(x, dtype=float))
     i = int(np.argmax(bad))
-    block = next((b for b in job.blocks if b.x0 <= i < b.x0 + b.system.nstates),
-                 job.blocks[0])
-    return _checks.diverged(t, f"the state of block {block.system.name!r} became "
-                               f"non-finite")
+    block = next((b for b in job.blocks if b.x0 <= i < b.x0 + b.system.nstates), job.blocks[0])
+    return _checks.diverged(t, f"the state of block {block.system.name!r} became non-finite")
 
 
 def sampled_block_blew_up(job, t, x, u, k, after=None):

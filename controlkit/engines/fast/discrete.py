@@ -20,10 +20,6 @@ from .tiers import NotCompiled
 
 #: Steps simulated per chunk when a run is streamed (bounds the memory of long runs).
 STREAM_CHUNK_STEPS = 20_000
-#: How close a compiled piece must come to the same piece run as Python: the same numbers
-#: (NaN where NaN), so that a last bit that compiled code computes otherwise (an operation
-#: of numba's that none of the engine's rules knows) sends the run to Python, not on.
-DISCRETE_RTOL = 0.0
 
 
 def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
@@ -59,8 +55,7 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
     """
     if not isinstance(sys, ct.InterconnectedSystem):
         name = getattr(sys, "name", type(sys).__name__)
-        raise UnsupportedSystem(f"{name!r} is a single block; the fast engine runs "
-                                f"interconnects")
+        raise UnsupportedSystem(f"{name!r} is a single block; the fast engine runs interconnects")
     T, X0, U = check_arguments(sys, T, X0, U)  # a lazy TimeGrid stays lazy, U a view
     if not sys.isdtime(strict=True):  # continuous states: the instants' loop
         from .continuous import run_continuous
@@ -75,8 +70,9 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
     streamed = record_every > 1 or on_chunk is not None
     step = STREAM_CHUNK_STEPS if streamed else N
     Y, X = np.zeros((sys.noutputs, kept.size)), np.zeros((sys.nstates, kept.size))
-    if streamed:
-        Yb, Xb = np.zeros((sys.noutputs, step)), np.zeros((sys.nstates, step))
+    # (streamed: each chunk written into buffers, its kept samples copied out)
+    Yb, Xb = (np.zeros((sys.noutputs, step)), np.zeros((sys.nstates, step))) if streamed \
+        else (Y, X)
     reports = set(chunk_bounds(N - 1, chunks)[1:].tolist()) if progress else set()
     x = X0.astype(float)
     pieces, start, done_steps = Pieces(), now(), 0
@@ -85,8 +81,6 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
         c1 = min(c0 + step, N)
         Tc = np.ascontiguousarray(T[c0:c1], dtype=float)
         Uc = np.require(U[:, c0:c1], dtype=float, requirements=["C", "W"])
-        if not streamed:
-            Yb, Xb = Y, X
         k = 0
         if first is not None:
             k, x = _switch(runner, first, Tc, x, Uc, Yb, Xb, 0, c1 - c0, pieces)
@@ -120,8 +114,7 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
             on_chunk(Tc, Yb[:, :c1 - c0], Xb[:, :c1 - c0])
         if streamed:
             mine = (kept >= c0) & (kept < c1)
-            Y[:, mine] = Yb[:, kept[mine] - c0]
-            X[:, mine] = Xb[:, kept[mine] - c0]
+            Y[:, mine], X[:, mine] = Yb[:, kept[mine] - c0], Xb[:, kept[mine] - c0]
     if progress is not None and reports:
         progress(1.0)
     resp = base_response(sys, T[kept] if streamed else np.asarray(T, dtype=float), Y, X,
@@ -213,12 +206,10 @@ def _switch(runner, job, T, x, U, Y, X, k, n, pieces):
         runner.python_from_now(str(why))
         return k1, x_python
     except Exception as error:  # noqa: BLE001 - the run goes on as Python
-        runner.differs(job, f"its compiled module failed ({type(error).__name__}: "
-                            f"{error})")
+        runner.differs(job, f"its compiled module failed ({type(error).__name__}: {error})")
         Y[:, k:k1], X[:, k:k1] = Yp, Xp
         return k1, x_python
-    if not (same_numbers(Y[:, k:k1], Yp, DISCRETE_RTOL)
-            and same_numbers(X[:, k:k1], Xp, DISCRETE_RTOL)):
+    if not (same_numbers(Y[:, k:k1], Yp) and same_numbers(X[:, k:k1], Xp)):
         runner.differs(job, f"its compiled numbers differ from Python's between t = "
                             f"{T[k]:g} and {T[k1 - 1]:g} s"
                             + where_they_part(job.blocks, T[k:k1], X[:, k:k1], Xp))

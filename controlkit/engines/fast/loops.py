@@ -65,8 +65,7 @@ def instant_of(t_eval, times, h):
     if not h:
         return np.where(t_eval == times[0], 0, -1).astype(np.int64)
     k = np.rint((t_eval - times[0]) / h).astype(np.int64)
-    on = (k >= 0) & (k < times.size) & (
-        np.abs(t_eval - times[0] - k * h) <= INSTANT_TOLERANCE * h)
+    on = (k >= 0) & (k < times.size) & (np.abs(t_eval - times[0] - k * h) <= INSTANT_TOLERANCE * h)
     return np.where(on, k, -1).astype(np.int64)
 
 
@@ -396,8 +395,7 @@ def scipy_interval(machine, rhs, args, method, t0, t1, y0, rtol, atol, max_step,
         return out
 
     stop = i_eval
-    while stop < t_eval.shape[0] and (t_eval[stop] < t1 or closed_right
-                                      and t_eval[stop] <= t1):
+    while stop < t_eval.shape[0] and (t_eval[stop] < t1 or closed_right and t_eval[stop] <= t1):
         stop += 1
     options = {"rtol": rtol, "atol": atol}
     if math.isfinite(max_step):

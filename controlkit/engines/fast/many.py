@@ -28,8 +28,7 @@ from .run import CHECKED, PAYS, compiled_cost, compiled_job
 from .tiers import _local_params
 
 
-def run_many(sys, T, U, X0s, params_list, *, t_eval=None, method="RK45", compile=None,
-             **solver):
+def run_many(sys, T, U, X0s, params_list, *, t_eval=None, method="RK45", compile=None, **solver):
     """Runs of ``sys``, one per initial state and parameter set; their responses and errors.
 
     Parameters
@@ -144,8 +143,7 @@ def run_many(sys, T, U, X0s, params_list, *, t_eval=None, method="RK45", compile
             else:
                 try:
                     _failed(jobs[r], result)
-                    responses[r] = base_response(sys, t_eval, result.Y, result.X,
-                                                 result.Uo)
+                    responses[r] = base_response(sys, t_eval, result.Y, result.X, result.Uo)
                 except (ArithmeticError, RuntimeError, ValueError) as error:
                     errors[r] = error
             if responses[r] is not None:

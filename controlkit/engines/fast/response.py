@@ -9,12 +9,7 @@ import numpy as np
 
 from ..._checks import Diverged
 from ...compat import SYSTEM_CALLS
-from ..contract import (
-    UnsupportedSystem,
-    integer_state,
-    python_control_arguments,
-    result_flags,
-)
+from ..contract import UnsupportedSystem, integer_state, python_control_arguments, result_flags
 from ..contract import response as base_response
 from .continuous import StiffProblem, run_continuous
 from .discrete import simulate

@@ -150,8 +150,7 @@ def _kernels(sys, block, params, compiled):
         else:
             within = _user(inner, {**inner.params, **local}, compiled)
         return (_Same(block), _rate(block.dt), block.substeps, within)
-    if isinstance(block, ct.InterconnectedSystem) or not isinstance(
-            block, ct.NonlinearIOSystem):
+    if isinstance(block, ct.InterconnectedSystem) or not isinstance(block, ct.NonlinearIOSystem):
         raise _Unknown
     return _user(block, local, compiled)
 

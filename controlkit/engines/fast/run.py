@@ -136,8 +136,7 @@ class Job:
                 try:
                     entries[key] = compile_it(path)
                 except Exception as error:  # noqa: BLE001 - numba's: runs as Python
-                    DIFFERS[self.source] = (f"numba could not compile it "
-                                            f"({_first_line(error)})")
+                    DIFFERS[self.source] = f"numba could not compile it ({_first_line(error)})"
                     raise NotCompiled(DIFFERS[self.source]) from error
             return entries[key]
 

@@ -405,8 +405,7 @@ def _kept_once(text: str, kind: str, what: str, seconds: float, compile_it):
     path = module_file(text, kind)
     module = import_module(path)
     if record(path) is None:
-        _say(f"compiling {what} (once after an install or an upgrade: about "
-             f"{seconds:.0f} s)")
+        _say(f"compiling {what} (once after an install or an upgrade: about {seconds:.0f} s)")
     start = time.perf_counter()
     compiled = compile_it(module)
     _record_compile(path, time.perf_counter() - start, 1, kind)

@@ -210,19 +210,16 @@ def _user_kernels(block, local, compiled):
             "compiled", "user nlsys compiled (parameters passed at run time)")
 
 
-def _lti_kernels(block):
-    """Any ``StateSpace`` (a transfer function is one inside an interconnect)."""
-    D = np.asarray(block.D, dtype=float)
-    return (BlockKernels(lti.lti_output, lti.lti_update if block.nstates else None,
-                         lti.pack(block.A, block.B, block.C, D), bool(D.any())),
-            "compiled", "LTI block (state space)")
-
-
 def _kernel_block(block, compiled):
     """A block of the block contract: its own kernels (plain Python ones are numba's to
-    compile, or not)."""
+    compile, or not); refused if declared without feedthrough while its output moves with
+    its input."""
     kernels = block.kernels
-    _check_feedthrough(block, kernels)
+    if not kernels.feedthrough and _probe_feedthrough(
+            block, _jit.python_function(kernels.output), kernels.params):
+        raise ValueError(
+            f"block {block.name!r} is declared without feedthrough (feedthrough=False) but "
+            f"its output changes with its input; declare feedthrough=True")
     functions = [f for f in (kernels.output, kernels.update) if f is not None]
     if compiled and not all(isinstance(f, _jit.Jitted) or hasattr(f, "py_func")
                             for f in functions):
@@ -252,8 +249,11 @@ def _resolve(sys, block, params, compiled, local=False):
     if isinstance(block, KernelBlock) and block.kernels is not None:
         return _kernel_block(block, compiled)
     values = params if local else _local_params(sys, block, params)
-    if isinstance(block, ct.StateSpace):
-        return _lti_kernels(block)
+    if isinstance(block, ct.StateSpace):  # (a transfer function is one in an interconnect)
+        D = np.asarray(block.D, dtype=float)
+        return (BlockKernels(lti.lti_output, lti.lti_update if block.nstates else None,
+                             lti.pack(block.A, block.B, block.C, D), bool(D.any())),
+                "compiled", "LTI block (state space)")
     if isinstance(block, SampledSystem):
         return _sampled_kernels(sys, block, values, compiled)
     if isinstance(block, ct.InterconnectedSystem) or isinstance(block, KernelBlock):
@@ -266,15 +266,6 @@ def _resolve(sys, block, params, compiled, local=False):
         return _user_kernels(block, values, compiled)
     raise UnsupportedSystem(f"block {block.name!r} cannot be run: a "
                             f"{type(block).__name__}, not an I/O system the engine knows")
-
-
-def _check_feedthrough(block, kernel):
-    """Refuse a block declared without feedthrough whose output moves with its input."""
-    if not kernel.feedthrough and _probe_feedthrough(
-            block, _jit.python_function(kernel.output), kernel.params):
-        raise ValueError(
-            f"block {block.name!r} is declared without feedthrough (feedthrough=False) but "
-            f"its output changes with its input; declare feedthrough=True")
 
 
 def as_interconnect(sys):
@@ -296,8 +287,7 @@ def as_interconnect(sys):
     for what, count in (("inputs", sys.ninputs), ("outputs", sys.noutputs),
                         ("states", sys.nstates)):
         if count is None:
-            raise UnsupportedSystem(f"system {sys.name!r} does not declare its number of "
-                                    f"{what}")
+            raise UnsupportedSystem(f"system {sys.name!r} does not declare its number of {what}")
     return ct.interconnect([sys], inputs=sys.input_labels, outputs=sys.output_labels,
                            name=sys.name, check_unused=False)
 
@@ -316,8 +306,7 @@ def blocks_of(sys, params=None, *, compiled=False):
     """
     if not isinstance(sys, ct.InterconnectedSystem):
         name = getattr(sys, "name", type(sys).__name__)
-        raise UnsupportedSystem(
-            f"{name!r} is a single block; the fast engine runs interconnects")
+        raise UnsupportedSystem(f"{name!r} is a single block; the fast engine runs interconnects")
     blocks, xs, us, ys, ps = [], 0, 0, 0, 0
     for i, block in enumerate(sys.syslist):
         kernel, tier, reason = _resolve(sys, block, params, compiled)

@@ -133,8 +133,7 @@ class _OutsideReads:
         found, value = self._lookup(root)
         if not found or (_is_plain(value) and not isinstance(value, types.ModuleType)):
             return None
-        if isinstance(value, types.ModuleType) and value.__name__.split(".")[0] \
-                in NUMERIC_MODULES:
+        if isinstance(value, types.ModuleType) and value.__name__.split(".")[0] in NUMERIC_MODULES:
             return None
         done = 0
         while done < len(steps) and not (_is_plain(value) and not isinstance(
@@ -187,8 +186,7 @@ class _OutsideReads:
                 return node
             return self._helper_name(value, node)
         if not _is_plain(value) or isinstance(value, types.ModuleType):
-            self._problem(f"it reads {text}, a {type(value).__name__}, which numba cannot "
-                          f"compile")
+            self._problem(f"it reads {text}, a {type(value).__name__}, which numba cannot compile")
             return node
         frozen = ast.Name(self._freeze_value(f"{parts[0]}_{len(self.plan.frozen)}", value),
                           ast.Load())
@@ -252,8 +250,7 @@ class _OutsideReads:
         if not _helper_allowed(fn):
             for arg in [*node.args, *(k.value for k in node.keywords)]:
                 if self._is_source(arg):
-                    self._opaque(f"params is handed to {fn.__qualname__}, which is not "
-                                 f"compiled")
+                    self._opaque(f"params is handed to {fn.__qualname__}, which is not compiled")
             self._problem(f"it calls {fn.__module__}.{fn.__qualname__}, which is not compiled")
             return node
         if any(isinstance(a, ast.Starred) for a in node.args) \

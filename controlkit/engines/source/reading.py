@@ -88,8 +88,7 @@ def _definition(code, copy=True):
 
 def _parse_definition(code):
     if code.co_name == "<lambda>":
-        if code.co_flags & (inspect.CO_VARARGS | inspect.CO_VARKEYWORDS) \
-                or code.co_kwonlyargcount:
+        if code.co_flags & (inspect.CO_VARARGS | inspect.CO_VARKEYWORDS) or code.co_kwonlyargcount:
             raise NotCompilable("it is a lambda taking *args or keyword-only arguments")
         body, names = _lambda_body(code), code.co_varnames[:code.co_argcount]
         if not _runs_this_text(f"_ = (lambda {', '.join(names)}: {ast.unparse(body)})\n",

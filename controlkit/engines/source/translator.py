@@ -134,8 +134,7 @@ class _Translator(_OutsideReads, ast.NodeTransformer):
     def _read(self, source_name, key, how, default, node):
         source = self.sources[source_name]
         if key is _UNKNOWN:
-            self._opaque(f"params is read with a key that is not known: "
-                         f"{ast.unparse(node)[:60]}")
+            self._opaque(f"params is read with a key that is not known: {ast.unparse(node)[:60]}")
             return ast.copy_location(ast.Constant(None), node)
         if default is not None:
             default = self.visit(default)
@@ -230,8 +229,7 @@ class _Translator(_OutsideReads, ast.NodeTransformer):
             self._problem("".join(effect))
         elif name == "round" and (len(node.args) > 1 or node.keywords):
             self._problem("it rounds to digits (round(x, n)): compiled code rounds some "
-                          "halves otherwise than Python (round(0.35, 1) gives 0.4, Python "
-                          "0.3)")
+                          "halves otherwise than Python (round(0.35, 1) gives 0.4, Python 0.3)")
         elif isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) \
                 and f.value.id == "math" and f.attr in ("factorial", "comb", "perm"):
             self._problem(f"it calls math.{f.attr}, whose integers can outgrow the 64 bits "
@@ -287,8 +285,7 @@ class _Translator(_OutsideReads, ast.NodeTransformer):
         for arg in [*node.args, *(k.value for k in node.keywords)]:
             if self._is_source(arg) or (isinstance(arg, ast.Starred)
                                         and self._is_source(arg.value)):
-                self._opaque(f"params is handed to {ast.unparse(f)[:40]}, which is not "
-                             f"compiled")
+                self._opaque(f"params is handed to {ast.unparse(f)[:40]}, which is not compiled")
                 return node
         return self.generic_visit(node)
 

@@ -217,8 +217,7 @@ COMPUTED_OTHERWISE = {
     np.linalg.inv: "numba inverts with LAPACK's LU inverse, numpy solves against the "
                    "identity (61-100 % of 2x2 to 4x4 matrices differ); np.linalg.solve "
                    "(numpy's method in both) compiles up to 5x5",
-    np.var: "numba's variance sums in another order than numpy's (22 % of 12 values "
-            "differ)",
+    np.var: "numba's variance sums in another order than numpy's (22 % of 12 values differ)",
     np.std: "numba's standard deviation sums in another order than numpy's (14 % of 12 "
             "values differ)",
     **{f: f"numba's {f.__name__} sums in another order than numpy's (average, nansum: 8-11 "
@@ -264,8 +263,7 @@ def numpy_last_bits(value) -> str | None:
         return (f"it draws numpy's random numbers ({getattr(value, '__name__', value)}), "
                 f"whose state compiled code does not share: numba draws from its own")
     name = getattr(value, "__name__", None)
-    if not isinstance(value, np.ufunc) or name not in C_LIBRARY or getattr(np, name) \
-            is not value:
+    if not isinstance(value, np.ufunc) or name not in C_LIBRARY or getattr(np, name) is not value:
         return None
     share = parts_from_c_library(name)
     if not share:

@@ -7,7 +7,9 @@ dense output [3]_, python-control's default) and ``"DOP853"`` (Hairer's 8(5,3) [
 Python call per stage. "The same steps" is meant literally: the initial step, the
 error norm, the acceptance test, the step-size factors, the clipping at the end of the
 interval and the dense output are scipy 1.17's [5]_, operation for operation, and so
-is the arithmetic: the results are scipy's to the last bit.
+is the arithmetic (every combination of stages is the BLAS call numpy makes in scipy;
+:mod:`.arithmetic` says why plain loops would not do): the results are scipy's to the
+last bit.
 
 Modules: :mod:`.tableaux` (scipy's own coefficients: a method is its tableau),
 :mod:`.workspace` (the integrator's arrays, their slots, the status codes), :mod:`.machine`
@@ -28,10 +30,6 @@ and kept in the store, named by controlkit's own source (editing these files com
 it again); a diagram's module calls it, so a new diagram compiles no slower than a
 diagram with no integrator. Its state is one workspace of four flat arrays
 (:mod:`~controlkit.engines.fast.rk.workspace` says why).
-
-**Exact arithmetic.** Every combination of stages is the BLAS call numpy makes in
-scipy, so the results are scipy's to the last bit
-(:mod:`~controlkit.engines.fast.rk.arithmetic` says why plain loops would not do).
 
 **Evaluation times.** One :func:`solve_interval` call is one ``solve_ivp(fun, (t0,
 t1), y0, t_eval=...)`` call: a fresh initial step, a stop exactly at ``t1``. It serves

@@ -146,8 +146,7 @@ def _solve_interval_compiled(machine_function, rhs, args, method_index, t0, t1, 
         spent += 1
         if budget > 0 and spent >= budget:
             return PAUSED, ints[NEXT_EVAL]  # the request is answered: resume calls the machine
-        row = machine_function(t_eval_at, m, y_eval_at, floats_at, size, stages_at, n,
-                               ints_at)
+        row = machine_function(t_eval_at, m, y_eval_at, floats_at, size, stages_at, n, ints_at)
     if ints[STATUS] != INVALID_ARGUMENT:
         start = _at(_Y, n)
         for i in range(n):

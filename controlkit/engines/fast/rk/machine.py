@@ -419,8 +419,7 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
 
 
 def _by_address_in_python(*args):
-    raise TypeError("machine takes addresses: compiled code only (Python calls "
-                    "machine_on_arrays)")
+    raise TypeError("machine takes addresses: compiled code only (Python calls machine_on_arrays)")
 
 
 @jit(inline=True, python=_by_address_in_python)

@@ -83,8 +83,7 @@ def _too_stiff(method, K, f, st, n, t):
         return False
     st[_NONSTIFF_IN_ROW] = 0
     st[_STIFF_IN_ROW] += 1
-    if st[_STIFF_IN_ROW] < STIFF_STEPS_IN_ROW or \
-            st[RUN_ACCEPTED] < STIFF_STEPS_BEFORE_PROJECTING:
+    if st[_STIFF_IN_ROW] < STIFF_STEPS_IN_ROW or st[RUN_ACCEPTED] < STIFF_STEPS_BEFORE_PROJECTING:
         return False
     start = f[_RUN_START]
     end = f[_RUN_END]

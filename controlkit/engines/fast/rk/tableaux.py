@@ -25,24 +25,9 @@ MIN_FACTOR = 0.2
 MAX_FACTOR = 10.0
 
 
-Tableau = namedtuple(
-    "Tableau",
-    [
-        "n_stages",
-        "n_rows",
-        "dop853",
-        "estimator_order",
-        "error_exponent",
-        "C",
-        "A",
-        "B",
-        "E",
-        "E_low",
-        "dense",
-        "stiffness_weights",
-        "stiffness_bound",
-    ],
-)
+Tableau = namedtuple("Tableau", ["n_stages", "n_rows", "dop853", "estimator_order",
+                                 "error_exponent", "C", "A", "B", "E", "E_low", "dense",
+                                 "stiffness_weights", "stiffness_bound"])
 Tableau.__doc__ = """An explicit Runge-Kutta pair with its error estimate and dense output.
 
 For a step of length ``h`` from ``(t, y)`` with ``f = F(t, y)`` the stages are
@@ -127,15 +112,9 @@ def _tableau(method, *, stiffness_bound=0.0):
     A[:S, : method.A.shape[1]] = method.A
     weights = method.B - A[S - 1, :S] if stiffness_bound else np.zeros(S)
     assert not stiffness_bound or C[S - 1] == 1.0, "the stiffness test needs c_(S-1) = 1"
-    packed = dict(
-        C=C,
-        A=A,
-        B=method.B,
-        E=method.E5 if dop853 else method.E,
-        E_low=method.E3 if dop853 else np.zeros(S + 1),
-        dense=method.D if dop853 else method.P,
-        stiffness_weights=weights,
-    )
+    packed = dict(C=C, A=A, B=method.B, E=method.E5 if dop853 else method.E,
+                  E_low=method.E3 if dop853 else np.zeros(S + 1),
+                  dense=method.D if dop853 else method.P, stiffness_weights=weights)
     return Tableau(
         n_stages=int(S),
         n_rows=int(C.shape[0] if dop853 else S + 1),

@@ -29,42 +29,20 @@ from .tableaux import TABLEAUX
 T_REQUEST = 0
 #: ``floats`` slot: last time reached (the end of the last accepted step).
 TIME_REACHED = 1
-_T = 2
-_T_OLD = 3
-_T_NEW = 4
-_H = 5
-_H_ABS = 6
-_MIN_STEP = 7
-_T0 = 8
-_T1 = 9
-_DIRECTION = 10
-_RTOL = 11
-_MAX_STEP = 12
-_FIRST_STEP = 13
-_H0 = 14
-_D1 = 15
-_RTOL_GIVEN = 16
+(_T, _T_OLD, _T_NEW, _H, _H_ABS, _MIN_STEP, _T0, _T1, _DIRECTION, _RTOL, _MAX_STEP,
+ _FIRST_STEP, _H0, _D1, _RTOL_GIVEN) = range(2, 17)
 #: ``floats`` slot: the stiffness estimate ``|h lambda|`` of the last accepted step
 #: (see :func:`set_horizon`; 0 for a method without the test).
 STIFFNESS = 17
 #: ``floats`` slot: the steps the whole run was projected to need when it stopped as
 #: :data:`STIFF`.
 PROJECTED_STEPS = 18
-_RUN_START = 19
-_RUN_END = 20
+_RUN_START, _RUN_END = 19, 20
 #: Number of scalar slots at the start of ``work.floats``.
 N_FLOAT_SLOTS = 21
 
 # The vectors after the scalars, in this order (each of the state's size).
-_Y = 0
-_Y_NEW = 1
-_Y_OLD = 2
-_Y_STAGE = 3
-_SCALE = 4
-_ERR = 5
-_ERR_LOW = 6
-_ATOL = 7
-_N_VECTORS = 8
+_Y, _Y_NEW, _Y_OLD, _Y_STAGE, _SCALE, _ERR, _ERR_LOW, _ATOL, _N_VECTORS = range(9)
 #: Rows of the stage array (enough for every method).
 STAGE_ROWS = 16
 #: Rows of the interpolant's coefficients (DOP853 has seven, RK45 four, RK23 three).
@@ -80,21 +58,14 @@ N_REJECTED = 2
 STATUS = 3
 #: ``ints`` slot: index of the first evaluation time not served yet.
 NEXT_EVAL = 4
-_PHASE = 5
-_STAGE = 6
-_REJECTED = 7
-_LAST_ERROR_FINITE = 8
-_EVAL_END = 9
-_STOP = 10
-_METHOD = 11
-_CLOSED_RIGHT = 12
+_PHASE, _STAGE, _REJECTED, _LAST_ERROR_FINITE, _EVAL_END, _STOP, _METHOD, _CLOSED_RIGHT = \
+    range(5, 13)
 # the slots above are reset by :func:`load`, the ones below kept
 _LOG_SIZE = 13
 #: ``ints`` slot: accepted steps since :func:`set_horizon` (over all the intervals of a
 #: run; :func:`load` keeps it).
 RUN_ACCEPTED = 14
-_STIFF_IN_ROW = 15
-_NONSTIFF_IN_ROW = 16
+_STIFF_IN_ROW, _NONSTIFF_IN_ROW = 15, 16
 #: Number of slots of ``work.ints``.
 N_INT_SLOTS = 17
 
@@ -136,30 +107,19 @@ STATUS_MESSAGES = {
     SUCCESS: "The solver successfully reached the end of the integration interval.",
     STEP_TOO_SMALL: "Required step size is less than spacing between numbers.",
     NON_FINITE: "The state or its derivative became non-finite (NaN or infinite).",
-    STIFF: (
-        "The problem is stiff: the explicit method's step is held down by stability, not "
-        "accuracy, and the run would need too many steps; use an implicit method (BDF, "
-        "LSODA or Radau)."),
+    STIFF: ("The problem is stiff: the explicit method's step is held down by stability, "
+            "not accuracy, and the run would need too many steps; use an implicit method "
+            "(BDF, LSODA or Radau)."),
     PAUSED: "Paused after its evaluation budget; resume to go on.",
-    INVALID_ARGUMENT: (
-        "Invalid argument: max_step must be > 0, first_step in [0, |t1 - t0|], "
-        "atol >= 0 of the state's size, t0 and t1 finite, the evaluation times "
-        "strictly monotone inside [t0, t1], and the work arrays of the method's size."
-    ),
+    INVALID_ARGUMENT: ("Invalid argument: max_step must be > 0, first_step in [0, |t1 - t0|], "
+                       "atol >= 0 of the state's size, t0 and t1 finite, the evaluation "
+                       "times strictly monotone inside [t0, t1], and the work arrays of the "
+                       "method's size."),
 }
 
 # Phases of the step machine: what the last request was for (or where to go on).
-_PHASE_BEGIN = 0
-_PHASE_F0 = 1
-_PHASE_F1 = 2
-_PHASE_STAGE = 3
-_PHASE_F_NEW = 4
-_PHASE_EXTRA = 5
-_PHASE_STEP = 6
-_PHASE_TRIAL = 7
-_PHASE_ACCEPTED = 8
-_PHASE_STEP_END = 9
-_PHASE_DONE = 10
+(_PHASE_BEGIN, _PHASE_F0, _PHASE_F1, _PHASE_STAGE, _PHASE_F_NEW, _PHASE_EXTRA, _PHASE_STEP,
+ _PHASE_TRIAL, _PHASE_ACCEPTED, _PHASE_STEP_END, _PHASE_DONE) = range(11)
 
 
 Workspace = namedtuple("Workspace", ["floats", "stages", "stages_flat", "ints"])
@@ -311,9 +271,7 @@ def _arguments_valid(t_eval, y_eval, f, K, st):
     i_eval = st[NEXT_EVAL]
     if i_eval < 0 or i_eval > t_eval.shape[0]:
         return False
-    if i_eval < t_eval.shape[0] and (
-        y_eval.shape[0] != t_eval.shape[0] or y_eval.shape[1] != n
-    ):
+    if i_eval < t_eval.shape[0] and (y_eval.shape[0] != t_eval.shape[0] or y_eval.shape[1] != n):
         return False
     return True
 
@@ -344,8 +302,7 @@ def _evaluation_end(t0, t1, direction, t_eval, i_eval, closed_right):
 
 
 @jit
-def load(method_index, t0, t1, y0, rtol, atol, max_step, first_step, i_eval, closed_right,
-         work):
+def load(method_index, t0, t1, y0, rtol, atol, max_step, first_step, i_eval, closed_right, work):
     """Put an interval's arguments into ``work``; :func:`machine` then starts on it.
 
     Arguments as :func:`solve_interval`; ``method_index`` is ``METHOD_INDEX[name]``.

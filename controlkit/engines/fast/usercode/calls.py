@@ -78,8 +78,7 @@ class Calls(ast.NodeTransformer):
         if target is math.pow and len(node.args) == 2 and not node.keywords:
             # math.pow(a, b) -> _ck_power(float(a), float(b))
             floats = [ast.Call(ast.Name("float", ast.Load()), [a], []) for a in node.args]
-            return ast.copy_location(ast.Call(ast.Name("_ck_power", ast.Load()), floats, []),
-                                     node)
+            return ast.copy_location(ast.Call(ast.Name("_ck_power", ast.Load()), floats, []), node)
         if name is not None:
             return ast.copy_location(ast.Call(ast.Name(name, ast.Load()), node.args,
                                               node.keywords), node)

@@ -66,8 +66,7 @@ class UserKernel:
         value = np.asarray(result, dtype=float).reshape(-1)
         if value.size != out.size:  # python-control's words (for a lone system), and where
             raise SizeError(f"inconsistent size of {unit}; system specified {out.size}, "
-                            f"{what} returned {value.size} (block {self.block!r}, at "
-                            f"t = {t:g} s)")
+                            f"{what} returned {value.size} (block {self.block!r}, at t = {t:g} s)")
         out[:] = value
         return out
 
@@ -97,8 +96,7 @@ class UserKernel:
             module = store.import_module(store.module_file(self._text, "user"))
             if not isinstance(module.kernel, _jit.Jitted):  # (once a process)
                 for name, value in list(vars(module).items()):
-                    if isinstance(value, FunctionType) and \
-                            value.__module__ == module.__name__:
+                    if isinstance(value, FunctionType) and value.__module__ == module.__name__:
                         options = (dict(boundscheck=True, error_model="numpy", cache=True)
                                    if name == "kernel"
                                    else dict(inline="always", error_model="numpy"))

@@ -294,8 +294,7 @@ def _names(tree):
                 stores[node.id] = stores.get(node.id, 0) + 1
             else:
                 uses.setdefault(node.id, []).append(node)
-    parents = {child: parent for parent in walk(tree)
-               for child in ast.iter_child_nodes(parent)}
+    parents = {child: parent for parent in walk(tree) for child in ast.iter_child_nodes(parent)}
     return stores, uses, parents
 
 
@@ -409,8 +408,7 @@ def _stored_returns(body, frozen, name):
     todo = list(body)
     while todo:
         node = todo.pop()
-        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.Lambda
-                      | ast.ClassDef):
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.Lambda | ast.ClassDef):
             continue  # (a return in there is another function's)
         if isinstance(node, ast.Return):
             returns.append(node)
