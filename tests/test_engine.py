@@ -272,6 +272,30 @@ def test_a_run_compiles_from_its_start_when_earlier_runs_paid_and_the_call_stays
 
 
 @pytest.mark.skipif(not _jit.available(), reason="numba not installed")
+def test_a_diagram_built_anew_reads_its_module_s_compile_cost_without_translating_again(
+        monkeypatch):
+    # a loop over gains building the same diagram anew: once its earlier runs count, the
+    # first asks what compiling would cost (its functions translated, 0.1-0.2 s for 40
+    # blocks); the next ones read that answer, and run as Python at python-control's pace
+    from controlkit.engines.fast import run
+
+    made = []
+    compiled_job = run.compiled_job
+    monkeypatch.setattr(run, "compiled_job", lambda *a: made.append(a) or compiled_job(*a))
+    monkeypatch.setattr(run, "compile_estimate", lambda job: 50.0)  # never pays here
+    monkeypatch.setattr(run.Job, "is_compiled", lambda job: False)  # (nor kept compiled)
+    monkeypatch.setattr(run, "_TWINS", {})
+    monkeypatch.setattr(run, "_COMPILED", {})
+    source = run.prepare(cmg_scenario.build_loop("thesis")).source
+    monkeypatch.setattr(run, "PYTHON_SECONDS", {source: 10.0})
+    monkeypatch.setattr(run, "PYTHON_RUNS", {source: 10})
+    for _ in range(3):
+        runner = run.Runner(cmg_scenario.build_loop("thesis"), None, None)
+        assert runner.compiled is None and runner.python.source == source
+    assert len(made) == 1
+
+
+@pytest.mark.skipif(not _jit.available(), reason="numba not installed")
 def test_runs_as_python_make_numba_s_start_in_steps_when_start_and_compile_overflow_a_call(
         monkeypatch):
     # earlier runs paid for numba's start and the compile: runs as Python make the start

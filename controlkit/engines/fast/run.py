@@ -50,8 +50,11 @@ NUMBA_START = ((0.15, lambda: bool(_jit._NUMBA), _jit.numba_module),
 COMPILE_SECONDS = (2.0, 1.0)
 #: The modules compiled in this process, by text: their compiled entry points.
 _COMPILED: dict[str, dict] = {}
-#: The compiled module's text of a diagram's module run as Python, once compiled here.
-_TWINS: dict[str, str] = {}
+#: The compiled job made in this process for a module run as Python (by its text), or why
+#: it cannot be made: a diagram built anew with the same text reads what compiling it
+#: would cost without translating its functions again (0.1-0.2 s a call for 40 blocks),
+#: and runs compiled from its start once that job's module is compiled here.
+_TWINS: dict = {}
 #: Compiled modules whose numbers were compared with Python's on a piece in this process.
 CHECKED: set[str] = set()
 #: About how long loading a module kept compiled takes, numba started.
@@ -279,7 +282,8 @@ class Runner:
         self.python = prepare(sys, params)
         self.compiled = None
         self.decided = compile is False
-        if compile or compile is None and self.python.source in _TWINS:
+        twin = _TWINS.get(self.python.source)
+        if compile or compile is None and getattr(twin, "source", None) in _COMPILED:
             # asked for, or compiled already in this process: compiled from the start
             candidate = compiled_job(sys, params)
             if isinstance(candidate, str):
@@ -288,7 +292,7 @@ class Runner:
                     warn_caller(f"running {sys.name!r} as Python: {candidate}")
             elif compile or candidate.source in _COMPILED:
                 self.compiled, self.decided = candidate, True
-                _TWINS[self.python.source] = candidate.source
+                _TWINS[self.python.source] = candidate
         elif compile is None:
             self._compile_if_earlier_runs_paid()
 
@@ -302,17 +306,20 @@ class Runner:
         before = PYTHON_SECONDS.get(source, 0.0)
         if before <= PAYS * NUMBA_START_SECONDS:
             return
-        candidate = compiled_job(self.sys, self.params)
-        if isinstance(candidate, str):
+        if source not in _TWINS:  # (its cost, read by the diagrams of this text to come)
+            _TWINS[source] = compiled_job(self.sys, self.params)
+        if isinstance(_TWINS[source], str):
             return
-        cost = compiled_cost(candidate)
+        cost = compiled_cost(_TWINS[source])
         typical = before / max(PYTHON_RUNS.get(source, 1), 1)
         if before <= PAYS * cost:
             return
         steps = [step for step in NUMBA_START if not step[1]()]
         if not steps and cost <= PYTHON_CONTROL_SLOWER * typical:
-            self.compiled, self.decided = candidate, True
-            _TWINS[source] = candidate.source
+            candidate = compiled_job(self.sys, self.params)  # (this diagram's, its values)
+            if not isinstance(candidate, str):
+                self.compiled, self.decided = candidate, True
+                _TWINS[source] = candidate
             return
         # numba's start first, by runs as Python (the steps that fit in what each saves): a
         # call that also started numba had no room for the compile's spread (0.55-1.5 s)
@@ -361,7 +368,7 @@ class Runner:
         cost = compiled_cost(candidate)
         if saved <= PAYS * cost or cost > room:
             return None
-        _TWINS[self.python.source] = candidate.source
+        _TWINS[self.python.source] = candidate
         return candidate
 
     def finished(self, seconds: float) -> None:
