@@ -75,7 +75,8 @@ from timing import ROOT, checkout_env, load, run_child
 
 PAPERS = ("spacecraft ideal", "spacecraft without_mec", "spacecraft proposed", "cmg thesis")
 CRUISE = ("cruise PI discrete", "cruise PI continuous")
-FIRST_ROWS = ("cruise PI 301 points", "first-order PI 101 points")
+FIRST_ROWS = ("cruise PI 301 points", "first-order PI 101 points",
+              "lone nlsys 1500 points", "lone nlsys 10000 points")
 #: Rows whose blocks are all python-control's LTI systems or controlkit's: nothing of a
 #: user's for numba to check the indexes of.
 WITHOUT_USER_FUNCTIONS = (*PAPERS, "pi_first_order", "dc_motor", "spacecraft_fig2",
@@ -178,6 +179,15 @@ def _first_row(name):
         return sys_, T, X0, U, None
     import control as ct
 
+    if name.startswith("lone nlsys"):  # a block without an interconnect: Van der Pol's
+        def vdp(t, x, u, params):
+            mu = params.get("mu", 1.0)
+            return np.array([x[1], mu * (1 - x[0] ** 2) * x[1] - x[0] + u[0]])
+
+        block = ct.nlsys(vdp, None, inputs="u", outputs=["x0", "x1"], states=2, name="vdp",
+                         params={"mu": 1.0})
+        T = np.linspace(0.0, 20.0, int(name.split()[2]))
+        return block, T, np.array([1.0, 0.0]), np.zeros_like(T), {"mu": 0.8}
     plant = ct.tf([1.0], [2.0, 1.0], name="plant", inputs="u", outputs="y")
     pi = ct.tf([1.5, 0.8], [1.0, 0.0], name="pi", inputs="e", outputs="u")
     error = ct.summing_junction(["r", "-y"], "e", name="error")
@@ -189,7 +199,7 @@ def _first_row(name):
 def renamed(sys_):
     """The same diagram with its first block renamed: a wiring whose module was never
     compiled (the block names are in the module's text)."""
-    sys_.syslist[0].name += f"_{uuid.uuid4().hex[:8]}"
+    getattr(sys_, "syslist", [sys_])[0].name += f"_{uuid.uuid4().hex[:8]}"
     return sys_
 
 
