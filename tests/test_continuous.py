@@ -434,6 +434,21 @@ def test_one_timebase_gives_python_controls_own_interconnect():
     assert type(ours) is type(theirs) and ours.dt == theirs.dt == 0.1000001
 
 
+def test_ignore_errors_on_a_sampled_data_diagram_still_names_the_stop():
+    # python-control returns a run up to its solver's stop with ignore_errors=True; a
+    # sampled-data diagram has no python-control run to hand over to: the engine's error
+    grow = ct.nlsys(lambda t, x, u, params: x * x + u, None, inputs="u", outputs="y",
+                    states=1, name="blowup")
+    hold = ct.ss([], [], [], [[0.0]], dt=0.1, name="hold", inputs="y", outputs="u")
+    loop = controlkit.interconnect([grow, hold], inputs=[], outputs="y")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # (no hand-over promised)
+        with pytest.raises(RuntimeError, match=r"fell below the spacing of numbers after "
+                                               r"t = 0.9 s"):
+            controlkit.input_output_response(loop, np.linspace(0.0, 2.0, 21), 0.0, 1.0,
+                                             ignore_errors=True)
+
+
 def test_a_diverging_continuous_loop_names_the_time_and_the_blocks():
     # x' = x^2 from 1 escapes to infinity at t = 1: scipy's steps shrink to nothing there
     grow = ct.nlsys(lambda t, x, u, params: x * x, None, states=1, inputs=0, outputs=1,
