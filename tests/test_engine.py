@@ -311,8 +311,9 @@ def test_runs_as_python_make_numba_s_start_in_steps_when_start_and_compile_overf
             (0.4, 0.75, [[0, 1], "compiled"]),
             (0.3, 0.53, [[0], [0, 1], "compiled"]),  # import, then first use
             (0.41, 0.53, [[0, 1], "compiled"]),
-            (0.2, 0.3, [[0], [0], [0]]),  # first use's 0.25 s > a run's 0.2
-            (0.4, 0.9, [[0, 1], [0, 1]])):  # the compile would not fit in a call
+            # numba's start for nothing, so not made: first use's 0.25 s > a run's 0.2,
+            (0.2, 0.3, [[], [], []]),
+            (0.4, 0.9, [[], []])):  # or the compile would not fit in a call
         monkeypatch.setattr(run, "compile_estimate", lambda job, estimate=estimate: estimate)
         made = []
         monkeypatch.setattr(run, "NUMBA_START", tuple(

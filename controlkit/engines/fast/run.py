@@ -324,6 +324,10 @@ class Runner:
         # numba's start first, by runs as Python (the steps that fit in what each saves): a
         # call that also started numba had no room for the compile's spread (0.55-1.5 s)
         room = (PYTHON_CONTROL_SLOWER - 1.0) * typical
+        start = sum(seconds for seconds, _, _ in steps)
+        if cost - start > PYTHON_CONTROL_SLOWER * typical or start and max(
+                seconds for seconds, _, _ in steps) > room:
+            return  # (a start for nothing: a step or the compile never fits in a call)
         for seconds, _, make in steps:
             if seconds > room:
                 break
