@@ -171,24 +171,15 @@ def _never(t, x, u, params):
 
 def _rates(systems):
     """None when ``systems`` share a timebase; else checks the rates of a mixed diagram."""
-    kinds = {"continuous": [], "discrete": [], "unspecified": []}
-    for s in systems:
-        if s.dt is None:
-            continue
-        if s.dt is True:
-            kinds["unspecified"].append(s)
-        elif s.dt == 0:
-            kinds["continuous"].append(s)
-        else:
-            kinds["discrete"].append(s)
     try:  # python-control's own rule of one timebase (periods np.isclose, say)
         functools.reduce(ct.common_timebase, systems, None)
         return None
     except ValueError:
         pass
-    discrete = kinds["discrete"]
-    if kinds["unspecified"]:
-        names = [s.name for s in kinds["unspecified"]]
+    discrete = [s for s in systems if s.dt is not None and s.dt is not True and s.dt != 0]
+    unspecified = [s for s in systems if s.dt is True]
+    if unspecified:
+        names = [s.name for s in unspecified]
         raise ValueError(f"blocks {names} are discrete with no sampling period (dt=True); "
                          f"give them their period (dt=Ts) to join continuous blocks or "
                          f"blocks of other periods")

@@ -315,7 +315,9 @@ class Runner:
         if before <= PAYS * cost:
             return
         steps = [step for step in NUMBA_START if not step[1]()]
-        if not steps and cost <= PYTHON_CONTROL_SLOWER * typical:
+        if cost - sum(seconds for seconds, _, _ in steps) > PYTHON_CONTROL_SLOWER * typical:
+            return  # (the compile never fits in a call: numba's start would be for nothing)
+        if not steps:
             candidate = compiled_job(self.sys, self.params)  # (this diagram's, its values)
             if not isinstance(candidate, str):
                 self.compiled, self.decided = candidate, True
@@ -324,10 +326,8 @@ class Runner:
         # numba's start first, by runs as Python (the steps that fit in what each saves): a
         # call that also started numba had no room for the compile's spread (0.55-1.5 s)
         room = (PYTHON_CONTROL_SLOWER - 1.0) * typical
-        start = sum(seconds for seconds, _, _ in steps)
-        if cost - start > PYTHON_CONTROL_SLOWER * typical or start and max(
-                seconds for seconds, _, _ in steps) > room:
-            return  # (a start for nothing: a step or the compile never fits in a call)
+        if max(seconds for seconds, _, _ in steps) > room:
+            return  # (a step that never fits in a call: the start would be for nothing)
         for seconds, _, make in steps:
             if seconds > room:
                 break
