@@ -20,7 +20,7 @@ from ... import _jit
 from ..._checks import warn_caller
 from .. import PYTHON_CONTROL_SLOWER, check_compile
 from ..contract import UnsupportedSystem
-from . import reuse, store
+from . import reuse, store, usercode
 from .codegen import generate
 from .pieces import PIECE_SECONDS
 from .plan import Plan, evaluation_order, held_logic, make_plan
@@ -137,6 +137,9 @@ class Job:
                         store._say(f"compiling the diagram {self.sys.name!r} (about "
                                    f"{expected:.0f} s, once: later runs load it)")
                 try:
+                    if store.record(path) is None:  # its user's kernels first, each timed
+                        for _, make in usercode.kernels_to_compile(self.plan.kernels):
+                            make()
                     entries[key] = compile_it(path)
                 except Exception as error:  # noqa: BLE001 - numba's: runs as Python
                     DIFFERS[self.source] = f"numba could not compile it ({_first_line(error)})"
@@ -205,7 +208,8 @@ def compile_estimate(job) -> float:
     """About how long compiling ``job``'s module takes, in seconds: the median time per
     block of the modules of its kind (discrete, or continuous and sampled-data) compiled
     in this store before (:func:`.store.compile_times`), else :data:`COMPILE_SECONDS`;
-    plus the integrator's when it is needed and not compiled yet
+    plus its user's kernels not compiled yet (:func:`.usercode.kernels_to_compile`), and
+    the integrator's when it is needed and not compiled yet
     (:func:`.store.integrator_to_compile`).
 
     Examples
@@ -220,6 +224,7 @@ def compile_estimate(job) -> float:
         seconds = float(np.median(measured)) * len(job.blocks)
     else:
         seconds = COMPILE_SECONDS[0] + COMPILE_SECONDS[1] * len(job.blocks)
+    seconds += sum(step for step, _ in usercode.kernels_to_compile(job.plan.kernels))
     return seconds + (store.integrator_to_compile() if continuous else 0.0)
 
 
@@ -301,34 +306,40 @@ class Runner:
         took, as Python, longer than compiling it takes (the rule, for runs that end in
         their first piece, before :meth:`decide` is asked), and compiling takes no longer
         than :data:`~controlkit.engines.PYTHON_CONTROL_SLOWER` of those runs (about
-        python-control's call) and numba has started; else it makes the start's steps."""
+        python-control's call) and numba has started and the user's kernels are compiled;
+        else it makes those steps (numba's start, each kernel) that fit in this call."""
         source = self.python.source
         before = PYTHON_SECONDS.get(source, 0.0)
         if before <= PAYS * NUMBA_START_SECONDS:
             return
         if source not in _TWINS:  # (its cost, read by the diagrams of this text to come)
             _TWINS[source] = compiled_job(self.sys, self.params)
-        if isinstance(_TWINS[source], str):
+        twin = _TWINS[source]
+        if isinstance(twin, str):
             return
-        cost = compiled_cost(_TWINS[source])
+        cost = compiled_cost(twin)
         typical = before / max(PYTHON_RUNS.get(source, 1), 1)
         if before <= PAYS * cost:
             return
-        steps = [step for step in NUMBA_START if not step[1]()]
-        if cost - sum(seconds for seconds, _, _ in steps) > PYTHON_CONTROL_SLOWER * typical:
-            return  # (the compile never fits in a call: numba's start would be for nothing)
+        # numba's start, then the user's kernels: steps runs as Python can make first
+        steps = [(seconds, make) for seconds, done, make in NUMBA_START if not done()]
+        if not twin.is_compiled():
+            steps += usercode.kernels_to_compile(twin.plan.kernels)
+        if cost - sum(seconds for seconds, _ in steps) > PYTHON_CONTROL_SLOWER * typical:
+            return  # (the compile never fits in a call: the steps would be for nothing)
         if not steps:
             candidate = compiled_job(self.sys, self.params)  # (this diagram's, its values)
             if not isinstance(candidate, str):
                 self.compiled, self.decided = candidate, True
                 _TWINS[source] = candidate
             return
-        # numba's start first, by runs as Python (the steps that fit in what each saves): a
-        # call that also started numba had no room for the compile's spread (0.55-1.5 s)
+        # each run as Python makes the steps that fit in what it saves against
+        # python-control's call: a call that made them and compiled too would be slower
+        # (the continuous cruise cell: runs of 0.3 s, a compile of 1.1-1.3 s)
         room = (PYTHON_CONTROL_SLOWER - 1.0) * typical
-        if max(seconds for seconds, _, _ in steps) > room:
-            return  # (a step that never fits in a call: the start would be for nothing)
-        for seconds, _, make in steps:
+        if max(seconds for seconds, _ in steps) > room:
+            return  # (a step that never fits in a call: the others would be for nothing)
+        for seconds, make in steps:
             if seconds > room:
                 break
             make()

@@ -292,14 +292,14 @@ def compile_entry(function, args, path: Path, blocks: int = 1):
     dispatcher = numba.njit(cache=True, nogil=True)(function)
     start = time.perf_counter()
     dispatcher.compile(tuple(numba.typeof(a) for a in args))
-    _record_compile(path, time.perf_counter() - start, blocks, function.__name__)
+    record_compile(path, time.perf_counter() - start, function.__name__, blocks=blocks)
     return dispatcher
 
 
-def _record_compile(path: Path, seconds: float, blocks: int, entry: str) -> None:
-    """The record of a module's first compile (a diagram's read by :func:`compile_times`)."""
+def record_compile(path: Path, seconds: float, entry: str, **size) -> None:
+    """A module's first compile, for :func:`compile_times` (``blocks=`` or ``lines=``)."""
     if record(path) is None:
-        write_record(path, seconds=round(seconds, 3), blocks=blocks, entry=entry)
+        write_record(path, seconds=round(seconds, 3), entry=entry, **size)
         _TIMES.clear()
 
 
@@ -329,7 +329,7 @@ def compile_functions(functions, signatures, path: Path, blocks: int = 1,
         compiled = tuple(numba.cfunc(signature, cache=True, nogil=True)(
             _jit.python_function(f)) for f, signature in zip(functions, signatures,
                                                              strict=True))
-    _record_compile(path, time.perf_counter() - start, blocks, entry)
+    record_compile(path, time.perf_counter() - start, entry, blocks=blocks)
     return compiled
 
 
@@ -340,7 +340,8 @@ _TIMES: dict = {}
 def compile_times(entry: str) -> list[float]:
     """Seconds per block of the diagrams' modules compiled in this store for ``entry``
     (the latest 50): ``run_discrete`` (the discrete loop pasted in) or ``continuous``
-    (the four functions the instants' loop takes), which differ per block.
+    (the four functions the instants' loop takes), which differ per block; or seconds per
+    line of the user's kernels (``kernel``).
 
     Examples
     --------
@@ -349,14 +350,14 @@ def compile_times(entry: str) -> list[float]:
     """
     if not _TIMES:
         try:
-            paths = sorted(folder().glob("diagram_*.json"), key=os.path.getmtime)
+            paths = sorted(folder().glob("*.json"), key=os.path.getmtime)
         except (StoreRefused, OSError):
             paths = []
         for path in paths:
             kept = record(path.with_suffix(".py")) or {}
-            seconds, blocks = kept.get("seconds"), kept.get("blocks")  # (checked: data)
-            if type(seconds) is float and type(blocks) is int and seconds > 0 and blocks > 0:
-                _TIMES.setdefault(str(kept.get("entry")), []).append(seconds / blocks)
+            seconds, size = kept.get("seconds"), kept.get("blocks", kept.get("lines"))
+            if type(seconds) is float and type(size) is int and seconds > 0 and size > 0:
+                _TIMES.setdefault(str(kept.get("entry")), []).append(seconds / size)
         _TIMES[None] = []  # read (an empty store included)
     return _TIMES.get(entry, [])[-50:]
 
@@ -408,7 +409,7 @@ def _kept_once(text: str, kind: str, what: str, seconds: float, compile_it):
         _say(f"compiling {what} (once after an install or an upgrade: about {seconds:.0f} s)")
     start = time.perf_counter()
     compiled = compile_it(module)
-    _record_compile(path, time.perf_counter() - start, 1, kind)
+    record_compile(path, time.perf_counter() - start, kind, blocks=1)
     return compiled
 
 

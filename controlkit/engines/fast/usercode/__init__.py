@@ -39,10 +39,10 @@ from ....kernels.user_calls import (
     store,
     within_int64,
 )
-from .compiling import UserKernel, block_layout
+from .compiling import UserKernel, block_layout, compile_kernel, kernels_to_compile
 
-__all__ = ["UserKernel", "block_layout", "clip", "matmul", "missing_parameter", "numpy_det",
-           "numpy_divmod", "numpy_dot", "numpy_floor_divide", "numpy_maximum", "numpy_mean",
-           "numpy_minimum", "numpy_mod", "numpy_norm", "numpy_sign", "numpy_slogdet",
-           "numpy_solve", "numpy_sum", "numpy_trace", "power", "power_of_numbers", "python_sum",
-           "store", "within_int64"]
+__all__ = ["UserKernel", "block_layout", "clip", "compile_kernel", "kernels_to_compile",
+           "matmul", "missing_parameter", "numpy_det", "numpy_divmod", "numpy_dot",
+           "numpy_floor_divide", "numpy_maximum", "numpy_mean", "numpy_minimum", "numpy_mod",
+           "numpy_norm", "numpy_sign", "numpy_slogdet", "numpy_solve", "numpy_sum",
+           "numpy_trace", "power", "power_of_numbers", "python_sum", "store", "within_int64"]

@@ -4,6 +4,10 @@ Python (:class:`UserKernel`), or compiled from its translated text, kept in the 
 
 from __future__ import annotations
 
+import functools
+import sys
+import time
+from pathlib import Path
 from types import FunctionType
 
 import numpy as np
@@ -16,6 +20,11 @@ from .writer import kernel_source
 
 #: What each role of a user function computes, for messages.
 ROLES = {"output": ("output function", "outputs"), "update": ("update function", "states")}
+#: About how long compiling a user's kernel takes per line of its translated functions,
+#: before the store measured one (numba on a 2-core machine: 0.08-0.47 s for 4-27 lines).
+KERNEL_LINE_SECONDS = 0.025
+#: The store files of kernels known to be compiled (a record, once written, stays).
+_KEPT: set = set()
 
 
 class UserKernel:
@@ -102,6 +111,60 @@ class UserKernel:
                                    else dict(inline="always", error_model="numpy"))
                         setattr(module, name, _jit.Jitted(value, options))
         return module.kernel
+
+
+def kernels_to_compile(kernels) -> list[tuple[float, object]]:
+    """The user's compiled kernels among ``kernels`` (a compiled job's) that the store does
+    not keep compiled yet, as steps ``(seconds, make)``: about how long compiling each
+    takes (its lines times the store's median seconds per line,
+    :func:`.store.compile_times`, else :data:`KERNEL_LINE_SECONDS`) and what compiles it.
+
+    Examples
+    --------
+    >>> kernels_to_compile([np.sin])  # (not a user's kernel)
+    []
+    """
+    per_line = store.compile_times("kernel")
+    per_line = float(np.median(per_line)) if per_line else KERNEL_LINE_SECONDS
+    steps = []
+    for kernel in dict.fromkeys(kernels):  # (a function used by two blocks: one compile)
+        path = _kept_in(kernel)
+        if path is not None and path not in _KEPT:
+            if store.record(path) is None:
+                steps.append((per_line * _lines(path), lambda k=kernel: compile_kernel(k)))
+            else:
+                _KEPT.add(path)
+    return steps
+
+
+def compile_kernel(kernel) -> None:
+    """Compile a user's ``kernel`` (a step of :func:`kernels_to_compile`) for the types a
+    diagram's module calls it with (``t`` and four 1-D slices), keep it in the store and
+    record the time it took: a module compiled later loads it (and the time estimates the
+    next kernels)."""
+    path = _kept_in(kernel)
+    numba = _jit.numba_module()
+    vector = numba.types.Array(numba.float64, 1, "C")
+    with store.LOCK:
+        start = time.perf_counter()
+        kernel.dispatcher.compile((numba.float64, vector, vector, vector, vector))
+        store.record_compile(path, time.perf_counter() - start, "kernel", lines=_lines(path))
+
+
+def _kept_in(kernel) -> Path | None:
+    """The store file of a user's compiled ``kernel``; None for any other function."""
+    module = sys.modules.get(getattr(kernel, "__module__", None) or "")
+    file = getattr(module, "__file__", None)
+    return Path(file) if file and Path(file).stem.startswith("user_") \
+        and isinstance(kernel, _jit.Jitted) else None
+
+
+@functools.cache
+def _lines(path: Path) -> int:
+    """The lines of the functions of the kernel module at ``path`` (not its comments and
+    imports; a store file's text never changes: its name is its text's digest)."""
+    return sum(1 for line in path.read_text().splitlines()
+               if line.strip() and not line.startswith(("#", "import ", "from ")))
 
 
 class SizeError(RuntimeError, ValueError):

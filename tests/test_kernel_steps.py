@@ -1,0 +1,106 @@
+"""A user's functions compiled one by one, each a step a run as Python can pay for.
+
+A diagram of user functions compiles its kernels first, each timed and recorded in the
+store: the rule estimates a kernel not compiled yet by its lines, and runs as Python
+compile them in steps that fit in what each run saves against python-control, so that no
+call pays for a whole compile it has no room for (the continuous cruise cell after
+``controlkit warmup``: one call of 1.19 s against python-control's 0.73 s before).
+"""
+
+import importlib.util
+import sys
+import uuid
+
+import control as ct
+import numpy as np
+import pytest
+
+from controlkit import _jit
+from controlkit.engines.fast import run, store, usercode
+from controlkit.engines.fast.usercode.compiling import KERNEL_LINE_SECONDS
+from controlkit.studies.cmg import scenario as cmg_scenario
+
+pytestmark = pytest.mark.skipif(not _jit.available(), reason="numba not installed")
+
+
+def _user_loop(folder, gain):
+    """A loop of one user block whose functions (in a file of ``folder``) hold ``gain``: a
+    new ``gain``, new kernel texts, none compiled in any store before."""
+    path = folder / f"user_block_{abs(hash(folder)) % 10**8}.py"
+    path.write_text(f"def rate(t, x, u, params):\n    return [-{gain!r} * x[0] + u[0]]\n\n\n"
+                    f"def out(t, x, u, params):\n    return [x[0]]\n")
+    spec = importlib.util.spec_from_file_location(path.stem, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[path.stem] = module  # (inspect reads the functions' source through it)
+    spec.loader.exec_module(module)
+    block = ct.nlsys(module.rate, module.out, inputs="u", outputs="y", states="x",
+                     name="lag")
+    return ct.interconnect([block], inputs="u", outputs="y", name=path.stem)
+
+
+def _new_gain():
+    """A gain no earlier run of the suite wrote into a kernel."""
+    return 1.0 + uuid.uuid4().int % 10**9 / 10**9
+
+
+def test_each_kernel_is_a_step_estimated_by_its_lines_then_timed_and_recorded(
+        monkeypatch, tmp_path):
+    monkeypatch.setattr(store, "CACHE_DIR", tmp_path / "store")
+    monkeypatch.setattr(store, "_TIMES", {})
+    job = run.compiled_job(_user_loop(tmp_path, _new_gain()), None)
+    steps = usercode.kernels_to_compile(job.plan.kernels)
+    # two kernels of 4 lines each (the user's function, the kernel that stores its result)
+    assert [seconds for seconds, _ in steps] == pytest.approx([4 * KERNEL_LINE_SECONDS] * 2)
+    before = run.compile_estimate(job)
+    for _, make in steps:
+        make()
+    assert usercode.kernels_to_compile(job.plan.kernels) == []
+    assert run.compile_estimate(job) == pytest.approx(before - 8 * KERNEL_LINE_SECONDS)
+    records = [store.record(store.folder() / f"{fn.__module__.removeprefix('controlkit_store_')}"
+                                              ".py") for fn in job.plan.kernels]
+    assert [(r["entry"], r["lines"]) for r in records] == [("kernel", 4)] * 2
+    per_line = sorted(r["seconds"] / 4 for r in records)
+    assert all(seconds > 0 for seconds in per_line)
+    assert sorted(store.compile_times("kernel")) == pytest.approx(per_line, abs=1e-3)
+
+
+def test_a_module_compiled_at_once_records_its_kernels_too(tmp_path):
+    import controlkit
+
+    loop = _user_loop(tmp_path, _new_gain())
+    T = np.linspace(0.0, 1.0, 11)
+    response = controlkit.input_output_response(loop, T, np.ones(T.size), compile=True)
+    assert response.engine_mode == "compiled"
+    kernels = run.compiled_job(loop, None).plan.kernels
+    assert usercode.kernels_to_compile(kernels) == []
+
+
+@pytest.mark.parametrize(("typical", "kernels", "made_then_compiled"), [
+    (0.4, (0.3, 0.3, 0.1), [[0], [0, 1, 2], "compiled"]),  # what fits in each call
+    (0.4, (0.1, 0.1), [[0, 1], "compiled"]),
+    # a kernel that never fits in a call (0.5 s against the 0.4 s a call saves): no step
+    # is made at all, the others would be for nothing
+    (0.4, (0.1, 0.5), [[], []]),
+])
+def test_runs_as_python_compile_the_kernels_in_steps_before_the_module(
+        monkeypatch, typical, kernels, made_then_compiled):
+    loop = cmg_scenario.build_loop("thesis")
+    source = run.prepare(loop).source
+    made = []
+    monkeypatch.setattr(run.Job, "is_compiled", lambda job: False)
+    monkeypatch.setattr(run, "NUMBA_START", ())  # (numba started)
+    monkeypatch.setattr(run.usercode, "kernels_to_compile", lambda _: [
+        (seconds, lambda i=i: made.append(i)) for i, seconds in enumerate(kernels)
+        if i not in made])
+    # the module 0.5 s (fits in python-control's call, two runs), and the kernels to come
+    monkeypatch.setattr(run, "compile_estimate", lambda job: 0.5 + sum(
+        seconds for i, seconds in enumerate(kernels) if i not in made))
+    for expected in made_then_compiled:
+        monkeypatch.setattr(run, "PYTHON_SECONDS", {source: 10 * typical})
+        monkeypatch.setattr(run, "PYTHON_RUNS", {source: 10})
+        monkeypatch.setattr(run, "_TWINS", {})
+        monkeypatch.setattr(run, "_COMPILED", {})
+        runner = run.Runner(loop, None, None)
+        assert (runner.compiled is not None) == (expected == "compiled"), made
+        if expected != "compiled":
+            assert made == expected
