@@ -272,6 +272,7 @@ def write_record(path: Path, **values) -> None:
         os.replace(tmp, target)
     except OSError:
         pass
+    _TIMES.clear()  # (read again by compile_times)
 
 
 def compile_entry(function, args, path: Path, blocks: int = 1):
@@ -292,15 +293,14 @@ def compile_entry(function, args, path: Path, blocks: int = 1):
     dispatcher = numba.njit(cache=True, nogil=True)(function)
     start = time.perf_counter()
     dispatcher.compile(tuple(numba.typeof(a) for a in args))
-    record_compile(path, time.perf_counter() - start, function.__name__, blocks=blocks)
+    _record_compile(path, time.perf_counter() - start, blocks, function.__name__)
     return dispatcher
 
 
-def record_compile(path: Path, seconds: float, entry: str, **size) -> None:
-    """A module's first compile, for :func:`compile_times` (``blocks=`` or ``lines=``)."""
+def _record_compile(path: Path, seconds: float, blocks: int, entry: str) -> None:
+    """The record of a module's first compile (a diagram's read by :func:`compile_times`)."""
     if record(path) is None:
-        write_record(path, seconds=round(seconds, 3), entry=entry, **size)
-        _TIMES.clear()
+        write_record(path, seconds=round(seconds, 3), blocks=blocks, entry=entry)
 
 
 def compile_functions(functions, signatures, path: Path, blocks: int = 1,
@@ -329,7 +329,7 @@ def compile_functions(functions, signatures, path: Path, blocks: int = 1,
         compiled = tuple(numba.cfunc(signature, cache=True, nogil=True)(
             _jit.python_function(f)) for f, signature in zip(functions, signatures,
                                                              strict=True))
-    record_compile(path, time.perf_counter() - start, entry, blocks=blocks)
+    _record_compile(path, time.perf_counter() - start, blocks, entry)
     return compiled
 
 
@@ -409,7 +409,7 @@ def _kept_once(text: str, kind: str, what: str, seconds: float, compile_it):
         _say(f"compiling {what} (once after an install or an upgrade: about {seconds:.0f} s)")
     start = time.perf_counter()
     compiled = compile_it(module)
-    record_compile(path, time.perf_counter() - start, kind, blocks=1)
+    _record_compile(path, time.perf_counter() - start, 1, kind)
     return compiled
 
 

@@ -141,14 +141,30 @@ def compile_kernel(kernel) -> None:
     """Compile a user's ``kernel`` (a step of :func:`kernels_to_compile`) for the types a
     diagram's module calls it with (``t`` and four 1-D slices), keep it in the store and
     record the time it took: a module compiled later loads it (and the time estimates the
-    next kernels)."""
+    next kernels).
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from controlkit.engines.fast.run import compiled_job
+    >>> def decay(t, x, u, params):
+    ...     return [-params.get("a", 1.0) * x[0] + u[0]]
+    >>> block = ct.nlsys(decay, None, inputs="u", outputs="x", states="x", name="decay")
+    >>> job = compiled_job(ct.interconnect([block], inputs="u", outputs="x"), None)
+    >>> kernels = [] if isinstance(job, str) else job.plan.kernels
+    >>> for _, make in kernels_to_compile(kernels):
+    ...     make()
+    >>> kernels_to_compile(kernels)
+    []
+    """
     path = _kept_in(kernel)
     numba = _jit.numba_module()
     vector = numba.types.Array(numba.float64, 1, "C")
     with store.LOCK:
         start = time.perf_counter()
         kernel.dispatcher.compile((numba.float64, vector, vector, vector, vector))
-        store.record_compile(path, time.perf_counter() - start, "kernel", lines=_lines(path))
+        seconds = round(time.perf_counter() - start, 3)
+        store.write_record(path, seconds=seconds, lines=_lines(path), entry="kernel")
 
 
 def _kept_in(kernel) -> Path | None:
