@@ -6,7 +6,9 @@ the measured speed and called 4 more times, each call with ``controlkit.input_ou
 and with ``control.input_output_response``: the ratio of the two times, the largest
 difference of their outputs, and how ours ran (``engine_mode``: as Python or compiled).
 Both the discrete loop (dt = 0.1 s: the vehicle sampled under zero-order hold) and the
-continuous one (RK45) are run, each in a fresh process (so the first call of each wiring
+continuous one (RK45) are run (``--variant short-functions``: instead a continuous loop of
+one-line user functions, ``benchmarks/short_functions.py``, rewired with a filter), each
+in a fresh process (so the first call of each wiring
 pays what a notebook's first call pays), with the store as it is (``warm``: a user's
 second session, the wirings' modules compiled by an earlier session if the engine's rule
 compiled them, or ``--compile`` did) or emptied (``--cold``: a first session).
@@ -24,8 +26,8 @@ the other for ``--rounds`` rounds, each with its own store (``--store``,
 ``--before-store``).
 
 Run: ``python benchmarks/bench_session.py [--cold] [--notebook] [--compile]
-[--variant discrete|continuous] [--before DIR] [--rounds N]``. The machine is shared:
-compare the ratios, measured in the same process.
+[--variant discrete|continuous|short-functions] [--before DIR] [--rounds N]``. The
+machine is shared: compare the ratios, measured in the same process.
 """
 
 from __future__ import annotations
@@ -59,7 +61,10 @@ def session(variant: str, pause: float = 0.0, compile=None) -> list[dict]:
     if "compile" in inspect.signature(controlkit.input_output_response).parameters:
         options["compile"] = compile
     time.sleep(pause)
-    from cruise import loop
+    if variant == "short-functions":
+        from short_functions import loop
+    else:
+        from cruise import loop
 
     dt = 0.1 if variant == "discrete" else None
     rows = []
@@ -89,7 +94,8 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cold", action="store_true",
                         help="empty stores: a first session, nothing compiled")
-    parser.add_argument("--variant", choices=["discrete", "continuous"], action="append")
+    parser.add_argument("--variant", choices=["discrete", "continuous", "short-functions"],
+                        action="append")
     parser.add_argument("--compile", action="store_true",
                         help="compile=True on every call (default: the engine's rule)")
     parser.add_argument("--notebook", action="store_true",
