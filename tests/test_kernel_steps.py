@@ -104,3 +104,30 @@ def test_runs_as_python_compile_the_kernels_in_steps_before_the_module(
         assert (runner.compiled is not None) == (expected == "compiled"), made
         if expected != "compiled":
             assert made == expected
+
+
+def test_a_kernel_numba_cannot_compile_ends_the_steps_not_the_call(monkeypatch):
+    # a step's compile that fails does not fail the user's call: the rule makes no more
+    # steps for the diagram in this process (a long run may still compile it, whose
+    # compile then says what numba refused)
+    loop = cmg_scenario.build_loop("thesis")
+    source = run.prepare(loop).source
+    tried = []
+
+    def fails():
+        tried.append(1)
+        raise TypeError("No implementation of function")
+
+    monkeypatch.setattr(run.Job, "is_compiled", lambda job: False)
+    monkeypatch.setattr(run, "NUMBA_START", ())
+    monkeypatch.setattr(run.usercode, "kernels_to_compile", lambda _: [(0.1, fails)])
+    monkeypatch.setattr(run, "compile_estimate", lambda job: 0.3)
+    monkeypatch.setattr(run, "PYTHON_SECONDS", {source: 4.0})
+    monkeypatch.setattr(run, "PYTHON_RUNS", {source: 10})
+    monkeypatch.setattr(run, "_TWINS", {})
+    monkeypatch.setattr(run, "_COMPILED", {})
+    for _ in range(3):
+        assert run.Runner(loop, None, None).compiled is None
+    assert tried == [1]
+    assert run._TWINS[source] == ("numba could not compile a function (TypeError: No "
+                                  "implementation of function)")

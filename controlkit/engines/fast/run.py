@@ -138,8 +138,7 @@ class Job:
                                    f"{expected:.0f} s, once: later runs load it)")
                 try:
                     if store.record(path) is None:  # its user's kernels first, each timed
-                        for _, make in usercode.kernels_to_compile(self.plan.kernels):
-                            make()
+                        _compile_kernels(self.plan.kernels)
                     entries[key] = compile_it(path)
                 except Exception as error:  # noqa: BLE001 - numba's: runs as Python
                     DIFFERS[self.source] = f"numba could not compile it ({_first_line(error)})"
@@ -152,6 +151,16 @@ class Job:
             return self.source in _COMPILED or store.compiled_before(self.source, "diagram")
         except store.StoreRefused:
             return False
+
+
+def _compile_kernels(kernels) -> None:
+    """Compile the user's ``kernels`` not compiled yet, one by one (timed for the
+    estimates); one that fails is left to the module's compile, which says why."""
+    for _, make in usercode.kernels_to_compile(kernels):
+        try:
+            make()
+        except Exception:  # noqa: BLE001, S112 - numba's: the module's compile will say
+            continue
 
 
 def _first_line(error) -> str:
@@ -342,7 +351,11 @@ class Runner:
         for seconds, make in steps:
             if seconds > room:
                 break
-            make()
+            try:
+                make()
+            except Exception as error:  # noqa: BLE001 - numba's: no more steps here
+                _TWINS[source] = f"numba could not compile a function ({_first_line(error)})"
+                return
             room -= seconds
 
     def check_first(self) -> Job | None:
