@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import sys as _sys
 import time
+import weakref
 from collections.abc import Callable
 
 import control as ct
@@ -253,12 +254,16 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
         return _sampled_data_response(sys, T, U, X0, engine, options, compile)
     if engine == "fast" and t_eval is not None and not _python_control_s_own(sys, T, options):
         # (t_eval None: python-control's solver's steps)
-        if compile is None and not engines.fast_start_pays(sys, np.size(T), _LONGEST[0]):
+        if compile is None and sys not in _COMPILED_LONE \
+                and not engines.fast_start_pays(sys, np.size(T), _LONGEST[0]):
             return _python_control(sys, T, U, X0, options)
         fast = _fast_response(sys, T, U, X0, options, "python-control",
                               advice=" (controlkit.explain(sys) lists every block's tier)",
                               compile=compile)
         if fast is not None:
+            if getattr(fast, "engine_mode", None) == "compiled" and \
+                    getattr(sys, "syslist", None) is None:
+                _COMPILED_LONE.add(sys)
             return fast
     return _python_control(sys, T, U, X0, options)
 
@@ -301,6 +306,9 @@ def _python_control_s_own(sys, T, options) -> bool:
 #: The longest run :func:`input_output_response` left to python-control in this process,
 #: seconds (:func:`controlkit.engines.fast_start_pays` reads it).
 _LONGEST = [0.0]
+#: Lone systems (not interconnects) that a run compiled in this process (``compile=True``):
+#: their later runs stay on the engine, compiled, whatever their length.
+_COMPILED_LONE = weakref.WeakSet()
 
 
 def _warn(message: str) -> None:

@@ -460,6 +460,13 @@ def test_a_lone_system_is_python_control_s_unless_its_run_would_be_long():
     # 16 us a point at least, against 3 s
     assert not engines.fast_start_pays(block, 180_000)
     assert engines.fast_start_pays(block, 200_000) and engines.fast_start_pays(block, 10, 3.5)
+    if _jit.available():  # once compiled when asked, its later runs stay compiled
+        modes = [controlkit.input_output_response(block, T, 1.0, compile=compile).engine_mode
+                 for compile in (True, None, None)]
+        assert modes == ["compiled"] * 3
+        other = ct.nlsys(lambda t, x, u, p: -x + u, None, inputs=1, outputs=1, states=1,
+                         name="lag")  # (the same functions, another system: its own rule)
+        assert controlkit.input_output_response(other, T, 1.0).engine_mode == "python-control"
 
 
 def test_the_engine_s_start_pays_by_the_run_s_size_or_python_control_s_longest_run():
