@@ -254,7 +254,7 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
         return _sampled_data_response(sys, T, U, X0, engine, options, compile)
     if engine == "fast" and t_eval is not None and not _python_control_s_own(sys, T, options):
         # (t_eval None: python-control's solver's steps)
-        if compile is None and sys not in _COMPILED_LONE \
+        if compile is None and not _compiled_lone(sys) \
                 and not engines.fast_start_pays(sys, np.size(T), _LONGEST[0]):
             return _python_control(sys, T, U, X0, options)
         fast = _fast_response(sys, T, U, X0, options, "python-control",
@@ -263,7 +263,7 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
         if fast is not None:
             if getattr(fast, "engine_mode", None) == "compiled" and \
                     getattr(sys, "syslist", None) is None:
-                _COMPILED_LONE.add(sys)
+                _compiled_lone(sys, add=True)
             return fast
     return _python_control(sys, T, U, X0, options)
 
@@ -309,6 +309,18 @@ _LONGEST = [0.0]
 #: Lone systems (not interconnects) that a run compiled in this process (``compile=True``):
 #: their later runs stay on the engine, compiled, whatever their length.
 _COMPILED_LONE = weakref.WeakSet()
+
+
+def _compiled_lone(sys, add=False) -> bool:
+    """Whether ``sys`` is in :data:`_COMPILED_LONE` (added first with ``add``); False for
+    what cannot be kept there (a system that is not hashable, as one that defines ``__eq__``
+    alone)."""
+    try:
+        if add:
+            _COMPILED_LONE.add(sys)
+        return sys in _COMPILED_LONE
+    except TypeError:
+        return False
 
 
 def _warn(message: str) -> None:

@@ -468,6 +468,16 @@ def test_a_lone_system_is_python_control_s_unless_its_run_would_be_long():
                          name="lag")  # (the same functions, another system: its own rule)
         assert controlkit.input_output_response(other, T, 1.0).engine_mode == "python-control"
 
+    class Plant(ct.NonlinearIOSystem):  # (one that defines __eq__: not hashable)
+        def __eq__(self, other):
+            return self is other
+
+    plant = Plant(lambda t, x, u, p: -x + u, None, inputs=1, outputs=1, states=1,
+                  name="plant")
+    ours = controlkit.input_output_response(plant, T, 1.0)
+    assert ours.engine_mode == "python-control"
+    assert np.array_equal(ours.outputs, expected.outputs)
+
 
 def test_the_engine_s_start_pays_by_the_run_s_size_or_python_control_s_longest_run():
     import control as ct

@@ -38,6 +38,11 @@ def _user_loop(folder, gain):
     return ct.interconnect([block], inputs="u", outputs="y", name=path.stem)
 
 
+def _path_of(kernel):
+    """The store file of a user's compiled kernel."""
+    return store.folder() / f"{kernel.__module__.removeprefix('controlkit_store_')}.py"
+
+
 def _new_gain():
     """A gain no earlier run of the suite wrote into a kernel."""
     return 1.0 + uuid.uuid4().int % 10**9 / 10**9
@@ -56,8 +61,7 @@ def test_each_kernel_is_a_step_estimated_by_its_lines_then_timed_and_recorded(
         make()
     assert usercode.kernels_to_compile(job.plan.kernels) == []
     assert run.compile_estimate(job) == pytest.approx(before - 8 * KERNEL_LINE_SECONDS)
-    records = [store.record(store.folder() / f"{fn.__module__.removeprefix('controlkit_store_')}"
-                                              ".py") for fn in job.plan.kernels]
+    records = [store.record(_path_of(fn)) for fn in job.plan.kernels]
     assert [(r["entry"], r["lines"]) for r in records] == [("kernel", 4)] * 2
     per_line = sorted(r["seconds"] / 4 for r in records)
     assert all(seconds > 0 for seconds in per_line)
@@ -131,3 +135,88 @@ def test_a_kernel_numba_cannot_compile_ends_the_steps_not_the_call(monkeypatch):
     assert tried == [1]
     assert run._TWINS[source] == ("numba could not compile a function (TypeError: No "
                                   "implementation of function)")
+
+
+def test_a_kernel_recorded_by_another_process_keeps_its_record(monkeypatch, tmp_path):
+    # two processes on one store: the second finds the first's record and neither
+    # compiles nor writes over it (a load timed as a compile would lower the estimates)
+    monkeypatch.setattr(store, "CACHE_DIR", tmp_path / "store")
+    job = run.compiled_job(_user_loop(tmp_path, _new_gain()), None)
+    (_, first), _ = usercode.kernels_to_compile(job.plan.kernels)
+    path = _path_of(job.plan.kernels[0])
+    store.write_record(path, seconds=0.25, lines=4, entry="kernel")  # (the other process)
+    first()
+    assert store.record(path) == {"seconds": 0.25, "lines": 4, "entry": "kernel"}
+    assert not job.plan.kernels[0].dispatcher.signatures  # (not compiled here)
+
+
+def test_a_store_emptied_under_a_session_leaves_its_kernels_out_of_the_steps(
+        monkeypatch, tmp_path):
+    monkeypatch.setattr(store, "CACHE_DIR", tmp_path / "store")
+    job = run.compiled_job(_user_loop(tmp_path, _new_gain()), None)
+    for path in store.folder().glob("user_*.py"):
+        path.unlink()
+    assert usercode.kernels_to_compile(job.plan.kernels) == []
+
+
+def _closure_loop(folder, gain):
+    """A loop whose function reads ``gain`` from its closure: every gain gives the same
+    module text (its kernels are names) and kernels of other texts."""
+    path = folder / "closure_block.py"
+    if not path.exists():
+        path.write_text("def make(gain):\n    def rate(t, x, u, params):\n"
+                        "        return [-gain * x[0] + u[0]]\n    return rate\n")
+    spec = importlib.util.spec_from_file_location(f"closure_{abs(hash(folder))}", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    block = ct.nlsys(module.make(gain), None, inputs="u", outputs="x", states="x",
+                     name="lag")
+    return ct.interconnect([block], inputs="u", outputs="x", name="closure")
+
+
+def test_a_diagram_built_anew_with_functions_of_its_own_compiles_them_before_the_module(
+        monkeypatch, tmp_path):
+    # a cell that builds its diagram anew from a closure of another value: the module's
+    # text is the earlier diagram's, its kernels are not; the earlier diagram's estimate
+    # did not count them, so they are made as steps before the compile, never in it
+    first, second = (_closure_loop(tmp_path, _new_gain()) for _ in range(2))
+    source = run.prepare(first).source
+    assert run.prepare(second).source == source
+    twin = run.compiled_job(first, None)
+    for _, make in usercode.kernels_to_compile(twin.plan.kernels):
+        make()
+    monkeypatch.setattr(run.Job, "is_compiled", lambda job: False)
+    monkeypatch.setattr(run, "NUMBA_START", ())
+    monkeypatch.setattr(run, "compile_estimate", lambda job: 0.3)
+    monkeypatch.setattr(run, "PYTHON_SECONDS", {source: 4.0})
+    monkeypatch.setattr(run, "PYTHON_RUNS", {source: 10})
+    monkeypatch.setattr(run, "_TWINS", {source: twin})
+    monkeypatch.setattr(run, "_COMPILED", {})
+    own = usercode.kernels_to_compile(run.compiled_job(second, None).plan.kernels)
+    assert len(own) == 1
+    assert run.Runner(second, None, None).compiled is None  # its own kernel is pending
+    assert run._TWINS[source] is not twin
+    assert run.Runner(second, None, None).compiled is None  # the step compiles it
+    assert usercode.kernels_to_compile(run.compiled_job(second, None).plan.kernels) == []
+    assert run.Runner(second, None, None).compiled is not None
+
+
+@pytest.mark.parametrize("dt", [None, 0.1])
+def test_the_kernels_compiled_alone_are_the_ones_the_module_calls(tmp_path, dt):
+    # compile_kernel's types are those the diagrams' modules call a kernel with: the
+    # module's compile adds no other (else the steps' compiles would be wasted)
+    import controlkit
+
+    loop = _user_loop(tmp_path, _new_gain())
+    if dt is not None:
+        block = loop.syslist[0]
+        loop = ct.interconnect([ct.nlsys(block.updfcn, block.outfcn, inputs="u",
+                                         outputs="y", states="x", dt=dt, name="lag")],
+                               inputs="u", outputs="y")
+    T = np.arange(11) * (dt or 0.1)
+    assert controlkit.input_output_response(loop, T, np.ones(T.size),
+                                            compile=True).engine_mode == "compiled"
+    kernels = [k for k in run.compiled_job(loop, None).plan.kernels
+               if k.__module__.startswith("controlkit_store_user_")]
+    assert kernels and all(len(k.dispatcher.signatures) == 1 for k in kernels)

@@ -338,9 +338,14 @@ class Runner:
             return  # (the compile never fits in a call: the steps would be for nothing)
         if not steps:
             candidate = compiled_job(self.sys, self.params)  # (this diagram's, its values)
-            if not isinstance(candidate, str):
+            if isinstance(candidate, str):
+                return
+            _TWINS[source] = candidate
+            # (a diagram built anew whose functions read other values than the twin's has
+            # kernels of its own, not counted yet: made as steps by the runs to come)
+            if candidate.is_compiled() or not usercode.kernels_to_compile(
+                    candidate.plan.kernels):
                 self.compiled, self.decided = candidate, True
-                _TWINS[source] = candidate
             return
         # each run as Python makes the steps that fit in what it saves against
         # python-control's call: a call that made them and compiled too would be slower

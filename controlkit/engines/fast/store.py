@@ -471,8 +471,9 @@ def _first_class_functions(numba):
         yield
 
 
-#: About how long the instants' loop takes to compile (measured: 5-13 s on 2 cores).
-LOOP_COMPILE_SECONDS = 8.0
+#: About how long the instants' loop and the step machine take to compile (measured on 2
+#: cores: 5-13 s, and 30 s).
+LOOP_COMPILE_SECONDS, MACHINE_COMPILE_SECONDS = 8.0, 30.0
 
 
 def integrator_to_compile() -> float:
@@ -490,9 +491,6 @@ def integrator_to_compile() -> float:
         (_LOOPS, _LOOP_TEXT, "loop", LOOP_COMPILE_SECONDS))
         if not done and not compiled_before(text, kind))
 
-
-#: About how long the step machine takes to compile (measured: 30 s on a 2-core machine).
-MACHINE_COMPILE_SECONDS = 30.0
 
 
 def _say(message: str) -> None:

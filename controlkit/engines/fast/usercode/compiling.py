@@ -130,10 +130,10 @@ def kernels_to_compile(kernels) -> list[tuple[float, object]]:
     for kernel in dict.fromkeys(kernels):  # (a function used by two blocks: one compile)
         path = _kept_in(kernel)
         if path is not None and path not in _KEPT:
-            if store.record(path) is None:
-                steps.append((per_line * _lines(path), lambda k=kernel: compile_kernel(k)))
-            else:
+            if store.record(path) is not None:
                 _KEPT.add(path)
+            elif path.exists():  # (else a store emptied under a running session)
+                steps.append((per_line * _lines(path), lambda k=kernel: compile_kernel(k)))
     return steps
 
 
@@ -160,11 +160,14 @@ def compile_kernel(kernel) -> None:
     path = _kept_in(kernel)
     numba = _jit.numba_module()
     vector = numba.types.Array(numba.float64, 1, "C")
-    with store.LOCK:
+    with store.LOCK:  # (a thread, or a process, that compiled it first recorded its time)
+        if store.record(path) is not None:
+            return
         start = time.perf_counter()
         kernel.dispatcher.compile((numba.float64, vector, vector, vector, vector))
         seconds = round(time.perf_counter() - start, 3)
-        store.write_record(path, seconds=seconds, lines=_lines(path), entry="kernel")
+        if store.record(path) is None:
+            store.write_record(path, seconds=seconds, lines=_lines(path), entry="kernel")
 
 
 def _kept_in(kernel) -> Path | None:
