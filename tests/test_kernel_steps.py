@@ -23,11 +23,13 @@ from controlkit.studies.cmg import scenario as cmg_scenario
 pytestmark = pytest.mark.skipif(not _jit.available(), reason="numba not installed")
 
 
-def _user_loop(folder, gain):
+def _user_loop(folder, gain, rate="[-{gain!r} * x[0] + u[0]]"):
     """A loop of one user block whose functions (in a file of ``folder``) hold ``gain``: a
-    new ``gain``, new kernel texts, none compiled in any store before."""
-    path = folder / f"user_block_{abs(hash(folder)) % 10**8}.py"
-    path.write_text(f"def rate(t, x, u, params):\n    return [-{gain!r} * x[0] + u[0]]\n\n\n"
+    new ``gain``, new kernel texts, none compiled in any store before; ``rate`` is what its
+    update function returns."""
+    path = folder / f"user_block_{abs(hash((folder, rate))) % 10**8}.py"
+    path.write_text(f"import numpy as np\n\n\ndef rate(t, x, u, params):\n"
+                    f"    return {rate.format(gain=gain)}\n\n\n"
                     f"def out(t, x, u, params):\n    return [x[0]]\n")
     spec = importlib.util.spec_from_file_location(path.stem, path)
     module = importlib.util.module_from_spec(spec)
@@ -220,3 +222,23 @@ def test_the_kernels_compiled_alone_are_the_ones_the_module_calls(tmp_path, dt):
     kernels = [k for k in run.compiled_job(loop, None).plan.kernels
                if k.__module__.startswith("controlkit_store_user_")]
     assert kernels and all(len(k.dispatcher.signatures) == 1 for k in kernels)
+
+
+@pytest.mark.parametrize(("rate", "numpy"), [
+    ("[-{gain!r} * x[0] + u[0]]", False),     # element by element: by its lines
+    ("-{gain!r} * x + u[0]", True),           # the state vector whole
+    ("[-{gain!r} * np.sum(x) + u[0]]", True),  # numpy on an array
+    ("[-{gain!r} * np.linalg.norm(x) + u[0]]", True),
+])
+def test_a_kernel_that_works_on_arrays_is_estimated_as_numpy_compiles_take(
+        monkeypatch, tmp_path, rate, numpy):
+    # numba compiles array code of its own for such a function: 0.3-4.7 s for one line
+    # (np.linalg.solve), which its lines do not tell
+    from controlkit.engines.fast.usercode.compiling import NUMPY_KERNEL_SECONDS
+
+    monkeypatch.setattr(store, "CACHE_DIR", tmp_path / "store")
+    job = run.compiled_job(_user_loop(tmp_path, _new_gain(), rate), None)
+    assert not isinstance(job, str), job
+    seconds = sorted(step for step, _ in usercode.kernels_to_compile(job.plan.kernels))
+    assert seconds == pytest.approx([4 * KERNEL_LINE_SECONDS,
+                                     NUMPY_KERNEL_SECONDS if numpy else 4 * KERNEL_LINE_SECONDS])

@@ -4,7 +4,9 @@ Python (:class:`UserKernel`), or compiled from its translated text, kept in the 
 
 from __future__ import annotations
 
+import ast
 import functools
+import re
 import sys
 import time
 from pathlib import Path
@@ -23,6 +25,13 @@ ROLES = {"output": ("output function", "outputs"), "update": ("update function",
 #: About how long compiling a user's kernel takes per line of its translated functions,
 #: before the store measured one (numba on a 2-core machine: 0.08-0.47 s for 4-27 lines).
 KERNEL_LINE_SECONDS = 0.025
+#: About how long compiling a kernel that works on arrays can take (one that calls numpy,
+#: or controlkit's versions of its linear algebra, products and sums, or uses its state or
+#: input vector whole): numba then compiles array code of its own, 0.3-4.7 s measured
+#: for one-line functions (``np.linalg.solve``: 4.7 s), which their lines do not tell.
+NUMPY_KERNEL_SECONDS = 5.0
+#: controlkit's helpers that work on arrays, as a kernel's text names them.
+_ARRAY_HELPERS = re.compile(r"_ck_(solve|det|slogdet|norm|matmul|dot|trace|sum|mean)")
 #: The store files of kernels known to be compiled (a record, once written, stays).
 _KEPT: set = set()
 
@@ -117,7 +126,8 @@ def kernels_to_compile(kernels) -> list[tuple[float, object]]:
     """The user's compiled kernels among ``kernels`` (a compiled job's) that the store does
     not keep compiled yet, as steps ``(seconds, make)``: about how long compiling each
     takes (its lines times the store's median seconds per line,
-    :func:`.store.compile_times`, else :data:`KERNEL_LINE_SECONDS`) and what compiles it.
+    :func:`.store.compile_times`, else :data:`KERNEL_LINE_SECONDS`; one that calls numpy
+    on arrays, :data:`NUMPY_KERNEL_SECONDS`) and what compiles it.
 
     Examples
     --------
@@ -133,7 +143,9 @@ def kernels_to_compile(kernels) -> list[tuple[float, object]]:
             if store.record(path) is not None:
                 _KEPT.add(path)
             elif path.exists():  # (else a store emptied under a running session)
-                steps.append((per_line * _lines(path), lambda k=kernel: compile_kernel(k)))
+                lines, numpy = _size(path)
+                steps.append((NUMPY_KERNEL_SECONDS if numpy else per_line * lines,
+                              lambda k=kernel: compile_kernel(k)))
     return steps
 
 
@@ -166,8 +178,10 @@ def compile_kernel(kernel) -> None:
         start = time.perf_counter()
         kernel.dispatcher.compile((numba.float64, vector, vector, vector, vector))
         seconds = round(time.perf_counter() - start, 3)
-        if store.record(path) is None:
-            store.write_record(path, seconds=seconds, lines=_lines(path), entry="kernel")
+        if store.record(path) is None:  # (a numpy one's time is not read per line)
+            lines, numpy = _size(path)
+            store.write_record(path, seconds=seconds, lines=lines,
+                               entry="numpy kernel" if numpy else "kernel")
 
 
 def _kept_in(kernel) -> Path | None:
@@ -179,11 +193,24 @@ def _kept_in(kernel) -> Path | None:
 
 
 @functools.cache
-def _lines(path: Path) -> int:
+def _size(path: Path) -> tuple[int, bool]:
     """The lines of the functions of the kernel module at ``path`` (not its comments and
-    imports; a store file's text never changes: its name is its text's digest)."""
-    return sum(1 for line in path.read_text().splitlines()
-               if line.strip() and not line.startswith(("#", "import ", "from ")))
+    imports), and whether its ``user`` function works on arrays (a store file's text never
+    changes: its name is its text's digest)."""
+    text = path.read_text()
+    lines = [line for line in text.splitlines()
+             if line.strip() and not line.startswith(("#", "import ", "from "))]
+    user = next(node for node in ast.parse(text).body
+                if isinstance(node, ast.FunctionDef) and node.name == "user")
+    vectors = {argument.arg for argument in user.args.args[1:3]}  # (its x and u)
+    indexed = {id(node.value) for node in ast.walk(user) if isinstance(node, ast.Subscript)}
+    arrays = any(
+        isinstance(node, ast.Name) and (node.id in vectors and id(node) not in indexed
+                                        or _ARRAY_HELPERS.fullmatch(node.id))
+        or isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
+        and re.fullmatch(r"_np_|_g\d+_np", node.value.id)
+        for node in ast.walk(ast.Module(body=user.body, type_ignores=[])))
+    return len(lines), arrays
 
 
 class SizeError(RuntimeError, ValueError):
