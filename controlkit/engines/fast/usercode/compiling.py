@@ -200,8 +200,10 @@ def _size(path: Path) -> tuple[int, bool]:
     text = path.read_text()
     lines = [line for line in text.splitlines()
              if line.strip() and not line.startswith(("#", "import ", "from "))]
-    user = next(node for node in ast.parse(text).body
-                if isinstance(node, ast.FunctionDef) and node.name == "user")
+    user = next((node for node in ast.parse(text).body
+                 if isinstance(node, ast.FunctionDef) and node.name == "user"), None)
+    if user is None or len(user.args.args) < 3:  # (not the writer's form: as an array one)
+        return len(lines), True
     vectors = {argument.arg for argument in user.args.args[1:3]}  # (its x and u)
     indexed = {id(node.value) for node in ast.walk(user) if isinstance(node, ast.Subscript)}
     arrays = any(
