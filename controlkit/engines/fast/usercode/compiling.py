@@ -200,19 +200,43 @@ def _size(path: Path) -> tuple[int, bool]:
     text = path.read_text()
     lines = [line for line in text.splitlines()
              if line.strip() and not line.startswith(("#", "import ", "from "))]
-    user = next((node for node in ast.parse(text).body
-                 if isinstance(node, ast.FunctionDef) and node.name == "user"), None)
+    functions = {node.name: node for node in ast.parse(text).body
+                 if isinstance(node, ast.FunctionDef)}
+    user = functions.get("user")
     if user is None or len(user.args.args) < 3:  # (not the writer's form: as an array one)
         return len(lines), True
-    vectors = {argument.arg for argument in user.args.args[1:3]}  # (its x and u)
-    indexed = {id(node.value) for node in ast.walk(user) if isinstance(node, ast.Subscript)}
-    arrays = any(
-        isinstance(node, ast.Name) and (node.id in vectors and id(node) not in indexed
+    vectors = frozenset(argument.arg for argument in user.args.args[1:3])  # (its x and u)
+    return len(lines), _works_on_arrays(functions, "user", vectors, set())
+
+
+def _works_on_arrays(functions, name, vectors, seen) -> bool:
+    """Whether function ``name`` of a kernel module calls numpy or controlkit's array
+    helpers, or uses one of ``vectors`` (its arguments that hold the state or input
+    vector) whole; a vector handed on to a function of the module counts as that
+    function's use of it."""
+    handed = set()
+    for call in ast.walk(functions[name]):
+        callee = functions.get(getattr(call.func, "id", None)) if isinstance(
+            call, ast.Call) else None
+        if callee is None or callee.name == name:
+            continue
+        given = {argument.arg for argument, value in zip(callee.args.args, call.args,
+                                                         strict=False)
+                 if isinstance(value, ast.Name) and value.id in vectors}
+        handed |= {id(value) for value in call.args if isinstance(value, ast.Name)}
+        key = (callee.name, frozenset(given))
+        if given and key not in seen:
+            seen.add(key)
+            if _works_on_arrays(functions, callee.name, frozenset(given), seen):
+                return True
+    body = ast.Module(body=functions[name].body, type_ignores=[])
+    indexed = {id(node.value) for node in ast.walk(body) if isinstance(node, ast.Subscript)}
+    return any(
+        isinstance(node, ast.Name) and (node.id in vectors and id(node) not in indexed | handed
                                         or _ARRAY_HELPERS.fullmatch(node.id))
         or isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
         and re.fullmatch(r"_np_|_g\d+_np", node.value.id)
-        for node in ast.walk(ast.Module(body=user.body, type_ignores=[])))
-    return len(lines), arrays
+        for node in ast.walk(body))
 
 
 class SizeError(RuntimeError, ValueError):
