@@ -229,6 +229,8 @@ def test_the_kernels_compiled_alone_are_the_ones_the_module_calls(tmp_path, dt):
     ("-{gain!r} * x + u[0]", "", True),           # the state vector whole
     ("[-{gain!r} * np.sum(x) + u[0]]", "", True),  # numpy on an array
     ("[-{gain!r} * np.linalg.norm(x) + u[0]]", "", True),
+    ("[-{gain!r} * np.sin(x[0]) * np.pi + u[0]]", "", False),  # numpy's, on numbers
+    ("[-{gain!r} * np.zeros(2)[0] + u[0]]", "", True),  # an array made
     # handed whole to a function of the user's: as that function uses it
     ("[-{gain!r} * first(x) + u[0]]", "def first(v):\n    return v[0]\n", False),
     ("[-{gain!r} * total(x) + u[0]]", "def total(v):\n    return v.sum()\n", True),

@@ -32,6 +32,12 @@ KERNEL_LINE_SECONDS = 0.025
 NUMPY_KERNEL_SECONDS = 5.0
 #: controlkit's helpers that work on arrays, as a kernel's text names them.
 _ARRAY_HELPERS = re.compile(r"_ck_(solve|det|slogdet|norm|matmul|dot|trace|sum|mean)")
+#: numpy's functions of numbers: called on numbers (not a vector whole), no array code.
+_NUMBER_FUNCTIONS = frozenset(
+    "sin cos tan arcsin arccos arctan arctan2 sinh cosh tanh arcsinh arccosh arctanh exp "
+    "expm1 exp2 log log10 log2 log1p sqrt cbrt square abs absolute fabs sign floor ceil "
+    "trunc rint hypot deg2rad rad2deg radians degrees minimum maximum fmin fmax power mod "
+    "fmod copysign isnan isfinite isinf float64 int64".split())
 #: The store files of kernels known to be compiled (a record, once written, stays).
 _KEPT: set = set()
 
@@ -234,9 +240,20 @@ def _works_on_arrays(functions, name, vectors, seen) -> bool:
     return any(
         isinstance(node, ast.Name) and (node.id in vectors and id(node) not in indexed | handed
                                         or _ARRAY_HELPERS.fullmatch(node.id))
-        or isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
-        and re.fullmatch(r"_np_|_g\d+_np", node.value.id)
+        or isinstance(node, ast.Call) and _calls_numpy_on_arrays(node.func)
         for node in ast.walk(body))
+
+
+def _calls_numpy_on_arrays(function) -> bool:
+    """Whether a call of ``function`` (a kernel text's expression) is numpy's, other than
+    one of its functions of numbers (``np.sin``, not ``np.zeros`` nor ``np.linalg.solve``;
+    the module's text names numpy ``_np_`` or ``_g<n>_np``)."""
+    names = []
+    while isinstance(function, ast.Attribute):
+        names.append(function.attr)
+        function = function.value
+    return isinstance(function, ast.Name) and bool(re.fullmatch(r"_np_|_g\d+_np", function.id)) \
+        and bool(names) and not (len(names) == 1 and names[0] in _NUMBER_FUNCTIONS)
 
 
 class SizeError(RuntimeError, ValueError):
