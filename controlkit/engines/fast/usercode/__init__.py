@@ -5,7 +5,8 @@ the block in any error). Compiled (docs/fast-blocks.md, *Your own nlsys*), the f
 plan (:mod:`..source`) is written out for the *types and shapes* of its parameters: each
 ``params`` read becomes a read of the packed vector ``p`` (:class:`~.layout.ParamLayout`),
 the values read from outside become module-level constants, and the module, kept in the
-store, is compiled with the diagram that calls it. A new parameter value is a new ``p``:
+store, is compiled on its own (:func:`~.compiling.compile_kernel`, timed for the engine's
+estimates) before the diagram that calls it. A new parameter value is a new ``p``:
 nothing is written or compiled again.
 
 Compiled with numba's numpy error model, a division by zero gives ``inf`` or ``nan``, as in

@@ -112,10 +112,10 @@ class UserKernel:
         return store.name_of(self._text, "user") if self._text else f"python {self.block!r}"
 
     def compiled(self):
-        """The kernel of the store module of :meth:`text` (compiled with the diagram that
-        calls it): the user's functions are pasted into it, and its indexes checked
-        (``boundscheck``), so that an index outside an array is Python's ``IndexError``,
-        not a read of other memory."""
+        """The kernel of the store module of :meth:`text` (compiled before the diagram
+        that calls it, :func:`compile_kernel`): the user's functions are pasted into it,
+        and its indexes checked (``boundscheck``), so that an index outside an array is
+        Python's ``IndexError``, not a read of other memory."""
         with store.LOCK:  # (another thread sees the module's functions all wrapped)
             module = store.import_module(store.module_file(self._text, "user"))
             if not isinstance(module.kernel, _jit.Jitted):  # (once a process)
