@@ -81,6 +81,18 @@ def test_a_module_compiled_at_once_records_its_kernels_too(tmp_path):
     assert usercode.kernels_to_compile(kernels) == []
 
 
+def _earlier_runs(monkeypatch, source, seconds, twins=None):
+    """A process where numba has started, no module is kept compiled, and the module of
+    text ``source`` ran 10 times as Python for ``seconds`` in all (``twins``: the compiled
+    jobs made for it so far)."""
+    monkeypatch.setattr(run.Job, "is_compiled", lambda job: False)
+    monkeypatch.setattr(run, "NUMBA_START", ())
+    monkeypatch.setattr(run, "PYTHON_SECONDS", {source: seconds})
+    monkeypatch.setattr(run, "PYTHON_RUNS", {source: 10})
+    monkeypatch.setattr(run, "_TWINS", dict(twins or {}))
+    monkeypatch.setattr(run, "_COMPILED", {})
+
+
 @pytest.mark.parametrize(("typical", "kernels", "made_then_compiled"), [
     (0.4, (0.3, 0.3, 0.1), [[0], [0, 1, 2], "compiled"]),  # what fits in each call
     (0.4, (0.1, 0.1), [[0, 1], "compiled"]),
@@ -93,8 +105,6 @@ def test_runs_as_python_compile_the_kernels_in_steps_before_the_module(
     loop = cmg_scenario.build_loop("thesis")
     source = run.prepare(loop).source
     made = []
-    monkeypatch.setattr(run.Job, "is_compiled", lambda job: False)
-    monkeypatch.setattr(run, "NUMBA_START", ())  # (numba started)
     monkeypatch.setattr(run.usercode, "kernels_to_compile", lambda _: [
         (seconds, lambda i=i: made.append(i)) for i, seconds in enumerate(kernels)
         if i not in made])
@@ -102,10 +112,7 @@ def test_runs_as_python_compile_the_kernels_in_steps_before_the_module(
     monkeypatch.setattr(run, "compile_estimate", lambda job: 0.5 + sum(
         seconds for i, seconds in enumerate(kernels) if i not in made))
     for expected in made_then_compiled:
-        monkeypatch.setattr(run, "PYTHON_SECONDS", {source: 10 * typical})
-        monkeypatch.setattr(run, "PYTHON_RUNS", {source: 10})
-        monkeypatch.setattr(run, "_TWINS", {})
-        monkeypatch.setattr(run, "_COMPILED", {})
+        _earlier_runs(monkeypatch, source, 10 * typical)
         runner = run.Runner(loop, None, None)
         assert (runner.compiled is not None) == (expected == "compiled"), made
         if expected != "compiled":
@@ -124,14 +131,9 @@ def test_a_kernel_numba_cannot_compile_ends_the_steps_not_the_call(monkeypatch):
         tried.append(1)
         raise TypeError("No implementation of function")
 
-    monkeypatch.setattr(run.Job, "is_compiled", lambda job: False)
-    monkeypatch.setattr(run, "NUMBA_START", ())
     monkeypatch.setattr(run.usercode, "kernels_to_compile", lambda _: [(0.1, fails)])
     monkeypatch.setattr(run, "compile_estimate", lambda job: 0.3)
-    monkeypatch.setattr(run, "PYTHON_SECONDS", {source: 4.0})
-    monkeypatch.setattr(run, "PYTHON_RUNS", {source: 10})
-    monkeypatch.setattr(run, "_TWINS", {})
-    monkeypatch.setattr(run, "_COMPILED", {})
+    _earlier_runs(monkeypatch, source, 4.0)
     for _ in range(3):
         assert run.Runner(loop, None, None).compiled is None
     assert tried == [1]
@@ -188,13 +190,8 @@ def test_a_diagram_built_anew_with_functions_of_its_own_compiles_them_before_the
     twin = run.compiled_job(first, None)
     for _, make in usercode.kernels_to_compile(twin.plan.kernels):
         make()
-    monkeypatch.setattr(run.Job, "is_compiled", lambda job: False)
-    monkeypatch.setattr(run, "NUMBA_START", ())
     monkeypatch.setattr(run, "compile_estimate", lambda job: 0.3)
-    monkeypatch.setattr(run, "PYTHON_SECONDS", {source: 4.0})
-    monkeypatch.setattr(run, "PYTHON_RUNS", {source: 10})
-    monkeypatch.setattr(run, "_TWINS", {source: twin})
-    monkeypatch.setattr(run, "_COMPILED", {})
+    _earlier_runs(monkeypatch, source, 4.0, twins={source: twin})
     own = usercode.kernels_to_compile(run.compiled_job(second, None).plan.kernels)
     assert len(own) == 1
     assert run.Runner(second, None, None).compiled is None  # its own kernel is pending
