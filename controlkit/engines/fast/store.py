@@ -471,9 +471,10 @@ def _first_class_functions(numba):
         yield
 
 
-#: About how long the instants' loop and the step machine take to compile (measured on 2
-#: cores: 5-13 s, and 30 s).
-LOOP_COMPILE_SECONDS, MACHINE_COMPILE_SECONDS = 8.0, 30.0
+#: About how long the instants' loop takes to compile (measured: 5-13 s on 2 cores).
+LOOP_COMPILE_SECONDS = 8.0
+#: About how long the step machine takes to compile (measured: 30 s on 2 cores).
+MACHINE_COMPILE_SECONDS = 30.0
 
 
 def integrator_to_compile() -> float:
