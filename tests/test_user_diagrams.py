@@ -300,7 +300,6 @@ def test_the_diagrams_module_compiled_gives_its_numbers_run_as_python(name, monk
 
     if name.endswith("in a loop"):  # a step of more states than it holds in locals
         monkeypatch.setattr(codegen, "STATES_HELD_IN_LOCALS", 4)
-        monkeypatch.setattr(codegen, "_GENERATED", {})
     make = {**DIAGRAMS, **IDIOM_DIAGRAMS, "large blocks": _large_blocks, "cmg": _papers_cmg,
             "large blocks, states recorded in a loop": _large_blocks}
     loop, T, X0, U, params = make[name]()

@@ -275,26 +275,6 @@ def generate(plan, held_logic):
     """
     P = plan.parameters()  # (which LTI blocks are written out depends on its zeros)
     identities = tuple(map(kernel_identity, plan.kernels))
-    key = (held_logic, plan.table.tobytes(), plan.order.tobytes(),
-           plan.h.tobytes(), plan.continuous.tobytes(),
-           *(a.tobytes() for a in (*plan.inputs, *plan.outputs)),
-           plan.ny, plan.nu, identities, plan.sys.noutputs,
-           plan.sys.nstates, tuple(s.name for s in plan.sys.syslist),
-           (P == 0.0).tobytes(), (abs(P) == 1.0).tobytes())
-    text = _GENERATED.get(key)  # a diagram called again writes the same text (0.1 ms)
-    if text is None:
-        text = _generate(plan, held_logic, P, identities)
-        if len(_GENERATED) >= 1024:
-            _GENERATED.clear()
-        _GENERATED[key] = text
-    return text
-
-
-#: Sources written in this process, by everything :func:`_generate` reads of a plan.
-_GENERATED: dict = {}
-
-
-def _generate(plan, held_logic, P, identities):
     rows, ny = plan.rows(), plan.ny
     names = [f"kernel_{i}" for i in range(len(plan.kernels))]
     # controlkit's own kernels: NaN in, NaN out (their NaN checks can wait, see below)
