@@ -51,11 +51,10 @@ def numbers(value, numpy="np") -> str:
     return repr(value).replace("inf", f"{numpy}.inf").replace("nan", f"{numpy}.nan")
 
 
-def _terms(ptr, cols, gain, r, name):
-    terms = []
-    for q in range(ptr[r], ptr[r + 1]):
-        g, ref = gain[q], name(cols[q])
-        terms.append(ref if g == 1.0 else f"{numbers(float(g))} * {ref}")
+def _terms(coefficients, name):
+    """``coefficients @ v`` as the sum of its terms, ``v[c]`` named ``name(c)``."""
+    terms = [name(c) if g == 1.0 else f"{numbers(float(g))} * {name(c)}"
+             for c, g in enumerate(coefficients) if g != 0.0]
     return " + ".join(terms) if terms else "0.0"
 
 
@@ -139,7 +138,7 @@ def _step(plan, P, rows, names, evaluate, ref, loads, args, view):
         if row.KIND == SAMPLED:  # RK4 steps from xn itself
             first = row.X0
             lines += [f"xn[{i}] = x[{i}]" for i in range(first, first + row.NX)]
-            lines += _rk4_lines(names[row.UPD], row, float(plan.h[b]), view)
+            lines += _rk4_lines(names[row.UPD], row, view)
             back += range(first, first + row.NX)
             continue
         sums = _lti_sums(P, plan.kernels[row.UPD], row, ref)
@@ -159,10 +158,9 @@ def _output_lines(plan, column, ref):
     """The diagram's outputs at column ``column`` of ``Y``, read through ``ref(array, i)``
     (``ys`` for a block's output, ``ui`` for a diagram input); a row whose sum is not
     exact in any order is made as python-control makes it (:func:`_maps`)."""
-    optr, ocols, ogain = plan.outputs
     ny, exact = plan.ny, plan.outputs_exact
-    return [f"Y[{r}, {column}] = " + (_terms(optr, ocols, ogain, r,
-                                             lambda c: ref("ys", c) if c < ny
+    output_map = np.asarray(plan.sys.output_map, dtype=float)
+    return [f"Y[{r}, {column}] = " + (_terms(output_map[r], lambda c: ref("ys", c) if c < ny
                                              else ref("ui", c - ny)) if exact[r] else
                                       f"{_product('_OUTPUT_MAP', plan.sys.output_map)}("
                                       f"np.concatenate((ys, ui)))[{r}]")
@@ -199,12 +197,12 @@ def _maps(plan) -> list[str]:
 STATES_HELD_IN_LOCALS = 64
 
 
-def _rk4_lines(kernel, row, h, view):
-    """A sampled block's update: ``row.SUB`` steps of length ``h`` of
+def _rk4_lines(kernel, row, view):
+    """A sampled block's update: ``row.SUB`` steps of length ``row.H`` of
     :func:`~controlkit.kernels.common.rk4_step` written out, its operations in its order
     (the same bits, at half the cost: cruise loop ~190 -> ~80 ns). ``scratch`` holds
     ``k1 .. k4`` and the trial state, ``n`` values each."""
-    n, x0 = row.NX, row.X0
+    n, x0, h = row.NX, row.X0, row.H
     k = [view("scratch", j * n, n) for j in range(5)]
     rest = f"{view('ui', row.U0, row.NU)}, {view('P', row.P0, row.NP)}"
 
@@ -275,11 +273,11 @@ def generate(plan, held_logic):
     """
     P = plan.parameters()  # (which LTI blocks are written out depends on its zeros)
     identities = tuple(map(kernel_identity, plan.kernels))
-    rows, ny = plan.rows(), plan.ny
+    rows, ny = plan.rows, plan.ny
     names = [f"kernel_{i}" for i in range(len(plan.kernels))]
     # controlkit's own kernels: NaN in, NaN out (their NaN checks can wait, see below)
     trusted = {i for i, name in enumerate(identities) if name.startswith("controlkit.kernels.")}
-    ptr, cols, gain = plan.inputs
+    inputs = np.hstack([plan.sys.connect_map, plan.sys.input_map]).astype(float)
 
     # In evaluate, the signals that written-out lines compute are also kept in locals
     # (``_y3``, ``_u4``, ``_x0``), which later lines read: LLVM cannot keep an array entry
@@ -298,7 +296,7 @@ def generate(plan, held_logic):
     def gather(b):
         lines = []
         for r in range(rows[b].U0, rows[b].U0 + rows[b].NU):
-            value = (_terms(ptr, cols, gain, r, lambda c: ref("ys", c) if c < ny
+            value = (_terms(inputs[r], lambda c: ref("ys", c) if c < ny
                             else f"U[{c - ny}, col]") if exact[r] else
                      f"{_product('_CONNECT', plan.sys.connect_map)}(ys)[{r}] + "
                      f"{_product('_INPUT_MAP', plan.sys.input_map)}(U[:, col].copy())[{r}]")
@@ -403,7 +401,7 @@ def generate(plan, held_logic):
             lines += (_lti_lines(P, plan.kernels[row.UPD], row, "xn", row.X0)
                       or [f"{names[row.UPD]}(t, {args(b, ('xn', row.X0), row.NX)})"])
         else:
-            lines += _rk4_lines(names[row.UPD], row, float(plan.h[b]), view)
+            lines += _rk4_lines(names[row.UPD], row, view)
         if held_logic and row.EVERY > 1:
             update += [f"if k % {row.EVERY} == 0:", *["    " + line for line in lines]]
         else:

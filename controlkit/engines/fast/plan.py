@@ -1,11 +1,10 @@
 """A diagram reduced to arrays, which the code generator writes out.
 
 :func:`make_plan` takes the blocks of a diagram (their kernels and offsets, from
-:func:`.tiers.blocks_of`) and its evaluation order, and describes everything else as
-numbers: per block, a row of :attr:`Plan.table` (offsets into the stacked state ``x``,
-the stacked block inputs ``ui`` and outputs ``ys`` and the parameters ``P``, its
-kernels, its kind and rate), and the interconnect's connection, input and output maps
-as sparse rows. Nothing in a plan is compiled: :mod:`.codegen` writes it into source.
+:func:`.tiers.blocks_of`) and its evaluation order, and describes each block as numbers:
+a :class:`TableRow` (offsets into the stacked state ``x``, the stacked block inputs ``ui``
+and outputs ``ys`` and the parameters ``P``, its kernels, its kind and rate). Nothing in
+a plan is compiled: :mod:`.codegen` writes it, with the interconnect's maps, into source.
 
 A block is one of four kinds (:data:`KINDS`), by its timebase:
 
@@ -33,15 +32,16 @@ from ..contract import UnsupportedSystem
 KINDS = ("static", "discrete", "sampled", "continuous")
 STATIC, DISCRETE, SAMPLED, CONTINUOUS = range(4)
 
-#: Columns of :attr:`Plan.table`: offsets and sizes in x, ui, ys and P; feedthrough;
+#: Columns of :attr:`Plan.rows`: offsets and sizes in x, ui, ys and P; feedthrough;
 #: output and update kernel (index into :attr:`Plan.kernels`, -1 for none); kind;
-#: instants between firings (discrete and sampled blocks); RK4 substeps (sampled).
+#: instants between firings (discrete and sampled blocks); RK4 substeps and their length
+#: (sampled).
 COLUMNS = ("X0", "NX", "U0", "NU", "Y0", "NY", "P0", "NP", "FT", "OUT", "UPD", "KIND",
-           "EVERY", "SUB")
+           "EVERY", "SUB", "H")
 
 
 class TableRow(namedtuple("TableRow", COLUMNS)):
-    """One row of :attr:`Plan.table` by column name (``row.X0``).
+    """One block of :attr:`Plan.rows` by column name (``row.X0``).
 
     Examples
     --------
@@ -63,20 +63,12 @@ class Plan:
         The diagram.
     blocks : list
         Its blocks with their kernels (:class:`.tiers.PlacedBlock`).
-    order : numpy.ndarray
+    order : list of int
         Block indices in evaluation order (outputs that read only their state first).
-    table : numpy.ndarray
-        ``int64``, one row per block, columns :data:`COLUMNS`.
-    h : numpy.ndarray
-        RK4 substep length of each sampled block (0 for the others).
-    inputs : tuple of numpy.ndarray
-        ``(ptr, col, gain)``: block input ``r`` is the sum over ``q`` in
-        ``ptr[r]:ptr[r+1]`` of ``gain[q]`` times ``ys[col[q]]``, or the diagram's input
-        ``col[q] - ny`` when ``col[q] >= ny``.
-    outputs : tuple of numpy.ndarray
-        The same for the diagram's outputs, from ``ys`` and (beyond ``ny``) ``ui``.
+    rows : list of TableRow
+        One per block, columns :data:`COLUMNS`.
     kernels : list
-        The distinct kernel functions, indexed by the table's ``OUT`` and ``UPD``.
+        The distinct kernel functions, indexed by the rows' ``OUT`` and ``UPD``.
     continuous : numpy.ndarray
         Indices in ``x`` of the states that are integrated in continuous time.
     ny, nu : int
@@ -87,25 +79,18 @@ class Plan:
     >>> from controlkit.engines.fast.run import prepare
     >>> from controlkit.studies.cmg.diagrams import cmg_loop
     >>> plan = prepare(cmg_loop()).plan
-    >>> [KINDS[row.KIND] for row in plan.rows()]
+    >>> [KINDS[row.KIND] for row in plan.rows]
     ['static', 'sampled', 'discrete', 'static']
     """
 
     sys: object
     blocks: list
-    order: np.ndarray
-    table: np.ndarray
-    h: np.ndarray
-    inputs: tuple
-    outputs: tuple
+    order: list
+    rows: list
     kernels: list
     continuous: np.ndarray
     ny: int
     nu: int
-
-    def rows(self) -> list[TableRow]:
-        """The table's rows as :class:`TableRow` of plain ints, in block order."""
-        return [TableRow(*map(int, row)) for row in self.table]
 
     @functools.cached_property
     def inputs_exact(self) -> list[bool]:
@@ -127,19 +112,6 @@ class Plan:
     def parameters(self) -> np.ndarray:
         """The stacked parameter vector ``P`` (each block's packed ``p``, in order)."""
         return np.concatenate([b.kernel.params for b in self.blocks] + [np.zeros(0)])
-
-
-def _sparse_rows(matrix):
-    """``(ptr, col, gain)`` of a dense matrix, row by row (compressed sparse rows)."""
-    matrix = np.asarray(matrix, dtype=float)
-    ptr, col, gain = [0], [], []
-    for row in matrix:
-        nonzero = np.nonzero(row)[0]
-        col += nonzero.tolist()
-        gain += row[nonzero].tolist()
-        ptr.append(len(col))
-    return (np.array(ptr, dtype=np.int64), np.array(col, dtype=np.int64),
-            np.array(gain, dtype=float))
 
 
 def evaluation_order(sys, blocks):
@@ -238,8 +210,8 @@ def make_plan(sys, blocks, order) -> Plan:
     >>> loop = ct.interconnect([plant, gain, error], inputs="r", outputs="y")
     >>> blocks = blocks_of(loop)
     >>> plan = make_plan(loop, blocks, evaluation_order(loop, blocks))
-    >>> plan.continuous.tolist(), plan.inputs[1].tolist(), plan.inputs_exact
-    ([0], [1, 2, 3, 0], [True, True, True, True])
+    >>> plan.continuous.tolist(), plan.inputs_exact
+    ([0], [True, True, True, True])
     """
     base = float(getattr(sys, "base_period", 0.0) or 0.0)
     if not base and sys.isdtime(strict=True) and sys.dt is not True:
@@ -254,7 +226,7 @@ def make_plan(sys, blocks, order) -> Plan:
             kernels.append(fn)
         return index[id(fn)]
 
-    rows, h, continuous = [], [], []
+    rows, continuous = [], []
     for b in blocks:
         k, s = b.kernel, b.system
         kind = _kind(b, k, sys.dt)
@@ -262,19 +234,13 @@ def make_plan(sys, blocks, order) -> Plan:
         if kind in (DISCRETE, SAMPLED):
             timed = base and s.dt is not True and s.dt is not None
             every = max(1, round(float(s.dt) / base)) if timed else 1
-        substeps = k.rk4[1] if kind == SAMPLED else 0
-        h.append(k.rk4[0] / k.rk4[1] if kind == SAMPLED else 0.0)
-        rows.append([b.x0, s.nstates, b.u0, s.ninputs, b.y0, s.noutputs, b.p0,
-                     k.params.size, int(k.feedthrough), kernel_index(k.output),
-                     kernel_index(k.update if s.nstates else None), kind, every, substeps])
+        substeps, h = (k.rk4[1], float(k.rk4[0] / k.rk4[1])) if kind == SAMPLED else (0, 0.0)
+        rows.append(TableRow(b.x0, s.nstates, b.u0, s.ninputs, b.y0, s.noutputs, b.p0,
+                             int(k.params.size), int(k.feedthrough), kernel_index(k.output),
+                             kernel_index(k.update if s.nstates else None), kind, every,
+                             int(substeps), h))
         if kind == CONTINUOUS:
             continuous += range(b.x0, b.x0 + s.nstates)
-    ny = sys.connect_map.shape[1]
-    return Plan(
-        sys=sys, blocks=blocks, order=np.asarray(order, dtype=np.int64),
-        table=np.array(rows, dtype=np.int64).reshape(-1, len(COLUMNS)),
-        h=np.array(h, dtype=float),
-        inputs=_sparse_rows(np.hstack([sys.connect_map, sys.input_map])),
-        outputs=_sparse_rows(sys.output_map), kernels=kernels,
-        continuous=np.array(continuous, dtype=np.int64), ny=ny,
-        nu=sys.connect_map.shape[0])
+    return Plan(sys=sys, blocks=blocks, order=[int(i) for i in order], rows=rows,
+                kernels=kernels, continuous=np.array(continuous, dtype=np.int64),
+                ny=sys.connect_map.shape[1], nu=sys.connect_map.shape[0])
