@@ -103,7 +103,7 @@ def _jit_rhs(loop, T, X0, U):
     module = store.import_module(store.module_file(job.source, "diagram"), job.kernels())
     rhs = _jit.dispatcher(loops.diagram_rhs)  # the diagram's right-hand side, compiled alone
     nx = loop.nstates
-    args = (module.evaluate, module.derivatives, (), np.array(X0, dtype=float),
+    args = (module.evaluate, module.derivatives, np.array(X0, dtype=float),
             np.empty(nx), plan.continuous, T, U,
             np.empty((U.shape[0], 1)), job.P, np.zeros(plan.ny), np.zeros(plan.nu),
             np.zeros(plan.ny), np.zeros(nx))

@@ -124,8 +124,8 @@ def simulate_sampled_data(sys, T, X0, U, *, params=None, t_eval=None, method="RK
     with SYSTEM_CALLS:  # (python-control's systems keep a call's params on themselves)
         loops.scipy_loop(
             evaluator.evaluate, evaluator.update, evaluator.outputs, evaluator.derivatives, None,
-            ((), x, xt, cidx, T, U, ubuf, None, ys, ui, held, np.zeros(nx)),
-            (instants, 0, instants.size, float(T[-1]), T, U, t_eval, eval_instant), (Y, X, Uo),
+            (x, xt, cidx, T, U, ubuf, None, ys, ui, held, np.zeros(nx)),
+            (instants, float(T[-1]), T, U, t_eval, eval_instant), (Y, X, Uo),
             (x, None, held), (ys, ui, np.zeros(nx), None, xt, cidx, yc, y_eval, ubuf,
                               make_workspace(cidx.size)),
             (method, rtol, atol, max_step, first_step), ctrl, status)
@@ -152,7 +152,7 @@ class _Sweep:
         self.continuous = np.array([i for s, xi, *_ , every in self.blocks if not every
                                     for i in range(xi.start, xi.stop)], dtype=np.int64)
 
-    def evaluate(self, t, x, U, col, P, ys, ui, held, k, plan):
+    def evaluate(self, t, x, U, col, P, ys, ui, held, k):
         sys, u = self.sys, U[:, col]
         ulist = sys.input_map @ u
         for _ in range(len(self.blocks) + 1):
@@ -169,16 +169,16 @@ class _Sweep:
             ulist = new
         raise RuntimeError(f"algebraic loop in {sys.name!r} at t = {t:g} s")
 
-    def outputs(self, ys, ui, Y, j, plan):
+    def outputs(self, ys, ui, Y, j):
         Y[:, j] = self.sys.output_map @ np.concatenate([ys, ui])
 
-    def update(self, t, x, ui, P, xn, k, plan, scratch):
+    def update(self, t, x, ui, P, xn, k, scratch):
         xn[:] = x
         for s, xi, ui_, _, local, every in self.blocks:
             if every and s.nstates and k >= 0 and k % every == 0:
                 xn[xi] = s.dynamics(t, x[xi], ui[ui_], local)
 
-    def derivatives(self, t, x, ui, P, dx, plan):
+    def derivatives(self, t, x, ui, P, dx):
         for s, xi, ui_, _, local, every in self.blocks:
             if not every and s.nstates:
                 dx[xi] = s.dynamics(t, x[xi], ui[ui_], local)

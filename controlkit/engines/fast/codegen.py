@@ -439,29 +439,29 @@ def generate(plan, held_logic):
         *_maps(plan),
         "",
         "",
-        *evaluator("evaluate(t, x, U, col, P, ys, ui, held, k, plan)", evaluate),
-        *evaluator("outputs(ys, ui, Y, j, plan)", outputs),
-        *evaluator("update(t, x, ui, P, xn, k, plan, scratch)", update or ["pass"]),
-        *evaluator("derivatives(t, x, ui, P, dx, plan)", derivatives),
+        *evaluator("evaluate(t, x, U, col, P, ys, ui, held, k)", evaluate),
+        *evaluator("outputs(ys, ui, Y, j)", outputs),
+        *evaluator("update(t, x, ui, P, xn, k, scratch)", update or ["pass"]),
+        *evaluator("derivatives(t, x, ui, P, dx)", derivatives),
         *function("run_discrete(T, X0, U, P, Y, X, status, k0, k1)", [
             "x = X0.copy()", *buffers, f"held = np.zeros({ny})",
-            *(step or ["discrete_run(evaluate, update, outputs, (), T, x, U, P, Y, X, "
+            *(step or ["discrete_run(evaluate, update, outputs, T, x, U, P, Y, X, "
                        "status, k0, k1, ys, ui, held, xn, scratch)"]), "return x"]),
     ]
     # every diagram has both entry points: a static one, or one of several rates, runs
     # through the instants' loop too. This one runs as Python (its arrays made, the loop
     # called): the loop is handed in, as Python or compiled once for every diagram
     text += function(
-        "run_continuous(instants, fire0, k1, t_final, T, U, t_eval, eval_instant, ctrl, "
+        "run_continuous(instants, t_final, T, U, t_eval, eval_instant, ctrl, "
         "Y, X, Uo, x, held, P, method, rtol, atol, max_step, first_step, status, "
         "work, y_eval, yc, machine, loop)", [
             *buffers, f"xt = np.empty({nx})", f"dx = np.zeros({nx})",
             (f"cidx = np.array({cidx!r}, dtype=np.int64)" if cidx
              else "cidx = np.zeros(0, dtype=np.int64)"),
             "ubuf = np.empty((U.shape[0], 1))",
-            "args = ((), x, xt, cidx, T, U, ubuf, P, ys, ui, held, dx)",
+            "args = (x, xt, cidx, T, U, ubuf, P, ys, ui, held, dx)",
             "loop(evaluate, update, outputs, derivatives, machine, args, "
-            "(instants, fire0, k1, t_final, T, U, t_eval, eval_instant), "
+            "(instants, t_final, T, U, t_eval, eval_instant), "
             "(Y, X, Uo), (x, P, held), (ys, ui, xn, scratch, xt, cidx, yc, y_eval, "
             "ubuf, work), (method, rtol, atol, max_step, first_step), ctrl, status)"])
     return "\n".join(text) + "\n"

@@ -159,7 +159,7 @@ class _Run:
         """One piece of the run on ``job`` (at most ``budget`` evaluations in an interval)."""
         self.ctrl[BUDGET] = budget
         stiff = self.method in STIFF_METHODS
-        args = (self.instants, 0, self.instants.size, float(self.T[-1]), self.T, self.U,
+        args = (self.instants, float(self.T[-1]), self.T, self.U,
                 self.t_eval, self.eval_instant, self.ctrl, self.Y, self.X, self.Uo, self.x,
                 self.held, job.P, self.method if stiff else rk.METHOD_INDEX[self.method],
                 *self.solver, self.status, self.work, self.y_eval, self.yc)

@@ -31,7 +31,7 @@ def signals_at(job, t, x, u, k):
     ys, ui, held = np.zeros(plan.ny), np.zeros(plan.nu), np.zeros(plan.ny)
     U = np.asarray(u, dtype=float).reshape(-1, 1)
     with np.errstate(all="ignore"):  # evaluated where it failed: the error below says why
-        job.functions().evaluate(t, np.asarray(x, dtype=float), U, 0, job.P, ys, ui, held, k, ())
+        job.functions().evaluate(t, np.asarray(x, dtype=float), U, 0, job.P, ys, ui, held, k)
     return ui, ys
 
 

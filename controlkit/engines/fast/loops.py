@@ -1,21 +1,21 @@
 """The simulation loops and their rules, written once for every diagram and every mode.
 
 A loop here runs a diagram through its *evaluator*, four functions that know the
-diagram (``plan`` is theirs to read; the generated ones ignore it):
+diagram:
 
-``evaluate(t, x, U, col, P, ys, ui, held, k, plan) -> int``
+``evaluate(t, x, U, col, P, ys, ui, held, k) -> int``
     Every block's output into ``ys`` in evaluation order, each block's inputs into
     ``ui``. The diagram's inputs are ``U[:, col]``. At instant ``k >= 0`` a discrete
     block that fires (``k % every == 0``) computes its output and stores it in
     ``held``, one that does not gives ``held``; between instants (``k < 0``) every
     discrete block gives ``held``. Returns the index of a block whose output is NaN
     (a kernel's failure signal, block contract rule 6), else -1.
-``outputs(ys, ui, Y, j, plan)``
+``outputs(ys, ui, Y, j)``
     The diagram's outputs into ``Y[:, j]``.
-``update(t, x, ui, P, xn, k, plan, scratch)``
+``update(t, x, ui, P, xn, k, scratch)``
     ``xn``: the next state of the discrete and sampled blocks that fire at instant
     ``k`` (a copy of ``x`` elsewhere).
-``derivatives(t, x, ui, P, dx, plan)``
+``derivatives(t, x, ui, P, dx)``
     The continuous blocks' right-hand sides into ``dx`` at their states' places.
 
 The same loops serve a diagram's own module (:mod:`.codegen`) and the reference's
@@ -120,8 +120,8 @@ def _segment(T, t):
 
 
 @jit(inline=True)
-def discrete_run(evaluate, update, outputs, plan, T, x, U, P, Y, X, status, k0, k1, ys,
-                 ui, held, xn, scratch):
+def discrete_run(evaluate, update, outputs, T, x, U, P, Y, X, status, k0, k1, ys, ui, held,
+                 xn, scratch):
     """Steps ``k0 .. k1 - 1`` of a discrete diagram (python-control's order); ``x`` in/out.
 
     At step ``k``: the state is recorded, every output computed (a NaN stops the run with
@@ -132,23 +132,23 @@ def discrete_run(evaluate, update, outputs, plan, T, x, U, P, Y, X, status, k0, 
         t = T[k]
         for i in range(nx):
             X[i, k] = x[i]
-        failed = evaluate(t, x, U, k, P, ys, ui, held, k, plan)
+        failed = evaluate(t, x, U, k, P, ys, ui, held, k)
         if failed >= 0:
             status[0] = k
             status[1] = failed
             return
-        outputs(ys, ui, Y, k, plan)
-        update(t, x, ui, P, xn, k, plan, scratch)
+        outputs(ys, ui, Y, k)
+        update(t, x, ui, P, xn, k, scratch)
         for i in range(nx):
             x[i] = xn[i]
 
 
 @jit(inline=True)
-def _record(evaluate, outputs, plan, t, x, T, U, ubuf, P, ys, ui, held, j, Y, X, Uo):
+def _record(evaluate, outputs, t, x, T, U, ubuf, P, ys, ui, held, j, Y, X, Uo):
     """The diagram at evaluation time ``j`` between instants (discrete outputs held)."""
     interpolate(T, U, t, ubuf)
-    failed = evaluate(t, x, ubuf, 0, P, ys, ui, held, -1, plan)
-    outputs(ys, ui, Y, j, plan)
+    failed = evaluate(t, x, ubuf, 0, P, ys, ui, held, -1)
+    outputs(ys, ui, Y, j)
     for i in range(x.shape[0]):
         X[i, j] = x[i]
     for i in range(ubuf.shape[0]):
@@ -161,42 +161,40 @@ def diagram_rhs(t, y, args, out):
     """The integrator's right-hand side: the continuous states' derivatives at ``(t, y)``
     (``y`` at ``cidx`` of ``x``, whose other states are held; ``args`` as unpacked below).
     """
-    evaluate, derivatives, plan, x, xt, cidx, T, U, ubuf, P, ys, ui, held, dx = args
+    evaluate, derivatives, x, xt, cidx, T, U, ubuf, P, ys, ui, held, dx = args
     for i in range(x.shape[0]):
         xt[i] = x[i]
     for q in range(cidx.shape[0]):
         xt[cidx[q]] = y[q]
     interpolate(T, U, t, ubuf)
-    evaluate(t, xt, ubuf, 0, P, ys, ui, held, -1, plan)
-    derivatives(t, xt, ui, P, dx, plan)
+    evaluate(t, xt, ubuf, 0, P, ys, ui, held, -1)
+    derivatives(t, xt, ui, P, dx)
     for q in range(cidx.shape[0]):
         out[q] = dx[cidx[q]]
 
 
 @jit(inline=True)
-def continuous_run(evaluate, update, outputs, integrate, machine, plan, rhs_args, times,
-                   results, state, buffers, solver, ctrl, status):
-    """Instants up to ``k1`` of a diagram with continuous states; ``x``, ``held``, ``ctrl``
-    in/out. A call may stop early, the run to go on with the next call (see ``ctrl``).
+def continuous_run(evaluate, update, outputs, integrate, machine, rhs_args, times, results,
+                   state, buffers, solver, ctrl, status):
+    """The instants of a diagram with continuous states; ``x``, ``held``, ``ctrl`` in/out. A call may stop early, the run to go on with the next call (see ``ctrl``).
 
     The arguments come grouped in tuples (Python passes a call of more than 30
     arguments as ``*args``, which numba cannot paste in):
-    ``times = (instants, fire0, k1, t_final, T, U, t_eval, eval_instant)``,
+    ``times = (instants, t_final, T, U, t_eval, eval_instant)``,
     ``results = (Y, X, Uo)``, ``state = (x, P, held)``,
     ``buffers = (ys, ui, xn, scratch, xt, cidx, yc, y_eval, ubuf, work)``,
     ``solver = (method, rtol, atol, max_step, first_step)``.
-    ``instants[k]`` is the ``k``-th instant (``fire0 + k`` its number for the firing
-    rule); after the last one the integration runs to ``t_final``. ``integrate`` has the
+    ``instants[k]`` is the ``k``-th instant; after the last one the integration runs to
+    ``t_final``. ``integrate`` has the
     signature of :func:`controlkit.engines.fast.rk.solve_interval` (``machine`` is its
     first argument) and integrates :func:`diagram_rhs` with ``rhs_args``. ``ctrl``
     (:data:`NEXT_TIME`, :data:`INSTANT`, :data:`UNDER_WAY`, :data:`BUDGET`) says where
-    the run is: a call goes on from there and returns when the run reaches ``k1``,
-    fails, or has spent its budget of evaluations inside an interval
+    the run is: a call goes on from there and returns when the run is done, fails, or has spent its budget of evaluations inside an interval
     (``ctrl[UNDER_WAY] == 1``: call again). On failure ``status`` is ``[time index,
     block, 0, 0]`` for a NaN output, or ``[time index, INTEGRATOR_FAILED, code,
     steps]`` (``steps``: the projected steps of a run stopped as too stiff).
     """
-    instants, fire0, k1, t_final, T, U, t_eval, eval_instant = times
+    instants, t_final, T, U, t_eval, eval_instant = times
     Y, X, Uo = results
     x, P, held = state
     ys, ui, xn, scratch, xt, cidx, yc, y_eval, ubuf, work = buffers
@@ -207,28 +205,28 @@ def continuous_run(evaluate, update, outputs, integrate, machine, plan, rhs_args
     K = instants.shape[0]
     k = ctrl[INSTANT]
     ctrl[SPENT] = 0
-    while k < k1:
+    while k < K:
         if ctrl[BUDGET] > 0 and ctrl[SPENT] >= ctrl[BUDGET]:
             return
         t = instants[k]
         resume = ctrl[UNDER_WAY] == 1
         if not resume:
             interpolate(T, U, t, ubuf)
-            failed = evaluate(t, x, ubuf, 0, P, ys, ui, held, fire0 + k, plan)
+            failed = evaluate(t, x, ubuf, 0, P, ys, ui, held, k)
             if failed >= 0:
                 status[0] = ctrl[NEXT_TIME]
                 status[1] = failed
                 return
             i = ctrl[NEXT_TIME]
             while i < m and eval_instant[i] == k:
-                outputs(ys, ui, Y, i, plan)
+                outputs(ys, ui, Y, i)
                 for q in range(nx):
                     X[q, i] = x[q]
                 for q in range(ubuf.shape[0]):
                     Uo[q, i] = ubuf[q, 0]
                 i += 1
             ctrl[NEXT_TIME] = i
-            update(t, x, ui, P, xn, fire0 + k, plan, scratch)
+            update(t, x, ui, P, xn, k, scratch)
             for q in range(nx):
                 x[q] = xn[q]
         i = ctrl[NEXT_TIME]
@@ -240,8 +238,8 @@ def continuous_run(evaluate, update, outputs, integrate, machine, plan, rhs_args
             stop += 1
         if nc == 0 or not t1 > t:  # nothing to integrate: the signals at those times
             for j in range(i, stop):
-                failed = _record(evaluate, outputs, plan, t_eval[j], x, T, U, ubuf, P, ys,
-                                 ui, held, j, Y, X, Uo)
+                failed = _record(evaluate, outputs, t_eval[j], x, T, U, ubuf, P, ys, ui,
+                                 held, j, Y, X, Uo)
                 if failed >= 0:
                     status[0] = j
                     status[1] = failed
@@ -271,8 +269,8 @@ def continuous_run(evaluate, update, outputs, integrate, machine, plan, rhs_args
                 xt[q] = x[q]
             for q in range(nc):
                 xt[cidx[q]] = y_eval[j, q]
-            failed = _record(evaluate, outputs, plan, t_eval[j], xt, T, U, ubuf, P, ys,
-                             ui, held, j, Y, X, Uo)
+            failed = _record(evaluate, outputs, t_eval[j], xt, T, U, ubuf, P, ys, ui,
+                             held, j, Y, X, Uo)
             if failed >= 0:
                 status[0] = j
                 status[1] = failed
@@ -298,7 +296,7 @@ def instants_loop(evaluate, update, outputs, derivatives, machine, rhs_args, tim
     the evaluator as first-class functions (:func:`evaluator_signatures`): a new diagram
     compiles its own four functions, not the loop.
     """
-    continuous_run(evaluate, update, outputs, solve_interval, machine, (),
+    continuous_run(evaluate, update, outputs, solve_interval, machine,
                    (evaluate, derivatives) + rhs_args, times, results, state, buffers,
                    solver, ctrl, status)
 
@@ -306,7 +304,7 @@ def instants_loop(evaluate, update, outputs, derivatives, machine, rhs_args, tim
 def evaluator_signatures(numba, rhs_args, results, state, buffers):
     """The numba signatures of ``evaluate``, ``update``, ``outputs`` and ``derivatives``
     as :func:`instants_loop` calls them with these arrays (the times are floats, the
-    indexes integers, ``plan`` the empty tuple), and the types of its arguments with the
+    indexes integers), and the types of its arguments with the
     four functions as numba's ``FunctionType`` of each.
 
     Examples
@@ -315,7 +313,7 @@ def evaluator_signatures(numba, rhs_args, results, state, buffers):
     >>> if _jit.available():
     ...     numba = _jit.numba_module()
     ...     v = np.zeros(2)
-    ...     sigs, _ = evaluator_signatures(numba, ((), v, v), (np.zeros((1, 3)),) * 3,
+    ...     sigs, _ = evaluator_signatures(numba, (v, v), (np.zeros((1, 3)),) * 3,
     ...                                    (v, v, v), (v, v, v, v, v, np.zeros(2, np.int64),
     ...                                                v, np.zeros((3, 2)), np.zeros((1, 1)),
     ...                                                None))
@@ -325,13 +323,13 @@ def evaluator_signatures(numba, rhs_args, results, state, buffers):
     'int64'
     """
     types, typeof = numba.types, numba.typeof
-    f8, i8, plan = types.float64, types.int64, typeof(())
+    f8, i8 = types.float64, types.int64
     x, P, held = (typeof(a) for a in state)
     ys, ui, xn, scratch, _, _, _, _, ubuf, _ = (typeof(a) for a in buffers)
-    signatures = (i8(f8, x, ubuf, i8, P, ys, ui, held, i8, plan),  # evaluate
-                  types.none(f8, x, ui, P, xn, i8, plan, scratch),  # update
-                  types.none(ys, ui, typeof(results[0]), i8, plan),  # outputs
-                  types.none(f8, x, ui, P, typeof(rhs_args[-1]), plan))  # derivatives
+    signatures = (i8(f8, x, ubuf, i8, P, ys, ui, held, i8),  # evaluate
+                  types.none(f8, x, ui, P, xn, i8, scratch),  # update
+                  types.none(ys, ui, typeof(results[0]), i8),  # outputs
+                  types.none(f8, x, ui, P, typeof(rhs_args[-1])))  # derivatives
     return signatures, tuple(types.FunctionType(s) for s in signatures)
 
 
@@ -354,7 +352,7 @@ def scipy_loop(evaluate, update, outputs, derivatives, machine, rhs_args, times,
     >>> bool(np.array_equal(ours.outputs, theirs.outputs))
     True
     """
-    continuous_run(evaluate, update, outputs, scipy_interval, None, (),
+    continuous_run(evaluate, update, outputs, scipy_interval, None,
                    (evaluate, derivatives) + rhs_args, times, results, state, buffers,
                    solver, ctrl, status)
 
