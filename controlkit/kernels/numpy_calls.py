@@ -3,8 +3,8 @@ norms and traces in numpy's order, LU factorisations only as far as numba's LAPA
 numpy's bits, and the sign, larger, smaller and remainder of numbers with numpy's signed
 zeros; each with its numba implementation (:mod:`.user_calls` has Python's).
 
-The kernel modules written by :mod:`controlkit.engines.fast.usercode.writer` import these by
-the name of the package that re-exports them (``controlkit.engines.fast.usercode``).
+The kernel modules written by :mod:`controlkit.engines.fast.usercode.writer` import them
+from here.
 """
 
 from __future__ import annotations
@@ -411,10 +411,3 @@ def _overloads(numba):
     overload(numpy_floor_divide)(lambda a, b: lambda a, b: a // b)
     overload(numpy_divmod)(lambda a, b: lambda a, b: (a // b, a % b))
 
-
-# Generated kernel modules import these from the package (as user_calls's): their home.
-for _public in (numpy_sum, numpy_mean, numpy_norm, numpy_trace, numpy_solve, numpy_det,
-                numpy_slogdet, numpy_sign, numpy_maximum, numpy_minimum, numpy_mod,
-                numpy_floor_divide, numpy_divmod):
-    _public.__module__ = "controlkit.engines.fast.usercode"
-del _public

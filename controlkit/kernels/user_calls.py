@@ -3,8 +3,8 @@ into ``out``, numbers clipped, products and powers, integers of floats, and a mi
 parameter raising ``KeyError``; each with its numba implementation (numpy's are in
 :mod:`.numpy_calls`).
 
-The kernel modules written by :mod:`controlkit.engines.fast.usercode.writer` import these by
-the name of the package that re-exports them (``controlkit.engines.fast.usercode``).
+The kernel modules written by :mod:`controlkit.engines.fast.usercode.writer` import them
+from here.
 """
 
 from __future__ import annotations
@@ -359,13 +359,3 @@ def missing_parameter(key):
     """
     raise KeyError(key)
 
-
-
-# Generated kernel modules import these from the package (``from
-# controlkit.engines.fast.usercode import clip``), as they did before it was split, and
-# numba's cache refers to them by module: the package is their home, so that a kernel
-# module's text, and with it its name in the cache, does not depend on this file's name.
-for _public in (store, clip, matmul, missing_parameter, power, power_of_numbers, numpy_dot,
-                within_int64, python_sum):
-    _public.__module__ = "controlkit.engines.fast.usercode"
-del _public

@@ -14,36 +14,6 @@ Python for the numpy numbers ``x`` and ``u`` hold (where Python raises, for two 
 floats, the piece whose state goes non-finite is run again as Python, which raises).
 """
 
-from ....kernels.numpy_calls import (
-    numpy_det,
-    numpy_divmod,
-    numpy_floor_divide,
-    numpy_maximum,
-    numpy_mean,
-    numpy_minimum,
-    numpy_mod,
-    numpy_norm,
-    numpy_sign,
-    numpy_slogdet,
-    numpy_solve,
-    numpy_sum,
-    numpy_trace,
-)
-from ....kernels.user_calls import (
-    clip,
-    matmul,
-    missing_parameter,
-    numpy_dot,
-    power,
-    power_of_numbers,
-    python_sum,
-    store,
-    within_int64,
-)
 from .compiling import UserKernel, block_layout, compile_kernel, kernels_to_compile
 
-__all__ = ["UserKernel", "block_layout", "clip", "compile_kernel", "kernels_to_compile",
-           "matmul", "missing_parameter", "numpy_det", "numpy_divmod", "numpy_dot",
-           "numpy_floor_divide", "numpy_maximum", "numpy_mean", "numpy_minimum", "numpy_mod",
-           "numpy_norm", "numpy_sign", "numpy_slogdet", "numpy_solve", "numpy_sum",
-           "numpy_trace", "power", "power_of_numbers", "python_sum", "store", "within_int64"]
+__all__ = ["UserKernel", "block_layout", "compile_kernel", "kernels_to_compile"]

@@ -45,15 +45,13 @@ class Calls(ast.NodeTransformer):
                np.divmod: "_ck_divmod", builtins.sum: "_ck_python_sum"}
     #: Python's functions that make an integer of a float: their argument is checked first
     INTEGERS = (builtins.int, builtins.round, math.floor, math.ceil, math.trunc)
-    #: What the rewritten text calls, by the names the package re-exports
-    IMPORTS = {"_ck_matmul": "matmul", "_ck_dot": "numpy_dot", "_ck_sum": "numpy_sum",
-               "_ck_mean": "numpy_mean", "_ck_norm": "numpy_norm", "_ck_trace": "numpy_trace",
-               "_ck_solve": "numpy_solve", "_ck_det": "numpy_det",
-               "_ck_slogdet": "numpy_slogdet", "_ck_sign": "numpy_sign",
-               "_ck_maximum": "numpy_maximum", "_ck_minimum": "numpy_minimum",
-               "_ck_mod": "numpy_mod", "_ck_floor_divide": "numpy_floor_divide",
-               "_ck_divmod": "numpy_divmod", "_ck_int64": "within_int64",
-               "_ck_python_sum": "python_sum"}
+    #: What the rewritten text calls: ``_ck_<name>`` is ``<name>`` of
+    #: :mod:`controlkit.kernels.numpy_calls`, else ``<function>`` of :mod:`.user_calls`
+    NUMPY_CALLS = ("sum", "mean", "norm", "trace", "solve", "det", "slogdet", "sign",
+                   "maximum", "minimum", "mod", "floor_divide", "divmod")
+    USER_CALLS = {"_ck_matmul": "matmul", "_ck_dot": "numpy_dot", "_ck_int64": "within_int64",
+                  "_ck_python_sum": "python_sum", "_ck_missing": "missing_parameter",
+                  "store": "store"}
 
     def __init__(self, frozen):
         self.frozen = frozen

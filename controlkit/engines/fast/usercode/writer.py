@@ -253,13 +253,13 @@ def kernel_source(plan: Plan, layout: ParamLayout) -> str:
     if layout.entries not in written:
         written[layout.entries] = _functions(plan, layout)
     imports = ["import numpy as _np_",
-               "from controlkit.engines.fast.usercode import missing_parameter as _ck_missing",
-               "from controlkit.engines.fast.usercode import store",
-               *(f"from controlkit.engines.fast.usercode import {function} as {name}"
-                 for name, function in Calls.IMPORTS.items()),
+               *(f"from controlkit.kernels.numpy_calls import numpy_{name} as _ck_{name}"
+                 for name in Calls.NUMPY_CALLS),
+               *(f"from controlkit.kernels.user_calls import {function} as {name}"
+                 for name, function in Calls.USER_CALLS.items()),
                # where numpy raises arrays to powers with its own code, compiled code
                # cannot give its numbers: a float array's power is then Python's to run
-               "from controlkit.engines.fast.usercode import "
+               "from controlkit.kernels.user_calls import "
                f"{'power_of_numbers' if parts_from_c_library('power') else 'power'} "
                "as _ck_power"]
     lines = []
