@@ -3,7 +3,8 @@
 Every function raises a ``ValueError`` whose message names the offending
 argument and says what is allowed, so that a student who mistypes a
 parameter is told which one and why; :func:`install_hint` says what to install
-when an optional package is missing; :func:`warn_caller` warns at the user's own line.
+when an optional package is missing; :func:`warn_caller` warns at the user's own line;
+:func:`not_own` says why a folder is not the user's own (the fast engine's store).
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from __future__ import annotations
 import inspect
 import math
 import os
+import stat
 import warnings
 from collections.abc import Callable
 from pathlib import Path
@@ -360,3 +362,62 @@ def folder(name: str, path) -> Path:
     if not os.access(existing, os.W_OK | os.X_OK):
         raise ValueError(f"cannot write to {name} {str(found)!r}: {existing} is not writable")
     return found
+
+
+def not_own(path: Path) -> str | None:
+    """Why ``path`` is not the user's own folder (None when it is).
+
+    It must be a folder, not a link, owned by the user and writable by nobody else (the
+    user's private group allowed, as a umask of 002 leaves folders); every folder above
+    it owned by the user or root and not writable by others unless sticky (as ``/tmp``),
+    so that nobody else can rename it away; and every link on the way owned by the user
+    or root, in such a folder, so that nobody else can point it elsewhere.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> shared = Path(tempfile.mkdtemp())
+    >>> shared.chmod(0o777)
+    >>> not_own(shared).endswith("can be written by others (mode 777)")
+    True
+    """
+    if not hasattr(os, "getuid"):  # Windows: the profile folder's ACLs decide
+        return None
+    uid = os.getuid()
+    path = Path(os.path.abspath(path))
+    info = os.lstat(path)
+    if stat.S_ISLNK(info.st_mode):
+        return f"{path} is a link (give the folder itself)"
+    if not stat.S_ISDIR(info.st_mode):
+        return f"{path} is not a folder"
+    if info.st_uid != uid:
+        return f"{path} is owned by another user (uid {info.st_uid})"
+    if _writable_by_others(info):
+        return f"{path} can be written by others (mode {stat.S_IMODE(info.st_mode):o})"
+    # every link on the written path, and every folder above the folder it leads to
+    for prefix in list(path.parents)[::-1]:
+        link = os.lstat(prefix)
+        if stat.S_ISLNK(link.st_mode) and link.st_uid not in (uid, 0):
+            return f"{prefix} is a link owned by another user (uid {link.st_uid})"
+    for parent in Path(os.path.realpath(path)).parents:
+        info = os.stat(parent)
+        if info.st_uid not in (uid, 0):
+            return f"{parent} is owned by another user (uid {info.st_uid})"
+        if _writable_by_others(info) and not info.st_mode & stat.S_ISVTX:
+            return (f"{parent} can be written by others (mode "
+                    f"{stat.S_IMODE(info.st_mode):o}), who could replace the folder")
+    return None
+
+
+def _writable_by_others(info) -> bool:
+    if info.st_mode & stat.S_IWOTH:
+        return True
+    if not info.st_mode & stat.S_IWGRP:
+        return False
+    try:  # the user's private group (umask 002) is not "others"
+        import grp
+
+        group = grp.getgrgid(info.st_gid)
+        return not (info.st_gid == os.getgid() and not group.gr_mem)
+    except (ImportError, KeyError):
+        return True

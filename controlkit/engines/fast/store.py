@@ -8,8 +8,8 @@ Python, numpy and scipy: an edit or an upgrade makes new modules, never a stale 
 are written whole (again if found changed); a compiled module has a record (``<name>.json``).
 
 Code is imported from the store only if the folder, and numba's cache folder
-(``NUMBA_CACHE_DIR``, if set), is the user's own (:func:`not_own`), checked at each use;
-else the engine compiles nothing and says why. ``CONTROLKIT_CACHE_DIR`` sets the folder
+(``NUMBA_CACHE_DIR``, if set), is the user's own (:func:`controlkit._checks.not_own`),
+checked at each use; else the engine compiles nothing and says why. ``CONTROLKIT_CACHE_DIR`` sets the folder
 (default ``~/.cache/controlkit/store``).
 """
 
@@ -20,7 +20,6 @@ import hashlib
 import importlib.util
 import json
 import os
-import stat
 import sys as pysys
 import threading
 import time
@@ -31,6 +30,7 @@ import numpy as np
 import scipy
 
 from ... import _jit
+from ..._checks import not_own
 
 #: Where compiled code is kept (see the module's description).
 CACHE_DIR = Path(os.environ.get("CONTROLKIT_CACHE_DIR",
@@ -54,7 +54,8 @@ def folder() -> Path:
     Raises
     ------
     StoreRefused
-        When the folder (or ``NUMBA_CACHE_DIR``) fails the check of :func:`not_own`.
+        When the folder (or ``NUMBA_CACHE_DIR``) fails the check of
+        :func:`controlkit._checks.not_own`.
 
     Examples
     --------
@@ -78,65 +79,6 @@ def folder() -> Path:
         raise StoreRefused(f"controlkit compiles nothing: {why} (set CONTROLKIT_CACHE_DIR "
                            f"to a folder of your own)")
     return path
-
-
-def not_own(path: Path) -> str | None:
-    """Why ``path`` is not the user's own folder (None when it is).
-
-    It must be a folder, not a link, owned by the user and writable by nobody else (the
-    user's private group allowed, as a umask of 002 leaves folders); every folder above
-    it owned by the user or root and not writable by others unless sticky (as ``/tmp``),
-    so that nobody else can rename it away; and every link on the way owned by the user
-    or root, in such a folder, so that nobody else can point it elsewhere.
-
-    Examples
-    --------
-    >>> import tempfile
-    >>> shared = Path(tempfile.mkdtemp())
-    >>> shared.chmod(0o777)
-    >>> not_own(shared).endswith("can be written by others (mode 777)")
-    True
-    """
-    if not hasattr(os, "getuid"):  # Windows: the profile folder's ACLs decide
-        return None
-    uid = os.getuid()
-    path = Path(os.path.abspath(path))
-    info = os.lstat(path)
-    if stat.S_ISLNK(info.st_mode):
-        return f"{path} is a link (give the folder itself)"
-    if not stat.S_ISDIR(info.st_mode):
-        return f"{path} is not a folder"
-    if info.st_uid != uid:
-        return f"{path} is owned by another user (uid {info.st_uid})"
-    if _writable_by_others(info):
-        return f"{path} can be written by others (mode {stat.S_IMODE(info.st_mode):o})"
-    # every link on the written path, and every folder above the folder it leads to
-    for prefix in list(path.parents)[::-1]:
-        link = os.lstat(prefix)
-        if stat.S_ISLNK(link.st_mode) and link.st_uid not in (uid, 0):
-            return f"{prefix} is a link owned by another user (uid {link.st_uid})"
-    for parent in Path(os.path.realpath(path)).parents:
-        info = os.stat(parent)
-        if info.st_uid not in (uid, 0):
-            return f"{parent} is owned by another user (uid {info.st_uid})"
-        if _writable_by_others(info) and not info.st_mode & stat.S_ISVTX:
-            return (f"{parent} can be written by others (mode "
-                    f"{stat.S_IMODE(info.st_mode):o}), who could replace the folder")
-    return None
-
-
-def _writable_by_others(info) -> bool:
-    if info.st_mode & stat.S_IWOTH:
-        return True
-    if not info.st_mode & stat.S_IWGRP:
-        return False
-    try:  # the user's private group (umask 002) is not "others"
-        import grp
-
-        group = grp.getgrgid(info.st_gid)
-        return not (info.st_gid == os.getgid() and not group.gr_mem)
-    except (ImportError, KeyError):
-        return True
 
 
 #: The source files of controlkit's whose code a compiled module can hold, by its kind.
