@@ -1,4 +1,4 @@
-"""A diagram reduced to arrays, which the code generator writes out.
+"""A diagram reduced to numbers (a row per block), which the code generator writes out.
 
 :func:`make_plan` takes the blocks of a diagram (their kernels and offsets, from
 :func:`.tiers.blocks_of`) and its evaluation order, and describes each block as numbers:
