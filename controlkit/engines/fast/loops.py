@@ -176,7 +176,8 @@ def diagram_rhs(t, y, args, out):
 @jit(inline=True)
 def continuous_run(evaluate, update, outputs, integrate, machine, rhs_args, times, results,
                    state, buffers, solver, ctrl, status):
-    """The instants of a diagram with continuous states; ``x``, ``held``, ``ctrl`` in/out. A call may stop early, the run to go on with the next call (see ``ctrl``).
+    """The instants of a diagram with continuous states; ``x``, ``held``, ``ctrl`` in/out.
+    A call may stop early, the run to go on with the next call (see ``ctrl``).
 
     The arguments come grouped in tuples (Python passes a call of more than 30
     arguments as ``*args``, which numba cannot paste in):
@@ -185,14 +186,15 @@ def continuous_run(evaluate, update, outputs, integrate, machine, rhs_args, time
     ``buffers = (ys, ui, xn, scratch, xt, cidx, yc, y_eval, ubuf, work)``,
     ``solver = (method, rtol, atol, max_step, first_step)``.
     ``instants[k]`` is the ``k``-th instant; after the last one the integration runs to
-    ``t_final``. ``integrate`` has the
-    signature of :func:`controlkit.engines.fast.rk.solve_interval` (``machine`` is its
-    first argument) and integrates :func:`diagram_rhs` with ``rhs_args``. ``ctrl``
-    (:data:`NEXT_TIME`, :data:`INSTANT`, :data:`UNDER_WAY`, :data:`BUDGET`) says where
-    the run is: a call goes on from there and returns when the run is done, fails, or has spent its budget of evaluations inside an interval
-    (``ctrl[UNDER_WAY] == 1``: call again). On failure ``status`` is ``[time index,
-    block, 0, 0]`` for a NaN output, or ``[time index, INTEGRATOR_FAILED, code,
-    steps]`` (``steps``: the projected steps of a run stopped as too stiff).
+    ``t_final``. ``integrate`` has the signature of
+    :func:`controlkit.engines.fast.rk.solve_interval` (``machine`` is its first argument)
+    and integrates :func:`diagram_rhs` with ``rhs_args``. ``ctrl`` (:data:`NEXT_TIME`,
+    :data:`INSTANT`, :data:`UNDER_WAY`, :data:`BUDGET`) says where the run is: a call goes
+    on from there and returns when the run is done, fails, or has spent its budget of
+    evaluations inside an interval (``ctrl[UNDER_WAY] == 1``: call again). On failure
+    ``status`` is ``[time index, block, 0, 0]`` for a NaN output, or ``[time index,
+    INTEGRATOR_FAILED, code, steps]`` (``steps``: the projected steps of a run stopped as
+    too stiff).
     """
     instants, t_final, T, U, t_eval, eval_instant = times
     Y, X, Uo = results

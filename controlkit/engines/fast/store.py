@@ -9,8 +9,8 @@ are written whole (again if found changed); a compiled module has a record (``<n
 
 Code is imported from the store only if the folder, and numba's cache folder
 (``NUMBA_CACHE_DIR``, if set), is the user's own (:func:`controlkit._checks.not_own`),
-checked at each use; else the engine compiles nothing and says why. ``CONTROLKIT_CACHE_DIR`` sets the folder
-(default ``~/.cache/controlkit/store``).
+checked at each use; else the engine compiles nothing and says why.
+``CONTROLKIT_CACHE_DIR`` sets the folder (default ``~/.cache/controlkit/store``).
 """
 
 from __future__ import annotations
