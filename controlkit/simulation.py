@@ -268,6 +268,13 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
     return _python_control(sys, T, U, X0, options)
 
 
+def _numpy_raises() -> bool:
+    """Whether numpy is told to raise, call or log on a floating-point error (``np.seterr``,
+    ``np.errstate``): the blocks' functions must then run as python-control runs them,
+    under it (the engine's Python run keeps them quiet, compiled code cannot raise)."""
+    return any(mode not in ("ignore", "warn") for mode in np.geterr().values())
+
+
 def _python_control_s_own(sys, T, options) -> bool:
     """Whether the call's arguments take a form python-control answers in its own way
     (an error, or integrating backwards), which the engine, whose time points increase,
@@ -281,7 +288,7 @@ def _python_control_s_own(sys, T, options) -> bool:
     python-control's own run answers them exactly."""
     if getattr(sys, "nstates", None) == 0 and sys.isdtime(strict=True):
         return True
-    if any(mode not in ("ignore", "warn") for mode in np.geterr().values()):
+    if _numpy_raises():
         return True
     if "controlkit.blocks.sampling" in _sys.modules:  # (imported for a grid)
         from .blocks.sampling import TimeGrid  # (waits for a thread still importing it)
@@ -395,7 +402,7 @@ def _many(sys, T, U, X0, runs, engine, options, compile):
 
     X0s, params_list = runs
     options = dict(options, params=None)
-    if engine == "fast":
+    if engine == "fast" and not _numpy_raises():  # (else each run on python-control)
         from .engines.fast import many
         from .engines.fast.tiers import as_interconnect
 
@@ -431,7 +438,7 @@ def _sampled_data_response(sys, T, U, X0, engine, options, compile):
     from .engines import reference
     from .engines.contract import python_control_arguments, response, result_flags
 
-    if engine == "fast":
+    if engine == "fast" and not _numpy_raises():  # (else the reference, which raises)
         fast = _fast_response(sys, T, U, X0, options, "controlkit's Python reference",
                               compile=compile)
         if fast is not None:

@@ -760,6 +760,27 @@ def test_numpy_told_to_raise_raises_as_in_python_control():
     assert np.array_equal(ours.outputs, expected.outputs)
 
 
+def test_numpy_told_to_raise_raises_in_many_runs_and_sampled_data_diagrams():
+    # many runs go run by run to python-control, a sampled-data diagram to controlkit's
+    # reference: each calls the blocks' functions under numpy's mode, as python-control does
+    T = np.linspace(0.0, 1.0, 11)
+    controller = ct.nlsys(None, lambda t, x, u, p: np.exp(800.0 * u - 700.0),
+                          inputs=1, outputs=1, dt=0.1, name="controller")
+    plant = ct.nlsys(lambda t, x, u, p: -x + u, lambda t, x, u, p: x, inputs=1, outputs=1,
+                     states=1, name="plant")
+    mixed = controlkit.interconnect([plant, controller], inplist=[], outlist=["plant.y[0]"],
+                                    connections=[["controller.u[0]", "plant.y[0]"],
+                                                 ["plant.u[0]", "controller.y[0]"]])
+    with np.errstate(over="raise"):
+        with pytest.raises(FloatingPointError, match="overflow"):
+            controlkit.input_output_response(_sigmoid_loop(), T, 0.0, [[0.0], [0.1]])
+        with pytest.raises(FloatingPointError, match="overflow"):
+            controlkit.input_output_response(mixed, T, 0.0, [1.0])
+    with np.errstate(over="ignore"):  # numpy's quiet: the engine's answer, a divergence
+        with pytest.raises(FloatingPointError, match="'(controller|plant)'"):
+            controlkit.input_output_response(mixed, T, 0.0, [1.0])
+
+
 @pytest.mark.parametrize("module", [np, math], ids=["numpy", "math"])
 def test_a_tanh_gives_python_control_s_last_bits(module):
     # numba computes np.tanh with the C library's tanh, as math.tanh is; numpy has code of
