@@ -1307,3 +1307,67 @@ def test_a_block_whose_output_moves_with_its_input_only_far_out_is_computed_afte
         for compile in (True, False):
             ours = controlkit.input_output_response(loop, T, 2.0, [0.0], compile=compile)
             np.testing.assert_array_equal(ours.outputs, ref.outputs)
+
+
+def _heading_of_a_p_controller(interconnect):
+    # a P controller at its target outputs -1.0 * 0.0 = -0.0; the heading block reads it
+    position = ct.nlsys(lambda t, x, u, p: [x[0] + 0.1 * u[0], x[1] + 0.1 * u[1]],
+                        lambda t, x, u, p: [x[0], x[1]], inputs=["vx", "vy"],
+                        outputs=["px", "py"], states=2, dt=0.1, name="position")
+    control = ct.nlsys(None, lambda t, x, u, p: [-1.0 * u[0], -1.0 * (u[1] - 1.0)],
+                       inputs=["px", "py"], outputs=["vx", "vy"], dt=0.1, name="control")
+    heading = ct.nlsys(None, lambda t, x, u, p: math.atan2(u[1], u[0]), inputs=["vx", "vy"],
+                       outputs="heading", dt=0.1, name="pointing")
+    return interconnect([position, control, heading], inputs=[],
+                        outputs=["px", "py", "heading"]), [1.0, 1.0], 0.0
+
+
+def _angle_after_a_dead_zone(interconnect):
+    # np.sign(v) * max(|v| - 0.5, 0) is -0.0 for a small negative v
+    dead_zone = ct.nlsys(None, lambda t, x, u, p: np.sign(u[0]) * max(abs(u[0]) - 0.5, 0.0),
+                         inputs="v", outputs="w", name="dead_zone")
+    angle = ct.nlsys(lambda t, x, u, p: [math.atan2(u[0], -1.0) - x[0]],
+                     lambda t, x, u, p: x[0], inputs="w", outputs="a", states=1, name="angle")
+    return interconnect([dead_zone, angle], inputs="v", outputs=["w", "a"]), [0.0], -0.2
+
+
+def _friction_of_a_negated_step(interconnect, dt):
+    # U = -step is -0.0 before the step: python-control's block reads 0.0
+    friction = ct.nlsys(None, lambda t, x, u, p: [math.copysign(0.3, u[0]),
+                                                  math.atan2(u[0], -1.0)],
+                        inputs="F", outputs=["friction", "heading"], dt=dt, name="contact")
+    speed = ct.nlsys(lambda t, x, u, p: [x[0] + 0.1 * u[0]] if dt else [u[0]],
+                     lambda t, x, u, p: x[0], inputs="friction", outputs="v", states=1,
+                     dt=dt, name="speed")
+    return interconnect([friction, speed], inputs="F", outputs=["friction", "heading", "v"]), \
+        [0.0], "negated step"
+
+
+def _lone_input(interconnect):
+    # one block input and one diagram input: numpy's dot multiplies them as numbers and
+    # python-control's sweep settles at once, so the block reads the -0.0 it is given
+    block = ct.nlsys(lambda t, x, u, p: [math.atan2(u[0], -1.0) - x[0]],
+                     lambda t, x, u, p: [x[0], math.copysign(1.0, u[0])], inputs="u",
+                     outputs=["a", "sign"], states=1, name="block")
+    return interconnect([block], inputs="u", outputs=["a", "sign"]), [0.0], -0.0
+
+
+@pytest.mark.parametrize("build", [
+    _heading_of_a_p_controller, _angle_after_a_dead_zone, _lone_input,
+    lambda ic: _friction_of_a_negated_step(ic, 0),
+    lambda ic: _friction_of_a_negated_step(ic, 0.1)],
+    ids=["P controller at target", "dead zone", "lone input", "negated step",
+         "negated step, discrete"])
+def test_a_zero_s_sign_reaches_a_block_as_in_python_control(build):
+    # python-control forms block inputs as numpy's products, which sum from 0.0 (a -0.0
+    # signal arrives as 0.0), and atan2 tells the two zeros apart by 2 pi
+    sys, X0, U = build(ct.interconnect)
+    T = np.arange(200) * 0.1
+    if isinstance(U, str):
+        U = -np.where(T > 1.0, 1.0, 0.0)
+    expected = ct.input_output_response(sys, T, U, X0)
+    for compile in (False, True):
+        ours = controlkit.input_output_response(build(controlkit.interconnect)[0], T, U, X0,
+                                                compile=compile)
+        assert np.array_equal(ours.outputs, expected.outputs), compile
+        assert np.array_equal(np.signbit(ours.outputs), np.signbit(expected.outputs)), compile

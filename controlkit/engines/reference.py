@@ -154,7 +154,7 @@ class _Sweep:
 
     def evaluate(self, t, x, U, col, P, ys, ui, held, k):
         sys, u = self.sys, U[:, col]
-        ulist = sys.input_map @ u
+        ulist = np.dot(sys.input_map, u)  # (python-control's products, to the zero's sign)
         for _ in range(len(self.blocks) + 1):
             for s, xi, ui_, yi, local, every in self.blocks:
                 fresh = not every or (k >= 0 and k % every == 0)
@@ -162,7 +162,7 @@ class _Sweep:
                           .reshape(-1) if fresh else held[yi])
                 if every and fresh:
                     held[yi] = ys[yi]
-            new = sys.connect_map @ ys + sys.input_map @ u
+            new = sys.connect_map @ ys + np.dot(sys.input_map, u)
             if np.array_equal(new, ulist):
                 ui[:] = ulist
                 return -1

@@ -51,11 +51,14 @@ def numbers(value, numpy="np") -> str:
     return repr(value).replace("inf", f"{numpy}.inf").replace("nan", f"{numpy}.nan")
 
 
-def _terms(coefficients, name):
-    """``coefficients @ v`` as the sum of its terms, ``v[c]`` named ``name(c)``."""
+def _terms(coefficients, name, from_zero=True):
+    """``coefficients @ v`` as the sum of its terms, ``v[c]`` named ``name(c)``: from
+    ``0.0``, as numpy's matrix products sum (a ``-0.0`` term gives ``0.0``, which
+    ``atan2`` or ``copysign`` tell apart), or, ``from_zero=False``, the terms alone (numpy's
+    ``dot`` of a 1 x 1 matrix, a product of numbers)."""
     terms = [name(c) if g == 1.0 else f"{numbers(float(g))} * {name(c)}"
              for c, g in enumerate(coefficients) if g != 0.0]
-    return " + ".join(terms) if terms else "0.0"
+    return " + ".join(["0.0"] * (from_zero or not terms) + terms)
 
 
 #: The largest LTI block written out term by term (products in its state and output
@@ -292,12 +295,18 @@ def generate(plan, held_logic):
         return known.get((array, i), f"{array}[{i}]")
 
     exact = plan.inputs_exact
+    # python-control's block inputs are ``connect_map @ ys + np.dot(input_map, u)``, until
+    # they settle: from 0.0, but for one block input and one diagram input, which numpy's
+    # dot multiplies as numbers and which settles at once, keeping a -0.0 input
+    lone_input = plan.sys.input_map.shape == (1, 1)
 
     def gather(b):
         lines = []
         for r in range(rows[b].U0, rows[b].U0 + rows[b].NU):
             value = (_terms(inputs[r], lambda c: ref("ys", c) if c < ny
-                            else f"U[{c - ny}, col]") if exact[r] else
+                            else f"U[{c - ny}, col]",
+                            from_zero=not (lone_input and not inputs[r, :ny].any()))
+                     if exact[r] else
                      f"{_product('_CONNECT', plan.sys.connect_map)}(ys)[{r}] + "
                      f"{_product('_INPUT_MAP', plan.sys.input_map)}(U[:, col].copy())[{r}]")
             lines += [f"_u{r} = {value}", f"ui[{r}] = _u{r}"]
