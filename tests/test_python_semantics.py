@@ -1352,12 +1352,19 @@ def _lone_input(interconnect):
     return interconnect([block], inputs="u", outputs=["a", "sign"]), [0.0], -0.0
 
 
+def _single_system(interconnect):
+    # no interconnect: python-control hands the system its inputs as given, -0.0 too
+    return ct.nlsys(lambda t, x, u, p: [math.atan2(u[0], -1.0) - x[0]],
+                    lambda t, x, u, p: [x[0], math.copysign(1.0, u[1])], inputs=2,
+                    outputs=2, states=1, name="single"), [0.0], -0.0
+
+
 @pytest.mark.parametrize("build", [
-    _heading_of_a_p_controller, _angle_after_a_dead_zone, _lone_input,
+    _heading_of_a_p_controller, _angle_after_a_dead_zone, _lone_input, _single_system,
     lambda ic: _friction_of_a_negated_step(ic, 0),
     lambda ic: _friction_of_a_negated_step(ic, 0.1)],
-    ids=["P controller at target", "dead zone", "lone input", "negated step",
-         "negated step, discrete"])
+    ids=["P controller at target", "dead zone", "lone input", "single system",
+         "negated step", "negated step, discrete"])
 def test_a_zero_s_sign_reaches_a_block_as_in_python_control(build):
     # python-control forms block inputs as numpy's products, which sum from 0.0 (a -0.0
     # signal arrives as 0.0), and atan2 tells the two zeros apart by 2 pi

@@ -163,8 +163,10 @@ def _output_lines(plan, column, ref):
     exact in any order is made as python-control makes it (:func:`_maps`)."""
     ny, exact = plan.ny, plan.outputs_exact
     output_map = np.asarray(plan.sys.output_map, dtype=float)
+    single = getattr(plan.sys, "single_system", False)
     return [f"Y[{r}, {column}] = " + (_terms(output_map[r], lambda c: ref("ys", c) if c < ny
-                                             else ref("ui", c - ny)) if exact[r] else
+                                             else ref("ui", c - ny), from_zero=not single)
+                                      if exact[r] else
                                       f"{_product('_OUTPUT_MAP', plan.sys.output_map)}("
                                       f"np.concatenate((ys, ui)))[{r}]")
             for r in range(plan.sys.noutputs)]
@@ -297,8 +299,10 @@ def generate(plan, held_logic):
     exact = plan.inputs_exact
     # python-control's block inputs are ``connect_map @ ys + np.dot(input_map, u)``, until
     # they settle: from 0.0, but for one block input and one diagram input, which numpy's
-    # dot multiplies as numbers and which settles at once, keeping a -0.0 input
-    lone_input = plan.sys.input_map.shape == (1, 1)
+    # dot multiplies as numbers and which settles at once, keeping a -0.0 input; and a
+    # single system's are the inputs given
+    lone_input = plan.sys.input_map.shape == (1, 1) or getattr(plan.sys, "single_system",
+                                                               False)
 
     def gather(b):
         lines = []

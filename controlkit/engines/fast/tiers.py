@@ -288,8 +288,12 @@ def as_interconnect(sys):
                         ("states", sys.nstates)):
         if count is None:
             raise UnsupportedSystem(f"system {sys.name!r} does not declare its number of {what}")
-    return ct.interconnect([sys], inputs=sys.input_labels, outputs=sys.output_labels,
-                           name=sys.name, check_unused=False)
+    wrapped = ct.interconnect([sys], inputs=sys.input_labels, outputs=sys.output_labels,
+                              name=sys.name, check_unused=False)
+    # python-control hands a single system its inputs and outputs as they are, and an
+    # interconnect's blocks numpy's products of its maps (a -0.0 becomes 0.0): codegen asks
+    wrapped.single_system = True
+    return wrapped
 
 
 def blocks_of(sys, params=None, *, compiled=False):
