@@ -257,9 +257,17 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
         if compile is None and not _compiled_lone(sys) \
                 and not engines.fast_start_pays(sys, np.size(T), _LONGEST[0]):
             return _python_control(sys, T, U, X0, options)
-        fast = _fast_response(sys, T, U, X0, options, "python-control",
-                              advice=" (controlkit.explain(sys) lists every block's tier)",
-                              compile=compile)
+        from ._checks import Diverged  # (as the engine, about to run, imports it)
+
+        try:
+            fast = _fast_response(sys, T, U, X0, options, "python-control",
+                                  advice=" (controlkit.explain(sys) lists every block's tier)",
+                                  compile=compile)
+        except Diverged as diverged:
+            if not sys.isdtime(strict=True) and np.shape(getattr(sys, "connect_map", ()))[:1] \
+                    not in ((), (0,)):
+                raise  # (python-control's solver, or its sweep of the signals, stops too)
+            return _python_control_s_divergence(diverged, sys, T, U, X0, options)
         if fast is not None:
             if getattr(fast, "engine_mode", None) == "compiled" and \
                     getattr(sys, "syslist", None) is None:
@@ -348,6 +356,22 @@ def _python_control(sys, T, U, X0, options):
         resp = ct.input_output_response(sys, T, U, X0, **options)
     _LONGEST[0] = max(_LONGEST[0], time.perf_counter() - start)
     resp.engine_mode = "python-control"
+    return resp
+
+
+def _python_control_s_divergence(diverged, sys, T, U, X0, options):
+    """A run the engine stopped on a non-finite number, where python-control's may go on
+    (a single system, a diagram of blocks without inputs, a discrete state no output
+    shows): python-control's answer, infinities and NaN included. Where a block input
+    reads the number, its sweep of the signals cannot settle (its solver stops on a
+    continuous one, the caller's check) and it raises a ``RuntimeError`` ("algebraic loop
+    detected"), which the engine's error, naming the block, says better."""
+    try:
+        resp = _python_control(sys, T, U, X0, options)
+    except RuntimeError as error:
+        raise diverged from error
+    _warn(f"fast engine not used, running python-control instead: {diverged}; "
+          "python-control's run goes on with non-finite numbers")
     return resp
 
 

@@ -1250,11 +1250,37 @@ def test_a_single_system_whose_state_overflows_answers_as_python_control_does():
     with np.errstate(all="ignore"):
         ref = ct.input_output_response(cubic, T, 1.0, 1.0)
         with pytest.warns(UserWarning, match="running python-control instead: the loop "
-                                             "diverged at t = 6 s"):
+                                             "diverged at t = 6 s.*goes on"):
             ours = controlkit.input_output_response(cubic, T, 1.0, 1.0, compile=False)
     assert ours.engine_mode == "python-control"
     np.testing.assert_array_equal(ours.outputs, ref.outputs)
     assert np.isinf(ours.outputs[6])
+
+
+@pytest.mark.parametrize("blocks, X0", [
+    ([ct.nlsys(lambda t, x, u, p: [2.0 * x[0]], lambda t, x, u, p: x[0], inputs=0,
+               outputs="y", states=1, dt=1, name="doubling")], [1.0]),
+    ([ct.nlsys(lambda t, x, u, p: [2.0 * x[0], 0.5 * x[1] + u[0]], lambda t, x, u, p: x[1],
+               inputs="u", outputs="y", states=2, dt=1, name="unseen_mode")], [1.0, 0.0])],
+    ids=["blocks without inputs", "a state no output shows"])
+def test_an_interconnect_whose_state_overflows_unread_answers_as_python_control(blocks, X0):
+    # python-control's sweep stops on a non-finite signal a block input reads; where none
+    # reads it, its run goes on with inf, and returns them: so does controlkit's call
+    T = np.arange(1100.0)  # 2 ** 1024 overflows
+    inputs = [] if not blocks[0].ninputs else "u"
+    with np.errstate(all="ignore"):
+        ref = ct.input_output_response(ct.interconnect(blocks, inputs=inputs, outputs="y"),
+                                       T, 0.0, X0)
+        for compile in (False, True):
+            with pytest.warns(UserWarning, match="the loop diverged at t = 1024 s.*"
+                                                 "python-control's run goes on"):
+                ours = controlkit.input_output_response(
+                    ct.interconnect(blocks, inputs=inputs, outputs="y"), T, 0.0, X0,
+                    compile=compile)
+            assert ours.engine_mode == "python-control"
+            np.testing.assert_array_equal(ours.states, ref.states)
+            np.testing.assert_array_equal(ours.outputs, ref.outputs)
+    assert np.isinf(ref.states[0, -1])
 
 
 def test_a_user_output_that_becomes_infinite_stops_an_interconnect_as_python_control():
