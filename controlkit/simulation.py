@@ -409,7 +409,8 @@ def _runs(sys, X0, params):
                          f"number of runs, or one of them a single value for every run")
     params_list = list(params) * (count // len(params)) if listed else [params] * count
     if many_states:
-        X0s = np.broadcast_to(np.asarray(states, dtype=float), (count, sys.nstates))
+        X0s = np.array(np.broadcast_to(np.asarray(states, dtype=float), (count, sys.nstates)))
+        # (a writable copy: compiled code made for one kind of array serves the next call)
     else:
         X0s = None  # the single initial state, read as python-control reads it
     return X0s, params_list
@@ -427,6 +428,7 @@ def _many(sys, T, U, X0, runs, engine, options, compile):
     X0s, params_list = runs
     options = dict(options, params=None)
     if engine == "fast" and not _numpy_raises():  # (else each run on python-control)
+        from ._checks import Diverged
         from .engines.fast import many
         from .engines.fast.tiers import as_interconnect
 
@@ -440,17 +442,18 @@ def _many(sys, T, U, X0, runs, engine, options, compile):
                                               compile=compile, **solver)
         except UnsupportedSystem as reason:
             _warn(f"fast engine not used, running python-control instead: {reason}")
-        else:
-            for r, error in enumerate(errors):
-                if error is not None:
-                    raise type(error)(f"run {r}: {error}") from error
-            listed = TimeResponseList([
-                response(sys, resp.t, resp.y, resp.x, resp.u,
-                         **result_flags(dict(options, params=params_list[r])))
-                for r, resp in enumerate(responses)])
-            for mine, theirs in zip(listed, responses, strict=True):
-                mine.engine_mode = theirs.engine_mode
-            return listed
+        else:  # (a run that diverged is answered run by run, below, as a single run is)
+            if not any(isinstance(error, Diverged) for error in errors):
+                for r, error in enumerate(errors):
+                    if error is not None:
+                        raise type(error)(f"run {r}: {error}") from error
+                listed = TimeResponseList([
+                    response(sys, resp.t, resp.y, resp.x, resp.u,
+                             **result_flags(dict(options, params=params_list[r])))
+                    for r, resp in enumerate(responses)])
+                for mine, theirs in zip(listed, responses, strict=True):
+                    mine.engine_mode = theirs.engine_mode
+                return listed
     return TimeResponseList([
         input_output_response(sys, T, U, X0s[r] if X0s is not None else X0, engine=engine,
                               compile=compile, **dict(options, params=p))

@@ -1283,6 +1283,36 @@ def test_an_interconnect_whose_state_overflows_unread_answers_as_python_control(
     assert np.isinf(ref.states[0, -1])
 
 
+def test_many_runs_one_of_which_overflows_answer_as_python_control_run_by_run():
+    # the run that overflows, in a single system, goes on in python-control with inf: many
+    # runs answer it as single runs do (they raised "run 1: the loop diverged")
+    system = ct.nlsys(lambda t, x, u, p: [p["a"] * x[0] + u[0]], lambda t, x, u, p: [x[0]],
+                      inputs=1, outputs=1, states=1, dt=1, name="scaled", params={"a": 0.5})
+    T, runs = np.arange(5.0), [{"a": 0.5}, {"a": 1e200}]
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        expected = [ct.input_output_response(system, T, 1.0, [1.0], params=p) for p in runs]
+        for compile in (False, True):
+            ours = controlkit.input_output_response(system, T, 1.0, [1.0], params=runs,
+                                                    compile=compile)
+            for mine, theirs in zip(ours, expected, strict=True):
+                np.testing.assert_array_equal(mine.outputs, theirs.outputs)
+    assert np.isinf(expected[1].outputs[-1])
+
+
+def test_many_initial_states_reach_compiled_code_as_a_writable_array():
+    # a read-only view (np.broadcast_to) is another array type to numba: the many-runs
+    # module compiled for a list of params was compiled again for it (0.3 s, on runs
+    # python-control makes in 2 ms)
+    from controlkit.simulation import _runs
+
+    system = ct.nlsys(lambda t, x, u, p: -x, lambda t, x, u, p: x, inputs=1, outputs=1,
+                      states=2, name="pair")
+    for X0 in ([[0.0, 1.0], [2.0, 3.0]], np.zeros((3, 2))):
+        X0s, params = _runs(system, X0, None)
+        assert X0s.flags.writeable and X0s.flags.c_contiguous and len(params) == len(X0s)
+
+
 def test_a_user_output_that_becomes_infinite_stops_an_interconnect_as_python_control():
     # exp(27^2) overflows: python-control's interconnect cannot settle its signals on inf
     # ("algebraic loop detected"); the engine answered inf. Both raise a RuntimeError now,
@@ -1378,6 +1408,16 @@ def _lone_input(interconnect):
     return interconnect([block], inputs="u", outputs=["a", "sign"]), [0.0], -0.0
 
 
+def _lone_input_fed_back(interconnect):
+    # one block input fed by the diagram's input and by the block's own output: the sweep
+    # starts from np.dot's -0.0, adds a 0.0 output to it, and stops there, keeping -0.0
+    block = ct.nlsys(lambda t, x, u, p: [0.5 * x[0] + math.atan2(u[0], -1.0)],
+                     lambda t, x, u, p: [x[0]], inputs=1, outputs=1, states=1, dt=0.1,
+                     name="fed_back")
+    return interconnect([block], connections=[["fed_back.u[0]", "fed_back.y[0]"]],
+                        inplist=["fed_back.u[0]"], outlist=["fed_back.y[0]"]), [0.0], -0.0
+
+
 def _single_system(interconnect):
     # no interconnect: python-control hands the system its inputs as given, -0.0 too
     return ct.nlsys(lambda t, x, u, p: [math.atan2(u[0], -1.0) - x[0]],
@@ -1386,11 +1426,11 @@ def _single_system(interconnect):
 
 
 @pytest.mark.parametrize("build", [
-    _heading_of_a_p_controller, _angle_after_a_dead_zone, _lone_input, _single_system,
-    lambda ic: _friction_of_a_negated_step(ic, 0),
+    _heading_of_a_p_controller, _angle_after_a_dead_zone, _lone_input, _lone_input_fed_back,
+    _single_system, lambda ic: _friction_of_a_negated_step(ic, 0),
     lambda ic: _friction_of_a_negated_step(ic, 0.1)],
-    ids=["P controller at target", "dead zone", "lone input", "single system",
-         "negated step", "negated step, discrete"])
+    ids=["P controller at target", "dead zone", "lone input", "lone input fed back",
+         "single system", "negated step", "negated step, discrete"])
 def test_a_zero_s_sign_reaches_a_block_as_in_python_control(build):
     # python-control forms block inputs as numpy's products, which sum from 0.0 (a -0.0
     # signal arrives as 0.0), and atan2 tells the two zeros apart by 2 pi

@@ -297,22 +297,28 @@ def generate(plan, held_logic):
         return known.get((array, i), f"{array}[{i}]")
 
     exact = plan.inputs_exact
-    # python-control's block inputs are ``connect_map @ ys + np.dot(input_map, u)``, until
-    # they settle: from 0.0, but for one block input and one diagram input, which numpy's
-    # dot multiplies as numbers and which settles at once, keeping a -0.0 input; and a
-    # single system's are the inputs given
+    # python-control's block inputs are ``connect_map @ ys + np.dot(input_map, u)``, swept
+    # from ``np.dot(input_map, u)`` until they settle: summed from 0.0. But numpy's dot of a
+    # 1 x 1 map is a product of numbers, which a -0.0 keeps, and the sweep stops at once
+    # where the connections add 0.0 to it; a single system's inputs are those given.
     lone_input = plan.sys.input_map.shape == (1, 1) or getattr(plan.sys, "single_system",
                                                                False)
 
     def gather(b):
         lines = []
         for r in range(rows[b].U0, rows[b].U0 + rows[b].NU):
-            value = (_terms(inputs[r], lambda c: ref("ys", c) if c < ny
-                            else f"U[{c - ny}, col]",
-                            from_zero=not (lone_input and not inputs[r, :ny].any()))
-                     if exact[r] else
-                     f"{_product('_CONNECT', plan.sys.connect_map)}(ys)[{r}] + "
-                     f"{_product('_INPUT_MAP', plan.sys.input_map)}(U[:, col].copy())[{r}]")
+            if not exact[r]:
+                value = (f"{_product('_CONNECT', plan.sys.connect_map)}(ys)[{r}] + "
+                         f"{_product('_INPUT_MAP', plan.sys.input_map)}(U[:, col].copy())"
+                         f"[{r}]")
+            elif lone_input:
+                given = _terms(inputs[r, ny:], lambda c: f"U[{c}, col]", from_zero=False)
+                fed = _terms(inputs[r, :ny], lambda c: ref("ys", c))
+                value = (f"({given} if {fed} == 0.0 else {fed} + {given})"
+                         if inputs[r, :ny].any() else given)
+            else:
+                value = _terms(inputs[r], lambda c: ref("ys", c) if c < ny
+                               else f"U[{c - ny}, col]")
             lines += [f"_u{r} = {value}", f"ui[{r}] = _u{r}"]
             known[("ui", r)] = f"_u{r}"
         return lines
