@@ -367,6 +367,24 @@ def test_a_sampled_data_diagram_runs_on_the_python_reference_when_asked():
     assert scaled_error(slow.outputs, quick.outputs) <= 1e-6
 
 
+def test_a_sampled_data_run_between_its_instants_is_the_reference_s_to_the_bit():
+    # the reference read its times between instants from scipy's dense output one at a
+    # time, a product of other roundings than solve_ivp's t_eval (the times at once),
+    # which the engine follows: 0.11647093596930379 against ...377 at t = 0.06 s
+    plant = ct.nlsys(lambda t, x, u, p: [-x[0] + u[0]], lambda t, x, u, p: [x[0]],
+                     inputs="u", outputs="y", states=1, name="lag")
+    gain = ct.nlsys(None, lambda t, x, u, p: [2.0 * u[0]], inputs="e", outputs="u",
+                    name="gain", dt=0.1)
+    error = ct.summing_junction(["r", "-y"], "e", name="error")
+    loop = controlkit.interconnect([plant, gain, error], inputs="r", outputs="y")
+    T = np.linspace(0.0, 1.0, 101)
+    reference = controlkit.input_output_response(loop, T, 1.0, 0.0, engine="python-control")
+    for compile in (False, True):
+        ours = controlkit.input_output_response(loop, T, 1.0, 0.0, compile=compile)
+        assert np.array_equal(ours.outputs, reference.outputs), compile
+        assert np.array_equal(ours.states, reference.states), compile
+
+
 def test_python_control_refuses_a_sampled_data_diagram_with_the_remedy():
     loop, T, X0, U = servo_pi_discrete()
     with pytest.raises(ValueError, match=r"sampled-data diagram .* "

@@ -412,8 +412,9 @@ def scipy_interval(machine, rhs, args, method, t0, t1, y0, rtol, atol, max_step,
     if not sol.success:
         raise RuntimeError(f"solve_ivp ({method}) failed between t = {t0:g} and {t1:g} s: "
                            f"{sol.message}")
-    for j in range(i_eval, stop):
-        y_eval[j, :] = sol.y[:, j - i_eval] if closed_right else sol.sol(t_eval[j])
+    if stop > i_eval:  # (the dense output called on the times at once, as solve_ivp's
+        # t_eval calls each step's: one by one, its products round otherwise)
+        y_eval[i_eval:stop, :] = (sol.y if closed_right else sol.sol(t_eval[i_eval:stop])).T
     if sol.y.size:  # (the last interval's end is only known if it is an evaluation time)
         y_end[:] = sol.y[:, -1]
     return SUCCESS, stop
