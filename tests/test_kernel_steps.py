@@ -191,7 +191,9 @@ def test_a_diagram_built_anew_with_functions_of_its_own_compiles_them_before_the
     for _, make in usercode.kernels_to_compile(twin.plan.kernels):
         make()
     monkeypatch.setattr(run, "compile_estimate", lambda job: 0.3)
-    _earlier_runs(monkeypatch, source, 4.0, twins={source: twin})
+    # (runs of 1 s: room for the kernel's step whatever the store's seconds per line, which
+    # the suite's earlier compiles set; at 0.4 s a run its estimate, 0.40 s, did not fit)
+    _earlier_runs(monkeypatch, source, 10.0, twins={source: twin})
     own = usercode.kernels_to_compile(run.compiled_job(second, None).plan.kernels)
     assert len(own) == 1
     assert run.Runner(second, None, None).compiled is None  # its own kernel is pending
