@@ -6,6 +6,7 @@ here from the semantics alone (solve_ivp between sample instants, discrete outpu
 held), at tight tolerances.
 """
 
+import math
 import re
 import warnings
 
@@ -383,6 +384,32 @@ def test_a_sampled_data_run_between_its_instants_is_the_reference_s_to_the_bit()
         ours = controlkit.input_output_response(loop, T, 1.0, 0.0, compile=compile)
         assert np.array_equal(ours.outputs, reference.outputs), compile
         assert np.array_equal(ours.states, reference.states), compile
+
+
+def test_a_function_that_raises_in_a_rejected_step_raises_compiled_too():
+    # a trial step too long for the slow lag takes its state to -1.03 at t = 2.00858 s, a
+    # stage the integrator rejects: math.log raises there as Python (and in python-control),
+    # and compiled it gave NaN, which the rejection hid, and the run answered (fuzz seed 56)
+    def lag(t, x, u, params):
+        return (-x + 0.177 * u) / 1.53
+
+    upper = ct.nlsys(lag, lambda t, x, u, p: math.log(1 + x[0]), inputs="r", outputs="y1",
+                     states=1, name="upper")
+    lower = ct.ss([], [], [], [[1.94]], inputs="r", outputs="v2", name="lower")
+    lower_plant = ct.ss([[-1.15, 0.76], [0.0, -0.576]], [[1.48], [0.66]], [[-0.5, -0.28]],
+                        [[0.0]], inputs="v2", outputs="y2", name="lower_plant")
+    mix = ct.nlsys(None, lambda t, x, u, p: np.array([0.694, -0.836]) @ u,
+                   inputs=["y1", "y2"], outputs="y", name="mix")
+    parallel = ct.interconnect([upper, lower, lower_plant, mix], inputs="r",
+                               outputs=["y", "y1"])
+    T = np.linspace(0.0, 3.34, 75)
+    arguments = dict(inputs=np.where(np.arange(75) >= 18, 1.22, 0.0),
+                     initial_state=[0.258, 0.0, 0.0], evaluation_times=np.linspace(0, 3.34, 15))
+    with pytest.raises(ValueError, match="math domain error"):
+        ct.input_output_response(parallel, T, **arguments)
+    for compile in (False, True):
+        with pytest.raises(ValueError, match="math domain error .*'upper'.* t = 2.00858 s"):
+            controlkit.input_output_response(parallel, T, compile=compile, **arguments)
 
 
 def test_python_control_refuses_a_sampled_data_diagram_with_the_remedy():

@@ -116,7 +116,7 @@ def simulate_sampled_data(sys, T, X0, U, *, params=None, t_eval=None, method="RK
     Y, X, Uo = np.zeros((sys.noutputs, m)), np.zeros((nx, m)), np.zeros((sys.ninputs, m))
     x, held = np.array(X0, dtype=float), np.zeros(evaluator.ny)
     cidx = evaluator.continuous
-    ctrl, status = np.zeros(5, dtype=np.int64), np.full(4, -1, np.int64)
+    ctrl, status = np.zeros(loops.WATCH_STAGES + 1, dtype=np.int64), np.full(4, -1, np.int64)
     ys, ui, ubuf = np.zeros(evaluator.ny), np.zeros(evaluator.nu), np.zeros((U.shape[0], 1))
     xt, yc, y_eval = np.zeros(nx), np.zeros(cidx.size), np.zeros((m, cidx.size))
     rtol, atol, max_step, first_step = solver_options(cidx.size, T[-1] - T[0],
@@ -124,7 +124,7 @@ def simulate_sampled_data(sys, T, X0, U, *, params=None, t_eval=None, method="RK
     with SYSTEM_CALLS:  # (python-control's systems keep a call's params on themselves)
         loops.scipy_loop(
             evaluator.evaluate, evaluator.update, evaluator.outputs, evaluator.derivatives, None,
-            (x, xt, cidx, T, U, ubuf, None, ys, ui, held, np.zeros(nx)),
+            (x, xt, cidx, T, U, ubuf, None, ys, ui, held, np.zeros(nx + 1)),
             (instants, float(T[-1]), T, U, t_eval, eval_instant), (Y, X, Uo),
             (x, None, held), (ys, ui, np.zeros(nx), None, xt, cidx, yc, y_eval, ubuf,
                               make_workspace(cidx.size)),

@@ -474,7 +474,7 @@ def generate(plan, held_logic):
         "run_continuous(instants, t_final, T, U, t_eval, eval_instant, ctrl, "
         "Y, X, Uo, x, held, P, method, rtol, atol, max_step, first_step, status, "
         "work, y_eval, yc, machine, loop)", [
-            *buffers, f"xt = np.empty({nx})", f"dx = np.zeros({nx})",
+            *buffers, f"xt = np.empty({nx})", f"dx = np.zeros({nx + 1})",
             (f"cidx = np.array({cidx!r}, dtype=np.int64)" if cidx
              else "cidx = np.zeros(0, dtype=np.int64)"),
             "ubuf = np.empty((U.shape[0], 1))",

@@ -18,9 +18,17 @@ from ..._checks import Diverged, warn_caller
 from ...sampled_data import sample_times
 from ..contract import UnsupportedSystem, recorded_indices
 from ..contract import response as base_response
-from . import loops, rk, store
+from . import codegen, loops, rk, store
 from .diagnose import explain_failure
-from .loops import BUDGET, INSTANT, INTEGRATOR_FAILED, NEXT_TIME, UNDER_WAY
+from .loops import (
+    BUDGET,
+    INSTANT,
+    INTEGRATOR_FAILED,
+    NEXT_TIME,
+    STAGE_NOT_FINITE,
+    UNDER_WAY,
+    WATCH_STAGES,
+)
 from .pieces import Pieces, interrupted, now, quiet_numbers, same_numbers
 from .run import CHECKED, Runner
 from .tiers import NotCompiled
@@ -122,7 +130,10 @@ class _Run:
         self.X = np.zeros((sys.nstates, m))
         self.Uo = np.zeros((sys.ninputs, m))
         self.x, self.held = np.array(X0, dtype=float), np.zeros(plan.ny)
-        self.ctrl = np.zeros(5, dtype=np.int64)
+        self.ctrl = np.zeros(WATCH_STAGES + 1, dtype=np.int64)
+        # a user's function compiled gives inf or NaN where, run as Python, it may raise
+        self.users = any(not codegen.kernel_identity(k).startswith("controlkit.kernels.")
+                         for k in plan.kernels)
         self.status = np.full(4, -1, dtype=np.int64)
         self.work = rk.make_workspace(nc, 0, m)
         self.y_eval, self.yc = np.zeros((m, nc)), np.zeros(nc)
@@ -159,16 +170,20 @@ class _Run:
         """One piece of the run on ``job`` (at most ``budget`` evaluations in an interval)."""
         self.ctrl[BUDGET] = budget
         stiff = self.method in STIFF_METHODS
+        self.ctrl[WATCH_STAGES] = int(job.compiled and self.users)
         args = (self.instants, float(self.T[-1]), self.T, self.U,
                 self.t_eval, self.eval_instant, self.ctrl, self.Y, self.X, self.Uo, self.x,
                 self.held, job.P, self.method if stiff else rk.METHOD_INDEX[self.method],
                 *self.solver, self.status, self.work, self.y_eval, self.yc)
-        if job.compiled and not stiff:
-            _run_compiled(job, args)
-        else:
-            with quiet_numbers():
-                job.functions().run_continuous(
-                    *args, None, loops.scipy_loop if stiff else loops.instants_loop)
+        try:
+            if job.compiled and not stiff:
+                _run_compiled(job, args)
+            else:
+                with quiet_numbers():
+                    job.functions().run_continuous(
+                        *args, None, loops.scipy_loop if stiff else loops.instants_loop)
+        finally:
+            self.ctrl[WATCH_STAGES] = 0  # (a compiled piece's state is compared with Python's)
 
 
 def run_continuous(sys, T, U, X0, *, params=None, t_eval=None, method="RK45",
@@ -348,6 +363,9 @@ def _switch(runner, job, run, pieces):
     except Exception as error:  # noqa: BLE001 - the run goes on as Python
         _back_to(run, python, results, n0, n1)
         runner.differs(job, f"its compiled module failed ({type(error).__name__}: {error})")
+        return
+    if run.status[1] == STAGE_NOT_FINITE:  # (Python's functions went on there: its piece)
+        _back_to(run, python, results, n0, n1)
         return
     # the whole state compared, the integrator's too: a short piece may end inside its
     # first step, before any output or state is written

@@ -39,15 +39,17 @@ import numpy as np
 from ..._jit import jit
 from .rk import NFEV, PAUSED, PROJECTED_STEPS, SUCCESS, solve_interval
 
-#: ``status`` codes beyond a block index: the integrator failed (its code in status[2]).
-INTEGRATOR_FAILED = -2
+#: ``status`` codes beyond a block index: the integrator failed (its code in status[2]);
+#: a stage met a number that is not finite, where Python's functions may have raised.
+INTEGRATOR_FAILED, STAGE_NOT_FINITE = -2, -3
 #: An evaluation time within this fraction of the base period of an instant is on it.
 INSTANT_TOLERANCE = 1e-9
 #: Slots of the ``ctrl`` array of :func:`continuous_run`: the next evaluation time to
 #: serve, the instant the run is at, whether that instant's interval is under way
 #: (paused), the most right-hand side evaluations a call may make (0: no limit; an
-#: instant with nothing to integrate counts as one) and how many it made.
-NEXT_TIME, INSTANT, UNDER_WAY, BUDGET, SPENT = range(5)
+#: instant with nothing to integrate counts as one), how many it made, and whether a
+#: stage that is not finite stops the call (:data:`STAGE_NOT_FINITE`).
+NEXT_TIME, INSTANT, UNDER_WAY, BUDGET, SPENT, WATCH_STAGES = range(6)
 
 
 def instant_of(t_eval, times, h):
@@ -167,10 +169,14 @@ def diagram_rhs(t, y, args, out):
     for q in range(cidx.shape[0]):
         xt[cidx[q]] = y[q]
     interpolate(T, U, t, ubuf)
-    evaluate(t, xt, ubuf, 0, P, ys, ui, held, -1)
+    failed = evaluate(t, xt, ubuf, 0, P, ys, ui, held, -1)
     derivatives(t, xt, ui, P, dx)
     for q in range(cidx.shape[0]):
         out[q] = dx[cidx[q]]
+        if not math.isfinite(out[q]):
+            failed = 0
+    if failed >= 0:  # (marked in the slot past the states; the integrator rejects the step)
+        dx[x.shape[0]] = 1.0
 
 
 @jit(inline=True)
@@ -258,10 +264,19 @@ def continuous_run(evaluate, update, outputs, integrate, machine, rhs_args, time
         else:
             evaluations = work.ints[NFEV]
         budget = 0 if ctrl[BUDGET] <= 0 else max(1, ctrl[BUDGET] - ctrl[SPENT])
+        stages = rhs_args[-1]
+        stages[stages.shape[0] - 1] = 0.0
         code, served = integrate(machine, diagram_rhs, rhs_args, method, t, t1, yc, rtol, atol,
                                  max_step, first_step, t_eval[:stop], i, last,
                                  y_eval[:stop], yc, work, budget, resume)
         ctrl[SPENT] += work.ints[NFEV] - evaluations
+        if ctrl[WATCH_STAGES] == 1 and stages[stages.shape[0] - 1] != 0.0:
+            # a stage met inf or NaN, where a function of the user's run as Python may have
+            # raised (math.log of a negative, a float divided by zero), even in a step the
+            # integrator then rejected: the caller runs this piece again as Python
+            status[0] = i
+            status[1] = STAGE_NOT_FINITE
+            return
         if code == PAUSED:
             ctrl[UNDER_WAY] = 1
             return
