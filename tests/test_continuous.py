@@ -412,6 +412,26 @@ def test_a_function_that_raises_in_a_rejected_step_raises_compiled_too():
             controlkit.input_output_response(parallel, T, compile=compile, **arguments)
 
 
+def test_a_single_system_s_output_function_is_not_called_at_the_integrator_s_stages():
+    # python-control calls a single system's output function at the times it serves (an
+    # interconnect's, at every stage): math.log met a stage's state out of its domain at
+    # t = 2.43 s as controlkit's Python run, which raised where python-control answers
+    # (fuzz seed 289)
+    def lag(t, x, u, params):
+        return (-x + 1.58 * u) / 0.642
+
+    plant = ct.nlsys(lag, lambda t, x, u, p: math.log(1 + x[0]), inputs=1, outputs=1,
+                     states=1, name="plant")
+    T = np.linspace(0.0, 2.822, 37)
+    U = np.where(np.arange(37) >= 9, 0.774, 0.0)
+    expected = ct.input_output_response(plant, T, U, 0.0)
+    for compile in (False, True):
+        ours = controlkit.input_output_response(plant, T, U, 0.0, compile=compile)
+        assert ours.engine_mode == ("compiled" if compile else "python")
+        assert np.array_equal(ours.outputs, expected.outputs), compile
+        assert np.array_equal(ours.states, expected.states), compile
+
+
 def test_python_control_refuses_a_sampled_data_diagram_with_the_remedy():
     loop, T, X0, U = servo_pi_discrete()
     with pytest.raises(ValueError, match=r"sampled-data diagram .* "

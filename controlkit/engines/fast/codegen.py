@@ -20,6 +20,7 @@ import numpy as np
 
 from ... import _jit
 from ...kernels import lti
+from .loops import STAGE
 from .plan import CONTINUOUS, DISCRETE, SAMPLED, exact_sum
 
 #: The first line of every module the engine writes: Python reads the rest as UTF-8.
@@ -301,8 +302,8 @@ def generate(plan, held_logic):
     # from ``np.dot(input_map, u)`` until they settle: summed from 0.0. But numpy's dot of a
     # 1 x 1 map is a product of numbers, which a -0.0 keeps, and the sweep stops at once
     # where the connections add 0.0 to it; a single system's inputs are those given.
-    lone_input = plan.sys.input_map.shape == (1, 1) or getattr(plan.sys, "single_system",
-                                                               False)
+    single = getattr(plan.sys, "single_system", False)
+    lone_input = plan.sys.input_map.shape == (1, 1) or single
 
     def gather(b):
         lines = []
@@ -376,7 +377,10 @@ def generate(plan, held_logic):
         if row.FT:
             evaluate += gather(b)
         held = row.KIND in (DISCRETE, SAMPLED) and held_logic
-        call = (written_out(b, held)
+        # python-control calls a single system's output function at the times it serves,
+        # not at the integrator's stages (an interconnect's sweep calls them all there)
+        unstaged = single and row.KIND == CONTINUOUS
+        call = (written_out(b, held or unstaged)
                 or [f"{names[row.OUT]}(t, {args(b, ('ys', row.Y0), row.NY)})"])
         evaluate += loads  # the states these lines read, loaded once at the top level
         loads.clear()
@@ -389,6 +393,8 @@ def generate(plan, held_logic):
                          f"        held[{row.Y0} + q] = ys[{row.Y0} + q]",
                          "else:", f"    for q in range({row.NY}):",
                          f"        ys[{row.Y0} + q] = held[{row.Y0} + q]"]
+        elif unstaged:
+            evaluate += [f"if k != {STAGE}:", *["    " + c for c in call]]
         else:
             evaluate += call
     for b, row in enumerate(rows):

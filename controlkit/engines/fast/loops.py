@@ -42,6 +42,8 @@ from .rk import NFEV, PAUSED, PROJECTED_STEPS, SUCCESS, solve_interval
 #: ``status`` codes beyond a block index: the integrator failed (its code in status[2]);
 #: a stage met a number that is not finite, where Python's functions may have raised.
 INTEGRATOR_FAILED, STAGE_NOT_FINITE = -2, -3
+#: The ``k`` that ``evaluate`` is given at the integrator's stages (-1: between instants).
+STAGE = -2
 #: An evaluation time within this fraction of the base period of an instant is on it.
 INSTANT_TOLERANCE = 1e-9
 #: Slots of the ``ctrl`` array of :func:`continuous_run`: the next evaluation time to
@@ -169,7 +171,7 @@ def diagram_rhs(t, y, args, out):
     for q in range(cidx.shape[0]):
         xt[cidx[q]] = y[q]
     interpolate(T, U, t, ubuf)
-    failed = evaluate(t, xt, ubuf, 0, P, ys, ui, held, -1)
+    failed = evaluate(t, xt, ubuf, 0, P, ys, ui, held, STAGE)
     derivatives(t, xt, ui, P, dx)
     for q in range(cidx.shape[0]):
         out[q] = dx[cidx[q]]
