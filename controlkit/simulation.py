@@ -264,9 +264,8 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
                                   advice=" (controlkit.explain(sys) lists every block's tier)",
                                   compile=compile)
         except Diverged as diverged:
-            if not sys.isdtime(strict=True) and np.shape(getattr(sys, "connect_map", ()))[:1] \
-                    not in ((), (0,)):
-                raise  # (python-control's solver, or its sweep of the signals, stops too)
+            if not sys.isdtime(strict=True) and len(getattr(sys, "connect_map", ())):
+                raise  # (block inputs: python-control's solver, or its sweep, stops too)
             return _python_control_s_divergence(diverged, sys, T, U, X0, options)
         if fast is not None:
             if getattr(fast, "engine_mode", None) == "compiled" and \

@@ -281,8 +281,7 @@ def generate(plan, held_logic):
     identities = tuple(map(kernel_identity, plan.kernels))
     rows, ny = plan.rows, plan.ny
     names = [f"kernel_{i}" for i in range(len(plan.kernels))]
-    # controlkit's own kernels: NaN in, NaN out (their NaN checks can wait, see below)
-    trusted = {i for i, name in enumerate(identities) if name.startswith("controlkit.kernels.")}
+    trusted = plan.controlkit_s_own  # (NaN in, NaN out: their NaN checks can wait, see below)
     inputs = np.hstack([plan.sys.connect_map, plan.sys.input_map]).astype(float)
 
     # In evaluate, the signals that written-out lines compute are also kept in locals

@@ -171,13 +171,12 @@ def diagram_rhs(t, y, args, out):
     for q in range(cidx.shape[0]):
         xt[cidx[q]] = y[q]
     interpolate(T, U, t, ubuf)
-    failed = evaluate(t, xt, ubuf, 0, P, ys, ui, held, STAGE)
+    not_finite = evaluate(t, xt, ubuf, 0, P, ys, ui, held, STAGE) >= 0
     derivatives(t, xt, ui, P, dx)
     for q in range(cidx.shape[0]):
         out[q] = dx[cidx[q]]
-        if not math.isfinite(out[q]):
-            failed = 0
-    if failed >= 0:  # (marked in the slot past the states; the integrator rejects the step)
+        not_finite = not_finite or not math.isfinite(out[q])
+    if not_finite:  # (marked in the slot past the states; the integrator rejects the step)
         dx[x.shape[0]] = 1.0
 
 

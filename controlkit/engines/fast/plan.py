@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ... import _jit
 from ..contract import UnsupportedSystem
 
 #: Block kinds, by number in the plan's table.
@@ -91,6 +92,20 @@ class Plan:
     continuous: np.ndarray
     ny: int
     nu: int
+
+    @functools.cached_property
+    def controlkit_s_own(self) -> set[int]:
+        """The indexes of the kernels that are controlkit's own (NaN in, NaN out, never an
+        error); the others are the user's, which may raise as Python where their compiled
+        form gives inf or NaN (what :func:`.codegen.kernel_identity` names by a dotted
+        name under ``controlkit.kernels``)."""
+        own = set()
+        for i, fn in enumerate(self.kernels):
+            module = str(getattr(_jit.python_function(fn), "__module__", None))
+            if not isinstance(getattr(fn, "identity", None), str) and (
+                    f"{module}.".startswith("controlkit.kernels.")):
+                own.add(i)
+        return own
 
     @functools.cached_property
     def inputs_exact(self) -> list[bool]:
