@@ -57,8 +57,9 @@ def _terms(coefficients, name, from_zero=True):
     ``0.0``, as numpy's matrix products sum (a ``-0.0`` term gives ``0.0``, which
     ``atan2`` or ``copysign`` tell apart), or, ``from_zero=False``, the terms alone (numpy's
     ``dot`` of a 1 x 1 matrix, a product of numbers)."""
-    terms = [name(c) if g == 1.0 else f"{numbers(float(g))} * {name(c)}"
-             for c, g in enumerate(coefficients) if g != 0.0]
+    row = np.asarray(coefficients, dtype=float).tolist()  # (numpy's floats one by one: slow)
+    terms = [name(c) if g == 1.0 else f"{numbers(g)} * {name(c)}"
+             for c, g in enumerate(row) if g != 0.0]
     return " + ".join(["0.0"] * (from_zero or not terms) + terms)
 
 
