@@ -78,6 +78,8 @@ def _response(given, sys, T, U, X0, compile, options):
             # python-control then answers with what its solver reached, success False
             raise UnsupportedSystem(f"{error}; with ignore_errors=True python-control's "
                                     f"run returns the response up to there") from None
+        if given is not sys and given.nstates:
+            resp.y = lone_outputs(given, resp.t, resp.x, resp.u, params)
     flags = result_flags(options)
     if given is sys and given.nstates and flags["squeeze"] in (None, True, False):
         # the run's own response, labelled for this system: copying its arrays into a second
@@ -117,6 +119,31 @@ def _integers_count(given, t, X0, u, params, t_given, x_given) -> bool:
             return True  # a block's update returns integers: its state stays integers
         return not (np.array_equal(step, given.dynamics(t, X0, u, params=params))
                     and np.array_equal(out, given.output(t, X0, u, params=params)))
+
+
+def lone_outputs(sys, times, X, U, params) -> np.ndarray:
+    """The outputs of the lone continuous system ``sys`` as python-control makes them after
+    its solver: ``sys.outfcn(t, X[:, i], U[:, i], params)`` at each time, on a column of the
+    states and of the inputs (numpy's product of a matrix and such a strided column rounds
+    otherwise than of a copy: a state-space block's ``C @ x`` moves in the last bit), with
+    the system's parameters updated by the call's (its ``outfcn`` None: the states).
+
+    Examples
+    --------
+    >>> sys = ct.ss([[-1.0, 0.0], [1.0, -2.0]], [[1.0], [0.0]], [[0.3, 0.7]], [[0.0]])
+    >>> X, U = np.array([[1.0, 0.5], [2.0, 0.25]]), np.zeros((1, 2))
+    >>> lone_outputs(sys, np.arange(2.0), X, U, None).tolist()
+    [[1.7, 0.325]]
+    """
+    Y = np.zeros((sys.noutputs, len(times)))
+    if sys.outfcn is None:
+        Y[:] = X[:sys.noutputs]
+        return Y
+    current = {**sys.params, **(params or {})}
+    with SYSTEM_CALLS:
+        for i, t in enumerate(times):
+            Y[:, i] = np.asarray(sys.outfcn(t, X[:, i], U[:, i], current)).reshape(-1)
+    return Y
 
 
 def read_inputs(T, U, times):
