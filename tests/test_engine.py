@@ -315,10 +315,16 @@ def test_runs_as_python_make_numba_s_start_in_steps_when_start_and_compile_overf
             (0.2, 0.3, [[], [], []]),
             (0.4, 0.9, [[], []])):  # or the compile would not fit in a call
         monkeypatch.setattr(run, "compile_estimate", lambda job, estimate=estimate: estimate)
-        made = []
+        made, clock = [], [0.0]
+
+        def make(step, seconds, made=made, clock=clock):  # (taking its time on the clock)
+            made.append(step)
+            clock[0] += seconds
+
+        monkeypatch.setattr(run, "now", lambda clock=clock: clock[0])
         monkeypatch.setattr(run, "NUMBA_START", tuple(
             (seconds, lambda step=step, made=made: step in made,
-             lambda step=step, made=made: made.append(step))
+             lambda step=step, seconds=seconds: make(step, seconds))
             for step, seconds in enumerate((0.15, 0.25))))
         for expected in made_then_compiled:
             monkeypatch.setattr(run, "PYTHON_SECONDS", {source: 8 * typical})

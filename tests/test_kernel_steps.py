@@ -17,7 +17,7 @@ import pytest
 
 from controlkit import _jit
 from controlkit.engines.fast import run, store, usercode
-from controlkit.engines.fast.usercode.compiling import KERNEL_LINE_SECONDS
+from controlkit.engines.fast.usercode.compiling import KERNEL_LINE_SECONDS, KERNEL_MORE_LINES
 from controlkit.studies.cmg import scenario as cmg_scenario
 
 pytestmark = pytest.mark.skipif(not _jit.available(), reason="numba not installed")
@@ -56,18 +56,28 @@ def test_each_kernel_is_a_step_estimated_by_its_lines_then_timed_and_recorded(
     monkeypatch.setattr(store, "_TIMES", {})
     job = run.compiled_job(_user_loop(tmp_path, _new_gain()), None)
     steps = usercode.kernels_to_compile(job.plan.kernels)
-    # two kernels of 4 lines each (the user's function, the kernel that stores its result)
-    assert [seconds for seconds, _ in steps] == pytest.approx([4 * KERNEL_LINE_SECONDS] * 2)
+    # two kernels of 4 lines each (the user's function, the kernel that stores its result),
+    # each counted KERNEL_MORE_LINES longer (numba's work per function)
+    each = (4 + KERNEL_MORE_LINES) * KERNEL_LINE_SECONDS
+    assert [seconds for seconds, _ in steps] == pytest.approx([each] * 2)
     before = run.compile_estimate(job)
     for _, make in steps:
         make()
     assert usercode.kernels_to_compile(job.plan.kernels) == []
-    assert run.compile_estimate(job) == pytest.approx(before - 8 * KERNEL_LINE_SECONDS)
+    assert run.compile_estimate(job) == pytest.approx(before - 2 * each)
     records = [store.record(_path_of(fn)) for fn in job.plan.kernels]
     assert [(r["entry"], r["lines"]) for r in records] == [("kernel", 4)] * 2
     per_line = sorted(r["seconds"] / 4 for r in records)
     assert all(seconds > 0 for seconds in per_line)
     assert sorted(store.compile_times("kernel")) == pytest.approx(per_line, abs=1e-3)
+    # the next kernel's estimate: its lines and KERNEL_MORE_LINES at their median pace
+    paces = sorted(r["seconds"] / (4 + KERNEL_MORE_LINES) for r in records)
+    assert sorted(store.compile_times("kernel", more=KERNEL_MORE_LINES)) == pytest.approx(
+        paces, abs=1e-3)
+    again = usercode.kernels_to_compile(run.compiled_job(  # (its output function is kept)
+        _user_loop(tmp_path, _new_gain()), None).plan.kernels)
+    assert [seconds for seconds, _ in again] == pytest.approx(
+        [float(np.median(paces)) * (4 + KERNEL_MORE_LINES)], abs=1e-3)
 
 
 def test_a_module_compiled_at_once_records_its_kernels_too(tmp_path):
@@ -104,10 +114,15 @@ def test_runs_as_python_compile_the_kernels_in_steps_before_the_module(
         monkeypatch, typical, kernels, made_then_compiled):
     loop = cmg_scenario.build_loop("thesis")
     source = run.prepare(loop).source
-    made = []
+    made, clock = [], [0.0]
+
+    def make(i):  # (each takes what it was estimated to, on the rule's clock)
+        made.append(i)
+        clock[0] += kernels[i]
+
+    monkeypatch.setattr(run, "now", lambda: clock[0])
     monkeypatch.setattr(run.usercode, "kernels_to_compile", lambda _: [
-        (seconds, lambda i=i: made.append(i)) for i, seconds in enumerate(kernels)
-        if i not in made])
+        (seconds, lambda i=i: make(i)) for i, seconds in enumerate(kernels) if i not in made])
     # the module 0.5 s (fits in python-control's call, two runs), and the kernels to come
     monkeypatch.setattr(run, "compile_estimate", lambda job: 0.5 + sum(
         seconds for i, seconds in enumerate(kernels) if i not in made))
@@ -117,6 +132,37 @@ def test_runs_as_python_compile_the_kernels_in_steps_before_the_module(
         assert (runner.compiled is not None) == (expected == "compiled"), made
         if expected != "compiled":
             assert made == expected
+
+
+def test_the_steps_count_what_they_took_and_the_call_s_compile_counts_them(monkeypatch):
+    # two kernels estimated at 0.1 s each, in calls whose run takes 0.4 s as Python
+    # (python-control's about 0.8 s): the first takes 0.35 s, which leaves no room for the
+    # second in the same call, and a compile mid-run that would fit in a call without
+    # steps (0.5 s) does not fit in this one
+    loop = cmg_scenario.build_loop("thesis")
+    source = run.prepare(loop).source
+    made, clock, took = [], [0.0], (0.35, 0.1)
+
+    def make(i):
+        made.append(i)
+        clock[0] += took[i]
+
+    monkeypatch.setattr(run, "now", lambda: clock[0])
+    monkeypatch.setattr(run.usercode, "kernels_to_compile", lambda _: [
+        (0.1, lambda i=i: make(i)) for i in range(2) if i not in made])
+    monkeypatch.setattr(run, "compile_estimate", lambda job: 0.5)
+    monkeypatch.setattr(run, "LOAD_SECONDS", 0.0)
+    _earlier_runs(monkeypatch, source, 4.0)
+    runner = run.Runner(loop, None, None)
+    assert made == [0] and runner.spent == pytest.approx(0.35)
+    # 0.1 s run of 0.4: room 2 * 0.4 - 0.1 - 0.35 = 0.35 s, against 0.5 s to compile
+    assert runner.compiled is None and runner.decide(0.1, 1 / 4) is None
+    fresh = run.Runner(loop, None, None)  # the next call makes the second step
+    assert made == [0, 1] and fresh.spent == pytest.approx(0.1)
+    monkeypatch.setattr(run.usercode, "kernels_to_compile", lambda _: [])
+    later = run.Runner(loop, None, None)  # no step left: the whole room for the compile
+    chosen = later.compiled or later.decide(0.1, 1 / 4)
+    assert later.spent == 0.0 and chosen is not None and chosen.compiled
 
 
 def test_a_kernel_numba_cannot_compile_ends_the_steps_not_the_call(monkeypatch):
@@ -244,5 +290,6 @@ def test_a_kernel_that_works_on_arrays_is_estimated_as_numpy_compiles_take(
     job = run.compiled_job(_user_loop(tmp_path, _new_gain(), rate, helper), None)
     assert not isinstance(job, str), job
     seconds = sorted(step for step, _ in usercode.kernels_to_compile(job.plan.kernels))
-    assert seconds[0] == pytest.approx(4 * KERNEL_LINE_SECONDS)  # (its output function)
+    assert seconds[0] == pytest.approx(  # (its output function)
+        (4 + KERNEL_MORE_LINES) * KERNEL_LINE_SECONDS)
     assert (seconds[1] == NUMPY_KERNEL_SECONDS) == numpy

@@ -22,7 +22,7 @@ from .. import PYTHON_CONTROL_SLOWER, check_compile
 from ..contract import UnsupportedSystem
 from . import reuse, store, usercode
 from .codegen import generate
-from .pieces import PIECE_SECONDS
+from .pieces import PIECE_SECONDS, now
 from .plan import Plan, evaluation_order, held_logic, make_plan
 from .tiers import BlockTier, NotCompiled, _resolve, as_interconnect, blocks_of
 
@@ -37,14 +37,13 @@ RULE = ("compiled when asked (compile=True), when the diagram's module is compil
 #: ski-rental rule (a session that goes on pays at most twice what the best choice made
 #: in hindsight would have).
 PAYS = 1.0
-#: numba's own start in a process, about: what a run pays before its first compiled step
-#: even when its module is kept compiled.
-NUMBA_START_SECONDS = 0.4
-#: Its two steps, ``(seconds, done, make)``: the import, the first use (numba fills its
-#: tables: loading the step machine kept in the store).
+#: numba's own start in a process in two steps, ``(seconds, done, make)``: the import, the
+#: first use (numba fills its tables: loading the step machine kept in the store).
 NUMBA_START = ((0.15, lambda: bool(_jit._NUMBA), _jit.numba_module),
                (0.25, lambda: bool(store._MACHINE or any(_COMPILED.values())
                                    or store.integrator_to_compile()), store.step_machine))
+#: What a run pays before its first compiled step even when its module is kept compiled.
+NUMBA_START_SECONDS = sum(seconds for seconds, _, _ in NUMBA_START)
 #: About how long a new diagram's module takes to compile before one was measured in this
 #: store: seconds, plus seconds per block (measured on a 2-core machine: 1.5-30 s).
 COMPILE_SECONDS = (2.0, 1.0)
@@ -294,8 +293,8 @@ class Runner:
         check_compile(compile)
         self.sys, self.params, self.asked = sys, params, compile
         self.python = prepare(sys, params)
-        self.compiled = None
-        self.decided = compile is False
+        self.compiled, self.decided = None, compile is False
+        self.spent = 0.0  # (seconds of steps made before the run: :meth:`decide` counts them)
         twin = _TWINS.get(self.python.source)
         if compile or compile is None and getattr(twin, "source", None) in _COMPILED:
             # asked for, or compiled already in this process: compiled from the start
@@ -354,14 +353,15 @@ class Runner:
         if max(seconds for seconds, _ in steps) > room:
             return  # (a step that never fits in a call: the others would be for nothing)
         for seconds, make in steps:
-            if seconds > room:
+            if seconds > room - self.spent:
                 break
+            began = now()
             try:
                 make()
             except Exception as error:  # noqa: BLE001 - numba's: no more steps here
                 _TWINS[source] = f"numba could not compile a function ({_first_line(error)})"
                 return
-            room -= seconds
+            self.spent += now() - began  # (what it took: an estimate errs)
 
     def check_first(self) -> Job | None:
         """The compiled job, taken back when it is new in this process: the caller compares
@@ -391,8 +391,8 @@ class Runner:
         # when earlier ones of the same module took that long (a sunk cost that predicts)
         saved = rest + before
         # and what this call can spend on it and stay no slower than python-control's run
-        # (about PYTHON_CONTROL_SLOWER times the run as Python)
-        room = PYTHON_CONTROL_SLOWER * (elapsed + rest) - elapsed
+        # (about PYTHON_CONTROL_SLOWER times the run as Python), its steps made before
+        room = PYTHON_CONTROL_SLOWER * (elapsed + rest) - elapsed - self.spent
         if saved <= PAYS * NUMBA_START_SECONDS or room <= LOAD_SECONDS:
             return None  # (not even worth numba's start, or no time for it)
         candidate = compiled_job(self.sys, self.params)

@@ -279,11 +279,11 @@ def compile_functions(functions, signatures, path: Path, blocks: int = 1,
 _TIMES: dict = {}
 
 
-def compile_times(entry: str) -> list[float]:
+def compile_times(entry: str, more: int = 0) -> list[float]:
     """Seconds per block of the diagrams' modules compiled in this store for ``entry``
     (the latest 50): ``run_discrete`` (the discrete loop pasted in) or ``continuous``
     (the four functions the instants' loop takes), which differ per block; or seconds per
-    line of the user's kernels (``kernel``).
+    line of the user's kernels (``kernel``), each counted ``more`` lines longer.
 
     Examples
     --------
@@ -299,9 +299,9 @@ def compile_times(entry: str) -> list[float]:
             kept = record(path.with_suffix(".py")) or {}
             seconds, size = kept.get("seconds"), kept.get("blocks", kept.get("lines"))
             if type(seconds) is float and type(size) is int and seconds > 0 and size > 0:
-                _TIMES.setdefault(str(kept.get("entry")), []).append(seconds / size)
+                _TIMES.setdefault(str(kept.get("entry")), []).append((seconds, size))
         _TIMES[None] = []  # read (an empty store included)
-    return _TIMES.get(entry, [])[-50:]
+    return [seconds / (size + more) for seconds, size in _TIMES.get(entry, [])[-50:]]
 
 
 _MACHINE: list = []

@@ -23,8 +23,11 @@ from .writer import kernel_source
 #: What each role of a user function computes, for messages.
 ROLES = {"output": ("output function", "outputs"), "update": ("update function", "states")}
 #: About how long compiling a user's kernel takes per line of its translated functions,
-#: before the store measured one (numba on a 2-core machine: 0.08-0.47 s for 4-27 lines).
-KERNEL_LINE_SECONDS = 0.025
+#: before the store measured one, each kernel counted :data:`KERNEL_MORE_LINES` longer for
+#: numba's work per function (on a 2-core machine, the medians of 1 900 compiles: 0.17-0.26
+#: s for 4-8 lines, 0.19-0.41 s for 9-14, 0.32-0.65 s for 18-25).
+KERNEL_LINE_SECONDS = 0.02
+KERNEL_MORE_LINES = 5
 #: About how long compiling a kernel that works on arrays can take (one that calls numpy,
 #: or controlkit's versions of its linear algebra, products and sums, or uses its state or
 #: input vector whole): numba then compiles array code of its own, 0.3-4.7 s measured
@@ -131,8 +134,8 @@ class UserKernel:
 def kernels_to_compile(kernels) -> list[tuple[float, object]]:
     """The user's compiled kernels among ``kernels`` (a compiled job's) that the store does
     not keep compiled yet, as steps ``(seconds, make)``: about how long compiling each
-    takes (its lines times the store's median seconds per line,
-    :func:`.store.compile_times`, else :data:`KERNEL_LINE_SECONDS`; one that calls numpy
+    takes (its lines and :data:`KERNEL_MORE_LINES` times the store's median seconds per
+    line, :func:`.store.compile_times`, else :data:`KERNEL_LINE_SECONDS`; one that calls numpy
     on arrays, :data:`NUMPY_KERNEL_SECONDS`) and what compiles it.
 
     Examples
@@ -140,7 +143,7 @@ def kernels_to_compile(kernels) -> list[tuple[float, object]]:
     >>> kernels_to_compile([np.sin])  # (not a user's kernel)
     []
     """
-    per_line = store.compile_times("kernel")
+    per_line = store.compile_times("kernel", more=KERNEL_MORE_LINES)
     per_line = float(np.median(per_line)) if per_line else KERNEL_LINE_SECONDS
     steps = []
     for kernel in dict.fromkeys(kernels):  # (a function used by two blocks: one compile)
@@ -150,7 +153,8 @@ def kernels_to_compile(kernels) -> list[tuple[float, object]]:
                 _KEPT.add(path)
             elif path.exists():  # (else a store emptied under a running session)
                 lines, numpy = _size(path)
-                steps.append((NUMPY_KERNEL_SECONDS if numpy else per_line * lines,
+                steps.append((NUMPY_KERNEL_SECONDS if numpy
+                              else per_line * (lines + KERNEL_MORE_LINES),
                               lambda k=kernel: compile_kernel(k)))
     return steps
 
