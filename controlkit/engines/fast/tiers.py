@@ -282,8 +282,22 @@ def as_interconnect(sys):
         return sys
     if not isinstance(sys, ct.InputOutputSystem):
         raise UnsupportedSystem(f"a {type(sys).__name__} is not an I/O system")
+    kept, shape = getattr(sys, _ONE_BLOCK, None), (
+        sys.name, sys.dt, sys.nstates, tuple(sys.input_labels), tuple(sys.output_labels))
+    if isinstance(kept, _OneBlock) and kept.shape == shape and kept.diagram.syslist[0] is sys:
+        return kept.diagram  # (whose prepared job is kept on it: a short run's most time)
     if isinstance(sys, ct.TransferFunction):  # as python-control's interconnect takes it
-        sys = ct.ss(sys, name=sys.name)
+        return _one_block(ct.ss(sys, name=sys.name))
+    wrapped = _one_block(sys)
+    try:
+        setattr(sys, _ONE_BLOCK, _OneBlock(shape, wrapped))
+    except (AttributeError, TypeError):  # an object that takes no attributes
+        pass
+    return wrapped
+
+
+def _one_block(sys):
+    """A new one-block diagram around the system ``sys``."""
     for what, count in (("inputs", sys.ninputs), ("outputs", sys.noutputs),
                         ("states", sys.nstates)):
         if count is None:
@@ -294,6 +308,23 @@ def as_interconnect(sys):
     # interconnect's blocks numpy's products of its maps (a -0.0 becomes 0.0): codegen asks
     wrapped.single_system = True
     return wrapped
+
+
+#: The attribute of a system its one-block diagram is kept in.
+_ONE_BLOCK = "_controlkit_one_block"
+
+
+class _OneBlock:
+    """A system's one-block diagram, and the sizes and labels it was made for; copied or
+    pickled as nothing kept (as the jobs kept on a diagram, :mod:`.reuse`)."""
+
+    __slots__ = ("shape", "diagram")
+
+    def __init__(self, shape=None, diagram=None):
+        self.shape, self.diagram = shape, diagram
+
+    def __reduce__(self):  # (copy and deepcopy too)
+        return (_OneBlock, ())
 
 
 def blocks_of(sys, params=None, *, compiled=False):
