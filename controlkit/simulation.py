@@ -429,6 +429,7 @@ def _many(sys, T, U, X0, runs, engine, options, compile):
     if engine == "fast" and not _numpy_raises():  # (else each run on python-control)
         from ._checks import Diverged
         from .engines.fast import many
+        from .engines.fast.response import outputs
         from .engines.fast.tiers import as_interconnect
 
         diagram = as_interconnect(sys)
@@ -447,8 +448,8 @@ def _many(sys, T, U, X0, runs, engine, options, compile):
                     if error is not None:
                         raise type(error)(f"run {r}: {error}") from error
                 listed = TimeResponseList([
-                    response(sys, resp.t, resp.y, resp.x, resp.u,
-                             **result_flags(dict(options, params=params_list[r])))
+                    response(sys, resp.t, outputs(sys, diagram, resp, params_list[r]),
+                             resp.x, resp.u, **result_flags(dict(options, params=params_list[r])))
                     for r, resp in enumerate(responses)])
                 for mine, theirs in zip(listed, responses, strict=True):
                     mine.engine_mode = theirs.engine_mode

@@ -453,6 +453,11 @@ def test_a_lone_system_s_outputs_are_made_as_python_control_makes_them_after_its
             assert np.array_equal(ours.states, expected.states), (seed, compile)
             assert np.array_equal(ours.outputs, expected.outputs), (seed, compile)
     assert differ > 10  # (the case the test is about: the copy's products differ: 14)
+    starts = np.array([[0.1, 0.0, 0.0, 0.0], [0.2, 0.0, 0.0, 0.3]])  # and in many runs
+    for start, ours in zip(starts, controlkit.input_output_response(plant, T, U, starts,
+                                                                    compile=False), strict=True):
+        assert np.array_equal(ours.outputs,
+                              ct.input_output_response(plant, T, U, start).outputs)
     # a user's output function with the call's params over the system's own
     plant = ct.nlsys(lambda t, x, u, p: -p["a"] * x + u, lambda t, x, u, p: p["c"] * x,
                      states=1, inputs=1, outputs=1, params={"a": 1.0, "c": 2.0})

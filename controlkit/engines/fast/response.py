@@ -78,8 +78,7 @@ def _response(given, sys, T, U, X0, compile, options):
             # python-control then answers with what its solver reached, success False
             raise UnsupportedSystem(f"{error}; with ignore_errors=True python-control's "
                                     f"run returns the response up to there") from None
-        if given is not sys and given.nstates:
-            resp.y = lone_outputs(given, resp.t, resp.x, resp.u, params)
+        resp.y = outputs(given, sys, resp, params)
     flags = result_flags(options)
     if given is sys and given.nstates and flags["squeeze"] in (None, True, False):
         # the run's own response, labelled for this system: copying its arrays into a second
@@ -121,28 +120,33 @@ def _integers_count(given, t, X0, u, params, t_given, x_given) -> bool:
                     and np.array_equal(out, given.output(t, X0, u, params=params)))
 
 
-def lone_outputs(sys, times, X, U, params) -> np.ndarray:
-    """The outputs of the lone continuous system ``sys`` as python-control makes them after
-    its solver: ``sys.outfcn(t, X[:, i], U[:, i], params)`` at each time, on a column of the
-    states and of the inputs (numpy's product of a matrix and such a strided column rounds
-    otherwise than of a copy: a state-space block's ``C @ x`` moves in the last bit), with
-    the system's parameters updated by the call's (its ``outfcn`` None: the states).
+def outputs(given, diagram, resp, params) -> np.ndarray:
+    """The outputs of a continuous run ``resp`` of ``given`` (run as ``diagram``), as
+    python-control makes them: the run's own, save for a lone system with states, whose
+    output function python-control calls after its solver, on each time's column of the
+    states and of the inputs, ``given.outfcn(t, X[:, i], U[:, i], params)`` (numpy's product
+    of a matrix and such a strided column rounds otherwise than of a copy: a state-space
+    block's ``C @ x`` moves in the last bit), with the system's parameters updated by the
+    call's (its ``outfcn`` None: the states).
 
     Examples
     --------
     >>> sys = ct.ss([[-1.0, 0.0], [1.0, -2.0]], [[1.0], [0.0]], [[0.3, 0.7]], [[0.0]])
-    >>> X, U = np.array([[1.0, 0.5], [2.0, 0.25]]), np.zeros((1, 2))
-    >>> lone_outputs(sys, np.arange(2.0), X, U, None).tolist()
-    [[1.7, 0.325]]
+    >>> run = ct.TimeResponseData(np.arange(2.0), np.zeros((1, 2)), np.array(
+    ...     [[1.0, 0.5], [2.0, 0.5]]), np.zeros((1, 2)))
+    >>> outputs(sys, as_interconnect(sys), run, None).tolist()
+    [[1.7, 0.5]]
     """
-    Y = np.zeros((sys.noutputs, len(times)))
-    if sys.outfcn is None:
-        Y[:] = X[:sys.noutputs]
-        return Y
-    current = {**sys.params, **(params or {})}
+    if given is diagram or not given.nstates or given.isdtime(strict=True):
+        return resp.y
+    X, U = resp.x, resp.u
+    if given.outfcn is None:
+        return np.array(X[:given.noutputs])
+    current = {**given.params, **(params or {})}
+    Y = np.zeros((given.noutputs, len(resp.t)))
     with SYSTEM_CALLS:
-        for i, t in enumerate(times):
-            Y[:, i] = np.asarray(sys.outfcn(t, X[:, i], U[:, i], current)).reshape(-1)
+        for i, t in enumerate(resp.t):
+            Y[:, i] = np.asarray(given.outfcn(t, X[:, i], U[:, i], current)).reshape(-1)
     return Y
 
 
