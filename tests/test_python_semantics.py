@@ -1444,3 +1444,25 @@ def test_a_zero_s_sign_reaches_a_block_as_in_python_control(build):
                                                 compile=compile)
         assert np.array_equal(ours.outputs, expected.outputs), compile
         assert np.array_equal(np.signbit(ours.outputs), np.signbit(expected.outputs)), compile
+
+
+@pytest.mark.parametrize("X0", [None, [None, 0.0]])
+def test_an_initial_state_that_is_not_numbers_is_python_control_s_error(X0):
+    # X0=None became a NaN of no dimension: the engine raised IndexError where python-control
+    # raises TypeError, and numba's failure on it was kept against the diagram's module,
+    # which then ran as Python for the rest of the session
+    from controlkit import _jit
+
+    plant = ct.nlsys(lambda t, x, u, p: [x[1], -3.0 * x[0] + u[0]], None, inputs="f",
+                     outputs=["q", "v"], states=["q", "v"], name="mass")
+    loop = ct.interconnect([plant], inputs="f", outputs="q")
+    T = np.linspace(0.0, 1.0, 21)
+    error = python_control_error(loop, T, 1.0, X0)
+    for compile in (True, False):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # ("fast engine not used": python-control's call)
+            with pytest.raises(type(error), match=re.escape(str(error))):
+                controlkit.input_output_response(loop, T, 1.0, X0, compile=compile)
+    ours = controlkit.input_output_response(loop, T, 1.0, [0.5, 0.0], compile=True)
+    assert ours.engine_mode == ("compiled" if _jit.available() else "python")
+    assert np.array_equal(ours.outputs, ct.input_output_response(loop, T, 1.0, [0.5, 0.0]).outputs)

@@ -223,7 +223,11 @@ def python_control_arguments(sys, T, U, X0, options):
     U = _real(np.asarray(U), "inputs").astype(float, copy=False).reshape(-1, T.size)
     if sys.nstates == 0:  # (python-control reads X0, None included, and leaves it)
         X0 = np.zeros(0)
-    X0 = _real(np.asarray(X0), "initial state").astype(float, copy=False)
+    X0 = _real(np.asarray(X0), "initial state")
+    if X0.dtype.kind not in "biuf":  # (None, or a list holding one: python-control's error)
+        raise UnsupportedSystem(f"an initial state of {X0.dtype} ({X0.tolist()!r:.40}), not "
+                                f"numbers")
+    X0 = X0.astype(float, copy=False)
     return T, U, X0, t_eval, method, kwargs
 
 
