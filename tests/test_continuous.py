@@ -466,6 +466,27 @@ def test_a_lone_system_s_outputs_are_made_as_python_control_makes_them_after_its
     assert np.array_equal(ours.outputs, expected.outputs)
 
 
+def test_the_first_time_point_is_served_by_the_solver_s_first_step_as_scipy_serves_it():
+    # scipy's solve_ivp evaluates the first step's interpolant at the first time point and
+    # the step's other times together (one product for all: for one time alone it rounds
+    # otherwise, a last bit at t = 0.05 here), and a -0.0 initial state comes out as 0.0
+    plant = ct.nlsys(_oscillator, lambda t, x, u, p: [x[0], x[1]], inputs="u",
+                     outputs=["y0", "y1"], states=2, name="oscillator")
+    loop = ct.interconnect([plant], inputs="u", outputs=["y0", "y1"])
+    T = np.linspace(0.0, 3.0, 61)
+    for X0 in (0.1, [-0.0, 0.0]):
+        expected = ct.input_output_response(loop, T, 1.0, X0)
+        for compile in (False, True):
+            ours = controlkit.input_output_response(loop, T, 1.0, X0, compile=compile)
+            assert ours.states.tobytes() == expected.states.tobytes(), (X0, compile)
+            assert ours.outputs.tobytes() == expected.outputs.tobytes(), (X0, compile)
+    assert not np.signbit(expected.states[0, 0])
+
+
+def _oscillator(t, x, u, params):
+    return [x[1], -2.0 * x[0] - 0.3 * x[1] + u[0]]
+
+
 def test_python_control_refuses_a_sampled_data_diagram_with_the_remedy():
     loop, T, X0, U = servo_pi_discrete()
     with pytest.raises(ValueError, match=r"sampled-data diagram .* "

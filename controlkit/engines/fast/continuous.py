@@ -121,9 +121,10 @@ class _Run:
         self.instants = sample_times(getattr(sys, "base_period", 0.0), T[0], T[-1])
         h = float(getattr(sys, "base_period", 0.0) or 0.0)
         self.eval_instant = loops.instant_of(t_eval, self.instants, h)
-        if method in STIFF_METHODS and not h:
-            # scipy serves the first time too, as in python-control's call: LSODA's value
-            # there is its own interpolation, a last bit off the initial state
+        if not h:
+            # scipy serves the first time too, as in python-control's call, from the first
+            # step's interpolant: a -0.0 there is 0.0, LSODA's value a last bit off the
+            # initial state, and an RK step's times are evaluated together with it
             self.eval_instant[:] = -1
         m, nc = t_eval.size, plan.continuous.size
         self.Y = np.zeros((sys.noutputs, m))
