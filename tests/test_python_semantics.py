@@ -1466,3 +1466,38 @@ def test_an_initial_state_that_is_not_numbers_is_python_control_s_error(X0):
     ours = controlkit.input_output_response(loop, T, 1.0, [0.5, 0.0], compile=True)
     assert ours.engine_mode == ("compiled" if _jit.available() else "python")
     assert np.array_equal(ours.outputs, ct.input_output_response(loop, T, 1.0, [0.5, 0.0]).outputs)
+
+
+def test_a_complex_parameter_s_result_is_stored_as_python_control_stores_it():
+    # python-control's interconnect stores a block's complex result in its float vectors:
+    # the real part, with numpy's ComplexWarning; the engine's Python run raised TypeError
+    plant = ct.nlsys(lambda t, x, u, p: [x[1], -p["k"] * x[0] - 0.4 * x[1] + u[0]],
+                     lambda t, x, u, p: [x[0]], inputs="f", outputs="q", states=["q", "v"],
+                     name="spring", params={"k": 3.0})
+    loop = ct.interconnect([plant], inputs="f", outputs="q")
+    T = np.linspace(0.0, 1.0, 11)
+    with pytest.warns(np.exceptions.ComplexWarning):
+        expected = ct.input_output_response(loop, T, 1.0, [0.1, 0.0], params={"k": 2.0 + 1j})
+    for compile in (False, None):
+        with pytest.warns(np.exceptions.ComplexWarning):
+            ours = controlkit.input_output_response(loop, T, 1.0, [0.1, 0.0],
+                                                    params={"k": 2.0 + 1j}, compile=compile)
+        assert ours.states.tobytes() == expected.states.tobytes()
+
+
+@pytest.mark.parametrize("dt", [0, 1])
+def test_time_points_given_as_a_range_stay_integers_as_in_python_control(dt):
+    plant = ct.nlsys(lambda t, x, u, p: (0.5 if dt else -1.0) * x + u, lambda t, x, u, p: x,
+                     inputs=1, outputs=1, states=1, name="plant", dt=dt)
+    loop = ct.interconnect([plant], inputs="u[0]", outputs="y[0]")
+    if dt:  # (python-control's discrete run subtracts two ranges)
+        error = python_control_error(loop, range(4), 1.0, 0.5)
+        for compile in (False, True):
+            with pytest.raises(type(error), match=re.escape(str(error))):
+                controlkit.input_output_response(loop, range(4), 1.0, 0.5, compile=compile)
+        return
+    expected = ct.input_output_response(loop, range(4), 1.0, 0.5)
+    for compile in (False, True):
+        ours = controlkit.input_output_response(loop, range(4), 1.0, 0.5, compile=compile)
+        assert ours.time.dtype == expected.time.dtype and np.array_equal(ours.time, expected.time)
+        assert np.array_equal(ours.outputs, expected.outputs)

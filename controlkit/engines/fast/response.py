@@ -40,7 +40,7 @@ def _response(given, sys, T, U, X0, compile, options):
     given_X0, given_times = X0, options.get("evaluation_times", "T")
     given_times = T if isinstance(given_times, str) else given_times
     # python-control hands its functions the time points as given: integers stay so
-    if isinstance(given_times, list | tuple):  # (a list of integers stays integers too)
+    if isinstance(given_times, list | tuple | range):  # (integers stay integers there too)
         given_times = np.asarray(given_times)
     integer_times = isinstance(given_times, np.ndarray) and given_times.dtype.kind in "iu"
     T, U, X0, t_eval, method, solver = python_control_arguments(sys, T, U, X0, options)
@@ -54,7 +54,7 @@ def _response(given, sys, T, U, X0, compile, options):
         except Exception as error:
             if integer_times:  # (a table indexed by t, say): python-control's own answer
                 raise UnsupportedSystem(_INTEGER_TIMES.format(
-                    f"fails on a float one ({type(error).__name__})")) from None
+                    f"fails on a float t ({type(error).__name__})")) from None
             raise
         integers = integer_state(given_X0, sys.nstates)
         if integers is not None and _integers_count(given, t_eval[0], X0, U[:, 0], params,
@@ -66,7 +66,8 @@ def _response(given, sys, T, U, X0, compile, options):
                 f"(X0={np.asarray(X0).tolist()}) runs on the fast engine")
         if integer_times and _integers_count(given, t_eval[0], X0, U[:, 0], params,
                                              given_times[0], X0):
-            raise UnsupportedSystem(_INTEGER_TIMES.format("computes other numbers from it"))
+            raise UnsupportedSystem(_INTEGER_TIMES.format(
+                "computes other numbers from it than from a float t"))
     else:
         try:
             resp = run_continuous(sys, T, U, X0, params=params, t_eval=t_eval,
@@ -98,8 +99,8 @@ def _response(given, sys, T, U, X0, compile, options):
 
 #: Why a discrete run whose time points are integers goes to python-control.
 _INTEGER_TIMES = ("T holds integers, which python-control hands to the functions as the time "
-                  "t, and a function of this system {} than from a float t; T given as "
-                  "floats (T.astype(float)) runs on the fast engine")
+                  "t, and a function of this system {}; T given as floats (T.astype(float)) "
+                  "runs on the fast engine")
 
 
 def _integers_count(given, t, X0, u, params, t_given, x_given) -> bool:

@@ -90,11 +90,11 @@ class UserKernel:
             raise TypeError(f"block {self.block!r}: its {what} returned None at t = {t:g} "
                             f"s (a return statement missing?); it must return its "
                             f"{out.size} {unit}")
-        value = np.asarray(result, dtype=float).reshape(-1)
+        value = np.asarray(result).reshape(-1)
         if value.size != out.size:  # python-control's words (for a lone system), and where
             raise SizeError(f"inconsistent size of {unit}; system specified {out.size}, "
                             f"{what} returned {value.size} (block {self.block!r}, at t = {t:g} s)")
-        out[:] = value
+        out[:] = value  # (as python-control stores it: a complex number's real part, warned)
         return out
 
     def plan(self) -> Plan:
