@@ -1501,3 +1501,17 @@ def test_time_points_given_as_a_range_stay_integers_as_in_python_control(dt):
         ours = controlkit.input_output_response(loop, range(4), 1.0, 0.5, compile=compile)
         assert ours.time.dtype == expected.time.dtype and np.array_equal(ours.time, expected.time)
         assert np.array_equal(ours.outputs, expected.outputs)
+
+
+@pytest.mark.parametrize("dt", [0, 1])
+def test_a_transfer_function_alone_is_refused_as_python_control_refuses_it(dt):
+    # python-control's input_output_response takes I/O systems, not a transfer function
+    # alone (in an interconnect it becomes a state-space block, in both)
+    lag = ct.tf([1.0], [1.0, 0.5 if dt else 2.0], dt)
+    T = np.arange(5.0)
+    error = python_control_error(lag, T, 1.0, 0.0)
+    for compile in (None, False, True):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # ("fast engine not used")
+            with pytest.raises(type(error), match=re.escape(str(error))):
+                controlkit.input_output_response(lag, T, 1.0, 0.0, compile=compile)

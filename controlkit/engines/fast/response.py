@@ -31,6 +31,9 @@ def response(sys, T, U, X0, *, compile=None, **options) -> ct.TimeResponseData:
     >>> response(loop, np.arange(3.0), 1.0, 1.0).outputs.tolist()
     [1.0, 1.5, 1.75]
     """
+    if isinstance(sys, ct.TransferFunction):  # (an interconnect's block converts, as ours)
+        raise UnsupportedSystem("a transfer function alone, which python-control's "
+                                "input_output_response refuses: ct.ss(sys) runs")
     given, sys = sys, as_interconnect(sys)  # the response keeps a single block's labels
     return _response(given, sys, T, U, X0, compile, options)
 
