@@ -56,7 +56,7 @@ class StiffProblem(RuntimeError):
     A 1 us lag tracking a sine for 10^4 s would take RK45 some 3e8 steps:
 
     >>> import controlkit
-    >>> lag = ct.tf([1.0], [1e-6, 1.0], inputs="u", outputs="y", name="lag")
+    >>> lag = ct.ss([[-1e6]], [[1e6]], [[1.0]], [[0.0]], inputs="u", outputs="y", name="lag")
     >>> T = np.linspace(0.0, 1e4, 101)
     >>> try:
     ...     controlkit.input_output_response(lag, T, np.sin(T), compile=False)
