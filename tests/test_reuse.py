@@ -298,6 +298,8 @@ def test_a_kept_job_lives_with_its_diagram_and_no_copy_or_pickle_carries_it():
                   pickle.loads(cloudpickle.dumps(loop))):  # as sweeps send it to workers
         assert reuse.reused(other, reuse.job_key(other, None)) is None
         agrees(other, 1.0, [0.0])
+    for other in (copy.deepcopy(loop), pickle.loads(cloudpickle.dumps(loop))):
+        assert other._controlkit_kept_job is None  # (loads without controlkit)
     gone = weakref.ref(loop)
     del loop
     gc.collect()

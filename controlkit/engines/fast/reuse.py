@@ -233,12 +233,12 @@ _ATTRIBUTE = "_controlkit_kept_job"
 
 class _Kept:
     """A diagram's last jobs (by way of running) and their keys; copied or pickled as
-    nothing kept."""
+    None."""
 
     __slots__ = ("jobs",)
 
     def __init__(self):
         self.jobs = {}
 
-    def __reduce__(self):  # (copy and deepcopy too)
-        return (_Kept, ())
+    def __reduce__(self):  # (copy and deepcopy too: a pickle needs no controlkit to load)
+        return (type(None), ())

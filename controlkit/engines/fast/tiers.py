@@ -316,15 +316,15 @@ _ONE_BLOCK = "_controlkit_one_block"
 
 class _OneBlock:
     """A system's one-block diagram, and the sizes and labels it was made for; copied or
-    pickled as nothing kept (as the jobs kept on a diagram, :mod:`.reuse`)."""
+    pickled as None (as the jobs kept on a diagram, :mod:`.reuse`)."""
 
     __slots__ = ("shape", "diagram")
 
-    def __init__(self, shape=None, diagram=None):
+    def __init__(self, shape, diagram):
         self.shape, self.diagram = shape, diagram
 
-    def __reduce__(self):  # (copy and deepcopy too)
-        return (_OneBlock, ())
+    def __reduce__(self):  # (copy and deepcopy too: a pickle needs no controlkit to load)
+        return (type(None), ())
 
 
 def blocks_of(sys, params=None, *, compiled=False):
