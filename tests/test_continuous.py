@@ -487,6 +487,49 @@ def _oscillator(t, x, u, params):
     return [x[1], -2.0 * x[0] - 0.3 * x[1] + u[0]]
 
 
+_GAINS = (0.5, 1.0, 2.0)
+
+
+def _table_update(t, x, u, params):  # a gain looked up by the state: an index out of range
+    return [x[0] + 0.1 * _GAINS[int(x[0])] * u[0]]
+
+
+def _guarded_rate(t, x, u, params):  # the function's own raise
+    if x[0] > 0.8:
+        raise ValueError(f"the lag went over its limit at t = {t}")
+    return [-x[0] + u[0]]
+
+
+def _guarded_output(t, x, u, params):
+    if x[0] > 0.8:
+        raise ValueError(f"the output went over its limit at t = {t}")
+    return [x[0]]
+
+
+@pytest.mark.parametrize("case", ["discrete update", "continuous rate", "output"])
+def test_a_user_s_function_that_raises_in_compiled_code_raises_as_python_does(case):
+    # the instants' loop calls a diagram's functions compiled as numba's C functions, which
+    # cannot raise: a discrete block's table lookup out of range went on silently
+    # (fuzz seed 302 answered with compile=True where Python and python-control raise)
+    lag = ct.nlsys(_guarded_rate if case == "continuous rate" else lambda t, x, u, p: -x + u,
+                   _guarded_output if case == "output" else None, inputs=1, outputs=1,
+                   states=1, name="lag")
+    blocks = [lag]
+    if case == "discrete update":
+        blocks.append(ct.nlsys(_table_update, None, inputs=1, outputs=1, states=1, dt=0.1,
+                               name="table"))
+    loop = controlkit.interconnect(blocks, inplist=[f"{b.name}.u[0]" for b in blocks],
+                                   outlist=[f"{b.name}.y[0]" for b in blocks], name=case)
+    T = np.linspace(0.0, 4.0, 41)
+    U = 3.0 * np.ones((len(blocks), T.size))
+    with pytest.raises((IndexError, ValueError)) as theirs:  # (python-control's, or Python's)
+        (controlkit if len(blocks) > 1 else ct).input_output_response(loop, T, U, 0.0)
+    for compile in (False, True):
+        with pytest.raises(type(theirs.value)) as ours:
+            controlkit.input_output_response(loop, T, U, 0.0, compile=compile)
+        assert str(theirs.value).split(" at t")[0] in str(ours.value)
+
+
 def test_python_control_refuses_a_sampled_data_diagram_with_the_remedy():
     loop, T, X0, U = servo_pi_discrete()
     with pytest.raises(ValueError, match=r"sampled-data diagram .* "

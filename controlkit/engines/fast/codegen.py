@@ -20,7 +20,7 @@ import numpy as np
 
 from ... import _jit
 from ...kernels import lti
-from .loops import STAGE
+from .loops import STAGE, caught
 from .plan import CONTINUOUS, DISCRETE, SAMPLED, exact_sum
 
 #: The first line of every module the engine writes: Python reads the rest as UTF-8.
@@ -489,4 +489,4 @@ def generate(plan, held_logic):
             "(instants, t_final, T, U, t_eval, eval_instant), "
             "(Y, X, Uo), (x, P, held), (ys, ui, xn, scratch, xt, cidx, yc, y_eval, "
             "ubuf, work), (method, rtol, atol, max_step, first_step), ctrl, status)"])
-    return "\n".join(text) + "\n"
+    return "\n".join(text) + caught(len(trusted) < len(plan.kernels))

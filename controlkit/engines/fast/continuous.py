@@ -21,11 +21,11 @@ from ..contract import response as base_response
 from . import loops, rk, store
 from .diagnose import explain_failure
 from .loops import (
+    AGAIN_AS_PYTHON,
     BUDGET,
     INSTANT,
     INTEGRATOR_FAILED,
     NEXT_TIME,
-    STAGE_NOT_FINITE,
     UNDER_WAY,
     WATCH_STAGES,
 )
@@ -306,8 +306,8 @@ def _run_compiled(job, args):
             signatures, types = loops.evaluator_signatures(numba, rhs_args, results, state,
                                                            buffers)
             functions = job.compiled_once(signatures, lambda path: store.compile_functions(
-                (evaluate, update, outputs, derivatives), signatures, path,
-                blocks=len(job.blocks)))
+                (module.evaluate_caught, module.update_caught, outputs,
+                 module.derivatives_caught), signatures, path, blocks=len(job.blocks)))
             types = (*types, *(numba.typeof(a) for a in rest))
             kept[1] = (store.instants_loop(types), functions)
         compiled_loop, functions = kept[1]
@@ -364,7 +364,7 @@ def _switch(runner, job, run, pieces):
         _back_to(run, python, results, n0, n1)
         runner.differs(job, f"its compiled module failed ({type(error).__name__}: {error})")
         return
-    if run.status[1] == STAGE_NOT_FINITE:  # (Python's functions went on there: its piece)
+    if run.status[1] == AGAIN_AS_PYTHON:  # (Python's functions went on or raised: its piece)
         _back_to(run, python, results, n0, n1)
         return
     # the whole state compared, the integrator's too: a short piece may end inside its

@@ -40,8 +40,10 @@ from ..._jit import jit
 from .rk import NFEV, PAUSED, PROJECTED_STEPS, SUCCESS, solve_interval
 
 #: ``status`` codes beyond a block index: the integrator failed (its code in status[2]);
-#: a stage met a number that is not finite, where Python's functions may have raised.
-INTEGRATOR_FAILED, STAGE_NOT_FINITE = -2, -3
+#: the piece runs again as Python, whose functions may raise where compiled code went on
+#: (a stage met a number that is not finite) or could not (a user's function raised in a
+#: C function, :func:`caught`).
+INTEGRATOR_FAILED, AGAIN_AS_PYTHON = -2, -3
 #: The ``k`` that ``evaluate`` is given at the integrator's stages (-1: between instants).
 STAGE = -2
 #: An evaluation time within this fraction of the base period of an instant is on it.
@@ -50,7 +52,7 @@ INSTANT_TOLERANCE = 1e-9
 #: serve, the instant the run is at, whether that instant's interval is under way
 #: (paused), the most right-hand side evaluations a call may make (0: no limit; an
 #: instant with nothing to integrate counts as one), how many it made, and whether a
-#: stage that is not finite stops the call (:data:`STAGE_NOT_FINITE`).
+#: stage that is not finite stops the call (:data:`AGAIN_AS_PYTHON`).
 NEXT_TIME, INSTANT, UNDER_WAY, BUDGET, SPENT, WATCH_STAGES = range(6)
 
 
@@ -123,6 +125,42 @@ def _segment(T, t):
     return idx
 
 
+def caught(catch: bool) -> str:
+    """The text a diagram's module ends with: its three functions that call kernels, as
+    the instants' loop takes them compiled. numba's C functions cannot raise, so with
+    ``catch`` an exception of a user's function there (an index out of a table, its own
+    ``raise``) becomes :data:`AGAIN_AS_PYTHON` (at a stage, the stage's mark), and the
+    piece runs again as Python, which raises it; without (a diagram of controlkit's
+    kernels, which do not raise: ``try`` costs 0.2-0.5 s of a compile), the calls.
+
+    Examples
+    --------
+    >>> print(caught(True).split("def ")[2])
+    update_caught(t, x, ui, P, xn, k, scratch):
+        try:
+            update(t, x, ui, P, xn, k, scratch)
+        except Exception:
+            return -3
+        return -1
+    <BLANKLINE>
+    <BLANKLINE>
+    <BLANKLINE>
+    """
+    def body(call, instead):
+        return (f"    try:\n        {call}\n    except Exception:\n        {instead}\n"
+                if catch else f"    {call}\n")
+
+    return ("\n\ndef evaluate_caught(t, x, U, col, P, ys, ui, held, k):\n"
+            + body("return evaluate(t, x, U, col, P, ys, ui, held, k)",
+                   f"return {AGAIN_AS_PYTHON}")
+            + "\n\ndef update_caught(t, x, ui, P, xn, k, scratch):\n"
+            + body("update(t, x, ui, P, xn, k, scratch)", f"return {AGAIN_AS_PYTHON}")
+            + "    return -1\n\n\ndef derivatives_caught(t, x, ui, P, dx):\n"
+            + body("derivatives(t, x, ui, P, dx)", "dx[dx.shape[0] - 1] = 1.0"))
+
+
+
+
 @jit(inline=True)
 def discrete_run(evaluate, update, outputs, T, x, U, P, Y, X, status, k0, k1, ys, ui, held,
                  xn, scratch):
@@ -171,7 +209,7 @@ def diagram_rhs(t, y, args, out):
     for q in range(cidx.shape[0]):
         xt[cidx[q]] = y[q]
     interpolate(T, U, t, ubuf)
-    not_finite = evaluate(t, xt, ubuf, 0, P, ys, ui, held, STAGE) >= 0
+    not_finite = evaluate(t, xt, ubuf, 0, P, ys, ui, held, STAGE) != -1
     derivatives(t, xt, ui, P, dx)
     for q in range(cidx.shape[0]):
         out[q] = dx[cidx[q]]
@@ -222,7 +260,7 @@ def continuous_run(evaluate, update, outputs, integrate, machine, rhs_args, time
         if not resume:
             interpolate(T, U, t, ubuf)
             failed = evaluate(t, x, ubuf, 0, P, ys, ui, held, k)
-            if failed >= 0:
+            if failed != -1:
                 status[0] = ctrl[NEXT_TIME]
                 status[1] = failed
                 return
@@ -235,7 +273,10 @@ def continuous_run(evaluate, update, outputs, integrate, machine, rhs_args, time
                     Uo[q, i] = ubuf[q, 0]
                 i += 1
             ctrl[NEXT_TIME] = i
-            update(t, x, ui, P, xn, k, scratch)
+            if update(t, x, ui, P, xn, k, scratch) == AGAIN_AS_PYTHON:
+                status[0] = i
+                status[1] = AGAIN_AS_PYTHON
+                return
             for q in range(nx):
                 x[q] = xn[q]
         i = ctrl[NEXT_TIME]
@@ -249,7 +290,7 @@ def continuous_run(evaluate, update, outputs, integrate, machine, rhs_args, time
             for j in range(i, stop):
                 failed = _record(evaluate, outputs, t_eval[j], x, T, U, ubuf, P, ys, ui,
                                  held, j, Y, X, Uo)
-                if failed >= 0:
+                if failed != -1:
                     status[0] = j
                     status[1] = failed
                     return
@@ -276,7 +317,7 @@ def continuous_run(evaluate, update, outputs, integrate, machine, rhs_args, time
             # raised (math.log of a negative, a float divided by zero), even in a step the
             # integrator then rejected: the caller runs this piece again as Python
             status[0] = i
-            status[1] = STAGE_NOT_FINITE
+            status[1] = AGAIN_AS_PYTHON
             return
         if code == PAUSED:
             ctrl[UNDER_WAY] = 1
@@ -289,7 +330,7 @@ def continuous_run(evaluate, update, outputs, integrate, machine, rhs_args, time
                 xt[cidx[q]] = y_eval[j, q]
             failed = _record(evaluate, outputs, t_eval[j], xt, T, U, ubuf, P, ys, ui,
                              held, j, Y, X, Uo)
-            if failed >= 0:
+            if failed != -1:
                 status[0] = j
                 status[1] = failed
                 return
@@ -345,7 +386,7 @@ def evaluator_signatures(numba, rhs_args, results, state, buffers):
     x, P, held = (typeof(a) for a in state)
     ys, ui, xn, scratch, _, _, _, _, ubuf, _ = (typeof(a) for a in buffers)
     signatures = (i8(f8, x, ubuf, i8, P, ys, ui, held, i8),  # evaluate
-                  types.none(f8, x, ui, P, xn, i8, scratch),  # update
+                  i8(f8, x, ui, P, xn, i8, scratch),  # update
                   types.none(ys, ui, typeof(results[0]), i8),  # outputs
                   types.none(f8, x, ui, P, typeof(rhs_args[-1])))  # derivatives
     return signatures, tuple(types.FunctionType(s) for s in signatures)
