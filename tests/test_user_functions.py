@@ -2,6 +2,7 @@
 the cases that once gave a wrong answer, crashed or refused valid input do not any more."""
 
 import functools
+import math
 import os
 import re
 import shutil
@@ -244,6 +245,57 @@ def test_integers_that_can_outgrow_64_bits_run_as_python_and_explain_says_so(upd
                         compile=True)
     assert resp.engine_mode == "python"
     np.testing.assert_array_equal(np.ravel(resp.outputs), ref.outputs[0])
+
+
+def stacked(t, x, u, params):  # np.concatenate of a list: numba takes a tuple
+    return np.concatenate([x[:1] * -0.5, x[1:] + u[0]])
+
+
+def switched(t, x, u, params):  # float of a comparison: numba's float takes numbers
+    return [0.9 * x[0] + float(u[0] > 0.5) - 0.2 * float(not x[1] > 0.0), 0.5 * x[1] + u[0]]
+
+
+@pytest.mark.parametrize("update", [stacked, switched])
+def test_a_list_of_arrays_and_the_float_of_a_comparison_compile_with_python_s_numbers(update):
+    # numba refused both after a compile (0.5-1 s): np.concatenate([a, b]) is written
+    # np.concatenate((a, b)), float(u > 0.5) as 1.0 if u > 0.5 else 0.0
+    block = ct.nlsys(update, None, inputs="u", outputs=["p", "q"], states=2, dt=TS,
+                     name="odd")
+    loop = ct.interconnect([block], inputs="u", outputs=["p", "q"])
+    assert [row.tier for row in engine.explain(loop)] == ["compiled"]
+    T = np.arange(40) * TS
+    U = np.where(np.arange(40) % 7 < 3, 1.0, -0.5).reshape(1, -1)
+    expected = ct.input_output_response(loop, T, U, [0.3, -0.2])
+    for compile in (False, True):
+        ours = controlkit.input_output_response(loop, T, U, [0.3, -0.2], compile=compile)
+        assert ours.engine_mode == ("compiled" if compile else "python")
+        assert ours.outputs.tobytes() == expected.outputs.tobytes()
+
+
+def remainder(t, x, u, params):
+    return [0.9 * x[0] + math.fmod(u[0], 0.3)]
+
+
+def generated(t, x, u, params):
+    return [0.9 * x[0] + sum(u[i] for i in range(1))]
+
+
+@pytest.mark.parametrize("update, reason", [
+    (remainder, "it calls math.fmod, which numba does not compile"),
+    (generated, r"it uses a generator expression \(\(u\[i\] for i in range\(1\)\)\), which "
+                r"numba does not compile \(a list comprehension compiles\)")])
+def test_what_numba_refuses_runs_as_python_from_the_start_and_explain_says_why(update,
+                                                                               reason):
+    # explain said "compiled", and compile=True spent 0.4-1 s on numba's refusal first
+    block = ct.nlsys(update, None, inputs="u", outputs="y", states=1, dt=TS, name="odd")
+    loop = ct.interconnect([block], inputs="u", outputs="y")
+    row = engine.explain(loop)[0]
+    assert row.tier == "python" and re.search(reason, row.reason), row.reason
+    T = np.arange(20) * TS
+    with pytest.warns(UserWarning, match=reason):
+        ours = controlkit.input_output_response(loop, T, 0.7, 0.1, compile=True)
+    assert ours.engine_mode == "python"
+    assert np.array_equal(ours.outputs, ct.input_output_response(loop, T, 0.7, 0.1).outputs)
 
 
 def halving(t, x, u, params):
@@ -824,3 +876,28 @@ def test_a_list_of_keys_changed_in_place_is_read_again():
                                           ct.input_output_response(loop, T, 2.0).outputs)
     finally:
         KEYS_READ[:] = ["k1", "k2"]
+
+
+def test_the_math_functions_sent_to_python_are_the_ones_numba_refuses():
+    # the list is numba's (0.59-0.68): a numba that compiles one of them shows here
+    from controlkit import _jit
+    from controlkit.engines.fast.usercode.calls import Calls
+
+    if not _jit.available():
+        pytest.skip("numba not installed")
+    numba = _jit.numba_module()
+
+    def compiles(name, args):
+        namespace = {"math": math}
+        names = ", ".join(f"a{i}" for i in range(len(args)))
+        exec(f"def f({names}):\n    return math.{name}({names})\n", namespace)
+        try:
+            numba.njit(namespace["f"])(*args)
+        except numba.core.errors.TypingError:
+            return False
+        return True
+
+    for function in Calls.NUMBA_LACKS:  # (one number, two, two integers)
+        assert not any(compiles(function.__name__, args)
+                       for args in ((1.5,), (2.5, 1.5), (3, 2))), function.__name__
+    assert compiles("atan2", (1.0, 2.0)) and compiles("floor", (1.5,))

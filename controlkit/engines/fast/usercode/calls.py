@@ -45,6 +45,13 @@ class Calls(ast.NodeTransformer):
                np.divmod: "_ck_divmod", builtins.sum: "_ck_python_sum"}
     #: Python's functions that make an integer of a float: their argument is checked first
     INTEGERS = (builtins.int, builtins.round, math.floor, math.ceil, math.trunc)
+    #: ``math``'s functions numba does not compile (0.59-0.68): a function calling one runs
+    #: as Python from the start, where numba's refusal cost a compile first (0.4-1 s)
+    NUMBA_LACKS = tuple(getattr(math, name) for name in (
+        "cbrt", "dist", "fmod", "fsum", "isclose", "isqrt", "lcm", "modf", "prod",
+        "remainder", "ulp") if hasattr(math, name))
+    #: numpy's functions of a sequence of arrays, which numba takes as a tuple only
+    SEQUENCES = (np.concatenate, np.stack, np.vstack, np.hstack, np.column_stack)
     #: What the rewritten text calls: ``_ck_<name>`` is ``<name>`` of
     #: :mod:`controlkit.kernels.numpy_calls`, else ``<function>`` of :mod:`.user_calls`
     NUMPY_CALLS = ("sum", "mean", "norm", "trace", "solve", "det", "slogdet", "sign",
@@ -80,6 +87,19 @@ class Calls(ast.NodeTransformer):
         if name is not None:
             return ast.copy_location(ast.Call(ast.Name(name, ast.Load()), node.args,
                                               node.keywords), node)
+        if any(target is f for f in self.NUMBA_LACKS):
+            raise NotCompilable(f"it calls math.{target.__name__}, which numba does not "
+                                f"compile")
+        if any(target is f for f in self.SEQUENCES) and node.args \
+                and isinstance(node.args[0], ast.List):  # [a, b] -> (a, b): the same arrays
+            node.args[0] = ast.copy_location(ast.Tuple(node.args[0].elts, ast.Load()),
+                                             node.args[0])
+            return node
+        if target is builtins.float and len(node.args) == 1 and not node.keywords and (
+                isinstance(node.args[0], ast.Compare) or isinstance(node.args[0], ast.UnaryOp)
+                and isinstance(node.args[0].op, ast.Not)):  # float(u > 0.5): numba's takes
+            return ast.copy_location(ast.IfExp(node.args[0], ast.Constant(1.0),  # numbers
+                                               ast.Constant(0.0)), node)
         if any(target is f for f in self.INTEGERS) and len(node.args) == 1 \
                 and not node.keywords:  # int(x) -> int(_ck_int64(x)); round(x, n) is a float
             node.args = [ast.Call(ast.Name("_ck_int64", ast.Load()), node.args, [])]
@@ -95,6 +115,10 @@ class Calls(ast.NodeTransformer):
             return ast.copy_location(ast.Call(ast.Name(f"_ck_{f.attr}", ast.Load()),
                                               [f.value, *node.args], node.keywords), node)
         return node
+
+    def visit_GeneratorExp(self, node):
+        raise NotCompilable(f"it uses a generator expression ({ast.unparse(node)[:40]}), "
+                            f"which numba does not compile (a list comprehension compiles)")
 
     def visit_BinOp(self, node):
         node = self.generic_visit(node)
