@@ -511,6 +511,33 @@ def test_a_lone_system_s_one_block_diagram_is_kept_while_its_labels_hold():
     assert again.output_labels == ["speed"] and np.array_equal(again.outputs, first.outputs)
 
 
+def test_a_lone_system_s_kept_diagram_reads_its_parameters_and_rate_as_they_are_now():
+    # the one-block diagram copied the system's params when it was built, and its copy
+    # went over their later values (found by a review of the change); dt True, then 1,
+    # compared equal
+    import controlkit
+
+    lone = ct.nlsys(lambda t, x, u, p: -p["a"] * x + u, lambda t, x, u, p: p["c"] * x,
+                    inputs=1, outputs=1, states=1, name="lone", params={"a": 1.0, "c": 2.0})
+    T = np.linspace(0.0, 2.0, 21)
+    for change in ({}, {"a": 5.0}, {"c": -1.0}):
+        lone.params.update(change)
+        expected = ct.input_output_response(lone, T, 1.0, 0.5)
+        for compile in (False, True):
+            ours = controlkit.input_output_response(lone, T, 1.0, 0.5, compile=compile)
+            assert ours.states.tobytes() == expected.states.tobytes(), (change, compile)
+            assert ours.outputs.tobytes() == expected.outputs.tobytes(), (change, compile)
+    stepper = ct.nlsys(lambda t, x, u, p: 0.5 * x + u, None, inputs=1, outputs=1, states=1,
+                       dt=True, name="stepper")
+    T = np.arange(5) * 0.5
+    controlkit.input_output_response(stepper, T, 1.0, 0.0, compile=False)
+    stepper.dt = 1  # (T spaced 0.5: python-control refuses it now)
+    with pytest.raises(ValueError):
+        ct.input_output_response(stepper, T, 1.0, 0.0)
+    with pytest.raises(ValueError):
+        controlkit.input_output_response(stepper, T, 1.0, 0.0, compile=False)
+
+
 def test_the_engine_s_start_pays_by_the_run_s_size_or_python_control_s_longest_run():
     import control as ct
 

@@ -282,8 +282,8 @@ def as_interconnect(sys):
         return sys
     if not isinstance(sys, ct.InputOutputSystem):
         raise UnsupportedSystem(f"a {type(sys).__name__} is not an I/O system")
-    kept, shape = getattr(sys, _ONE_BLOCK, None), (
-        sys.name, sys.dt, sys.nstates, tuple(sys.input_labels), tuple(sys.output_labels))
+    kept, shape = getattr(sys, _ONE_BLOCK, None), (  # (dt True is not dt 1)
+        sys.name, repr(sys.dt), sys.nstates, tuple(sys.input_labels), tuple(sys.output_labels))
     if isinstance(kept, _OneBlock) and kept.shape == shape and kept.diagram.syslist[0] is sys:
         return kept.diagram  # (whose prepared job is kept on it: a short run's most time)
     if isinstance(sys, ct.TransferFunction):  # as python-control's interconnect takes it
@@ -304,6 +304,7 @@ def _one_block(sys):
             raise UnsupportedSystem(f"system {sys.name!r} does not declare its number of {what}")
     wrapped = ct.interconnect([sys], inputs=sys.input_labels, outputs=sys.output_labels,
                               name=sys.name, check_unused=False)
+    wrapped.params = {}  # (its copy of the system's, kept, would hide their later values)
     # python-control hands a single system its inputs and outputs as they are, and an
     # interconnect's blocks numpy's products of its maps (a -0.0 becomes 0.0): codegen asks
     wrapped.single_system = True
