@@ -1515,3 +1515,35 @@ def test_a_transfer_function_alone_is_refused_as_python_control_refuses_it(dt):
             warnings.simplefilter("ignore")  # ("fast engine not used")
             with pytest.raises(type(error), match=re.escape(str(error))):
                 controlkit.input_output_response(lag, T, 1.0, 0.0, compile=compile)
+
+
+def _past_int64(t, x, u, params):  # int() of 1e19 after t = 8: Python's int holds it
+    return -x + u + (int(1e19 * (t > 8.0) + 1.0) % 7) * 1e-3
+
+
+def test_many_runs_whose_compiled_code_stops_go_on_as_each_run_alone_would():
+    # many runs on threads read a compiled piece's stop as a failure ("stopped without a
+    # reason"): a function that only compiled code cannot finish (int() past 64 bits)
+    # then raised RuntimeError where python-control answers
+    plant = ct.nlsys(_past_int64, lambda t, x, u, p: x, inputs="u", outputs="y", states=1,
+                     name="plant")
+    loop = ct.interconnect([plant], inputs="u", outputs="y")
+    T = np.linspace(0.0, 10.0, 101)
+    starts = np.array([[0.1], [0.2], [0.3]])
+    expected = [ct.input_output_response(loop, T, np.sin(T), x0) for x0 in starts]
+    for compile in (True, None):
+        ours = controlkit.input_output_response(loop, T, np.sin(T), starts, compile=compile)
+        assert [r.outputs.tobytes() for r in ours] == [r.outputs.tobytes() for r in expected]
+
+
+def test_an_initial_state_of_python_numbers_in_an_object_array_runs_on_the_engine():
+    from fractions import Fraction
+
+    plant = ct.nlsys(lambda t, x, u, p: -x + u, lambda t, x, u, p: x, inputs=["u0", "u1"],
+                     outputs=["y0", "y1"], states=2, name="plant")
+    loop = ct.interconnect([plant], inputs=["u0", "u1"], outputs=["y0", "y1"])
+    T = np.linspace(0.0, 1.0, 11)
+    for X0 in (np.array([0.5, 0.25], dtype=object), [Fraction(1, 2), Fraction(1, 4)]):
+        ours = controlkit.input_output_response(loop, T, 1.0, X0, compile=False)
+        assert ours.engine_mode == "python"
+        assert np.array_equal(ours.outputs, ct.input_output_response(loop, T, 1.0, X0).outputs)

@@ -9,6 +9,8 @@ the same whichever backend made it.
 
 from __future__ import annotations
 
+import numbers
+
 import control as ct
 import numpy as np
 
@@ -224,7 +226,8 @@ def python_control_arguments(sys, T, U, X0, options):
     if sys.nstates == 0:  # (python-control reads X0, None included, and leaves it)
         X0 = np.zeros(0)
     X0 = _real(np.asarray(X0), "initial state")
-    if X0.dtype.kind not in "biuf":  # (None, or a list holding one: python-control's error)
+    if X0.dtype.kind not in "biuf" and not all(  # (None, or a list holding one: python-
+            isinstance(v, numbers.Real) for v in X0.ravel().tolist()):  # control's error)
         raise UnsupportedSystem(f"an initial state of {X0.dtype} ({X0.tolist()!r:.40}), not "
                                 f"numbers")
     X0 = X0.astype(float, copy=False)

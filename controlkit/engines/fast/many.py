@@ -20,7 +20,7 @@ import numpy as np
 
 from ..contract import UnsupportedSystem
 from ..contract import response as base_response
-from .continuous import STIFF_METHODS, _failed, _Run, run_continuous
+from .continuous import STIFF_METHODS, _Run, run_continuous
 from .discrete import simulate
 from .pieces import now
 from .response import read_inputs
@@ -136,16 +136,12 @@ def run_many(sys, T, U, X0s, params_list, *, t_eval=None, method="RK45", compile
         with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
             done = list(pool.map(one, todo))
         for r, result in zip(todo, done, strict=True):
-            if result is None:  # failed: run alone, to fail in its own words
-                alone(r, True)
+            if result is None or not discrete and result.status[1] != -1:
+                alone(r, True)  # stopped: alone, to fail in its own words or go on as Python
             elif discrete:
                 responses[r] = base_response(sys, t_eval, *result, U)
             else:
-                try:
-                    _failed(jobs[r], result)
-                    responses[r] = base_response(sys, t_eval, result.Y, result.X, result.Uo)
-                except (ArithmeticError, RuntimeError, ValueError) as error:
-                    errors[r] = error
+                responses[r] = base_response(sys, t_eval, result.Y, result.X, result.Uo)
             if responses[r] is not None:
                 responses[r].engine_mode = "compiled"
     return responses, errors
