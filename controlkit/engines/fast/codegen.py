@@ -489,4 +489,4 @@ def generate(plan, held_logic):
             "(instants, t_final, T, U, t_eval, eval_instant), "
             "(Y, X, Uo), (x, P, held), (ys, ui, xn, scratch, xt, cidx, yc, y_eval, "
             "ubuf, work), (method, rtol, atol, max_step, first_step), ctrl, status)"])
-    return "\n".join(text) + caught(len(trusted) < len(plan.kernels))
+    return "\n".join(text) + caught(plan.calls_users)

@@ -132,8 +132,7 @@ class _Run:
         self.Uo = np.zeros((sys.ninputs, m))
         self.x, self.held = np.array(X0, dtype=float), np.zeros(plan.ny)
         self.ctrl = np.zeros(WATCH_STAGES + 1, dtype=np.int64)
-        # a user's function compiled gives inf or NaN where, run as Python, it may raise
-        self.users = len(plan.controlkit_s_own) < len(plan.kernels)
+        self.users = plan.calls_users  # (whose compiled stages are watched)
         self.status = np.full(4, -1, dtype=np.int64)
         self.work = rk.make_workspace(nc, 0, m)
         self.y_eval, self.yc = np.zeros((m, nc)), np.zeros(nc)

@@ -159,8 +159,6 @@ def caught(catch: bool) -> str:
             + body("derivatives(t, x, ui, P, dx)", "dx[dx.shape[0] - 1] = 1.0"))
 
 
-
-
 @jit(inline=True)
 def discrete_run(evaluate, update, outputs, T, x, U, P, Y, X, status, k0, k1, ys, ui, held,
                  xn, scratch):

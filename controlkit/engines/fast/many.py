@@ -20,8 +20,9 @@ import numpy as np
 
 from ..contract import UnsupportedSystem
 from ..contract import response as base_response
-from .continuous import STIFF_METHODS, _Run, run_continuous
+from .continuous import STIFF_METHODS, _failed, _Run, run_continuous
 from .discrete import simulate
+from .loops import AGAIN_AS_PYTHON
 from .pieces import now
 from .response import read_inputs
 from .run import CHECKED, PAYS, compiled_cost, compiled_job
@@ -136,12 +137,16 @@ def run_many(sys, T, U, X0s, params_list, *, t_eval=None, method="RK45", compile
         with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
             done = list(pool.map(one, todo))
         for r, result in zip(todo, done, strict=True):
-            if result is None or not discrete and result.status[1] != -1:
+            if result is None or not discrete and result.status[1] == AGAIN_AS_PYTHON:
                 alone(r, True)  # stopped: alone, to fail in its own words or go on as Python
             elif discrete:
                 responses[r] = base_response(sys, t_eval, *result, U)
             else:
-                responses[r] = base_response(sys, t_eval, result.Y, result.X, result.Uo)
+                try:
+                    _failed(jobs[r], result)
+                    responses[r] = base_response(sys, t_eval, result.Y, result.X, result.Uo)
+                except (ArithmeticError, RuntimeError, ValueError) as error:
+                    errors[r] = error
             if responses[r] is not None:
                 responses[r].engine_mode = "compiled"
     return responses, errors

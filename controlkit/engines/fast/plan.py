@@ -107,6 +107,12 @@ class Plan:
                 own.add(i)
         return own
 
+    @property
+    def calls_users(self) -> bool:
+        """Whether a kernel is the user's (not :attr:`controlkit_s_own`): its compiled form
+        may give inf or NaN, or raise, where Python raises."""
+        return len(self.controlkit_s_own) < len(self.kernels)
+
     @functools.cached_property
     def inputs_exact(self) -> list[bool]:
         """Whether each block input written out as the sum of its terms is python-control's
