@@ -13,7 +13,7 @@ from ..contract import UnsupportedSystem, integer_state, python_control_argument
 from ..contract import response as base_response
 from .continuous import StiffProblem, run_continuous
 from .discrete import simulate
-from .tiers import as_interconnect
+from .tiers import _local_params, as_interconnect
 
 
 def response(sys, T, U, X0, *, compile=None, **options) -> ct.TimeResponseData:
@@ -146,7 +146,7 @@ def outputs(given, diagram, resp, params) -> np.ndarray:
     X, U = resp.x, resp.u
     if given.outfcn is None:
         return np.array(X[:given.noutputs])
-    current = {**given.params, **(params or {})}
+    current = _local_params(diagram, given, params)  # (the diagram holds none of its own)
     Y = np.zeros((given.noutputs, len(resp.t)))
     with SYSTEM_CALLS:
         for i, t in enumerate(resp.t):
