@@ -251,7 +251,13 @@ def kernel_source(plan: Plan, layout: ParamLayout) -> str:
         raise NotCompilable(why)
     written = plan.written  # the functions' text, per layout
     if layout.entries not in written:
-        written[layout.entries] = _functions(plan, layout)
+        text = _functions(plan, layout)
+        try:  # (Python 3.11 writes some strings inside an f-string as text it cannot read)
+            ast.parse(text)
+        except SyntaxError:
+            raise NotCompilable("its text, written out, is not Python it can read (a "
+                                "string inside an f-string)") from None
+        written[layout.entries] = text
     imports = ["import numpy as _np_",
                *(f"from controlkit.kernels.numpy_calls import numpy_{name} as _ck_{name}"
                  for name in Calls.NUMPY_CALLS),
@@ -276,11 +282,6 @@ def kernel_source(plan: Plan, layout: ParamLayout) -> str:
         "    return store(user(t, x, u, p), out)",
         "",
     ])
-    try:  # (Python 3.11 writes some strings inside an f-string as text it cannot read)
-        ast.parse(text)
-    except SyntaxError:
-        raise NotCompilable("its text, written out, is not Python it can read (a string "
-                            "inside an f-string)") from None
     return text
 
 
