@@ -304,3 +304,21 @@ def test_a_kept_job_lives_with_its_diagram_and_no_copy_or_pickle_carries_it():
     del loop
     gc.collect()
     assert gone() is None
+
+
+def test_a_compiled_job_takes_the_python_jobs_text_only_when_its_kernels_are_the_same():
+    # controlkit's blocks and LTI blocks: the same kernels both ways, written once
+    from controlkit.studies.cmg.diagrams import cmg_loop
+
+    python = prepare(cmg_loop())
+    shared = prepare(python.sys, compiled=True, like=python)
+    written = prepare(cmg_loop(), compiled=True)  # (a new diagram: written afresh)
+    assert shared.compiled and not python.compiled
+    assert shared.plan is python.plan and shared.source == written.source
+    np.testing.assert_array_equal(shared.P, written.P)
+    # a user's function: its compiled kernel is another, so its plan is its own
+    loop = lag_loop(scaled)
+    python = prepare(loop)
+    compiled = prepare(loop, compiled=True, like=python)
+    assert compiled.plan is not python.plan
+    assert compiled.plan.kernels != python.plan.kernels

@@ -24,7 +24,7 @@ from . import reuse, store, usercode
 from .codegen import generate
 from .pieces import PIECE_SECONDS, now
 from .plan import Plan, evaluation_order, held_logic, make_plan
-from .tiers import BlockTier, NotCompiled, _resolve, as_interconnect, blocks_of
+from .tiers import BlockTier, NotCompiled, _resolve, as_interconnect, blocks_of, same_kernels
 
 #: How the engine chooses between running a diagram as Python and compiled.
 RULE = ("compiled when asked (compile=True), when the diagram's module is compiled "
@@ -140,7 +140,8 @@ class Job:
                         _compile_kernels(self.plan.kernels)
                     entries[key] = compile_it(path)
                 except Exception as error:  # noqa: BLE001 - numba's: runs as Python
-                    DIFFERS[self.source] = f"numba could not compile it ({_first_line(error)})"
+                    said = store.numba_said(error)
+                    DIFFERS[self.source] = f"numba could not compile it ({said})"
                     raise NotCompiled(DIFFERS[self.source]) from error
             return entries[key]
 
@@ -162,18 +163,6 @@ def _compile_kernels(kernels) -> None:
             continue
 
 
-def _first_line(error) -> str:
-    """The line of a compiler's error that says what went wrong."""
-    lines = [line.strip() for line in str(error).splitlines() if line.strip()]
-    useful = [line for line in lines if not line.startswith(("Failed in", "During:"))]
-    # an implementation's own refusal (controlkit.kernels.user_calls) says more than
-    # numba's "No implementation of function ..." around it
-    useful = [after.removeprefix("TypingError: ")
-              for before, after in zip(lines, lines[1:], strict=False)
-              if before.endswith("raised a specific error:")] + useful
-    return f"{type(error).__name__}: {(useful or lines or [''])[0][:200]}"
-
-
 def _pasted(fn):
     """``fn`` as numba pastes it into a module's entry point (``inline="always"``)."""
     pasted = getattr(fn, "_controlkit_pasted", None)
@@ -183,11 +172,13 @@ def _pasted(fn):
     return pasted
 
 
-def prepare(sys, params=None, *, compiled=False) -> Job:
+def prepare(sys, params=None, *, compiled=False, like=None) -> Job:
     """The :class:`Job` of ``sys`` with the parameters ``params`` in force.
 
     ``compiled``: the job of the compiled module (NotCompiled naming a block that cannot
-    be compiled); else the job run as Python.
+    be compiled); else the job run as Python. ``like``: the job of the same call run as
+    Python, whose plan and text a compiled job takes when its blocks have the very same
+    kernels (no user's function): they would be written again the same.
 
     Raises
     ------
@@ -205,9 +196,12 @@ def prepare(sys, params=None, *, compiled=False) -> Job:
     if job is not None:  # called again with nothing it depends on changed
         return job
     blocks = blocks_of(sys, params, compiled=compiled)
-    plan = make_plan(sys, blocks, evaluation_order(sys, blocks))
-    source = generate(plan, held_logic=held_logic(sys))
-    job = Job(sys, plan, plan.parameters(), source, compiled)
+    if like is not None and same_kernels(blocks, like.blocks):
+        job = Job(sys, like.plan, like.P, like.source, compiled)
+    else:
+        plan = make_plan(sys, blocks, evaluation_order(sys, blocks))
+        job = Job(sys, plan, plan.parameters(), generate(plan, held_logic=held_logic(sys)),
+                  compiled)
     reuse.keep(sys, key, job)
     return job
 
@@ -236,8 +230,9 @@ def compile_estimate(job) -> float:
     return seconds + (store.integrator_to_compile() if continuous else 0.0)
 
 
-def compiled_job(sys, params):
-    """The compiled job of ``sys``, or the reason it cannot be had (a str).
+def compiled_job(sys, params, like=None):
+    """The compiled job of ``sys``, or the reason it cannot be had (a str); ``like`` as
+    :func:`prepare` takes it.
 
     Examples
     --------
@@ -254,7 +249,7 @@ def compiled_job(sys, params):
     except store.StoreRefused as why:
         return str(why)
     try:
-        job = prepare(sys, params, compiled=True)
+        job = prepare(sys, params, compiled=True, like=like)
     except NotCompiled as why:
         return str(why)
     if job.source in DIFFERS:
@@ -298,7 +293,7 @@ class Runner:
         twin = _TWINS.get(self.python.source)
         if compile or compile is None and getattr(twin, "source", None) in _COMPILED:
             # asked for, or compiled already in this process: compiled from the start
-            candidate = compiled_job(sys, params)
+            candidate = compiled_job(sys, params, self.python)
             if isinstance(candidate, str):
                 self.decided = True
                 if compile:
@@ -321,7 +316,7 @@ class Runner:
         if before <= PAYS * NUMBA_START_SECONDS:
             return
         if source not in _TWINS:  # (its cost, read by the diagrams of this text to come)
-            _TWINS[source] = compiled_job(self.sys, self.params)
+            _TWINS[source] = compiled_job(self.sys, self.params, self.python)
         twin = _TWINS[source]
         if isinstance(twin, str):
             return
@@ -336,7 +331,8 @@ class Runner:
         if cost - sum(seconds for seconds, _ in steps) > PYTHON_CONTROL_SLOWER * typical:
             return  # (the compile never fits in a call: the steps would be for nothing)
         if not steps:
-            candidate = compiled_job(self.sys, self.params)  # (this diagram's, its values)
+            # (this diagram's, its values)
+            candidate = compiled_job(self.sys, self.params, self.python)
             if isinstance(candidate, str):
                 return
             _TWINS[source] = candidate
@@ -359,7 +355,7 @@ class Runner:
             try:
                 make()
             except Exception as error:  # noqa: BLE001 - numba's: no more steps here
-                _TWINS[source] = f"numba could not compile a function ({_first_line(error)})"
+                _TWINS[source] = f"numba could not compile a function ({store.numba_said(error)})"
                 return
             self.spent += now() - began  # (what it took: an estimate errs)
 
@@ -395,7 +391,7 @@ class Runner:
         room = PYTHON_CONTROL_SLOWER * (elapsed + rest) - elapsed - self.spent
         if saved <= PAYS * NUMBA_START_SECONDS or room <= LOAD_SECONDS:
             return None  # (not even worth numba's start, or no time for it)
-        candidate = compiled_job(self.sys, self.params)
+        candidate = compiled_job(self.sys, self.params, self.python)
         if isinstance(candidate, str):
             return None
         cost = compiled_cost(candidate)

@@ -217,6 +217,24 @@ def write_record(path: Path, **values) -> None:
     _TIMES.clear()  # (read again by compile_times)
 
 
+def numba_said(error) -> str:
+    """The line of a compiler's error that says what went wrong.
+
+    Examples
+    --------
+    >>> numba_said(TypeError("Failed in nopython mode\\nNo implementation of f"))
+    'TypeError: No implementation of f'
+    """
+    lines = [line.strip() for line in str(error).splitlines() if line.strip()]
+    useful = [line for line in lines if not line.startswith(("Failed in", "During:"))]
+    # an implementation's own refusal (controlkit.kernels.user_calls) says more than
+    # numba's "No implementation of function ..." around it
+    useful = [after.removeprefix("TypingError: ")
+              for before, after in zip(lines, lines[1:], strict=False)
+              if before.endswith("raised a specific error:")] + useful
+    return f"{type(error).__name__}: {(useful or lines or [''])[0][:200]}"
+
+
 def compile_entry(function, args, path: Path, blocks: int = 1):
     """``function`` compiled by numba for the types of ``args`` and kept in ``path``'s
     cache (loaded from it when it is there), its first compile recorded.

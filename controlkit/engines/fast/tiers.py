@@ -352,3 +352,22 @@ def blocks_of(sys, params=None, *, compiled=False):
         ys += block.noutputs
         ps += kernel.params.size
     return blocks
+
+
+def same_kernels(blocks, others) -> bool:
+    """Whether ``blocks`` have the very kernels of ``others`` (from :func:`blocks_of`), with
+    equal parameters: a diagram's blocks with nothing of a user's, read to run compiled
+    and to run as Python.
+
+    Examples
+    --------
+    >>> from controlkit.studies.cmg.diagrams import cmg_loop
+    >>> loop = cmg_loop()
+    >>> same_kernels(blocks_of(loop), blocks_of(loop, compiled=True))
+    True
+    """
+    return len(blocks) == len(others) and all(
+        a.kernel.output is b.kernel.output and a.kernel.update is b.kernel.update
+        and a.kernel.feedthrough == b.kernel.feedthrough and a.kernel.rk4 == b.kernel.rk4
+        and np.array_equal(a.kernel.params, b.kernel.params)
+        for a, b in zip(blocks, others, strict=True))
