@@ -2,6 +2,7 @@
 changed: each change a notebook makes between two calls gives python-control's new answer."""
 
 import functools
+import linecache
 
 import control as ct
 import numpy as np
@@ -322,3 +323,28 @@ def test_a_compiled_job_takes_the_python_jobs_text_only_when_its_kernels_are_the
     compiled = prepare(loop, compiled=True, like=python)
     assert compiled.plan is not python.plan
     assert compiled.plan.kernels != python.plan.kernels
+
+
+def test_a_diagram_built_again_from_unnamed_systems_and_functions_of_another_file_is_one_module():
+    # python-control names a system it is not given a name 'sys[<count>]', and a notebook's
+    # cell is a file named by its kernel's process: neither may make the same code a new
+    # module, compiled again at each build or in each session
+    text = "def decay(t, x, u, params):\n    return -params['a'] * x + u\n"
+
+    def build(filename):
+        namespace = {}  # (its source read as IPython keeps a cell's: in linecache)
+        linecache.cache[filename] = (len(text), None, text.splitlines(True), filename)
+        exec(compile(text, filename, "exec"), namespace)
+        plant = ct.nlsys(namespace["decay"], None, inputs=1, outputs=1, states=1,
+                         params={"a": 1.0})
+        gain = ct.ss([], [], [], [[2.0]], inputs=1, outputs=1)
+        return ct.interconnect([plant, gain], connections=[[(1, 0), (0, 0)]],
+                               inplist=[(0, 0)], outlist=[(1, 0)])
+
+    first, second = build("/tmp/ipykernel_101/1.py"), build("/tmp/ipykernel_202/1.py")
+    assert first.syslist[0].name != second.syslist[0].name and first.name != second.name
+    assert prepare(first, compiled=True).source == prepare(second, compiled=True).source
+    U = np.ones_like(T)
+    np.testing.assert_array_equal(
+        controlkit.input_output_response(second, T, U, compile=True).outputs,
+        ct.input_output_response(second, T, U).outputs)
