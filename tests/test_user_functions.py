@@ -878,6 +878,67 @@ def test_a_list_of_keys_changed_in_place_is_read_again():
         KEYS_READ[:] = ["k1", "k2"]
 
 
+def single_precision(t, x, u, params):  # numpy 2 keeps a float32 (NEP 50), numba does not
+    return [0.9 * x[0] + np.float32(u[0]) * 2.0 + 1.0]
+
+
+def fixed_point(t, x, u, params):  # numpy wraps an int16 product, numba widens it
+    return [0.5 * x[0] + float(np.int16(u[0] * 1000.0) * np.int16(30))]
+
+
+def summed_over_an_axis(t, x, u, params):
+    return [0.5 * x[0] + np.sum(np.outer(x, [0.1, 0.2]), axis=0)[1] + u[0]]
+
+
+def taxicab(t, x, u, params):
+    return [0.9 * x[0] + np.linalg.norm(np.array([x[0], u[0]]), 1)]
+
+
+@pytest.mark.parametrize("update, reason", [
+    (single_precision, "it uses numpy.float32: numpy computes in its 32 bits, compiled code "
+                       "in 64"),
+    (fixed_point, "it uses numpy.int16: numpy computes in its 16 bits"),
+    (summed_over_an_axis, r"it calls np.sum\(np.outer\(x, \[0.1, 0.2\]\), axis=0\): compiled, "
+                          r"np.sum "
+                          r"takes \(a\) only"),
+    (taxicab, r"it calls np.linalg.norm\(np.array\(\[x\[0\], u\[0\]\]\), 1\): compiled, "
+              r"np.linalg.norm takes \(x\) only")])
+def test_narrow_numpy_types_and_arguments_compiled_code_does_not_take_run_as_python(
+        update, reason):
+    # the narrow types compiled to other numbers (1.2e-7 for float32, 2.18 for int16),
+    # unseen when they first differ after the piece compared; numba refused the axis and
+    # the ord only after a compile
+    test_what_numba_refuses_runs_as_python_from_the_start_and_explain_says_why(update,
+                                                                                reason)
+
+
+def cubed(t, x, u, params):  # Python's pow of two arguments is a ** b: the C library's
+    return [0.5 * x[0] + pow(u[0] + 0.1 * t, 3)]
+
+
+def logistic(t, x, u, params):  # exp(2000) overflows, and 1 / (1 + inf) is a number again
+    return [-x[0] + 1.0 / (1.0 + math.exp(-2000.0 * u[0]))]
+
+
+def test_pow_compiles_as_python_computes_it_and_math_exp_overflows_as_python_raises():
+    block = ct.nlsys(cubed, None, inputs="u", outputs="y", states=1, dt=TS, name="odd")
+    loop = ct.interconnect([block], inputs="u", outputs="y")
+    T = np.arange(60) * TS
+    U = np.linspace(0.0, 3.0, 60).reshape(1, -1)  # (numba's x * x * x differed from t = 3)
+    ours = controlkit.input_output_response(loop, T, U, 0.1, compile=True)
+    assert ours.engine_mode == "compiled"
+    assert ours.outputs.tobytes() == ct.input_output_response(loop, T, U, 0.1).outputs.tobytes()
+    block = ct.nlsys(logistic, None, inputs="u", outputs="y", states=1, name="squash")
+    loop = ct.interconnect([block], inputs="u", outputs="y")
+    T = np.linspace(0.0, 6.0, 61)
+    U = np.where(T > 3.0, -1.0, 1.0)
+    with pytest.raises(OverflowError, match="math range error"):
+        ct.input_output_response(loop, T, U, 0.0)
+    for compile in (True, False):
+        with pytest.raises(OverflowError, match="math range error"):
+            controlkit.input_output_response(loop, T, U, 0.0, compile=compile)
+
+
 def test_the_math_functions_sent_to_python_are_the_ones_numba_refuses():
     # the list is numba's (0.59-0.68): a numba that compiles one of them shows here
     from controlkit import _jit

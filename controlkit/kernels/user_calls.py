@@ -1,7 +1,7 @@
 """What compiled user code calls where numba's numbers are not Python's: the result stored
-into ``out``, numbers clipped, products and powers, integers of floats, and a missing
-parameter raising ``KeyError``; each with its numba implementation (numpy's are in
-:mod:`.numpy_calls`).
+into ``out``, numbers clipped, products and powers, integers of floats, a missing
+parameter raising ``KeyError`` and ``math``'s overflows raising ``OverflowError``; each
+with its numba implementation (numpy's are in :mod:`.numpy_calls`).
 
 The kernel modules written by :mod:`controlkit.engines.fast.usercode.writer` import them
 from here.
@@ -9,6 +9,7 @@ from here.
 
 from __future__ import annotations
 
+import math
 import sys
 
 import numpy as np
@@ -359,3 +360,22 @@ def missing_parameter(key):
     """
     raise KeyError(key)
 
+
+def _raising_on_overflow(function):
+    """``function`` of the math module as Python runs it: its ``OverflowError`` where a
+    finite argument gives an infinite result, which numba's returns without a word (and a
+    later ``1 / (1 + inf)`` makes a number again)."""
+    def checked(x):
+        y = function(x)
+        if math.isinf(y) and not math.isinf(x):
+            raise OverflowError("math range error")
+        return y
+
+    checked.__name__ = checked.__qualname__ = f"math_{function.__name__}"
+    checked.__doc__ = f"``math.{function.__name__}``, raising Python's ``OverflowError``."
+    return _jit.jit(checked)
+
+
+#: What compiled user code calls instead of ``math.exp``, ``expm1``, ``sinh``, ``cosh``.
+math_exp, math_expm1, math_sinh, math_cosh = map(
+    _raising_on_overflow, (math.exp, math.expm1, math.sinh, math.cosh))

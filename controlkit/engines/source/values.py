@@ -240,7 +240,9 @@ COMPUTED_OTHERWISE = {
 
 def numpy_last_bits(value) -> str | None:
     """Why compiled code would not give ``value``'s numbers, when it is a function that
-    numba computes by another method (:data:`COMPUTED_OTHERWISE`), or a numpy function
+    numba computes by another method (:data:`COMPUTED_OTHERWISE`), a numpy scalar type
+    other than the 64-bit ones (``np.float32``, ``np.int16``: numpy computes in its width,
+    numba in 64 bits), or a numpy function
     whose own implementation here differs from the C library's in the last bits (see
     :func:`parts_from_c_library`); else None.
 
@@ -252,6 +254,8 @@ def numpy_last_bits(value) -> str | None:
     "it draws numpy's random numbers"
     >>> numpy_last_bits(np.linalg.inv).split(":")[0]
     'it calls numpy.linalg.inv'
+    >>> numpy_last_bits(np.float32).split(":")[0], numpy_last_bits(np.float64)
+    ('it uses numpy.float32', None)
     """
     try:
         otherwise = COMPUTED_OTHERWISE.get(value)
@@ -259,6 +263,11 @@ def numpy_last_bits(value) -> str | None:
         otherwise = None
     if otherwise is not None:
         return f"it calls {value.__module__}.{value.__name__}: {otherwise}"
+    if isinstance(value, type) and issubclass(value, np.number) \
+            and np.dtype(value).str[1:] not in ("i8", "f8", "c16"):
+        return (f"it uses numpy.{value.__name__}: numpy computes in its "
+                f"{np.dtype(value).itemsize * 8} bits, compiled code in 64 (the numbers "
+                f"part ways, maybe late in a run)")
     if isinstance(getattr(value, "__self__", None), np.random.RandomState | np.random.Generator):
         return (f"it draws numpy's random numbers ({getattr(value, '__name__', value)}), "
                 f"whose state compiled code does not share: numba draws from its own")

@@ -4,15 +4,18 @@ numba's numbers are not Python's or numpy's (:mod:`controlkit.kernels.user_calls
 ``np.mean``, ``np.linalg.norm``, ``np.trace``, their methods, the LU of
 ``np.linalg.solve``, ``det``, ``slogdet``, numpy's signed zeros (``np.sign``, ``maximum``,
 ``minimum``, ``mod``, ``floor_divide``, ``divmod``), integers of floats (``int``,
-``round``, ``math.floor``, ``ceil``, ``trunc``) and Python's ``sum``; ``a.var()``,
-``a.std()`` refused.
+``round``, ``math.floor``, ``ceil``, ``trunc``), Python's ``sum`` and ``pow``, and
+``math``'s overflows; ``a.var()``, ``a.std()``, numpy's scalar types narrower than 64 bits
+and calls of those functions with arguments their compiled forms do not take refused.
 """
 
 from __future__ import annotations
 
 import ast
 import builtins
+import inspect
 import math
+import re
 import types as pytypes
 
 import numpy as np
@@ -42,7 +45,9 @@ class Calls(ast.NodeTransformer):
                np.linalg.det: "_ck_det", np.linalg.slogdet: "_ck_slogdet",
                np.sign: "_ck_sign", np.maximum: "_ck_maximum", np.minimum: "_ck_minimum",
                np.mod: "_ck_mod", np.floor_divide: "_ck_floor_divide",
-               np.divmod: "_ck_divmod", builtins.sum: "_ck_python_sum"}
+               np.divmod: "_ck_divmod", builtins.sum: "_ck_python_sum",
+               math.exp: "_ck_math_exp", math.expm1: "_ck_math_expm1",
+               math.sinh: "_ck_math_sinh", math.cosh: "_ck_math_cosh"}
     #: Python's functions that make an integer of a float: their argument is checked first
     INTEGERS = (builtins.int, builtins.round, math.floor, math.ceil, math.trunc)
     #: ``math``'s functions numba does not compile (0.59-0.68): a function calling one runs
@@ -58,7 +63,8 @@ class Calls(ast.NodeTransformer):
                    "maximum", "minimum", "mod", "floor_divide", "divmod")
     USER_CALLS = {"_ck_matmul": "matmul", "_ck_dot": "numpy_dot", "_ck_int64": "within_int64",
                   "_ck_python_sum": "python_sum", "_ck_missing": "missing_parameter",
-                  "store": "store"}
+                  "store": "store", **{f"_ck_math_{name}": f"math_{name}" for name in (
+                      "exp", "expm1", "sinh", "cosh")}}
 
     def __init__(self, frozen):
         self.frozen = frozen
@@ -80,13 +86,16 @@ class Calls(ast.NodeTransformer):
         node = self.generic_visit(node)
         f, target = node.func, self._target(node.func)
         name = self.INSTEAD.get(target) if callable(target) else None
+        if target is builtins.pow and len(node.args) == 2 and not node.keywords:
+            # pow(a, b) is a ** b (three arguments: an integer power modulo, numba's own)
+            return ast.copy_location(ast.Call(ast.Name("_ck_power", ast.Load()), node.args,
+                                              []), node)
         if target is math.pow and len(node.args) == 2 and not node.keywords:
             # math.pow(a, b) -> _ck_power(float(a), float(b))
             floats = [ast.Call(ast.Name("float", ast.Load()), [a], []) for a in node.args]
             return ast.copy_location(ast.Call(ast.Name("_ck_power", ast.Load()), floats, []), node)
         if name is not None:
-            return ast.copy_location(ast.Call(ast.Name(name, ast.Load()), node.args,
-                                              node.keywords), node)
+            return ast.copy_location(_taken(name, node, node.args), node)
         if any(target is f for f in self.NUMBA_LACKS):
             raise NotCompilable(f"it calls math.{target.__name__}, which numba does not "
                                 f"compile")
@@ -112,8 +121,8 @@ class Calls(ast.NodeTransformer):
                 and target is None \
                 and not isinstance(self._target(f.value), pytypes.ModuleType):
             # an array's own a.sum(), a.mean(), a.dot(b), a.trace()
-            return ast.copy_location(ast.Call(ast.Name(f"_ck_{f.attr}", ast.Load()),
-                                              [f.value, *node.args], node.keywords), node)
+            return ast.copy_location(_taken(f"_ck_{f.attr}", node, [f.value, *node.args]),
+                                     node)
         return node
 
     def visit_GeneratorExp(self, node):
@@ -135,3 +144,24 @@ class Calls(ast.NodeTransformer):
         value = self.visit_BinOp(ast.copy_location(ast.BinOp(
             ast.Name(node.target.id, ast.Load()), node.op, node.value), node))
         return ast.copy_location(ast.Assign([node.target], value), node)
+
+
+def _taken(name, call, args):
+    """The call of ``name`` (a value of :attr:`Calls.INSTEAD`) with ``args`` and the
+    keywords of ``call``, which it must take: numba's own function takes more (an axis, an
+    ord), and gives other numbers."""
+    from ....kernels import numpy_calls, user_calls
+
+    function = getattr(numpy_calls, f"numpy_{name.removeprefix('_ck_')}", None) or getattr(
+        user_calls, Calls.USER_CALLS[name])
+    parameters = list(inspect.signature(function).parameters.values())
+    try:
+        inspect.Signature(parameters).bind(*args, **{k.arg: k for k in call.keywords})
+    except TypeError:
+        def text(node):  # (as the user wrote it: a value from outside is named _g<i>_<name>)
+            return re.sub(r"\b_g\d+_", "", ast.unparse(node))
+
+        raise NotCompilable(f"it calls {text(call)[:50]}: compiled, {text(call.func)[:30]} takes "
+                            f"({', '.join(p.name for p in parameters)}) only, and numba's "
+                            f"own would give other numbers") from None
+    return ast.Call(ast.Name(name, ast.Load()), args, call.keywords)
