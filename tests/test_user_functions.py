@@ -912,6 +912,23 @@ def test_narrow_numpy_types_and_arguments_compiled_code_does_not_take_run_as_pyt
                                                                                 reason)
 
 
+def sorted_and_appended(t, x, u, params):  # new arrays: nothing outside is changed
+    v = np.append(np.sort(np.array([x[1], x[0], u[0]])), 0.25)
+    return [0.5 * v[0] + 0.1 * v[3], 0.4 * v[2] + 0.1 * v[1]]
+
+
+def hypotenuse(t, x, u, params):  # numpy's hypot is the C library's, as numba's
+    return [0.5 * x[0] + 0.1 * np.hypot(x[1], u[0]), 0.3 * x[1] + u[0]]
+
+
+@pytest.mark.parametrize("update", [sorted_and_appended, hypotenuse])
+def test_np_sort_np_append_and_np_hypot_compile_with_python_s_numbers(update):
+    # np.sort(x) and np.append(x, v) were read as list.sort and list.append, changing an
+    # object from outside: the diagram went to python-control; np.hypot was compared with
+    # math.hypot (CPython's own method), not with the C library's, and ran as Python
+    test_a_list_of_arrays_and_the_float_of_a_comparison_compile_with_python_s_numbers(update)
+
+
 def cubed(t, x, u, params):  # Python's pow of two arguments is a ** b: the C library's
     return [0.5 * x[0] + pow(u[0] + 0.1 * t, 3)]
 

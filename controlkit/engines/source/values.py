@@ -167,8 +167,8 @@ C_LIBRARY = {"exp": "exp", "exp2": "exp2", "expm1": "expm1", "log": "log", "log2
              "log10": "log10", "log1p": "log1p", "sin": "sin", "cos": "cos", "tan": "tan",
              "arcsin": "asin", "arccos": "acos", "arctan": "atan", "sinh": "sinh",
              "cosh": "cosh", "tanh": "tanh", "arcsinh": "asinh", "arccosh": "acosh",
-             "arctanh": "atanh", "cbrt": "cbrt", "arctan2": "atan2", "hypot": "hypot",
-             "power": "pow"}
+             "arctanh": "atanh", "cbrt": "cbrt", "arctan2": "atan2", "power": "pow"}
+# (not hypot: numpy's is the C library's, and math.hypot, to compare with, is not)
 
 
 def _sample_points(name):
@@ -177,7 +177,7 @@ def _sample_points(name):
     rng = np.random.default_rng(20261128)
     if name in ("arcsin", "arccos", "arctanh"):
         return (rng.uniform(-1.0, 1.0, 20000),)
-    if name in ("arctan2", "hypot"):
+    if name == "arctan2":
         return rng.uniform(-4.0, 4.0, 20000), rng.uniform(-4.0, 4.0, 20000)
     if name == "power":  # (numpy's shortcuts for 2, -1 and 0.5 are the same everywhere)
         return rng.uniform(1e-3, 4.0, 20000), rng.uniform(-4.0, 4.0, 20000)
