@@ -25,12 +25,13 @@ pytestmark = pytest.mark.skipif(not _jit.available(), reason="numba not installe
 
 def _user_loop(folder, gain, rate="[-{gain!r} * x[0] + u[0]]", helper=""):
     """A loop of one user block whose functions (in a file of ``folder``) hold ``gain``: a
-    new ``gain``, new kernel texts, none compiled in any store before; ``rate`` is what its
-    update function returns, ``helper`` a function it may call."""
+    new ``gain``, new kernel texts (a text names no file), none compiled in any store or
+    process before; ``rate`` is what its update function returns, ``helper`` a function it
+    may call."""
     path = folder / f"user_block_{abs(hash((folder, rate))) % 10**8}.py"
     path.write_text(f"import numpy as np\n\n\n{helper}\n\ndef rate(t, x, u, params):\n"
                     f"    return {rate.format(gain=gain)}\n\n\n"
-                    f"def out(t, x, u, params):\n    return [x[0]]\n")
+                    f"def out(t, x, u, params):\n    return [x[0] if {gain!r} else 0.0]\n")
     spec = importlib.util.spec_from_file_location(path.stem, path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[path.stem] = module  # (inspect reads the functions' source through it)
