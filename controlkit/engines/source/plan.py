@@ -353,9 +353,8 @@ def side_effect(fn) -> str | None:
     # (0.2-0.6 ms a function), read once per code object, as its source is
     code = target.__code__  # (its globals are those of every function of this code)
     if code not in _SIDE_EFFECT:
-        _SIDE_EFFECT[code] = _side_effect(code, frozenset(
-            name for name, value in target.__globals__.items()
-            if isinstance(value, types.ModuleType)))
+        _SIDE_EFFECT[code] = _side_effect(code, lambda name: isinstance(
+            target.__globals__.get(name), types.ModuleType))
     return _SIDE_EFFECT[code]
 
 
@@ -363,7 +362,7 @@ def side_effect(fn) -> str | None:
 _SIDE_EFFECT: dict = {}
 
 
-def _side_effect(code, modules) -> str | None:
+def _side_effect(code, is_module) -> str | None:
     try:
         _, body = _definition(code, copy=False)
     except NotCompilable:
@@ -372,7 +371,7 @@ def _side_effect(code, modules) -> str | None:
     stored = {n.id for n in nodes if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Store)}
     local = stored | set(code.co_varnames)
     for node in nodes:
-        effect = _outside_effect(node, local, modules) if isinstance(node, ast.Call) else None
+        effect = _outside_effect(node, local, is_module) if isinstance(node, ast.Call) else None
         if effect is not None:
             return effect[0]
         if isinstance(node, ast.Global | ast.Nonlocal):

@@ -330,17 +330,18 @@ MUTATORS = {"append", "extend", "insert", "pop", "remove", "clear", "update", "a
              "fill", "put", "resize", "itemset"}
 
 
-def _outside_effect(call, local, modules=frozenset()):
+def _outside_effect(call, local, is_module):
     """``(what, why compiled code differs)`` of a call with an effect outside the function
     (a builtin such as ``print``, a method changing an object from outside), else None;
-    ``local`` holds the function's own names, ``modules`` the names of modules it reads
-    (``np.sort(x)``, ``np.append(x, v)`` return new arrays)."""
+    ``local`` holds the function's own names, ``is_module(name)`` says whether a name it
+    reads from outside is a module's (``np.sort(x)``, ``np.append(x, v)`` return new
+    arrays)."""
     f = call.func
     if isinstance(f, ast.Name) and f.id in SIDE_EFFECTS and f.id not in local:
         return (f"it calls {f.id}()", f", {SIDE_EFFECTS[f.id]} (compiled code would do it "
                                       f"at other moments, or not at all)")
     if isinstance(f, ast.Attribute) and f.attr in MUTATORS and isinstance(f.value, ast.Name) \
-            and f.value.id not in local and f.value.id not in modules:
+            and f.value.id not in local and not is_module(f.value.id):
         return (f"it changes an object from outside ({f.value.id}.{f.attr})",
                 ": a side effect compiled code would not have")
     return None

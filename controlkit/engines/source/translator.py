@@ -11,7 +11,7 @@ import importlib
 import types
 
 from .outside import _OutsideReads
-from .reading import MUTATORS, PARAM_READ, PARAMS, RUNTIME, _outside_effect
+from .reading import PARAM_READ, PARAMS, RUNTIME, _outside_effect
 from .rewrites import _store_counts, _stored_names, _string_items, _Unroll, walk
 from .values import _MISSING, _UNKNOWN, _is_plain
 
@@ -224,11 +224,8 @@ class _Translator(_OutsideReads, ast.NodeTransformer):
         """Calls whose compiled meaning is not Python's: the function then runs as Python."""
         f = node.func
         name = f.id if isinstance(f, ast.Name) and f.id not in self.local else None
-        receiver = f.value.id if isinstance(f, ast.Attribute) and f.attr in MUTATORS \
-            and isinstance(f.value, ast.Name) and f.value.id not in self.local else None
-        effect = _outside_effect(node, self.local, frozenset(  # (np.sort(x) changes nothing)
-            [receiver] if receiver and isinstance(self._lookup(receiver)[1], types.ModuleType)
-            else []))
+        effect = _outside_effect(node, self.local, lambda outside: isinstance(
+            self._lookup(outside)[1], types.ModuleType))
         if effect is not None:
             self._problem("".join(effect))
         elif name == "round" and (len(node.args) > 1 or node.keywords):
