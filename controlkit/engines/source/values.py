@@ -238,6 +238,19 @@ COMPUTED_OTHERWISE = {
 }
 
 
+def narrow(dtype) -> bool:
+    """Whether numpy computes in ``dtype`` (a number type) otherwise than compiled code,
+    which computes in 64 bits: an ``int32`` product wraps, a ``float32`` rounds to 24
+    bits, and the numbers part ways, maybe late in a run.
+
+    Examples
+    --------
+    >>> narrow(np.int16), narrow(np.float32), narrow(np.float64), narrow(np.complex128)
+    (True, True, False, False)
+    """
+    return np.dtype(dtype).str[1:] not in ("i8", "f8", "c16")
+
+
 def numpy_last_bits(value) -> str | None:
     """Why compiled code would not give ``value``'s numbers, when it is a function that
     numba computes by another method (:data:`COMPUTED_OTHERWISE`), a numpy scalar type
@@ -263,8 +276,7 @@ def numpy_last_bits(value) -> str | None:
         otherwise = None
     if otherwise is not None:
         return f"it calls {value.__module__}.{value.__name__}: {otherwise}"
-    if isinstance(value, type) and issubclass(value, np.number) \
-            and np.dtype(value).str[1:] not in ("i8", "f8", "c16"):
+    if isinstance(value, type) and issubclass(value, np.number) and narrow(value):
         return (f"it uses numpy.{value.__name__}: numpy computes in its "
                 f"{np.dtype(value).itemsize * 8} bits, compiled code in 64 (the numbers "
                 f"part ways, maybe late in a run)")

@@ -21,6 +21,7 @@ from ...source.values import (
     _dotted,
     _import_name,
     name_text,
+    narrow,
     parts_from_c_library,
 )
 from ..codegen import CODING, numbers, quoted
@@ -98,9 +99,7 @@ def _literal(name, value, lines, imports):
         array = np.asarray(value)
         if array.dtype.kind not in "biufc":
             raise NotCompilable(f"it reads {name.split('_', 2)[-1]!r}, which is not numeric")
-        if array.dtype.kind != "b" and array.dtype.str[1:] not in ("i8", "f8", "c16"):
-            # numpy computes in the array's own type (a product of int32 wraps), compiled
-            # code in 64 bits: the numbers part ways, maybe late in a run
+        if array.dtype.kind != "b" and narrow(array.dtype):
             raise NotCompilable(f"it reads {name.split('_', 2)[-1]!r}, of type "
                                 f"{array.dtype.name}: numpy computes in it, compiled code in "
                                 f"64 bits")
