@@ -22,6 +22,10 @@ import numpy as np
 
 from ...source import NotCompilable
 
+#: ``math``'s functions that overflow: compiled user code calls ``math_<name>`` of
+#: :mod:`controlkit.kernels.user_calls` instead, which raises Python's ``OverflowError``.
+OVERFLOWING = ("exp", "expm1", "sinh", "cosh")
+
 
 class Calls(ast.NodeTransformer):
     """The rewrites of a function's statements, ``frozen`` its values from outside:
@@ -46,8 +50,8 @@ class Calls(ast.NodeTransformer):
                np.sign: "_ck_sign", np.maximum: "_ck_maximum", np.minimum: "_ck_minimum",
                np.mod: "_ck_mod", np.floor_divide: "_ck_floor_divide",
                np.divmod: "_ck_divmod", builtins.sum: "_ck_python_sum",
-               math.exp: "_ck_math_exp", math.expm1: "_ck_math_expm1",
-               math.sinh: "_ck_math_sinh", math.cosh: "_ck_math_cosh"}
+               # math's functions that overflow: Python raises, numba's return inf
+               **{getattr(math, name): f"_ck_math_{name}" for name in OVERFLOWING}}
     #: Python's functions that make an integer of a float: their argument is checked first
     INTEGERS = (builtins.int, builtins.round, math.floor, math.ceil, math.trunc)
     #: ``math``'s functions numba does not compile (0.59-0.68): a function calling one runs
@@ -63,8 +67,8 @@ class Calls(ast.NodeTransformer):
                    "maximum", "minimum", "mod", "floor_divide", "divmod")
     USER_CALLS = {"_ck_matmul": "matmul", "_ck_dot": "numpy_dot", "_ck_int64": "within_int64",
                   "_ck_python_sum": "python_sum", "_ck_missing": "missing_parameter",
-                  "store": "store", **{f"_ck_math_{name}": f"math_{name}" for name in (
-                      "exp", "expm1", "sinh", "cosh")}}
+                  "store": "store", **{f"_ck_math_{name}": f"math_{name}"
+                                       for name in OVERFLOWING}}
 
     def __init__(self, frozen):
         self.frozen = frozen
