@@ -530,6 +530,32 @@ def test_a_user_s_function_that_raises_in_compiled_code_raises_as_python_does(ca
         assert str(theirs.value).split(" at t")[0] in str(ours.value)
 
 
+def _forced_by_time(t, x, u, params):
+    return [-x[0] + 0.5 / t + u[0]]
+
+
+def test_a_division_by_the_first_time_point_raises_as_in_python_control():
+    # solve_ivp's first call is given t0 as a Python float (0.5 / 0.0 raises), its later
+    # ones numpy's floats (inf, and a warning); the engine answered "diverged" instead
+    plant = ct.nlsys(_forced_by_time, lambda t, x, u, p: x[:1], inputs=1, outputs=1,
+                     states=1, name="plant")
+    gain = ct.nlsys(None, lambda t, x, u, p: -0.2 * u, inputs=1, outputs=1, name="gain")
+    loop = ct.interconnect([plant, gain], connections=[["plant.u[0]", "gain.y[0]"],
+                                                       ["gain.u[0]", "plant.y[0]"]],
+                           inplist=[], outlist=["plant.y[0]"], name="forced")
+    T = np.linspace(0.0, 2.0, 21)
+    with pytest.raises(ZeroDivisionError):
+        ct.input_output_response(loop, T, X0=0.0)
+    for compile in (False, True):
+        with pytest.raises(ZeroDivisionError, match="at t = 0 s"):
+            controlkit.input_output_response(loop, T, X0=0.0, compile=compile)
+    # from t0 = 1 on, the function is defined everywhere: the same numbers
+    T = np.linspace(1.0, 3.0, 21)
+    expected = ct.input_output_response(loop, T, X0=0.0)
+    ours = controlkit.input_output_response(loop, T, X0=0.0, compile=True)
+    assert ours.outputs.tobytes() == expected.outputs.tobytes()
+
+
 def test_python_control_refuses_a_sampled_data_diagram_with_the_remedy():
     loop, T, X0, U = servo_pi_discrete()
     with pytest.raises(ValueError, match=r"sampled-data diagram .* "

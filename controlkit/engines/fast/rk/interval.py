@@ -165,12 +165,17 @@ def _solve_interval_python(machine_function, rhs, args, method_index, t0, t1, y0
     y_stage = stage_input(work)
     row = machine_on_arrays(t_eval, y_eval, floats, stages, stages_flat, ints)
     spent = 0
+    # solve_ivp's first call, fun(t0, y0), is given t0 as a Python float, its later ones
+    # numpy's floats: a function's 0.5 / t at t0 = 0 raises ZeroDivisionError there, as in
+    # python-control, where numpy's float would give inf
+    t = float(floats[T_REQUEST]) if not resume and row >= 0 else floats[T_REQUEST]
     while row >= 0:
-        rhs(floats[T_REQUEST], y_stage, args, stages[row])
+        rhs(t, y_stage, args, stages[row])
         spent += 1
         if budget > 0 and spent >= budget:
             return PAUSED, ints[NEXT_EVAL]
         row = machine_on_arrays(t_eval, y_eval, floats, stages, stages_flat, ints)
+        t = floats[T_REQUEST]
     if ints[STATUS] != INVALID_ARGUMENT:
         y_end[:] = state(work)
     return ints[STATUS], ints[NEXT_EVAL]
