@@ -875,6 +875,11 @@ _SUMS_AND_NORMS = {
     "a.dot one row": (lambda x: _WEIGHTS[:1, :2].dot(x)[0], "compiled"),
     "vector @ column": (lambda x: (x @ _WEIGHTS[:1, :2].T)[0], "compiled"),
     "np.convolve": (lambda x: np.convolve(x, _WEIGHTS[0])[2], "python"),
+    # (numba's eigvals of a real matrix raises where numpy's answers complex numbers)
+    "np.linalg.eigvals": (lambda x: np.linalg.eigvals(_WEIGHTS[:2, :2] + x[0]).real[0],
+                          "python"),
+    "np.linalg.eigvalsh": (lambda x: np.linalg.eigvalsh(_WEIGHTS[:2, 1:3] + x[0])[0],
+                           "compiled"),
 }
 
 

@@ -211,12 +211,18 @@ def parts_from_c_library(name: str) -> float:
 
 
 #: Functions numba computes by another method than numpy's (or Python's), with other last
-#: bits; a block calling one runs as Python. (Shares of differing results, compiled
-#: against Python, on 3 000 seeded arguments on the benchmarks' machine.)
+#: bits, or answers in another form; a block calling one runs as Python. (Shares of
+#: differing results, compiled against Python, on 3 000 seeded arguments on the
+#: benchmarks' machine.)
 COMPUTED_OTHERWISE = {
     np.linalg.inv: "numba inverts with LAPACK's LU inverse, numpy solves against the "
                    "identity (61-100 % of 2x2 to 4x4 matrices differ); np.linalg.solve "
                    "(numpy's method in both) compiles up to 5x5",
+    **{f: f"numpy's {f.__name__} of a real matrix answers complex numbers where the "
+          "eigenvalues are complex, numba's refuses them (ValueError), after a compile of "
+          "seconds; of a symmetric matrix, np.linalg.eigvalsh and eigh give numpy's numbers "
+          "compiled"
+       for f in (np.linalg.eig, np.linalg.eigvals)},
     np.var: "numba's variance sums in another order than numpy's (22 % of 12 values differ)",
     np.std: "numba's standard deviation sums in another order than numpy's (14 % of 12 "
             "values differ)",
