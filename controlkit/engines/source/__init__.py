@@ -16,6 +16,7 @@ function not compilable, with the reason.
 from .plan import Plan, plan_function, reads_input, side_effect, used_params
 from .reading import PARAM_READ, NotCompilable
 from .rewrites import copy_tree, function_def, walk
+from .translator import as_written
 
-__all__ = ["PARAM_READ", "NotCompilable", "Plan", "copy_tree", "function_def", "plan_function",
-           "reads_input", "side_effect", "used_params", "walk"]
+__all__ = ["PARAM_READ", "NotCompilable", "Plan", "as_written", "copy_tree", "function_def",
+           "plan_function", "reads_input", "side_effect", "used_params", "walk"]

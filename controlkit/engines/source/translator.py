@@ -8,12 +8,29 @@ from __future__ import annotations
 import ast
 import functools
 import importlib
+import re
 import types
 
 from .outside import _OutsideReads
 from .reading import PARAM_READ, PARAMS, RUNTIME, _outside_effect
 from .rewrites import _store_counts, _stored_names, _string_items, _Unroll, walk
 from .values import _MISSING, _UNKNOWN, _is_plain
+
+#: A value a function reads from outside itself (a global, a closure's cell) is frozen into
+#: module text as ``_g<i>_<name>``, ``i`` the function's index among the planned ones
+_FROZEN = re.compile(r"\b_g\d+_")
+
+
+def as_written(text: str) -> str:
+    """``text``, a name or code of module text, with its frozen names as the user wrote
+    them (for messages, and for recognising ``np``).
+
+    Examples
+    --------
+    >>> as_written("_g2_np.clip(x, _g2_lo)"), as_written("_np_")
+    ('np.clip(x, lo)', '_np_')
+    """
+    return _FROZEN.sub("", text)
 
 
 class _Translator(_OutsideReads, ast.NodeTransformer):

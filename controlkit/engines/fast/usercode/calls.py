@@ -15,12 +15,11 @@ import ast
 import builtins
 import inspect
 import math
-import re
 import types as pytypes
 
 import numpy as np
 
-from ...source import NotCompilable
+from ...source import NotCompilable, as_written
 
 #: ``math``'s functions that overflow: compiled user code calls ``math_<name>`` of
 #: :mod:`controlkit.kernels.user_calls` instead, which raises Python's ``OverflowError``.
@@ -162,8 +161,8 @@ def _taken(name, call, args):
     try:
         inspect.Signature(parameters).bind(*args, **{k.arg: k for k in call.keywords})
     except TypeError:
-        def text(node):  # (as the user wrote it: a value from outside is named _g<i>_<name>)
-            return re.sub(r"\b_g\d+_", "", ast.unparse(node))
+        def text(node):
+            return as_written(ast.unparse(node))
 
         raise NotCompilable(f"it calls {text(call)[:50]}: compiled, {text(call.func)[:30]} takes "
                             f"({', '.join(p.name for p in parameters)}) only, and numba's "

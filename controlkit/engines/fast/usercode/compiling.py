@@ -15,7 +15,7 @@ from types import FunctionType
 import numpy as np
 
 from .... import _jit
-from ...source import NotCompilable, Plan, plan_function
+from ...source import NotCompilable, Plan, as_written, plan_function
 from .. import store
 from .layout import ParamLayout
 from .writer import kernel_source
@@ -251,13 +251,14 @@ def _works_on_arrays(functions, name, vectors, seen) -> bool:
 def _calls_numpy_on_arrays(function) -> bool:
     """Whether a call of ``function`` (a kernel text's expression) is numpy's, other than
     one of its functions of numbers (``np.sin``, not ``np.zeros`` nor ``np.linalg.solve``;
-    the module's text names numpy ``_np_`` or ``_g<n>_np``)."""
+    the module's text names numpy ``_np_``, or the user's ``np`` frozen)."""
     names = []
     while isinstance(function, ast.Attribute):
         names.append(function.attr)
         function = function.value
-    return isinstance(function, ast.Name) and bool(re.fullmatch(r"_np_|_g\d+_np", function.id)) \
-        and bool(names) and not (len(names) == 1 and names[0] in _NUMBER_FUNCTIONS)
+    name = function.id if isinstance(function, ast.Name) else ""
+    numpy = name == "_np_" or name != as_written(name) == "np"  # (or the user's np, frozen)
+    return numpy and bool(names) and not (len(names) == 1 and names[0] in _NUMBER_FUNCTIONS)
 
 
 class SizeError(RuntimeError, ValueError):

@@ -14,7 +14,7 @@ import types as pytypes
 import numpy as np
 
 from .... import _jit
-from ...source import PARAM_READ, NotCompilable, Plan, copy_tree, function_def, walk
+from ...source import PARAM_READ, NotCompilable, Plan, as_written, copy_tree, function_def, walk
 from ...source.values import (
     NUMERIC_MODULES,
     _cell,
@@ -98,9 +98,9 @@ def _literal(name, value, lines, imports):
     elif isinstance(value, np.ndarray | np.generic | list | tuple):
         array = np.asarray(value)
         if array.dtype.kind not in "biufc":
-            raise NotCompilable(f"it reads {name.split('_', 2)[-1]!r}, which is not numeric")
+            raise NotCompilable(f"it reads {as_written(name)!r}, which is not numeric")
         if array.dtype.kind != "b" and narrow(array.dtype):
-            raise NotCompilable(f"it reads {name.split('_', 2)[-1]!r}, of type "
+            raise NotCompilable(f"it reads {as_written(name)!r}, of type "
                                 f"{array.dtype.name}: numpy computes in it, compiled code in "
                                 f"64 bits")
         if array.dtype.kind == "c":  # its floats in pairs, viewed as complex (inf, nan too)
@@ -123,7 +123,7 @@ def _literal(name, value, lines, imports):
         # and would hand back code compiled with an older version of the imported function
         imports.append(f"from {module} import {attr} as {name}  # {_runs(value)}")
     else:
-        raise NotCompilable(f"it reads {name.split('_', 2)[-1]!r}, a {type(value).__name__}, "
+        raise NotCompilable(f"it reads {as_written(name)!r}, a {type(value).__name__}, "
                             f"which numba cannot compile")
 
 
