@@ -6,6 +6,7 @@ import math
 import os
 import re
 import shutil
+import subprocess
 import sys
 
 import control as ct
@@ -979,3 +980,42 @@ def test_the_math_functions_sent_to_python_are_the_ones_numba_refuses():
         assert not any(compiles(function.__name__, args)
                        for args in ((1.5,), (2.5, 1.5), (3, 2))), function.__name__
     assert compiles("atan2", (1.0, 2.0)) and compiles("floor", (1.5,))
+
+
+REFUSED_BY_NUMBA = '''
+import warnings
+import control as ct
+import numpy as np
+import controlkit
+
+def step_up(t, x, u, params):  # numba has no np.heaviside
+    return [0.5 * x[0] + np.heaviside(u[0], 0.5)]
+
+block = ct.nlsys(step_up, None, inputs=1, states=1, outputs=1, dt=0.1, name="stepper")
+T = np.arange(50) * 0.1
+with warnings.catch_warnings(record=True) as said:
+    warnings.simplefilter("always")
+    ours = controlkit.input_output_response(block, T, np.sin(T), [0.0], compile=True)
+theirs = ct.input_output_response(block, T, np.sin(T), [0.0])
+print(ours.engine_mode, np.array_equal(ours.outputs, theirs.outputs))
+print(" ".join(str(w.message) for w in said))
+'''
+
+
+def test_a_function_numba_refused_is_not_compiled_again_in_the_next_session(tmp_path):
+    # numba's refusal came after a compile of 0.7-1.4 s, paid again in every session;
+    # the store keeps it by the function's text and numba's version
+    script = tmp_path / "refused.py"
+    script.write_text(REFUSED_BY_NUMBA)
+    environment = {**os.environ, "CONTROLKIT_CACHE_DIR": str(tmp_path / "store")}
+    said = []
+    for _ in ("refused", "remembered"):
+        result = subprocess.run([sys.executable, str(script)], capture_output=True,
+                                text=True, cwd=tmp_path, timeout=600, env=environment)
+        assert result.returncode == 0, result.stderr[-1500:]
+        mode, equal, *warned = result.stdout.split()
+        assert (mode, equal) == ("python", "True"), result.stdout
+        said.append((" ".join(warned), result.stderr))
+    assert "numpy.heaviside" in said[0][0] and "controlkit: compiling" in said[0][1]
+    assert "numpy.heaviside" in said[1][0] and "found by an earlier compile" in said[1][0]
+    assert "controlkit: compiling" not in said[1][1]

@@ -5,7 +5,9 @@ in its ``__pycache__``: a diagram's module (:mod:`.codegen`), the user functions
 for it (:mod:`.usercode`), the step machine and the instants' loop. A module's file name
 is a digest of its text, of controlkit's source files it can hold and of the versions of
 Python, numpy and scipy: an edit or an upgrade makes new modules, never a stale one. Files
-are written whole (again if found changed); a compiled module has a record (``<name>.json``).
+are written whole (again if found changed); a compiled module has a record (``<name>.json``),
+and so has a user's function numba refused (what it said, and numba's version: later
+sessions run it as Python from the start, :func:`refusal`).
 
 Code is imported from the store only if the folder, and numba's cache folder
 (``NUMBA_CACHE_DIR``, if set), is the user's own (:func:`controlkit._checks.not_own`),
@@ -16,7 +18,9 @@ checked at each use; else the engine compiles nothing and says why.
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
+import importlib.metadata
 import importlib.util
 import json
 import os
@@ -171,6 +175,14 @@ def import_module(path: Path, names: dict | None = None):
     return module
 
 
+def _read_record(path: Path) -> dict:
+    try:
+        kept = json.loads(path.with_suffix(".json").read_text())
+    except (OSError, ValueError):
+        return {}
+    return kept if isinstance(kept, dict) else {}
+
+
 def record(path: Path) -> dict | None:
     """The record of the store module at ``path``: None until it was compiled once.
 
@@ -179,11 +191,39 @@ def record(path: Path) -> dict | None:
     >>> record(Path("/nonexistent/diagram_x.py")) is None
     True
     """
+    kept = _read_record(path)
+    return kept if kept and "refused" not in kept else None
+
+
+def refusal(text: str, kind: str) -> str | None:
+    """What numba said when it refused to compile the store module of ``text`` (with the
+    numba installed now), else None: a compile that would fail again is not tried.
+
+    Examples
+    --------
+    >>> path = module_file("def f(x):\\n    return x.tolist()\\n", "user")
+    >>> write_record(path, refused="TypeError: Unknown attribute 'tolist'",
+    ...              numba=numba_version())
+    >>> refusal("def f(x):\\n    return x.tolist()\\n", "user")
+    "TypeError: Unknown attribute 'tolist'"
+    """
     try:
-        kept = json.loads(path.with_suffix(".json").read_text())
-    except (OSError, ValueError):
+        kept = _read_record(folder() / f"{name_of(text, kind)}.py")
+    except StoreRefused:
         return None
-    return kept if isinstance(kept, dict) else None
+    said = kept.get("refused")
+    if not isinstance(said, str) or kept.get("numba") != numba_version():
+        return None
+    return said
+
+
+@functools.cache
+def numba_version() -> str | None:
+    """The version of numba installed, or None (without importing it)."""
+    try:
+        return importlib.metadata.version("numba")
+    except importlib.metadata.PackageNotFoundError:
+        return None
 
 
 def compiled_before(text: str, kind: str) -> bool:

@@ -105,9 +105,14 @@ class UserKernel:
 
     def text(self, layout: ParamLayout) -> str:
         """The kernel module's text for the block's parameter ``layout`` (or
-        NotCompilable with the reason)."""
-        self._text = kernel_source(self.plan(), layout)
-        return self._text
+        NotCompilable with the reason, numba's own when it refused this text before)."""
+        text = kernel_source(self.plan(), layout)
+        said = store.refusal(text, "user")
+        if said is not None:
+            raise NotCompilable(f"numba could not compile it ({said}; found by an earlier "
+                                f"compile, kept in the store)")
+        self._text = text
+        return text
 
     @property
     def identity(self) -> str:
@@ -186,7 +191,14 @@ def compile_kernel(kernel) -> None:
         if store.record(path) is not None:
             return
         start = time.perf_counter()
-        kernel.dispatcher.compile((numba.float64, vector, vector, vector, vector))
+        try:
+            kernel.dispatcher.compile((numba.float64, vector, vector, vector, vector))
+        except (MemoryError, OSError):  # (the machine's, not the text's: tried again)
+            raise
+        except Exception as error:  # numba's refusal, kept: later sessions do not try
+            store.write_record(path, refused=store.numba_said(error),
+                               numba=store.numba_version())
+            raise
         seconds = round(time.perf_counter() - start, 3)
         if store.record(path) is None:  # (a numpy one's time is not read per line)
             lines, numpy = _size(path)
