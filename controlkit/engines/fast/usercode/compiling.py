@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import ast
 import functools
+import hashlib
 import re
 import sys
 import time
@@ -16,9 +17,10 @@ import numpy as np
 
 from .... import _jit
 from ...source import NotCompilable, Plan, as_written, plan_function
+from ...source.reading import call_target
 from .. import store
 from .layout import ParamLayout
-from .writer import kernel_source
+from .writer import code_digest, kernel_source
 
 #: What each role of a user function computes, for messages.
 ROLES = {"output": ("output function", "outputs"), "update": ("update function", "states")}
@@ -116,8 +118,17 @@ class UserKernel:
 
     @property
     def identity(self) -> str:
-        """The kernel module's name in the store (what the diagram's text names)."""
-        return store.name_of(self._text, "user") if self._text else f"python {self.block!r}"
+        """The kernel module's name in the store (what the diagram's text names); as
+        Python, what its function runs (not its block's name: a diagram built again, its
+        blocks named anew by python-control, is the same module, whose earlier runs count
+        for the rule)."""
+        if self._text:
+            return store.name_of(self._text, "user")
+        try:
+            code = call_target(self.fn)[0].__code__
+        except NotCompilable:  # (a builtin: its name)
+            return f"python {self.role}: {getattr(self.fn, '__qualname__', type(self.fn))}"
+        return f"python {self.role}: {_runs_code(code)}"
 
     def compiled(self):
         """The kernel of the store module of :meth:`text` (compiled before the diagram
@@ -134,6 +145,14 @@ class UserKernel:
                                    else dict(inline="always", error_model="numpy"))
                         setattr(module, name, _jit.Jitted(value, options))
         return module.kernel
+
+
+@functools.cache
+def _runs_code(code) -> str:
+    """A function's code by its name and a digest of what it runs."""
+    digest = hashlib.sha256()
+    code_digest(code, digest)
+    return f"{code.co_qualname} ({digest.hexdigest()[:16]})"
 
 
 def kernels_to_compile(kernels) -> list[tuple[float, object]]:
