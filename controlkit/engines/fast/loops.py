@@ -212,8 +212,8 @@ def diagram_rhs(t, y, args, out):
     for q in range(cidx.shape[0]):
         out[q] = dx[cidx[q]]
         not_finite = not_finite or not math.isfinite(out[q])
-    if not_finite:  # (marked in the slot past the states; the integrator rejects the step)
-        dx[x.shape[0]] = 1.0
+    if not_finite:  # (marked in dx's last slot, past the states; the step is rejected)
+        dx[dx.shape[0] - 1] = 1.0
 
 
 @jit(inline=True)
@@ -304,13 +304,13 @@ def continuous_run(evaluate, update, outputs, integrate, machine, rhs_args, time
         else:
             evaluations = work.ints[NFEV]
         budget = 0 if ctrl[BUDGET] <= 0 else max(1, ctrl[BUDGET] - ctrl[SPENT])
-        stages = rhs_args[-1]
-        stages[stages.shape[0] - 1] = 0.0
+        dx = rhs_args[-1]  # (its last slot: a stage that met inf or NaN, diagram_rhs)
+        dx[dx.shape[0] - 1] = 0.0
         code, served = integrate(machine, diagram_rhs, rhs_args, method, t, t1, yc, rtol, atol,
                                  max_step, first_step, t_eval[:stop], i, last,
                                  y_eval[:stop], yc, work, budget, resume)
         ctrl[SPENT] += work.ints[NFEV] - evaluations
-        if ctrl[WATCH_STAGES] == 1 and stages[stages.shape[0] - 1] != 0.0:
+        if ctrl[WATCH_STAGES] == 1 and dx[dx.shape[0] - 1] != 0.0:
             # a stage met inf or NaN, where a function of the user's run as Python may have
             # raised (math.log of a negative, a float divided by zero), even in a step the
             # integrator then rejected: the caller runs this piece again as Python
