@@ -163,7 +163,9 @@ def test_a_complex_number_is_written_by_its_own_two_floats(tmp_path):
     def out(t, x, u, params):
         return [(pole * u[0]).imag]
 
-    assert _run_both(_gain_loop(out)).engine_mode == "compiled"
+    # (a subclass of a number runs as Python: compiled code would not read its own
+    # attributes and operators, see test_numbers_with_operators_of_their_own_run_as_python)
+    assert _run_both(_gain_loop(out)).engine_mode == "python"
     assert not target.exists()
 
 
@@ -198,6 +200,73 @@ def test_a_module_is_never_imported_by_a_name_read_from_an_attribute(tmp_path, m
     assert row.tier == "python" and "ck_not_the_one" in row.reason, row
     _run_both(loop)
     assert not target.exists() and "ck_not_the_one" not in sys.modules
+
+
+def test_a_module_under_a_package_not_imported_is_not_imported_by_its_package_name(
+        tmp_path, monkeypatch):
+    # a module registered as 'a.b' alone (as plugin loaders do): the kernel's text said
+    # `import a.b as ...`, and Python's import statement imports the package `a` by name,
+    # from sys.path, first (a review ran a planted ck_parent.py, from explain already)
+    target = tmp_path / "ran"
+    (tmp_path / "ck_parent.py").write_text(_touch(target) + "\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    namespace = types.ModuleType("ck_parent.sub")
+    namespace.k = 2.0
+    monkeypatch.setitem(sys.modules, "ck_parent.sub", namespace)
+
+    def out(t, x, u, params):
+        m = namespace
+        return [m.k * u[0]]
+
+    loop = _gain_loop(out)
+    (row,) = controlkit.explain(loop)
+    assert row.tier == "python" and "ck_parent.sub" in row.reason, row
+    _run_both(loop)
+    assert not target.exists() and "ck_parent" not in sys.modules
+
+
+class _Gain(float):  # 2.0, but ten times as much on signals above 3
+    def __mul__(self, other):
+        return float(self) * other * (10.0 if other > 3.0 else 1.0)
+
+    __rmul__ = __mul__
+
+
+_GAIN = _Gain(2.0)
+
+
+def _by_global_gain(t, x, u, params):
+    return [x[0] + 0.001 * (_GAIN * u[0])]
+
+
+def _by_parameter_gain(t, x, u, params):
+    return [x[0] + 0.001 * (params["k"] * u[0])]
+
+
+@pytest.mark.parametrize("where", ["global", "parameter", "parameter in a list",
+                                   "numpy int16 parameter"])
+def test_numbers_with_operators_of_their_own_run_as_python(where):
+    # compiled code kept a float subclass's number and multiplied plain floats, where
+    # python-control calls its __mul__: past the compared first piece, silently another
+    # answer (y(5) 24.995 against 168.923); a numpy int16 parameter wraps in numpy
+    update = _by_global_gain if where == "global" else _by_parameter_gain
+    k = {"global": None, "parameter": _GAIN, "parameter in a list": [1.0, _GAIN],
+         "numpy int16 parameter": np.int16(200)}[where]
+    if where == "parameter in a list":
+        update = lambda t, x, u, params: [x[0] + 0.001 * (params["k"][1] * u[0])]  # noqa: E731
+    if where == "numpy int16 parameter":
+        update = lambda t, x, u, params: [0.5 * x[0] + float(params["k"] * params["k"])]  # noqa: E731
+    block = ct.nlsys(update, lambda t, x, u, params: x, inputs="u", outputs="y",
+                     states="x", name="g", dt=0.001, params={"k": k})
+    loop = ct.interconnect([block], inputs="u", outputs="y", name="subclass")
+    T = np.arange(5001) * 0.001
+    expected = ct.input_output_response(loop, T, T)
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        ours = controlkit.input_output_response(loop, T, T, compile=True)
+    np.testing.assert_array_equal(ours.outputs, expected.outputs)
+    assert ours.engine_mode == "python"
+    assert any("compiled code" in str(w.message) for w in said), said
 
 
 def test_a_store_file_that_is_not_its_text_is_written_again(tmp_path):

@@ -6,6 +6,7 @@ valid, and the markers of a value not known or not there.
 from __future__ import annotations
 
 import cmath
+import enum
 import functools
 import keyword
 import math
@@ -26,6 +27,41 @@ _NOT_HELPERS = ("control", "numpy", "scipy", "controlkit", "numba", "functools",
 
 def _is_number(value):
     return isinstance(value, bool | int | float | complex | np.number | np.bool_)
+
+
+#: Methods by which a class gives its numbers (or texts) arithmetic or comparisons of its own.
+_OPERATORS = frozenset(f"__{name}__" for name in (
+    "add radd sub rsub mul rmul truediv rtruediv floordiv rfloordiv mod rmod divmod rdivmod "
+    "pow rpow matmul rmatmul neg pos abs invert and rand or ror xor rxor lshift rlshift "
+    "rshift rrshift eq ne lt le gt ge int float index bool complex round trunc floor "
+    "ceil").split())
+
+
+def plain_values(value) -> bool:
+    """Whether ``value`` computes as compiled code computes its numbers (or text): one of
+    Python's number types or ``str`` itself, a numpy scalar of its own type, a numpy array
+    (the class itself), an enumeration's member whose classes add no operator, or a list
+    or tuple of these; not a subclass with arithmetic or comparisons of its own, which
+    compiled code would not call (a ``float`` subclass's ``__mul__``).
+
+    Examples
+    --------
+    >>> class Gain(float):
+    ...     def __mul__(self, other):
+    ...         return 10.0 * float(self) * other
+    >>> plain_values([1.0, 2, np.float64(3.0)]), plain_values(Gain(2.0)), plain_values([Gain(2.0)])
+    (True, False, False)
+    """
+    kind = type(value)
+    if kind in (bool, int, float, complex, str, np.ndarray):
+        return True
+    if isinstance(value, np.generic):
+        return kind is value.dtype.type
+    if kind in (list, tuple):
+        return all(plain_values(item) for item in value)
+    return isinstance(value, enum.Enum) and not any(
+        _OPERATORS & vars(cls).keys() for cls in kind.__mro__
+        if cls.__module__ != "enum" and cls not in (int, float, complex, str, object))
 
 
 def _is_array_like(value):
@@ -71,6 +107,20 @@ def _dotted(name) -> bool:
                                          for part in name.split("."))
 
 
+def imported(name: str) -> bool:
+    """Whether the module ``name`` and each package above it are imported already: an
+    import statement of it then finds them all in ``sys.modules``, where Python's
+    ``import a.b`` would otherwise import ``a`` by name, searching ``sys.path``.
+
+    Examples
+    --------
+    >>> imported("numpy.linalg"), imported("no_such_package.sub")
+    (True, False)
+    """
+    parts = name.split(".")
+    return all(".".join(parts[:i]) in sys.modules for i in range(1, len(parts) + 1))
+
+
 def name_text(name) -> str:
     """``name``'s own text, "" for other than a ``str``: a subclass's ``__str__``,
     ``__format__`` or ``__repr__`` is never asked (a name is data, written as module text).
@@ -90,7 +140,7 @@ def _import_name(value):
     module = name_text(getattr(fn, "__module__", None))
     name = name_text(getattr(fn, "__name__", None))
     # (a module imported already: a name read from an attribute is data, never imported)
-    found = _dotted(module) and name.isidentifier() and getattr(
+    found = _dotted(module) and name.isidentifier() and imported(module) and getattr(
         sys.modules.get(module), name, None) is value
     return (module, name) if found else None
 

@@ -9,6 +9,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ...source import NotCompilable
+from ...source.values import narrow, plain_values
 
 #: Integers up to this size are exact in a float64 (larger ones run as Python).
 _EXACT_INT = 2 ** 53
@@ -35,6 +36,13 @@ def _kind(key, value):
     """``(kind, shape)`` of a parameter value, or NotCompilable naming the parameter."""
     if value is None:
         return "none", ()
+    if not plain_values(value):  # (a float subclass's own __mul__: Python's run calls it)
+        raise NotCompilable(f"parameter {key!r} holds a {_not_plain(value).__name__}, whose "
+                            f"own operators compiled code would not call")
+    if isinstance(value, np.generic | np.ndarray) and value.dtype.kind in "iufc" \
+            and narrow(value.dtype):
+        raise NotCompilable(f"parameter {key!r} is of type {value.dtype.name}: numpy "
+                            f"computes in it, compiled code in 64 bits")
     if isinstance(value, bool | np.bool_):
         return "bool", ()
     if isinstance(value, int | np.integer):
@@ -48,7 +56,8 @@ def _kind(key, value):
             array = np.asarray(value)
         except (ValueError, TypeError):
             array = None
-        if array is not None and (array.dtype.kind in "iub" or array.dtype == np.float64):
+        if array is not None and (array.dtype.kind == "b" or array.dtype == np.float64
+                                  or array.dtype.kind in "iu" and not narrow(array.dtype)):
             if array.ndim == 0:
                 return _kind(key, array.item())
             return "array-" + {"b": "b", "i": "i", "u": "i", "f": "f"}[array.dtype.kind], \
@@ -58,6 +67,13 @@ def _kind(key, value):
                             f"take (numbers, and arrays of float64, int or bool, can)")
     raise NotCompilable(f"parameter {key!r} is a {type(value).__name__} ({value!r:.40}), "
                         f"which compiled code cannot take")
+
+
+def _not_plain(value) -> type:
+    """The type of the first value inside ``value`` that is not plain."""
+    if type(value) in (list, tuple):
+        return next(_not_plain(item) for item in value if not plain_values(item))
+    return type(value)
 
 
 class ParamLayout:

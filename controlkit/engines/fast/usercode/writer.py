@@ -20,9 +20,11 @@ from ...source.values import (
     _cell,
     _dotted,
     _import_name,
+    imported,
     name_text,
     narrow,
     parts_from_c_library,
+    plain_values,
 )
 from ..codegen import CODING, numbers, quoted
 from .calls import Calls
@@ -79,9 +81,13 @@ def _literal(name, value, lines, imports):
     """A module-level line freezing ``value`` as ``name`` (or NotCompilable)."""
     if isinstance(value, pytypes.ModuleType):
         module = name_text(value.__name__)
-        if not _dotted(module) or pysys.modules.get(module) is not value:
+        if not (_dotted(module) and imported(module)) or pysys.modules.get(module) is not value:
             raise NotCompilable(f"it reads a module named {module!r}")
         imports.append(f"import {module} as {name}")
+    elif isinstance(value, str | int | float | complex | np.generic | np.ndarray | list | tuple) \
+            and not plain_values(value):  # (numbers, or text, with operators of their own)
+        raise NotCompilable(f"it reads {as_written(name)!r}, of a {type(value).__name__} whose "
+                            f"own operators compiled code would not call")
     elif value is None or isinstance(value, bool):
         lines.append(f"{name} = {value!r}")
     elif isinstance(value, str):  # (a str enumeration's member: its text)
@@ -114,11 +120,11 @@ def _literal(name, value, lines, imports):
             lines.append(f"{name} = _np_.{array.dtype.name}({text})")
     elif callable(value) and getattr(value, "__module__", None) and getattr(
             value, "__name__", None):
-        imported = _import_name(value)
-        if imported is None:
+        found = _import_name(value)
+        if found is None:
             attr = getattr(_jit.python_function(value), "__name__", "")
             raise NotCompilable(f"it calls {attr!r}, which cannot be imported by name")
-        module, attr = imported
+        module, attr = found
         # what it runs, in the text: numba's cache knows the kernel by its own file only,
         # and would hand back code compiled with an older version of the imported function
         imports.append(f"from {module} import {attr} as {name}  # {_runs(value)}")
