@@ -368,10 +368,11 @@ def not_own(path: Path) -> str | None:
     """Why ``path`` is not the user's own folder (None when it is).
 
     It must be a folder, not a link, owned by the user and writable by nobody else (the
-    user's private group allowed, as a umask of 002 leaves folders); every folder above
-    it owned by the user or root and not writable by others unless sticky (as ``/tmp``),
-    so that nobody else can rename it away; and every link on the way owned by the user
-    or root, in such a folder, so that nobody else can point it elsewhere.
+    user's private group, named as the user, allowed, as a umask of 002 leaves folders);
+    every folder above it owned by the user or root and not writable by others unless
+    sticky (as ``/tmp``), so that nobody else can rename it away; and every link on the
+    way owned by the user or root, in such a folder, so that nobody else can point it
+    elsewhere.
 
     Examples
     --------
@@ -414,10 +415,12 @@ def _writable_by_others(info) -> bool:
         return True
     if not info.st_mode & stat.S_IWGRP:
         return False
-    try:  # the user's private group (umask 002) is not "others"
-        import grp
+    try:  # the user's private group (umask 002) is not "others": named as the user, of no
+        import grp  # other member (a shared primary group, "users", also lists none)
+        import pwd
 
         group = grp.getgrgid(info.st_gid)
-        return not (info.st_gid == os.getgid() and not group.gr_mem)
+        mine = group.gr_name == pwd.getpwuid(os.getuid()).pw_name
+        return not (info.st_gid == os.getgid() and mine and not group.gr_mem)
     except (ImportError, KeyError):
         return True
