@@ -243,21 +243,25 @@ def _real(values: np.ndarray, what: str) -> np.ndarray:
     return values
 
 
-def integer_state(X0, nstates):
-    """The integer dtype python-control keeps a discrete run's initial state in, or None.
+def kept_state(X0, nstates):
+    """The dtype other than 64-bit floats that python-control keeps a discrete run's
+    initial state in (integers, ``float32``), or None.
 
-    python-control reads a list of integers (``X0=[0, 1]``) or an integer array as it is
-    (a short one is padded with float zeros, a scalar broadcast into floats) and hands it
-    to the first step's functions: ``np.zeros_like(x)`` there fills integers.
+    python-control reads a list of integers (``X0=[0, 1]``) or an array as it is (a short
+    one is padded with float zeros, a scalar broadcast into floats) and hands it to the
+    first step's functions: ``np.zeros_like(x)`` there fills integers, and ``0.9 * x[0]``
+    of a ``float32`` state is a ``float32``.
 
     Examples
     --------
-    >>> integer_state([0, 1], 2), integer_state([0, 1.0], 2), integer_state(0, 2)
+    >>> kept_state([0, 1], 2), kept_state([0, 1.0], 2), kept_state(0, 2)
     (dtype('int64'), None, None)
+    >>> kept_state(np.zeros(2, dtype=np.float32), 2)
+    dtype('float32')
     """
     if isinstance(X0, list | tuple):
         try:
-            values = np.array([v for part in X0 for v in np.ravel(np.array(part)).tolist()])
+            values = np.array([v for part in X0 for v in np.ravel(np.array(part))])
         except (TypeError, ValueError):
             return None
     elif isinstance(X0, np.ndarray):
@@ -265,7 +269,9 @@ def integer_state(X0, nstates):
     else:
         return None
     fits = values.size == (nstates or 0) and values.size > 0
-    return values.dtype if fits and values.dtype.kind in "biu" else None
+    kept = values.dtype.kind in "biu" or values.dtype.kind in "fc" and values.dtype not in (
+        np.float64, np.complex128)
+    return values.dtype if fits and kept else None
 
 
 def result_flags(options) -> dict:

@@ -9,7 +9,7 @@ import numpy as np
 
 from ...compat import SYSTEM_CALLS
 from ...sampled_data import SampledDataSystem
-from ..contract import UnsupportedSystem, integer_state, python_control_arguments, result_flags
+from ..contract import UnsupportedSystem, kept_state, python_control_arguments, result_flags
 from ..contract import response as base_response
 from .continuous import StiffProblem, run_continuous
 from .discrete import simulate
@@ -59,14 +59,23 @@ def _response(given, sys, T, U, X0, compile, options):
                 raise UnsupportedSystem(_INTEGER_TIMES.format(
                     f"fails on a float t ({type(error).__name__})")) from None
             raise
-        integers = integer_state(given_X0, sys.nstates)
-        if integers is not None and _integers_count(given, t_eval[0], X0, U[:, 0], params,
-                                                    t_eval[0], X0.astype(integers)):
+        kept = kept_state(given_X0, sys.nstates)
+        if kept is not None and _integers_count(given, t_eval[0], X0, U[:, 0], params,
+                                                t_eval[0], X0.astype(kept)):
+            held, example = (("integers", "np.zeros_like(x) fills integers")
+                             if kept.kind in "biu" else
+                             (f"{kept.name} numbers", f"0.9 * x[0] is a {kept.name}"))
             raise UnsupportedSystem(
-                f"X0 holds integers, which python-control keeps in its first step, where a "
-                f"function of this system computes other numbers from them than from floats "
-                f"(np.zeros_like(x) fills integers); X0 given as floats "
-                f"(X0={np.asarray(X0).tolist()}) runs on the fast engine")
+                f"X0 holds {held}, which python-control keeps in its first step, where a "
+                f"function of this system computes other numbers from them than from "
+                f"floats ({example}); X0 given as floats (X0={np.asarray(X0).tolist()}) "
+                f"runs on the fast engine")
+        returned = _lone_returns(given, t_eval[0], X0, U[:, 0], params)
+        if returned is not None:
+            raise UnsupportedSystem(
+                f"its functions return {returned} numbers, which python-control keeps in the "
+                f"response of a system alone (and in its next state, from an update), where "
+                f"the engine's arrays hold 64-bit floats")
         if integer_times and _integers_count(given, t_eval[0], X0, U[:, 0], params,
                                              given_times[0], X0):
             raise UnsupportedSystem(_INTEGER_TIMES.format(
@@ -108,8 +117,8 @@ _INTEGER_TIMES = ("T holds integers, which python-control hands to the functions
 
 def _integers_count(given, t, X0, u, params, t_given, x_given) -> bool:
     """Whether python-control's first step of ``given`` at the time and from the initial
-    state as it holds them (``t_given``, ``x_given``: integers, see
-    :func:`.contract.integer_state`) gives other numbers than at the engine's floats ``t``
+    state as it holds them (``t_given``, ``x_given``: integers or float32, see
+    :func:`.contract.kept_state`) gives other numbers than at the engine's floats ``t``
     and ``X0``, or (a single block) a state still held as integers. The functions run
     after the engine's own run, which refused any that acts outside itself (a print)."""
     with SYSTEM_CALLS:  # (python-control's systems keep a call's params on themselves)
@@ -122,6 +131,23 @@ def _integers_count(given, t, X0, u, params, t_given, x_given) -> bool:
             return True  # a block's update returns integers: its state stays integers
         return not (np.array_equal(step, given.dynamics(t, X0, u, params=params))
                     and np.array_equal(out, given.output(t, X0, u, params=params)))
+
+
+def _lone_returns(given, t, x, u, params) -> str | None:
+    """The type other than 64-bit floats that a discrete system alone (not an interconnect,
+    whose signals python-control keeps in arrays of floats) returns at its first step
+    (ints of ``round``, bools of a comparison, ``float32``, complex numbers), else None."""
+    if isinstance(given, ct.InterconnectedSystem) or not isinstance(given, ct.NonlinearIOSystem):
+        return None
+    with SYSTEM_CALLS:  # (python-control's systems keep a call's params on themselves)
+        try:
+            values = [np.asarray(given.output(t, x, u, params=params))]
+            if given.nstates:
+                values.append(np.asarray(given.dynamics(t, x, u, params=params)))
+        except Exception:  # noqa: BLE001 - the run answered: its first step did not raise
+            return None
+    kinds = [value.dtype.name for value in values if value.dtype != np.float64]
+    return kinds[0] if kinds else None
 
 
 def outputs(given, diagram, resp, params) -> np.ndarray:

@@ -13,7 +13,8 @@ unknown (the ``params`` check then accepts every key, as python-control does) an
 function not compilable, with the reason.
 """
 
-from .plan import Plan, plan_function, reads_input, side_effect, used_params
+from .effects import side_effect
+from .plan import Plan, plan_function, reads_input, used_params
 from .reading import PARAM_READ, NotCompilable
 from .rewrites import copy_tree, function_def, walk
 from .translator import as_written

@@ -9,12 +9,10 @@ import ast
 import contextlib
 import copy
 import re
-import types
 import weakref
 from dataclasses import dataclass, field
 
 from .reading import (
-    MUTATORS,
     PARAMS,
     Frozen,
     NotCompilable,
@@ -22,7 +20,6 @@ from .reading import (
     _called_as_python_control,
     _definition,
     _input_name,
-    _outside_effect,
     call_target,
 )
 from .rewrites import walk
@@ -273,116 +270,3 @@ def reads_input(fn):
 
 #: :func:`reads_input`'s answers, by code object and binding.
 _READS_INPUT: dict = {}
-
-
-def _argument_written(nodes, code) -> str | None:
-    """The argument (``x``, ``u``...) the function writes into (``x[0] = ...``, ``x += 1``,
-    ``x.fill(0)``) without first binding its name to something of its own, else None:
-    python-control hands it views of its own arrays, so what it then computes depends on
-    python-control's arrays, which only python-control's run reproduces. ``nodes``: every
-    node of the function's body."""
-    arguments = set(code.co_varnames[:code.co_argcount + code.co_kwonlyargcount])
-    augmented = {id(n.target) for n in nodes if isinstance(n, ast.AugAssign)}
-    rebound = {n.id for n in nodes if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Store)
-               and id(n) not in augmented}
-    for node in nodes:
-        for target in _targets(node):
-            name = _base_name(target)
-            if name in arguments and name not in rebound and (
-                    isinstance(node, ast.AugAssign) or not isinstance(target, ast.Name)):
-                return name
-        if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) \
-                and node.func.attr in MUTATORS:
-            name = _base_name(node.func.value)
-            if name in arguments and name not in rebound:
-                return name
-    return None
-
-
-def _targets(node):
-    """What an assignment (or ``del``) ``node`` writes, tuples unpacked; else nothing."""
-    if isinstance(node, ast.Assign | ast.Delete):
-        todo = list(node.targets)
-    elif isinstance(node, ast.AugAssign | ast.AnnAssign):
-        todo = [node.target]
-    else:
-        return []
-    targets = []
-    while todo:
-        target = todo.pop()
-        if isinstance(target, ast.Tuple | ast.List):
-            todo.extend(target.elts)
-        else:
-            targets.append(target.value if isinstance(target, ast.Starred) else target)
-    return targets
-
-
-def _base_name(target):
-    """The name ``x`` of ``x[0].a``, ``x.a[1]`` or ``x``, else None."""
-    while isinstance(target, ast.Subscript | ast.Attribute):
-        target = target.value
-    return target.id if isinstance(target, ast.Name) else None
-
-
-def side_effect(fn) -> str | None:
-    """What ``fn`` does outside itself, as its source says (a ``print``, a file, a change
-    to an object from outside), or None. Such a function's calls are seen, so a diagram
-    holding one runs as python-control runs it: its calls, as many and in the order
-    python-control makes them.
-
-    Examples
-    --------
-    >>> def noisy(t, x, u, params):
-    ...     print(t)
-    ...     return x
-    >>> side_effect(noisy)
-    'it calls print()'
-    >>> side_effect(lambda t, x, u, params: 2 * x) is None
-    True
-    >>> def in_place(t, x, u, params):
-    ...     x[0] += u[0]
-    ...     return x
-    >>> side_effect(in_place)
-    "it writes into its argument 'x'"
-    """
-    try:
-        target, _, _ = call_target(fn)
-    except NotCompilable:
-        return None
-    # the answer follows from the code alone: asked again at every run of a diagram
-    # (0.2-0.6 ms a function), read once per code object, as its source is
-    code = target.__code__  # (its globals are those of every function of this code)
-    if code not in _SIDE_EFFECT:
-        _SIDE_EFFECT[code] = _side_effect(code, lambda name: isinstance(
-            target.__globals__.get(name), types.ModuleType))
-    return _SIDE_EFFECT[code]
-
-
-#: :func:`side_effect`'s answers, by code object.
-_SIDE_EFFECT: dict = {}
-
-
-def _side_effect(code, is_module) -> str | None:
-    try:
-        _, body = _definition(code, copy=False)
-    except NotCompilable:
-        return None
-    nodes = list(walk(ast.Module(body, [])))
-    stored = {n.id for n in nodes if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Store)}
-    local = stored | set(code.co_varnames)
-    for node in nodes:
-        effect = _outside_effect(node, local, is_module) if isinstance(node, ast.Call) else None
-        if effect is not None:
-            return effect[0]
-        if isinstance(node, ast.Global | ast.Nonlocal):
-            assigned = [name for name in node.names if name in stored]
-            if assigned:
-                return f"it assigns {', '.join(assigned)} outside itself"
-        for written in _targets(node):
-            name = _base_name(written)
-            if not isinstance(written, ast.Name) and name is not None and name not in local:
-                return f"it changes an object from outside ({ast.unparse(written)[:40]})"
-    written = _argument_written(nodes, code)
-    if written is not None:
-        return f"it writes into its argument {written!r}"
-    return None

@@ -1,0 +1,263 @@
+"""What a user's function changes outside itself, read from its source: a ``print``, a
+file, an object from outside or one of its arguments, directly (``x[0] = v``), through a
+name bound to one (``xs = x[:]; xs[0] = v``, ``m = MEMORY; m[0] = v``) or through a
+helper that writes into what it is given. python-control calls a block's functions
+several times a step, on its own arrays; compiled code and the engine's Python run call
+them otherwise, so a diagram holding such a function runs as python-control runs it.
+"""
+
+from __future__ import annotations
+
+import ast
+import builtins
+import types
+
+import numpy as np
+
+from .reading import MUTATORS, NotCompilable, _definition, _outside_effect, call_target
+from .rewrites import walk
+from .values import _is_number
+
+#: Methods whose result may be the object itself or a view of it.
+VIEW_METHODS = frozenset({"reshape", "ravel", "view", "transpose", "swapaxes", "squeeze",
+                          "diagonal", "get", "setdefault"})
+#: numpy's functions whose result may be their first argument or a view of it.
+VIEW_FUNCTIONS = frozenset({"asarray", "asanyarray", "ascontiguousarray", "atleast_1d",
+                            "atleast_2d", "atleast_3d", "reshape", "ravel", "squeeze",
+                            "transpose", "swapaxes", "moveaxis", "diagonal", "broadcast_to",
+                            "expand_dims", "real", "imag"})
+#: numpy's functions that write into their first argument.
+INTO_FIRST = frozenset({"copyto", "put", "place", "putmask", "fill_diagonal",
+                        "put_along_axis"})
+#: How deep helpers calling helpers are followed.
+HELPER_DEPTH = 3
+
+
+def side_effect(fn) -> str | None:
+    """What ``fn`` does outside itself, as its source says (a ``print``, a file, a change
+    to an object from outside or to its arguments, also through a name bound to one or a
+    helper it calls), or None.
+
+    Examples
+    --------
+    >>> def noisy(t, x, u, params):
+    ...     print(t)
+    ...     return x
+    >>> side_effect(noisy)
+    'it calls print()'
+    >>> side_effect(lambda t, x, u, params: 2 * x) is None
+    True
+    >>> def in_place(t, x, u, params):
+    ...     xs = x[:]
+    ...     xs[0] += u[0]
+    ...     return xs
+    >>> side_effect(in_place)
+    "it writes into its argument 'x' (through 'xs')"
+    """
+    try:
+        target, _, _ = call_target(fn)
+    except NotCompilable:
+        return None
+    # the answer follows from the code and what its outside names are (a module, an
+    # array): asked again at every run of a diagram, read once per code object
+    code = target.__code__
+    if code not in _SIDE_EFFECT:
+        try:
+            _SIDE_EFFECT[code] = _Effects(target, 0).first()[0]
+        except NotCompilable:  # (no source: nothing is known)
+            _SIDE_EFFECT[code] = None
+    return _SIDE_EFFECT[code]
+
+
+#: :func:`side_effect`'s answers, by code object.
+_SIDE_EFFECT: dict = {}
+#: A name found neither in a function's module nor among the builtins (a closure's).
+_UNKNOWN = object()
+
+
+def _nothing_to_write_into(value) -> bool:
+    """A value from outside that holds no data to change: a module, a function, a class,
+    a number, a text (not an array, a list, a dict, an object, a closure's unknown)."""
+    return value is None or _is_number(value) or isinstance(value, (
+        str, bytes, type, types.ModuleType, types.FunctionType, types.BuiltinFunctionType,
+        np.ufunc))
+
+
+class _Effects:
+    """One function's reading (see :func:`side_effect`)."""
+
+    def __init__(self, function, depth):
+        self.function, self.depth = function, depth
+        code = function.__code__
+        _, body = _definition(code, copy=False)
+        self.nodes = list(walk(ast.Module(body, [])))
+        stored = [n for n in self.nodes
+                  if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Store)]
+        self.stored = {n.id for n in stored}
+        self.local = self.stored | set(code.co_varnames)
+        self.parameters = list(code.co_varnames[:code.co_argcount + code.co_kwonlyargcount])
+        # name -> ((the argument it may be bound to, or None for an outside object, the
+        # text of what), whether the object itself or a view: not maybe an element)
+        self.origin = {p: ((p, p), True) for p in self.parameters}
+        pairs = self._bindings()
+        for p in self.parameters:  # (an argument bound anew to its own copy is its own)
+            values = [v for t, v in pairs if isinstance(t, ast.Name) and t.id == p]
+            if values and not any(self._source(v) for v in values):
+                del self.origin[p]
+        changed = True
+        while changed:  # (names bound to names bound to ...)
+            changed = False
+            for target, value in pairs:
+                found = self._source(value)
+                unpacked = not isinstance(target, ast.Name)
+                for name in (n.id for n in ast.walk(target) if isinstance(n, ast.Name)):
+                    if found is not None and name not in self.origin:
+                        self.origin[name] = (found[0], found[1] and not unpacked)
+                        changed = True
+
+    def _bindings(self):
+        """``(target, value)`` of each binding of a name in the function."""
+        pairs = []
+        for node in self.nodes:
+            if isinstance(node, ast.Assign):
+                pairs += [(t, node.value) for t in node.targets]
+            elif isinstance(node, ast.For | ast.comprehension):  # (an element, maybe a row)
+                pairs.append((node.target, ast.Subscript(node.iter, ast.Constant(0))))
+            elif isinstance(node, ast.NamedExpr | ast.AnnAssign) and node.value is not None:
+                pairs.append((node.target, node.value))
+        return pairs
+
+    def _outside(self, name):
+        namespace = self.function.__globals__
+        return namespace[name] if name in namespace else getattr(builtins, name, _UNKNOWN)
+
+    def _source(self, node):
+        """``origin`` (see ``__init__``) of what ``node`` may be bound to, else None."""
+        if isinstance(node, ast.Name):
+            if node.id in self.origin:
+                return self.origin[node.id]
+            if node.id not in self.local and not _nothing_to_write_into(
+                    self._outside(node.id)):
+                return (None, node.id), True
+            return None
+        if isinstance(node, ast.Subscript | ast.Attribute):
+            found = self._source(node.value)
+            whole = isinstance(node, ast.Subscript) and isinstance(
+                node.slice, ast.Slice | ast.Tuple) or isinstance(node, ast.Attribute) \
+                and node.attr in ("T", "real", "imag", "flat")
+            return (found[0], whole and found[1]) if found else None
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute):
+            if node.func.attr in VIEW_METHODS:
+                return self._source(node.func.value)
+            if node.func.attr in VIEW_FUNCTIONS and node.args:
+                return self._source(node.args[0])
+        if isinstance(node, ast.IfExp):
+            return self._source(node.body) or self._source(node.orelse)
+        if isinstance(node, ast.BoolOp):
+            return next(filter(None, map(self._source, node.values)), None)
+        if isinstance(node, ast.NamedExpr | ast.Starred):
+            return self._source(node.value)
+        return None
+
+    def _said(self, found, through, text):
+        """``(what, the argument written into or None)``."""
+        argument, _ = found[0]
+        if argument is None:
+            return f"it changes an object from outside ({text[:40]})", None
+        via = f" (through {through!r})" if through not in (None, argument) else ""
+        return f"it writes into its argument {argument!r}{via}", argument
+
+    def first(self):
+        """``(what the function does outside itself, the argument it writes into)``, or
+        ``(None, None)``."""
+        is_module = lambda name: isinstance(self._outside(name), types.ModuleType)  # noqa: E731
+        for node in self.nodes:
+            if isinstance(node, ast.Global | ast.Nonlocal):
+                assigned = [name for name in node.names if name in self.stored]
+                if assigned:
+                    return f"it assigns {', '.join(assigned)} outside itself", None
+            if isinstance(node, ast.Call):
+                said = _outside_effect(node, self.local, is_module)
+                said = (said[0], None) if said is not None else self._call(node)
+                if said is not None:
+                    return said
+            for written in _targets(node):
+                if isinstance(written, ast.Name):  # (bound anew; in place if an array)
+                    found = self.origin.get(written.id)
+                    if isinstance(node, ast.AugAssign) and found and found[1]:
+                        return self._said(found, written.id, ast.unparse(written))
+                    continue
+                base = _base_name(written)
+                if base is not None and base not in self.local:
+                    return (f"it changes an object from outside "
+                            f"({ast.unparse(written)[:40]})"), None
+                found = self._source(written)
+                if found is not None:
+                    return self._said(found, base, ast.unparse(written))
+        return None, None
+
+    def _call(self, node):
+        """:meth:`first` of a call writing into what the function may not own: a method
+        that changes its object, numpy's ``out=`` or ``copyto``, or a helper writing into
+        what it is given (or acting outside itself); else None."""
+        func = node.func
+        if isinstance(func, ast.Attribute) and func.attr in MUTATORS:
+            found = self._source(func.value)
+            if found is not None:
+                return self._said(found, _base_name(func.value), ast.unparse(func))
+        name = func.attr if isinstance(func, ast.Attribute) else getattr(func, "id", None)
+        written = [node.args[0]] if name in INTO_FIRST and node.args else []
+        written += [k.value for k in node.keywords if k.arg == "out"]
+        for value in written:
+            found = self._source(value)
+            if found is not None:
+                return self._said(found, _base_name(value), ast.unparse(node))
+        helper = self._outside(func.id) if isinstance(func, ast.Name) \
+            and func.id not in self.local else None
+        if not isinstance(helper, types.FunctionType) or self.depth >= HELPER_DEPTH \
+                or (helper.__module__ or "").split(".")[0] in ("numpy", "control",
+                                                               "controlkit"):
+            return None
+        try:
+            said, parameter = _Effects(helper, self.depth + 1).first()
+        except NotCompilable:
+            return None
+        if said is None:
+            return None
+        if parameter is None:
+            return f"it calls {func.id}(), which {said.removeprefix('it ')}", None
+        code = helper.__code__
+        position = code.co_varnames.index(parameter)
+        given = [k.value for k in node.keywords if k.arg == parameter]
+        if position < len(node.args) and position < code.co_argcount:
+            given.append(node.args[position])
+        for value in given:
+            found = self._source(value)
+            if found is not None:
+                return self._said(found, _base_name(value), ast.unparse(node))
+        return None
+
+
+def _targets(node):
+    """What an assignment (or ``del``) ``node`` writes, tuples unpacked; else nothing."""
+    if isinstance(node, ast.Assign | ast.Delete):
+        todo = list(node.targets)
+    elif isinstance(node, ast.AugAssign | ast.AnnAssign):
+        todo = [node.target]
+    else:
+        return []
+    targets = []
+    while todo:
+        target = todo.pop()
+        if isinstance(target, ast.Tuple | ast.List):
+            todo.extend(target.elts)
+        else:
+            targets.append(target.value if isinstance(target, ast.Starred) else target)
+    return targets
+
+
+def _base_name(target):
+    """The name ``x`` of ``x[0].a``, ``x.a[1]``, ``x.reshape(2, 2)[0]`` or ``x``, else None."""
+    while isinstance(target, ast.Subscript | ast.Attribute | ast.Call):
+        target = target.func if isinstance(target, ast.Call) else target.value
+    return target.id if isinstance(target, ast.Name) else None
