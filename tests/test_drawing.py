@@ -80,6 +80,18 @@ def test_png_is_written(tmp_path):
     assert (tmp_path / "fig4.png").stat().st_size > 20_000
 
 
+@pytest.mark.parametrize("label", ["$\\frac{$", "$" + "{" * 140 + "}" * 140 + "$"])
+def test_a_label_matplotlib_cannot_read_as_tex_is_drawn_as_its_text(label, tmp_path):
+    # a label from a shared file failed inside matplotlib's mathtext (a ValueError naming
+    # no block, a RecursionError for nested braces), and nothing was drawn
+    a = ct.nlsys(None, lambda t, x, u, p: u, inputs=["u"], outputs=["y"], name="pi")
+    b = ct.nlsys(None, lambda t, x, u, p: -u, inputs=["y"], outputs=["u"], name="plant")
+    sys = ct.interconnect([a, b], inputs=[], outputs=["y"], name="loop")
+    with pytest.warns(UserWarning, match=r"of block 'pi' is not TeX matplotlib can draw"):
+        draw_block_diagram(sys, tmp_path / "loop.svg", labels={"pi": label})
+    assert (tmp_path / "loop.svg").stat().st_size > 1000
+
+
 def test_single_block_is_refused():
     with pytest.raises(ValueError, match=r"sys must be a control.InterconnectedSystem"):
         diagram_graph(ct.nlsys(None, lambda t, x, u, p: u, inputs=1, outputs=1))

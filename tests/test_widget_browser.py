@@ -295,3 +295,22 @@ def test_notebook_0s_sampled_loop_step_undo_save_reload_run(voila, tmp_path):
     assert 1.0005 < peak < 1.002 and 1.0 < when < 2.0  # the sampled PI's small overshoot
     for name in ("first_loop_deleted.png", "first_loop_step_at_1s.png"):
         assert (shots / name).stat().st_size > 30_000
+
+
+def test_a_label_naming_an_object_s_own_member_is_drawn_as_its_text():
+    # the editor's TeX looked macros up with `name in GREEK`, true for every object's
+    # inherited members: a shared file's label "$\constructor$" showed "function Object()
+    # { [native code] }" (the front end's source, run in the browser the editor runs in)
+    from playwright.sync_api import sync_playwright
+
+    source = (ROOT / "widget-src" / "src" / "tex.js").read_text().replace("export ", "")
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=FLAGS)
+        try:
+            page = browser.new_page()
+            shown = page.evaluate(f"() => {{ {source}; return [texToHtml('$\\\\constructor$'), "
+                                  f"texToHtml('$\\\\toString$'), texToHtml('$\\\\alpha$')]; }}")
+        finally:
+            browser.close()
+    assert "native code" not in "".join(shown)
+    assert "\\constructor" in shown[0] and "\\toString" in shown[1] and "α" in shown[2]

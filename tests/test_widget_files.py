@@ -193,6 +193,47 @@ def test_every_field_is_checked_and_named(data, message):
         DiagramModel.from_dict(data)
 
 
+_V2 = '{"format": "controlkit.widget/2", "name": "x", "blocks": [], "setup": {"horizon": '
+
+
+@pytest.mark.parametrize("text, message", [
+    (_V2 + "1" + "0" * 400 + "}}", r"setup\.horizon: must be a finite number"),
+    (_V2 + "1" + "0" * 5000 + "}}", r"setup\.horizon: must be a finite number"),
+    (json.dumps(saved([block("g", ["gain"], {"k": 1.0}, ["u"], ["y"])])),
+     r"blocks\[0\]\.recipe\.kind: must be 'variable' or a palette entry"),
+    (json.dumps(saved([block("g", "gain", {"k": 1.0}, ["u"], ["y"])],
+                      version="controlkit.widget/2", inputs=[["r", [["g", "u", 1.0]]]],
+                      setup={"sources": {"r": {"kind": ["step"]}}})),
+     r"setup\.sources\['r'\]\.kind: must be one of"),
+    (json.dumps(saved([block("pi", "pi", {"kp": 1.0, "ki": 1.0}, ["u"], ["y"],
+                             sampled={"Ts": 1e308})], version="controlkit.widget/2")),
+     r"blocks\[0\]\.recipe\.sampled\.Ts: must be a finite number > 0 <= 1e\+06"),
+])
+def test_numbers_beyond_floats_and_kinds_that_are_not_names_are_refused_by_field(text,
+                                                                                message):
+    # a review's files: OverflowError, Python's digit limit, "unhashable type" and numpy's
+    # LinAlgError from deep inside, naming no field
+    with pytest.raises(ValueError, match=message):
+        DiagramModel.from_json(text)
+
+
+@pytest.mark.parametrize("name", ["T", "U", "X0", "response"])
+def test_a_diagram_named_as_the_written_code_s_own_variables_exports_code_that_runs(name):
+    # simulate_T(T) made the time grid the diagram's variable: the exported code failed
+    data = saved([block("lag", "transfer_function", {"num": [1.0], "den": [1.0, 1.0]},
+                        ["u"], ["y"])], version="controlkit.widget/2",
+                 inputs=[["r", [["lag", "u", 1.0]]]], outputs=[["y", [["out", "lag", "y",
+                                                                       1.0]]]],
+                 setup={"horizon": 1.0})
+    data["name"] = name
+    model = DiagramModel.from_dict(data)
+    namespace = {}
+    exec(compile(model.code(), "exported.py", "exec"), namespace)
+    assert namespace["response"].outputs.shape[-1] > 1
+    with pytest.raises(ValueError, match="a name the written code uses itself"):
+        model.code(variable="T")
+
+
 def test_a_format_1_file_of_a_discrete_diagram_loads_sampled():
     """Format 1 sampled follow-the-period palette blocks by the block's saved dt."""
     data = saved([block("pi", "pi", {"kp": 1.0, "ki": 0.5}, ["u"], ["y"], dt=0.1)])

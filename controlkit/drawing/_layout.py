@@ -23,6 +23,7 @@ from __future__ import annotations
 from collections import Counter, defaultdict
 from dataclasses import dataclass, field
 
+from .._checks import warn_caller
 from ._draft import _LANE_PITCH, _PORT_PITCH, _TRACK_PITCH, _Draft, _text_size
 from ._graph import (
     _IN,
@@ -153,6 +154,7 @@ class _Hints:
             if getattr(s, "display_name", None):
                 merged_labels.setdefault(s.name, s.display_name)
         merged_labels.update(labels or {})
+        merged_labels = {block: _drawable(block, text) for block, text in merged_labels.items()}
         merged_groups = dict(hints.get("groups", {}))
         merged_groups.update(groups or {})
         sums = dict(hints.get("sums", {}))
@@ -162,6 +164,23 @@ class _Hints:
         return cls(merged_labels, merged_groups, dict(hints.get("beside", {})),
                    dict(hints.get("rows", {})), dict(hints.get("notes", {})),
                    sums, hints.get("title"), hints.get("outputs"))
+
+
+def _drawable(block, label):
+    """``label`` as matplotlib can draw it: TeX its mathtext cannot read (``$\\frac{$`` from
+    a shared file) is drawn as its text, with a warning naming the block."""
+    if not isinstance(label, str) or label.count("$") - label.count(r"\$") < 2:
+        return label
+    from matplotlib.mathtext import MathTextParser
+
+    try:
+        MathTextParser("path").parse(label)
+    except (ValueError, RecursionError) as error:
+        said = (str(error).strip().splitlines() or [type(error).__name__])[-1][:80]
+        warn_caller(f"the label {label[:40]!r} of block {block!r} is not TeX matplotlib can "
+                    f"draw ({said}); it is drawn as its text")
+        return label.replace("$", r"\$")
+    return label
 
 
 def layout(sys, *, labels=None, groups=None, fontsize=10.0, title=None) -> DiagramLayout:

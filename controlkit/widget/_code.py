@@ -32,9 +32,13 @@ def code_parameters(model):
 
 def _plan(model, variable=None):
     """Variables of the written code: ``(diagram, {block: var}, {parameter: block})``."""
-    variable = check_identifier(variable or _identifier(model.name), "the variable")
-    taken = {variable, "T", "U", "X0", f"build_{variable}", f"simulate_{variable}",
-             "response"}
+    written = {"T", "U", "X0", "response"}  # (the written code's own variables)
+    if variable in written:
+        raise ValueError(f"the variable {variable!r} is a name the written code uses itself "
+                         f"(one of {sorted(written)}); choose another")
+    variable = check_identifier(variable or _identifier(model.name, taken=written),
+                                "the variable")
+    taken = {variable, f"build_{variable}", f"simulate_{variable}"} | written
     names, parameters = {}, {}
     for name, block in model.blocks.items():
         recipe = block.recipe

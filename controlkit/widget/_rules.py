@@ -32,7 +32,8 @@ class Rule:
         raise NotImplementedError
 
     def refuse(self, value, path):
-        shown = repr(value)
+        shown = repr(value) if not isinstance(value, int) or abs(value) < 10 ** 80 else (
+            f"an integer of {len(str(abs(value) // 10 ** 80)) + 80} digits")
         if len(shown) > 80:
             shown = shown[:77] + "..."
         raise ValueError(f"{path}: must be {self.allowed}, got {shown}")
@@ -57,9 +58,13 @@ class Number(Rule):
     def check(self, value, path):
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             self.refuse(value, path)
-        if self.integer and not (isinstance(value, int) or float(value).is_integer()):
+        try:
+            number = float(value)
+        except OverflowError:  # (an integer beyond floats)
             self.refuse(value, path)
-        if not math.isfinite(value) or (self.positive and value <= 0) or (
+        if self.integer and not (isinstance(value, int) or number.is_integer()):
+            self.refuse(value, path)
+        if not math.isfinite(number) or (self.positive and value <= 0) or (
                 self.low is not None and value < self.low) or (
                 self.high is not None and value > self.high):
             self.refuse(value, path)

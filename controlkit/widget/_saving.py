@@ -98,8 +98,9 @@ def parse(text):
     if len(text) > _schema.LIMITS["bytes"]:
         raise ValueError(f"a saved diagram is at most {_schema.LIMITS['bytes']:,} characters "
                          f"of JSON; this one has {len(text):,}")
-    try:
-        return json.loads(text)
+    try:  # (an integer of thousands of digits: read as a float, which the schema refuses)
+        return json.loads(text, parse_int=lambda digits: int(digits) if len(digits) < 400
+                          else float(digits))
     except (json.JSONDecodeError, RecursionError) as error:
         raise ValueError(f"not a saved diagram: the file is not JSON ({error})") from None
 

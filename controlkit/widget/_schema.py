@@ -92,7 +92,7 @@ class _Recipe(Rule):
                              f"{sorted(self.palette)}; got {str(kind)[:80]!r}")
         entry = self.palette[kind]
         checked = Record({"kind": Text(), "kwargs": Record({})},
-                         {"sampled": Optional(Record({"Ts": Number(positive=True)}, {
+                         {"sampled": Optional(Record({"Ts": Number(positive=True, high=1e6)}, {
                              "method": Text(choices=("rk4", "solve_ivp")),
                              "substeps": Number(1, 10_000, integer=True)}))}
                          ).check({**value, "kwargs": {}}, path)
@@ -173,7 +173,8 @@ def _migrate(data):
         if isinstance(recipe, dict) and recipe.get("kind") not in (None, "variable"):
             # format 1 sampled a plant or an LTI palette block when the diagram was discrete
             recipe = dict(recipe)
-            entry = PALETTE.get(recipe.get("kind"))
+            kind = recipe.get("kind")
+            entry = PALETTE.get(kind) if isinstance(kind, str) else None
             dt = saved.get("dt")
             if entry is not None and entry.follows_period and isinstance(dt, (int, float)) \
                     and not isinstance(dt, bool) and dt > 0 and "sampled" not in recipe:

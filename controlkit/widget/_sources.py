@@ -53,7 +53,8 @@ class _Source(Record):
         super().__init__({}, {}, what=self.allowed)
 
     def check(self, value, path):
-        if not isinstance(value, dict) or value.get("kind") not in KINDS:
+        if not isinstance(value, dict) or not isinstance(value.get("kind"), str) \
+                or value["kind"] not in KINDS:
             kind = value.get("kind") if isinstance(value, dict) else value
             raise ValueError(f"{path}.kind: must be one of {list(KINDS)}, got "
                              f"{str(kind)[:80]!r}")

@@ -38,6 +38,12 @@ function argument(src, i) {
   return [escape(src[i] || ""), i + 1];
 }
 
+// A table's own entry: a label's "\constructor" or "\toString" is text, not a member every
+// object inherits (which "name in GREEK" found, and drew as its source)
+function own(table, name) {
+  return Object.prototype.hasOwnProperty.call(table, name);
+}
+
 function math(src) {
   let out = "", i = 0;
   while (i < src.length) {
@@ -47,9 +53,9 @@ function math(src) {
       if (!m) { out += escape(c); i++; continue; }  // a lone backslash at the end
       const name = m[1];
       i += m[0].length;
-      if (name in GREEK) out += GREEK[name];
-      else if (name in SPACE) out += SPACE[name];
-      else if (name in ACCENT) {
+      if (own(GREEK, name)) out += GREEK[name];
+      else if (own(SPACE, name)) out += SPACE[name];
+      else if (own(ACCENT, name)) {
         const [a, j] = argument(src, i);
         out += a + ACCENT[name];
         i = j;
