@@ -37,8 +37,8 @@ from ... import _jit
 from ..._checks import not_own
 
 #: Where compiled code is kept (see the module's description).
-CACHE_DIR = Path(os.environ.get("CONTROLKIT_CACHE_DIR",
-                                Path.home() / ".cache" / "controlkit" / "store"))
+CACHE_DIR = Path(os.environ.get("CONTROLKIT_CACHE_DIR")  # (set but empty: the default)
+                 or Path.home() / ".cache" / "controlkit" / "store")
 
 
 class StoreRefused(RuntimeError):
