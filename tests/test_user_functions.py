@@ -2,6 +2,7 @@
 the cases that once gave a wrong answer, crashed or refused valid input do not any more."""
 
 import functools
+import heapq
 import math
 import os
 import re
@@ -909,14 +910,80 @@ def _copied_then_written(t, x, u, params):
     return out
 
 
-def test_writes_into_the_function_s_own_arrays_compile():
+def _filled_from_the_state(t, x, u, params):  # (dx[0] = x[0] binds nothing to x)
+    dx = np.zeros_like(x)
+    dx[0] = x[0]
+    dx[0] -= 0.1 * dx[0] - 0.1 * u[0]
+    return dx
+
+
+def _local_numbers_changed(t, x, u, params):
+    k = params.get("k", 1.0)
+    k *= 0.5
+    t -= 1.0
+    return [k * x[0] + 0.1 * u[0] + 0.0 * t]
+
+
+def _wrapped(theta):
+    theta -= 2 * math.pi if theta > math.pi else 0.0
+    return theta
+
+
+def _packed(a, b):
+    out = np.empty(2)
+    out[0], out[1] = a, b
+    return out
+
+
+def _helpers_on_elements(t, x, u, params):
+    return [0.9 * _wrapped(x[0]) + 0.1 * _packed(u[0], x[0])[0]]
+
+
+@pytest.mark.parametrize("update", [_copied_then_written, _filled_from_the_state,
+                                    _local_numbers_changed, _helpers_on_elements])
+def test_writes_into_the_function_s_own_arrays_compile(update):
     # what a function binds to copies or new arrays (x.copy(), np.zeros_like(x), an
-    # element x[0]) is its own to write into
-    block = ct.nlsys(_copied_then_written, None, inputs="u", outputs="y", states=1,
-                     name="own", dt=0.1)
+    # element x[0]) is its own to write into; a number's `k *= 0.5` binds it anew (a
+    # review found 21 of 76 such functions sent to python-control)
+    block = ct.nlsys(update, None, inputs="u", outputs="y", states=1, name="own", dt=0.1,
+                     params={"k": 2.0})
     loop = ct.interconnect([block], inputs="u", outputs="y")
     (row,) = controlkit.explain(loop)
     assert row.tier == "compiled", row
+
+
+class _Counter:
+    n = 0.0
+
+
+_COUNTER, _HEAP = _Counter(), []
+
+
+def _bump(v):
+    v[0] += 0.01
+    return 0.0
+
+
+def _bump_deep(v, depth=3):
+    return _bump(v) if depth == 0 else _bump_deep(v, depth - 1)
+
+
+@pytest.mark.parametrize("output", [
+    lambda t, x, u, p: [x[0] + 0.0 * setattr(_COUNTER, "n", _COUNTER.n + 1.0)],
+    lambda t, x, u, p: [x[0] + 0.0 * len([heapq.heappush(_HEAP, float(t))])],
+    lambda t, x, u, p: np.multiply(x, 1.01, x),
+    lambda t, x, u, p: [x[0] + _bump_deep(x)],
+    lambda t, x, u, p: [x[0] + 0.01 * _RNG.normal()],
+], ids=["setattr", "heappush", "ufunc output by position", "helper four deep",
+        "random draw"])
+def test_an_output_function_acting_outside_itself_otherwise_is_seen(output):
+    # python-control calls an output function several times a step: a review's output
+    # functions that changed state or drew numbers there answered otherwise
+    block = ct.nlsys(lambda t, x, u, p: [0.5 * x[0] + 0.1 * u[0] + 0.01 * _COUNTER.n],
+                     output, inputs="u", outputs="y", states=1, name="b", dt=0.1)
+    loop = ct.interconnect([block], inputs="u", outputs="y")
+    (row,) = controlkit.explain(loop)
+    assert row.tier == "python-control", row
 
 
 @pytest.mark.parametrize("output", [lambda t, x, u, p: round(10 * x[0]),
@@ -959,6 +1026,7 @@ def test_a_float32_initial_state_of_a_discrete_run_answers_as_python_control(lon
 
 
 GAIN_ROW = np.array([[0.0596767275019363, -0.03379733760894157]])
+_RNG = np.random.default_rng(3)
 
 
 def appended_and_returned(t, x, u, params):

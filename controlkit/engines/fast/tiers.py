@@ -173,7 +173,11 @@ def _user_kernels(block, local, compiled):
     the same order, on python-control's own arrays."""
     for fn in (block.outfcn, block.updfcn if block.nstates else None):
         effect = source.side_effect(fn) if fn is not None else None
-        if effect is not None:
+        if effect is None and fn is block.outfcn and fn is not None:
+            drawn = source.draws(fn)  # (an update is called once a step in both)
+            effect = drawn and (f"its output function draws random numbers ({drawn}), "
+                                f"which python-control calls several times a step")
+        if effect:
             raise UnsupportedSystem(f"block {block.name!r}: {effect}; python-control runs "
                                     f"the diagram, so that the block is called as many "
                                     f"times, in the same order, on the same arrays")

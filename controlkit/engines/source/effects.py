@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import ast
 import builtins
+import random
 import types
 
 import numpy as np
@@ -28,9 +29,13 @@ VIEW_FUNCTIONS = frozenset({"asarray", "asanyarray", "ascontiguousarray", "atlea
                             "expand_dims", "real", "imag"})
 #: numpy's functions that write into their first argument.
 INTO_FIRST = frozenset({"copyto", "put", "place", "putmask", "fill_diagonal",
-                        "put_along_axis"})
+                        "put_along_axis", "setattr", "delattr", "setitem", "delitem",
+                        "heappush", "heappop", "heapify", "heapreplace", "heappushpop",
+                        "insort", "insort_left", "insort_right", "shuffle"})
+#: The random generators whose methods' draws change their state.
+_GENERATORS = (np.random.Generator, np.random.RandomState, random.Random)
 #: How deep helpers calling helpers are followed.
-HELPER_DEPTH = 3
+HELPER_DEPTH = 6
 
 
 def side_effect(fn) -> str | None:
@@ -71,6 +76,31 @@ def side_effect(fn) -> str | None:
 
 #: :func:`side_effect`'s answers, by code object.
 _SIDE_EFFECT: dict = {}
+
+
+def draws(fn) -> str | None:
+    """The random draw ``fn`` makes (``rng.normal``, ``np.random.randn``,
+    ``random.random``), as its source says, or None: a generator's state is outside the
+    function, so how often it is called decides the numbers.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> draws(lambda t, x, u, params: x + 0.01 * rng.normal())
+    'rng.normal'
+    >>> draws(lambda t, x, u, params: x) is None
+    True
+    """
+    try:
+        target, _, _ = call_target(fn)
+        reading = _Effects(target, 0)
+    except NotCompilable:
+        return None
+    for node in reading.nodes:
+        if isinstance(node, ast.Call) and isinstance(getattr(
+                reading._value(node.func), "__self__", None), _GENERATORS):
+            return ast.unparse(node.func)[:40]
+    return None
 #: A name found neither in a function's module nor among the builtins (a closure's).
 _UNKNOWN = object()
 
@@ -99,18 +129,24 @@ class _Effects:
         # name -> ((the argument it may be bound to, or None for an outside object, the
         # text of what), whether the object itself or a view: not maybe an element)
         self.origin = {p: ((p, p), True) for p in self.parameters}
+        # a block's time (t of t, x, u, params): a number, which `t -= 1.0` binds anew
+        self.number = code.co_varnames[code.co_argcount - 4] \
+            if depth == 0 and code.co_argcount >= 4 else None
         pairs = self._bindings()
-        for p in self.parameters:  # (an argument bound anew to its own copy is its own)
+        for p in self.parameters:  # (bound anew, first: its own copy is its own, an
             values = [v for t, v in pairs if isinstance(t, ast.Name) and t.id == p]
-            if values and not any(self._source(v) for v in values):
+            found = [self._source(v) for v in values]  # element of itself a number)
+            if values and not any(found):
                 del self.origin[p]
+            elif values:
+                self.origin[p] = ((p, p), any(f[1] for f in found if f))
         changed = True
         while changed:  # (names bound to names bound to ...)
             changed = False
             for target, value in pairs:
                 found = self._source(value)
                 unpacked = not isinstance(target, ast.Name)
-                for name in (n.id for n in ast.walk(target) if isinstance(n, ast.Name)):
+                for name in _bound_names(target):
                     if found is not None and name not in self.origin:
                         self.origin[name] = (found[0], found[1] and not unpacked)
                         changed = True
@@ -148,7 +184,9 @@ class _Effects:
             return (found[0], whole and found[1]) if found else None
         if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute):
             if node.func.attr in VIEW_METHODS:
-                return self._source(node.func.value)
+                found = self._source(node.func.value)  # (a dict's get: a number, or not)
+                whole = node.func.attr not in ("get", "setdefault")
+                return (found[0], found[1] and whole) if found else None
             if node.func.attr in VIEW_FUNCTIONS and node.args:
                 return self._source(node.args[0])
         if isinstance(node, ast.IfExp):
@@ -160,82 +198,123 @@ class _Effects:
         return None
 
     def _said(self, found, through, text):
-        """``(what, the argument written into or None)``."""
+        """``(what, the argument written into or None, False)``: see :meth:`first`."""
         argument, _ = found[0]
         if argument is None:
-            return f"it changes an object from outside ({text[:40]})", None
+            return f"it changes an object from outside ({text[:40]})", None, False
         via = f" (through {through!r})" if through not in (None, argument) else ""
-        return f"it writes into its argument {argument!r}{via}", argument
+        return f"it writes into its argument {argument!r}{via}", argument, False
 
     def first(self):
-        """``(what the function does outside itself, the argument it writes into)``, or
-        ``(None, None)``."""
+        """``(what the function does outside itself, the argument it writes into, whether
+        only by an operator such as ``+=``, in place on arrays alone)``, or ``(None, None,
+        False)``."""
         is_module = lambda name: isinstance(self._outside(name), types.ModuleType)  # noqa: E731
         for node in self.nodes:
             if isinstance(node, ast.Global | ast.Nonlocal):
                 assigned = [name for name in node.names if name in self.stored]
                 if assigned:
-                    return f"it assigns {', '.join(assigned)} outside itself", None
+                    return f"it assigns {', '.join(assigned)} outside itself", None, False
             if isinstance(node, ast.Call):
                 said = _outside_effect(node, self.local, is_module)
-                said = (said[0], None) if said is not None else self._call(node)
+                said = (said[0], None, False) if said is not None else self._call(node)
                 if said is not None:
                     return said
             for written in _targets(node):
                 if isinstance(written, ast.Name):  # (bound anew; in place if an array)
                     found = self.origin.get(written.id)
-                    if isinstance(node, ast.AugAssign) and found and found[1]:
-                        return self._said(found, written.id, ast.unparse(written))
+                    if isinstance(node, ast.AugAssign) and found and found[1] \
+                            and written.id != self.number:
+                        return (*self._said(found, written.id, ast.unparse(written))[:2],
+                                True)
                     continue
                 base = _base_name(written)
                 if base is not None and base not in self.local:
                     return (f"it changes an object from outside "
-                            f"({ast.unparse(written)[:40]})"), None
+                            f"({ast.unparse(written)[:40]})"), None, False
                 found = self._source(written)
                 if found is not None:
                     return self._said(found, base, ast.unparse(written))
-        return None, None
+        return None, None, False
 
     def _call(self, node):
         """:meth:`first` of a call writing into what the function may not own: a method
-        that changes its object, numpy's ``out=`` or ``copyto``, or a helper writing into
-        what it is given (or acting outside itself); else None."""
+        that changes its object, numpy's ``out`` (by keyword, or a ufunc's by position)
+        or ``copyto``, or a helper writing into what it is given (or acting outside
+        itself); else None."""
         func = node.func
         if isinstance(func, ast.Attribute) and func.attr in MUTATORS:
             found = self._source(func.value)
             if found is not None:
                 return self._said(found, _base_name(func.value), ast.unparse(func))
         name = func.attr if isinstance(func, ast.Attribute) else getattr(func, "id", None)
+        called = self._value(func)
         written = [node.args[0]] if name in INTO_FIRST and node.args else []
         written += [k.value for k in node.keywords if k.arg == "out"]
+        if isinstance(called, np.ufunc):  # (np.add(a, b, c) writes c)
+            written += node.args[called.nin:]
         for value in written:
             found = self._source(value)
             if found is not None:
                 return self._said(found, _base_name(value), ast.unparse(node))
-        helper = self._outside(func.id) if isinstance(func, ast.Name) \
-            and func.id not in self.local else None
-        if not isinstance(helper, types.FunctionType) or self.depth >= HELPER_DEPTH \
-                or (helper.__module__ or "").split(".")[0] in ("numpy", "control",
+        if not isinstance(called, types.FunctionType) or self.depth >= HELPER_DEPTH \
+                or (called.__module__ or "").split(".")[0] in ("numpy", "control",
                                                                "controlkit"):
             return None
         try:
-            said, parameter = _Effects(helper, self.depth + 1).first()
+            said, parameter, by_operator = _Effects(called, self.depth + 1).first()
         except NotCompilable:
             return None
         if said is None:
             return None
         if parameter is None:
-            return f"it calls {func.id}(), which {said.removeprefix('it ')}", None
-        code = helper.__code__
+            return f"it calls {name}(), which {said.removeprefix('it ')}", None, False
+        code = called.__code__
         position = code.co_varnames.index(parameter)
         given = [k.value for k in node.keywords if k.arg == parameter]
         if position < len(node.args) and position < code.co_argcount:
             given.append(node.args[position])
         for value in given:
             found = self._source(value)
-            if found is not None:
+            # (`v += 1` on a number given is the helper's own: in place on arrays only)
+            if found is not None and (found[1] or not by_operator):
                 return self._said(found, _base_name(value), ast.unparse(node))
         return None
+
+    def _value(self, node):
+        """What a called name stands for when it can be known without running anything:
+        a name of the function's module, closure or defaults, or a module's attribute."""
+        if isinstance(node, ast.Attribute):  # (of a module, or a generator's method)
+            owner = self._value(node.value)
+            return getattr(owner, node.attr, None) if isinstance(
+                owner, (types.ModuleType, *_GENERATORS)) else None
+        if not isinstance(node, ast.Name):
+            return None
+        code, function = self.function.__code__, self.function
+        if node.id in code.co_freevars and function.__closure__:
+            try:
+                return function.__closure__[code.co_freevars.index(node.id)].cell_contents
+            except ValueError:  # (an empty cell)
+                return None
+        defaults = dict(zip(code.co_varnames[code.co_argcount - len(
+            function.__defaults__ or ()):code.co_argcount], function.__defaults__ or (),
+            strict=True))
+        if node.id in defaults:
+            return defaults[node.id]
+        value = self._outside(node.id) if node.id not in self.local else None
+        return None if value is _UNKNOWN else value
+
+
+def _bound_names(target):
+    """The names an assignment to ``target`` binds (``a``, ``a, *b``), not those it writes
+    into (``dx[0] = ...`` binds nothing)."""
+    if isinstance(target, ast.Name):
+        return [target.id]
+    if isinstance(target, ast.Starred):
+        return _bound_names(target.value)
+    if isinstance(target, ast.Tuple | ast.List):
+        return [name for element in target.elts for name in _bound_names(element)]
+    return []
 
 
 def _targets(node):

@@ -124,9 +124,12 @@ def _runs_this_text(text, code) -> bool:
     and constants (nested code too); line numbers do not count.
     """
     body = textwrap.dedent(text[len("if 1:\n"):] if text.startswith("if 1:\n") else text)
-    outer = ("def __controlkit_outer__():\n"
-             + "".join(f"    {name} = None\n" for name in code.co_freevars)
-             + textwrap.indent(body, "    ") + "\n")
+    # (without free variables, at a module's level: a def calling itself reads its own
+    # name there as a global, where inside a function it would be a free variable)
+    outer = body + "\n" if not code.co_freevars else (
+        "def __controlkit_outer__():\n"
+        + "".join(f"    {name} = None\n" for name in code.co_freevars)
+        + textwrap.indent(body, "    ") + "\n")
     try:
         compiled = compile(outer, code.co_filename, "exec", dont_inherit=True)
     except SyntaxError:
