@@ -285,7 +285,8 @@ def _numpy_raises() -> bool:
 def _python_control_s_own(sys, T, options) -> bool:
     """Whether the call's arguments take a form python-control answers in its own way
     (an error, or integrating backwards), which the engine, whose time points increase,
-    leaves to it: a list ``T`` for a discrete system (python-control subtracts lists),
+    leaves to it: a list ``T`` or ``t_eval`` for a discrete system (python-control
+    subtracts lists),
     a single time point, time points that do not increase, ``t_eval`` in
     ``solve_ivp_kwargs``, time points of another float type than float64 (python-control
     evaluates the functions at them), a discrete diagram without states (python-control
@@ -305,7 +306,9 @@ def _python_control_s_own(sys, T, options) -> bool:
     if "t_eval" in options["solve_ivp_kwargs"] or np.size(T) < 2:
         return True
     isdtime = getattr(sys, "isdtime", None)  # (not a system: python-control's error)
-    if not isinstance(T, np.ndarray) and (isdtime is None or isdtime(strict=True)):
+    times = options.get("evaluation_times", "T")  # (the default: the string "T")
+    listed = not isinstance(T, np.ndarray) or not isinstance(times, str | np.ndarray)
+    if listed and (isdtime is None or isdtime(strict=True)):
         return True
     if isinstance(T, np.ndarray) and T.dtype != np.float64 and T.dtype.kind not in "iu":
         return True  # float32, longdouble: python-control computes the times in them
@@ -419,6 +422,8 @@ def _many(sys, T, U, X0, runs, engine, options, compile):
     """Many runs of ``sys``: one compiled call over all cores where it can be."""
     from .engines.contract import (
         UnsupportedSystem,
+        check_arguments,
+        kept_state,
         python_control_arguments,
         response,
         result_flags,
@@ -426,6 +431,9 @@ def _many(sys, T, U, X0, runs, engine, options, compile):
 
     X0s, params_list = runs
     options = dict(options, params=None)
+    rows = X0s  # (each run alone is given its row as the call gave it: integers, float32)
+    if X0s is not None and np.asarray(X0).dtype.kind in "biuf":
+        rows = np.broadcast_to(np.asarray(X0), X0s.shape)
     if engine == "fast" and not _numpy_raises():  # (else each run on python-control)
         from ._checks import Diverged
         from .engines.fast import many
@@ -435,15 +443,23 @@ def _many(sys, T, U, X0, runs, engine, options, compile):
         diagram = as_interconnect(sys)
         T_, U_, x0, t_eval, method, solver = python_control_arguments(
             diagram, T, U, X0s[0] if X0s is not None else X0, options)
+        if diagram.isdtime(strict=True):  # (its evaluation times are its steps, checked)
+            check_arguments(diagram, t_eval, x0)
+        kept = X0s is not None and diagram.isdtime(strict=True) and kept_state(
+            rows[0], diagram.nstates) is not None
         X0s = X0s if X0s is not None else np.tile(x0, (len(params_list), 1))
         try:
+            if kept:  # (integers, float32: each run checks python-control's first step)
+                raise UnsupportedSystem("the initial states are not 64-bit floats")
             responses, errors = many.run_many(diagram, T_, U_, X0s, params_list,
                                               t_eval=t_eval, method=method,
                                               compile=compile, **solver)
         except UnsupportedSystem as reason:
-            _warn(f"fast engine not used, running python-control instead: {reason}")
-        else:  # (a run that diverged is answered run by run, below, as a single run is)
-            if not any(isinstance(error, Diverged) for error in errors):
+            if not kept:
+                _warn(f"fast engine not used, running python-control instead: {reason}")
+        else:  # (a run that diverged, or that python-control runs, is answered run by
+            # run, below, as a single run is)
+            if not any(isinstance(error, Diverged | UnsupportedSystem) for error in errors):
                 for r, error in enumerate(errors):
                     if error is not None:
                         raise type(error)(f"run {r}: {error}") from error
@@ -455,7 +471,7 @@ def _many(sys, T, U, X0, runs, engine, options, compile):
                     mine.engine_mode = theirs.engine_mode
                 return listed
     return TimeResponseList([
-        input_output_response(sys, T, U, X0s[r] if X0s is not None else X0, engine=engine,
+        input_output_response(sys, T, U, rows[r] if rows is not None else X0, engine=engine,
                               compile=compile, **dict(options, params=p))
         for r, p in enumerate(params_list)])
 

@@ -1,5 +1,7 @@
 """Many runs of one diagram in one compiled call: the numbers of runs of their own."""
 
+import warnings
+
 import control as ct
 import numpy as np
 import pytest
@@ -118,3 +120,50 @@ def test_sweep_system_rows_keep_their_own_columns_and_a_bad_value_fails_its_row(
     with pytest.raises(ValueError):
         sweep_system(_decay_plant(), T, np.ones((3, T.size)), 0.0, grid={"a": [1.0, 2.0]},
                      metrics=lambda r: {"final": 0.0})
+
+
+def _gained(t, x, u, params):
+    return np.array([0.9 * x[0] + params["k"] * u[0]])
+
+
+def _maybe_fed_through(t, x, u, params):
+    return x[0] + params.get("d", 0.0) * u[0]  # (reads u: a loop through it, as read)
+
+
+def _halved_into_zeros(t, x, u, params):
+    dx = np.zeros_like(x)  # (integers in python-control's first step from integer X0)
+    dx[0] = 0.5 * x[0] + params["k"] * u[0]
+    return dx
+
+
+def _loop(update, output):
+    plant = ct.nlsys(update, output, inputs="u", outputs="y", states=1, params={"k": 0.5},
+                     dt=0.1, name="P")
+    error = ct.summing_junction(["r", "-y"], "u", name="E", dt=0.1)
+    return ct.interconnect([plant, error], inputs="r", outputs="y", name="L")
+
+
+@pytest.mark.parametrize("compile", [None, True, False])
+def test_a_batch_answers_as_its_runs_alone_do(compile):
+    # a review's batches: a loop the engine hands to python-control raised
+    # UnsupportedSystem ("run 0: ..."); integer initial states were made floats (other
+    # numbers than the runs alone, which python-control runs); t_eval spaced twice the
+    # period answered consecutive steps where a run alone raises; a list t_eval answered
+    T = np.linspace(0.0, 2.0, 21)
+    for loop, X0s in ((_loop(_gained, _maybe_fed_through), np.array([[0.0], [1.0]])),
+                      (_loop(_halved_into_zeros, lambda t, x, u, p: x[0]), [[1], [3]])):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            batch = controlkit.input_output_response(loop, T, 1.0, X0s, compile=compile)
+        for r, mine in enumerate(batch):
+            theirs = ct.input_output_response(loop, T, 1.0, X0s[r])
+            np.testing.assert_array_equal(mine.outputs, theirs.outputs)
+    loop = _loop(_gained, lambda t, x, u, p: x[0])
+    controlkit.input_output_response(loop, T, 1.0, np.array([[0.0], [1.0]]), compile=compile)
+    with pytest.raises(ValueError, match="sampling time"):
+        controlkit.input_output_response(loop, T, 1.0, np.array([[0.0], [1.0]]),
+                                         t_eval=T[::2], compile=compile)
+    with pytest.raises(TypeError):
+        ct.input_output_response(loop, T, 1.0, [0.0], t_eval=list(T))
+    with pytest.raises(TypeError):
+        controlkit.input_output_response(loop, T, 1.0, [0.0], t_eval=list(T), compile=compile)
