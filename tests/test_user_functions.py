@@ -968,14 +968,30 @@ def _bump_deep(v, depth=3):
     return _bump(v) if depth == 0 else _bump_deep(v, depth - 1)
 
 
+class _Clamped:
+    def __init__(self):
+        self.rng = np.random.default_rng(5)
+
+    def _clamp(self, v):
+        v[0] = min(v[0], 1.0)
+        return v
+
+    def clamped(self, t, x, u, params):
+        return self._clamp(x)
+
+    def noisy(self, t, x, u, params):
+        return [x[0] + 0.01 * self.rng.normal()]
+
+
 @pytest.mark.parametrize("output", [
+    _Clamped().clamped, _Clamped().noisy,
     lambda t, x, u, p: [x[0] + 0.0 * setattr(_COUNTER, "n", _COUNTER.n + 1.0)],
     lambda t, x, u, p: [x[0] + 0.0 * len([heapq.heappush(_HEAP, float(t))])],
     lambda t, x, u, p: np.multiply(x, 1.01, x),
     lambda t, x, u, p: [x[0] + _bump_deep(x)],
     lambda t, x, u, p: [x[0] + 0.01 * _RNG.normal()],
-], ids=["setattr", "heappush", "ufunc output by position", "helper four deep",
-        "random draw"])
+], ids=["a method's helper", "a method's draw", "setattr", "heappush",
+        "ufunc output by position", "helper four deep", "random draw"])
 def test_an_output_function_acting_outside_itself_otherwise_is_seen(output):
     # python-control calls an output function several times a step: a review's output
     # functions that changed state or drew numbers there answered otherwise

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import ast
 import builtins
+import inspect
 import random
 import types
 
@@ -60,18 +61,19 @@ def side_effect(fn) -> str | None:
     "it writes into its argument 'x' (through 'xs')"
     """
     try:
-        target, _, _ = call_target(fn)
+        target, bound, _ = call_target(fn)
     except NotCompilable:
         return None
-    # the answer follows from the code and what its outside names are (a module, an
-    # array): asked again at every run of a diagram, read once per code object
-    code = target.__code__
-    if code not in _SIDE_EFFECT:
+    # the answer follows from the code, what its outside names are (a module, an array)
+    # and the classes of what it is bound to (a method's self: its methods), asked again
+    # at every run of a diagram: read once per code object and classes
+    key = (target.__code__, *map(type, bound))
+    if key not in _SIDE_EFFECT:
         try:
-            _SIDE_EFFECT[code] = _Effects(target, 0).first()[0]
+            _SIDE_EFFECT[key] = _Effects(target, 0, bound).first()[0]
         except NotCompilable:  # (no source: nothing is known)
-            _SIDE_EFFECT[code] = None
-    return _SIDE_EFFECT[code]
+            _SIDE_EFFECT[key] = None
+    return _SIDE_EFFECT[key]
 
 
 #: :func:`side_effect`'s answers, by code object.
@@ -92,8 +94,8 @@ def draws(fn) -> str | None:
     True
     """
     try:
-        target, _, _ = call_target(fn)
-        reading = _Effects(target, 0)
+        target, bound, _ = call_target(fn)
+        reading = _Effects(target, 0, bound)
     except NotCompilable:
         return None
     for node in reading.nodes:
@@ -116,8 +118,10 @@ def _nothing_to_write_into(value) -> bool:
 class _Effects:
     """One function's reading (see :func:`side_effect`)."""
 
-    def __init__(self, function, depth):
+    def __init__(self, function, depth, bound=()):
         self.function, self.depth = function, depth
+        # (what its first parameters are bound to: a method's self, a partial's values)
+        self.bound = dict(zip(function.__code__.co_varnames, bound, strict=False))
         code = function.__code__
         _, body = _definition(code, copy=False)
         self.nodes = list(walk(ast.Module(body, [])))
@@ -261,8 +265,12 @@ class _Effects:
                 or (called.__module__ or "").split(".")[0] in ("numpy", "control",
                                                                "controlkit"):
             return None
+        # a method of an object the function is bound to, `self.step(x)`: self comes first
+        owner = self._value(func.value) if isinstance(func, ast.Attribute) else None
+        method = owner is not None and not isinstance(owner, types.ModuleType)
         try:
-            said, parameter, by_operator = _Effects(called, self.depth + 1).first()
+            said, parameter, by_operator = _Effects(called, self.depth + 1,
+                                                    (owner,) if method else ()).first()
         except NotCompilable:
             return None
         if said is None:
@@ -270,9 +278,9 @@ class _Effects:
         if parameter is None:
             return f"it calls {name}(), which {said.removeprefix('it ')}", None, False
         code = called.__code__
-        position = code.co_varnames.index(parameter)
+        position = code.co_varnames.index(parameter) - method
         given = [k.value for k in node.keywords if k.arg == parameter]
-        if position < len(node.args) and position < code.co_argcount:
+        if 0 <= position < len(node.args) and position < code.co_argcount - method:
             given.append(node.args[position])
         for value in given:
             found = self._source(value)
@@ -284,12 +292,18 @@ class _Effects:
     def _value(self, node):
         """What a called name stands for when it can be known without running anything:
         a name of the function's module, closure or defaults, or a module's attribute."""
-        if isinstance(node, ast.Attribute):  # (of a module, or a generator's method)
+        if isinstance(node, ast.Attribute):  # (of a module, a generator, or a method)
             owner = self._value(node.value)
-            return getattr(owner, node.attr, None) if isinstance(
-                owner, (types.ModuleType, *_GENERATORS)) else None
+            if isinstance(owner, (types.ModuleType, *_GENERATORS)):
+                return getattr(owner, node.attr, None)
+            found = inspect.getattr_static(owner, node.attr, None) if owner is not None \
+                else None  # (no getter of the object's is run: a function, or a value)
+            plain = isinstance(found, types.FunctionType) or not hasattr(type(found), "__get__")
+            return found if plain else None
         if not isinstance(node, ast.Name):
             return None
+        if node.id in self.bound:
+            return self.bound[node.id]
         code, function = self.function.__code__, self.function
         if node.id in code.co_freevars and function.__closure__:
             try:
