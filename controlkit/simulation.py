@@ -434,7 +434,10 @@ def _many(sys, T, U, X0, runs, engine, options, compile):
     rows = X0s  # (each run alone is given its row as the call gave it: integers, float32)
     if X0s is not None and np.asarray(X0).dtype.kind in "biuf":
         rows = np.broadcast_to(np.asarray(X0), X0s.shape)
-    if engine == "fast" and not _numpy_raises():  # (else each run on python-control)
+    # (integers or float32 in a discrete run: each run checks python-control's first step)
+    kept = rows is not None and sys.isdtime(strict=True) and kept_state(
+        rows[0], sys.nstates) is not None
+    if engine == "fast" and not _numpy_raises() and not kept:  # (else run by run)
         from ._checks import Diverged
         from .engines.fast import many
         from .engines.fast.response import outputs
@@ -445,18 +448,13 @@ def _many(sys, T, U, X0, runs, engine, options, compile):
             diagram, T, U, X0s[0] if X0s is not None else X0, options)
         if diagram.isdtime(strict=True):  # (its evaluation times are its steps, checked)
             check_arguments(diagram, t_eval, x0)
-        kept = X0s is not None and diagram.isdtime(strict=True) and kept_state(
-            rows[0], diagram.nstates) is not None
         X0s = X0s if X0s is not None else np.tile(x0, (len(params_list), 1))
         try:
-            if kept:  # (integers, float32: each run checks python-control's first step)
-                raise UnsupportedSystem("the initial states are not 64-bit floats")
             responses, errors = many.run_many(diagram, T_, U_, X0s, params_list,
                                               t_eval=t_eval, method=method,
                                               compile=compile, **solver)
         except UnsupportedSystem as reason:
-            if not kept:
-                _warn(f"fast engine not used, running python-control instead: {reason}")
+            _warn(f"fast engine not used, running python-control instead: {reason}")
         else:  # (a run that diverged, or that python-control runs, is answered run by
             # run, below, as a single run is)
             if not any(isinstance(error, Diverged | UnsupportedSystem) for error in errors):

@@ -268,9 +268,10 @@ def kept_state(X0, nstates):
         values = X0.reshape(-1)
     else:
         return None
+    from .source.values import narrow  # (the fast engine's, imported when it runs)
+
     fits = values.size == (nstates or 0) and values.size > 0
-    kept = values.dtype.kind in "biu" or values.dtype.kind in "fc" and values.dtype not in (
-        np.float64, np.complex128)
+    kept = values.dtype.kind in "biu" or values.dtype.kind in "fc" and narrow(values.dtype)
     return values.dtype if fits and kept else None
 
 

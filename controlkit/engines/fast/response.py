@@ -60,7 +60,7 @@ def _response(given, sys, T, U, X0, compile, options):
                     f"fails on a float t ({type(error).__name__})")) from None
             raise
         kept = kept_state(given_X0, sys.nstates)
-        if kept is not None and _integers_count(given, t_eval[0], X0, U[:, 0], params,
+        if kept is not None and _first_step_differs(given, t_eval[0], X0, U[:, 0], params,
                                                 t_eval[0], X0.astype(kept)):
             held, example = (("integers", "np.zeros_like(x) fills integers")
                              if kept.kind in "biu" else
@@ -76,7 +76,7 @@ def _response(given, sys, T, U, X0, compile, options):
                 f"its functions return {returned} numbers, which python-control keeps in the "
                 f"response of a system alone (and in its next state, from an update), where "
                 f"the engine's arrays hold 64-bit floats")
-        if integer_times and _integers_count(given, t_eval[0], X0, U[:, 0], params,
+        if integer_times and _first_step_differs(given, t_eval[0], X0, U[:, 0], params,
                                              given_times[0], X0):
             raise UnsupportedSystem(_INTEGER_TIMES.format(
                 "computes other numbers from it than from a float t"))
@@ -115,7 +115,7 @@ _INTEGER_TIMES = ("T holds integers, which python-control hands to the functions
                   "runs on the fast engine")
 
 
-def _integers_count(given, t, X0, u, params, t_given, x_given) -> bool:
+def _first_step_differs(given, t, X0, u, params, t_given, x_given) -> bool:
     """Whether python-control's first step of ``given`` at the time and from the initial
     state as it holds them (``t_given``, ``x_given``: integers or float32, see
     :func:`.contract.kept_state`) gives other numbers than at the engine's floats ``t``

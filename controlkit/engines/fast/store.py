@@ -6,8 +6,7 @@ for it (:mod:`.usercode`), the step machine and the instants' loop. A module's f
 is a digest of its text, of controlkit's source files it can hold and of the versions of
 Python, numpy and scipy: an edit or an upgrade makes new modules, never a stale one. Files
 are written whole (again if found changed); a compiled module has a record (``<name>.json``),
-and so has a user's function numba refused (what it said, and numba's version: later
-sessions run it as Python from the start, :func:`refusal`).
+as has a user's function numba refused (later sessions run it as Python: :func:`refuse`).
 
 Code is imported from the store only if the folder, and numba's cache folder
 (``NUMBA_CACHE_DIR``, if set), is the user's own (:func:`controlkit._checks.not_own`),
@@ -195,32 +194,35 @@ def record(path: Path) -> dict | None:
     return kept if kept and "refused" not in kept else None
 
 
+@functools.lru_cache(maxsize=512)  # (asked at every compiled job made: read once)
 def refusal(text: str, kind: str) -> str | None:
     """What numba said when it refused to compile the store module of ``text`` (with the
-    numba installed now), else None: a compile that would fail again is not tried.
-
-    Examples
-    --------
-    >>> path = module_file("def f(x):\\n    return x.tolist()\\n", "user")
-    >>> write_record(path, refused="TypeError: Unknown attribute 'tolist'",
-    ...              numba=numba_version())
-    >>> refusal("def f(x):\\n    return x.tolist()\\n", "user")
-    "TypeError: Unknown attribute 'tolist'"
-    """
+    numba installed now, :func:`refuse`), else None: a compile that fails is not tried."""
     try:
         kept = _read_record(folder() / f"{name_of(text, kind)}.py")
     except StoreRefused:
         return None
     said = kept.get("refused")
-    if not isinstance(said, str) or kept.get("numba") != numba_version():
-        return None
-    return said
+    return said if isinstance(said, str) and kept.get("numba") == _numba_version() else None
+
+
+def refuse(path: Path, error: Exception) -> None:
+    """Record numba's refusal (``error``) of the store module at ``path`` (:func:`refusal`).
+
+    Examples
+    --------
+    >>> refuse(module_file("def f(x):\\n    return x.tolist()\\n", "user"),
+    ...        TypeError("Unknown attribute 'tolist'"))
+    >>> refusal("def f(x):\\n    return x.tolist()\\n", "user")
+    "TypeError: Unknown attribute 'tolist'"
+    """
+    write_record(path, refused=numba_said(error), numba=_numba_version())
+    refusal.cache_clear()
 
 
 @functools.cache
-def numba_version() -> str | None:
-    """The version of numba installed, or None (without importing it)."""
-    try:
+def _numba_version() -> str | None:
+    try:  # (without importing it)
         return importlib.metadata.version("numba")
     except importlib.metadata.PackageNotFoundError:
         return None
@@ -491,7 +493,6 @@ def integrator_to_compile() -> float:
         (_MACHINE, _MACHINE_TEXT, "machine", MACHINE_COMPILE_SECONDS),
         (_LOOPS, _LOOP_TEXT, "loop", LOOP_COMPILE_SECONDS))
         if not done and not compiled_before(text, kind))
-
 
 
 def _say(message: str) -> None:

@@ -60,24 +60,30 @@ def side_effect(fn) -> str | None:
     >>> side_effect(in_place)
     "it writes into its argument 'x' (through 'xs')"
     """
+    return _read(fn)[0]
+
+
+def _read(fn) -> tuple[str | None, str | None]:
+    """:func:`side_effect` and :func:`draws` of ``fn``: one reading, kept. The answers
+    follow from the code, what its outside names are (a module, an array) and the classes
+    of what it is bound to (a method's self: its methods); they are asked again at every
+    job made (a diagram built anew, new parameter values), 0.1 ms a function to read."""
     try:
         target, bound, _ = call_target(fn)
     except NotCompilable:
-        return None
-    # the answer follows from the code, what its outside names are (a module, an array)
-    # and the classes of what it is bound to (a method's self: its methods), asked again
-    # at every run of a diagram: read once per code object and classes
+        return None, None
     key = (target.__code__, *map(type, bound))
-    if key not in _SIDE_EFFECT:
+    if key not in _READ:
         try:
-            _SIDE_EFFECT[key] = _Effects(target, 0, bound).first()[0]
+            reading = _Effects(target, 0, bound)
+            _READ[key] = reading.first()[0], reading.draw()
         except NotCompilable:  # (no source: nothing is known)
-            _SIDE_EFFECT[key] = None
-    return _SIDE_EFFECT[key]
+            _READ[key] = None, None
+    return _READ[key]
 
 
-#: :func:`side_effect`'s answers, by code object.
-_SIDE_EFFECT: dict = {}
+#: :func:`_read`'s answers, by code object and the classes of what it is bound to.
+_READ: dict = {}
 
 
 def draws(fn) -> str | None:
@@ -93,16 +99,7 @@ def draws(fn) -> str | None:
     >>> draws(lambda t, x, u, params: x) is None
     True
     """
-    try:
-        target, bound, _ = call_target(fn)
-        reading = _Effects(target, 0, bound)
-    except NotCompilable:
-        return None
-    for node in reading.nodes:
-        if isinstance(node, ast.Call) and isinstance(getattr(
-                reading._value(node.func), "__self__", None), _GENERATORS):
-            return ast.unparse(node.func)[:40]
-    return None
+    return _read(fn)[1]
 #: A name found neither in a function's module nor among the builtins (a closure's).
 _UNKNOWN = object()
 
@@ -134,7 +131,7 @@ class _Effects:
         # text of what), whether the object itself or a view: not maybe an element)
         self.origin = {p: ((p, p), True) for p in self.parameters}
         # a block's time (t of t, x, u, params): a number, which `t -= 1.0` binds anew
-        self.number = code.co_varnames[code.co_argcount - 4] \
+        self.time = code.co_varnames[code.co_argcount - 4] \
             if depth == 0 and code.co_argcount >= 4 else None
         pairs = self._bindings()
         for p in self.parameters:  # (bound anew, first: its own copy is its own, an
@@ -201,6 +198,14 @@ class _Effects:
             return self._source(node.value)
         return None
 
+    def draw(self) -> str | None:
+        """The first call of a random generator's method, see :func:`draws`."""
+        for node in self.nodes:
+            if isinstance(node, ast.Call) and isinstance(getattr(
+                    self._value(node.func), "__self__", None), _GENERATORS):
+                return ast.unparse(node.func)[:40]
+        return None
+
     def _said(self, found, through, text):
         """``(what, the argument written into or None, False)``: see :meth:`first`."""
         argument, _ = found[0]
@@ -228,7 +233,7 @@ class _Effects:
                 if isinstance(written, ast.Name):  # (bound anew; in place if an array)
                     found = self.origin.get(written.id)
                     if isinstance(node, ast.AugAssign) and found and found[1] \
-                            and written.id != self.number:
+                            and written.id != self.time:
                         return (*self._said(found, written.id, ast.unparse(written))[:2],
                                 True)
                     continue

@@ -215,8 +215,7 @@ def compile_kernel(kernel) -> None:
         except (MemoryError, OSError):  # (the machine's, not the text's: tried again)
             raise
         except Exception as error:  # numba's refusal, kept: later sessions do not try
-            store.write_record(path, refused=store.numba_said(error),
-                               numba=store.numba_version())
+            store.refuse(path, error)
             raise
         seconds = round(time.perf_counter() - start, 3)
         if store.record(path) is None:  # (a numpy one's time is not read per line)
