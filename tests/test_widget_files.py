@@ -217,6 +217,15 @@ def test_numbers_beyond_floats_and_kinds_that_are_not_names_are_refused_by_field
         DiagramModel.from_json(text)
 
 
+def test_an_integer_beyond_str_s_digit_limit_is_refused_by_field():
+    # (from Python, not JSON: the message's digit count was Python's str() of it, limited
+    # to 4 300 digits, which raised its own ValueError naming no field)
+    data = {"format": "controlkit.widget/2", "name": "x", "blocks": [],
+            "setup": {"horizon": 10 ** 5000}}
+    with pytest.raises(ValueError, match=r"setup\.horizon: .* got an integer of 5001 digits"):
+        DiagramModel.from_dict(data)
+
+
 @pytest.mark.parametrize("name", ["T", "U", "X0", "response"])
 def test_a_diagram_named_as_the_written_code_s_own_variables_exports_code_that_runs(name):
     # simulate_T(T) made the time grid the diagram's variable: the exported code failed
