@@ -1002,6 +1002,48 @@ def test_an_output_function_acting_outside_itself_otherwise_is_seen(output):
     assert row.tier == "python-control", row
 
 
+class _Damper:
+    def __init__(self):
+        self.k, self.reads = 0.5, 0
+
+    @property
+    def counted(self):  # a getter that changes its object: each read gives a new value
+        self.reads += 1
+        return self.k + 1e-3 * self.reads
+
+    @property
+    def doubled(self):
+        return 2.0 * self.k
+
+    def counting(self, t, x, u, params):
+        return -self.counted * x + u
+
+    def plain(self, t, x, u, params):
+        return -self.doubled * x + u
+
+
+def test_a_property_whose_getter_changes_its_object_is_read_as_python_control_reads_it():
+    # compile=True read such a getter at plan time and at each check, and compiled its
+    # value once: another answer than python-control's, which runs it at each call
+    T = np.linspace(0.0, 2.0, 41)
+    answers = []
+    for respond in (ct.input_output_response, functools.partial(
+            controlkit.input_output_response, compile=True)):
+        damper = _Damper()
+        plant = ct.nlsys(damper.counting, None, inputs=1, outputs=1, states=1, name="p")
+        with warnings.catch_warnings(record=True) as said:
+            warnings.simplefilter("always")
+            answers.append((respond(plant, T, np.ones_like(T), [0.0]).outputs, damper.reads))
+    assert np.array_equal(answers[0][0], answers[1][0]) and answers[0][1] == answers[1][1]
+    assert "whose getter changes self" in str(said[0].message)
+    (row,) = controlkit.explain(plant)
+    assert row.tier == "python-control"
+    assert "it reads self.counted, whose getter changes self" in row.reason
+    (row,) = controlkit.explain(ct.nlsys(_Damper().plain, None, inputs=1, outputs=1,
+                                         states=1, name="p"))
+    assert row.tier == "compiled", row
+
+
 @pytest.mark.parametrize("output", [lambda t, x, u, p: round(10 * x[0]),
                                     lambda t, x, u, p: x[0] > 0.2,
                                     lambda t, x, u, p: np.float32(x[0]),

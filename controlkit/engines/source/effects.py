@@ -229,6 +229,10 @@ class _Effects:
                 said = (said[0], None, False) if said is not None else self._call(node)
                 if said is not None:
                     return said
+            if isinstance(node, ast.Attribute) and isinstance(node.ctx, ast.Load):
+                said = self._getter(node)
+                if said is not None:
+                    return said, None, False
             for written in _targets(node):
                 if isinstance(written, ast.Name):  # (bound anew; in place if an array)
                     found = self.origin.get(written.id)
@@ -293,6 +297,31 @@ class _Effects:
             if found is not None and (found[1] or not by_operator):
                 return self._said(found, _base_name(value), ast.unparse(node))
         return None
+
+    def _getter(self, node):
+        """What reading the attribute ``node`` of an object does outside the function
+        when the attribute is a property (or another descriptor) whose getter is Python
+        code acting outside itself, else None: python-control runs the getter at every
+        call of the block's function, compiled code would read the value once."""
+        owner = self._value(node.value) if self.depth < HELPER_DEPTH else None
+        if owner is None or isinstance(owner, (types.ModuleType, *_GENERATORS)):
+            return None
+        found = inspect.getattr_static(owner, node.attr, None)
+        getter, bound = getattr(found, "fget", None) or getattr(found, "func", None), owner
+        if not isinstance(getter, types.FunctionType):  # (a descriptor of its own)
+            getter, bound = getattr(type(found), "__get__", None), found
+        if not isinstance(getter, types.FunctionType):
+            return None
+        try:
+            said, written, _ = _Effects(getter, self.depth + 1, (bound,)).first()
+        except NotCompilable:
+            return None
+        if said is None:
+            return None
+        text = ast.unparse(node)[:40]
+        return (f"it reads {text}, whose getter changes {ast.unparse(node.value)[:40]}"
+                if written is not None else f"it reads {text}, whose getter "
+                                            f"{said.removeprefix('it ')}")
 
     def _value(self, node):
         """What a called name stands for when it can be known without running anything:
