@@ -6,11 +6,12 @@ reached, so a discrete system run in chunks gives the numbers of one run, bit fo
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import control as ct
 import numpy as np
 
 from ..compat import SYSTEM_CALLS
-from ..sampled_data import sample_times
 from .contract import chunk_bounds, recorded_indices, response
 
 
@@ -103,33 +104,15 @@ def simulate_sampled_data(sys, T, X0, U, *, params=None, t_eval=None, method="RK
     >>> resp.outputs.round(6).tolist()
     [[1.0, 0.75, 0.5, 0.375, 0.25]]
     """
-    from .fast import loops
-    from .fast.continuous import solver_options
-    from .fast.rk import make_workspace
+    from .fast.continuous import _Run
 
-    T = np.asarray(T, dtype=float)
-    t_eval = T if t_eval is None else np.asarray(t_eval, dtype=float)
     evaluator = _Sweep(sys, params)
-    instants = sample_times(sys.base_period, T[0], T[-1])
-    eval_instant = loops.instant_of(t_eval, instants, sys.base_period)
-    m, nx = t_eval.size, sys.nstates
-    Y, X, Uo = np.zeros((sys.noutputs, m)), np.zeros((nx, m)), np.zeros((sys.ninputs, m))
-    x, held = np.array(X0, dtype=float), np.zeros(evaluator.ny)
-    cidx = evaluator.continuous
-    ctrl, status = np.zeros(loops.WATCH_STAGES + 1, dtype=np.int64), np.full(4, -1, np.int64)
-    ys, ui, ubuf = np.zeros(evaluator.ny), np.zeros(evaluator.nu), np.zeros((U.shape[0], 1))
-    xt, yc, y_eval = np.zeros(nx), np.zeros(cidx.size), np.zeros((m, cidx.size))
-    rtol, atol, max_step, first_step = solver_options(cidx.size, T[-1] - T[0],
-                                                      **(solve_ivp_kwargs or {}))
+    run = _Run(sys, evaluator, np.asarray(T, dtype=float), U, X0,
+               np.asarray(T if t_eval is None else t_eval, dtype=float), method,
+               solve_ivp_kwargs or {})
     with SYSTEM_CALLS:  # (python-control's systems keep a call's params on themselves)
-        loops.scipy_loop(
-            evaluator.evaluate, evaluator.update, evaluator.outputs, evaluator.derivatives, None,
-            (x, xt, cidx, T, U, ubuf, None, ys, ui, held, np.zeros(nx + 1)),
-            (instants, float(T[-1]), T, U, t_eval, eval_instant), (Y, X, Uo),
-            (x, None, held), (ys, ui, np.zeros(nx), None, xt, cidx, yc, y_eval, ubuf,
-                              make_workspace(cidx.size)),
-            (method, rtol, atol, max_step, first_step), ctrl, status)
-    return response(sys, t_eval, Y, X, Uo)
+        run.piece(SimpleNamespace(compiled=False, P=None, functions=lambda: evaluator), 0)
+    return response(sys, run.t_eval, run.Y, run.X, run.Uo)
 
 
 class _Sweep:
@@ -148,7 +131,9 @@ class _Sweep:
             self.blocks.append((s, slice(xs, xs + s.nstates), slice(us, us + s.ninputs),
                                 slice(ys, ys + s.noutputs), local, every))
             xs, us, ys = xs + s.nstates, us + s.ninputs, ys + s.noutputs
-        self.ny, self.nu = ys, us
+        # (what the run's arrays are made from, as of a plan: fast.continuous._Run)
+        self.ny, self.nu, self.calls_users = ys, us, True
+        self.rows = [SimpleNamespace(NX=s.nstates) for s in sys.syslist]
         self.continuous = np.array([i for s, xi, *_ , every in self.blocks if not every
                                     for i in range(xi.start, xi.stop)], dtype=np.int64)
 

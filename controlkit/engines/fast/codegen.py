@@ -3,11 +3,11 @@
 python-control sweeps every block's output until the signals settle; with declared
 feedthrough the order is known in advance (:func:`.plan.evaluation_order`).
 :func:`generate` writes it out as the four functions of an evaluator (:mod:`.loops`),
-every index a literal, every kernel pasted in (``inline="always"``), and two entry points:
+every index a literal, every kernel pasted in (``inline="always"``), and one entry point,
 ``run_discrete`` (the discrete loop pasted in; or, when every block fires at every step,
-the step written out in its own loop, :func:`_step`) and ``run_continuous`` (the four
-functions handed to the instants' loop, compiled once for every diagram,
-:func:`.store.instants_loop`). The parameters stay values at run time (``P``), so a new
+the step written out in its own loop, :func:`_step`); a continuous run hands the four
+functions to the instants' loop, compiled once for every diagram
+(:func:`.store.instants_loop`). The parameters stay values at run time (``P``), so a new
 value never recompiles.
 """
 
@@ -276,7 +276,7 @@ def generate(plan, held_logic):
     >>> from controlkit.studies.cmg.diagrams import cmg_loop
     >>> source = generate(prepare(cmg_loop()).plan, held_logic=False)
     >>> [line[:22] for line in source.splitlines() if line.startswith("def run")]
-    ['def run_discrete(T, X0', 'def run_continuous(ins']
+    ['def run_discrete(T, X0']
     """
     P = plan.parameters()  # (which LTI blocks are written out depends on its zeros)
     identities = tuple(map(kernel_identity, plan.kernels))
@@ -439,7 +439,6 @@ def generate(plan, held_logic):
     widest = max([1, *(row.NX for row in rows)])
     buffers = [f"ys = np.zeros({ny})", f"ui = np.zeros({plan.nu})",
                f"xn = np.empty({nx})", f"scratch = np.empty({5 * widest})"]
-    cidx = plan.continuous.tolist()
 
     def function(signature, lines):
         return [f"def {signature}:", *["    " + line for line in lines], "", ""]
@@ -474,20 +473,4 @@ def generate(plan, held_logic):
             *(step or ["discrete_run(evaluate, update, outputs, T, x, U, P, Y, X, "
                        "status, k0, k1, ys, ui, held, xn, scratch)"]), "return x"]),
     ]
-    # every diagram has both entry points: a static one, or one of several rates, runs
-    # through the instants' loop too. This one runs as Python (its arrays made, the loop
-    # called): the loop is handed in, as Python or compiled once for every diagram
-    text += function(
-        "run_continuous(instants, t_final, T, U, t_eval, eval_instant, ctrl, "
-        "Y, X, Uo, x, held, P, method, rtol, atol, max_step, first_step, status, "
-        "work, y_eval, yc, machine, loop)", [
-            *buffers, f"xt = np.empty({nx})", f"dx = np.zeros({nx + 1})",
-            (f"cidx = np.array({cidx!r}, dtype=np.int64)" if cidx
-             else "cidx = np.zeros(0, dtype=np.int64)"),
-            "ubuf = np.empty((U.shape[0], 1))",
-            "args = (x, xt, cidx, T, U, ubuf, P, ys, ui, held, dx)",
-            "loop(evaluate, update, outputs, derivatives, machine, args, "
-            "(instants, t_final, T, U, t_eval, eval_instant), "
-            "(Y, X, Uo), (x, P, held), (ys, ui, xn, scratch, xt, cidx, yc, y_eval, "
-            "ubuf, work), (method, rtol, atol, max_step, first_step), ctrl, status)"])
     return "\n".join(text) + caught(plan.calls_users)

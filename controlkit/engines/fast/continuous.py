@@ -137,6 +137,12 @@ class _Run:
         self.work = rk.make_workspace(nc, 0, m)
         self.y_eval, self.yc = np.zeros((m, nc)), np.zeros(nc)
         rk.set_horizon(self.work, self.instants[0], T[-1])
+        nx, widest = sys.nstates, max([1, *(row.NX for row in plan.rows)])
+        ys, ui, ubuf = np.zeros(plan.ny), np.zeros(plan.nu), np.empty((U.shape[0], 1))
+        xt, dx, cidx = np.empty(nx), np.zeros(nx + 1), plan.continuous
+        self.rhs_args = (self.x, xt, cidx, T, U, ubuf, None, ys, ui, self.held, dx)
+        self.buffers = (ys, ui, np.empty(nx), np.empty(5 * widest), xt, cidx, self.yc,
+                        self.y_eval, ubuf, self.work)
         self.method = method
         self.solver = solver_options(nc, T[-1] - T[0], **solver)
 
@@ -170,17 +176,20 @@ class _Run:
         self.ctrl[BUDGET] = budget
         stiff = self.method in STIFF_METHODS
         self.ctrl[WATCH_STAGES] = int(job.compiled and self.users)
-        args = (self.instants, float(self.T[-1]), self.T, self.U,
-                self.t_eval, self.eval_instant, self.ctrl, self.Y, self.X, self.Uo, self.x,
-                self.held, job.P, self.method if stiff else rk.METHOD_INDEX[self.method],
-                *self.solver, self.status, self.work, self.y_eval, self.yc)
+        x, P, held = self.x, job.P, self.held
+        args = ((*self.rhs_args[:6], P, *self.rhs_args[7:]),
+                (self.instants, float(self.T[-1]), self.T, self.U, self.t_eval,
+                 self.eval_instant), (self.Y, self.X, self.Uo), (x, P, held), self.buffers,
+                (self.method if stiff else rk.METHOD_INDEX[self.method], *self.solver),
+                self.ctrl, self.status)
         try:
             if job.compiled and not stiff:
                 _run_compiled(job, args)
             else:
+                f = job.functions()
                 with quiet_numbers():
-                    job.functions().run_continuous(
-                        *args, None, loops.scipy_loop if stiff else loops.instants_loop)
+                    (loops.scipy_loop if stiff else loops.instants_loop)(
+                        f.evaluate, f.update, f.outputs, f.derivatives, None, *args)
         finally:
             self.ctrl[WATCH_STAGES] = 0  # (a compiled piece's state is compared with Python's)
 
@@ -288,31 +297,27 @@ def run_continuous(sys, T, U, X0, *, params=None, t_eval=None, method="RK45",
 
 
 def _run_compiled(job, args):
-    """``job``'s ``run_continuous`` compiled: its four functions compiled for the
-    instants' loop (:meth:`.run.Job.compiled_once`), handed to the loop compiled once for every
-    diagram (:func:`.store.instants_loop`)."""
+    """A piece of ``job``'s run compiled: its module's four functions compiled for the
+    instants' loop (:meth:`.run.Job.compiled_once`), handed to the loop compiled once for
+    every diagram (:func:`.store.instants_loop`); ``args`` as :meth:`_Run.piece` makes them."""
     with store.LOCK:  # (threads running the same job share what it keeps)
         if job.continuous is None:
             job.continuous = [store.import_module(store.module_file(job.source, "diagram"),
                                                   job.kernels()), None]
     kept = job.continuous
     module = kept[0]
-
-    def loop(evaluate, update, outputs, derivatives, *rest):
-        if kept[1] is None:  # (a run's arrays are of the same types every run)
-            numba = _jit.numba_module()
-            _, rhs_args, _, results, state, buffers, _, _, _ = rest
-            signatures, types = loops.evaluator_signatures(numba, rhs_args, results, state,
-                                                           buffers)
-            functions = job.compiled_once(signatures, lambda path: store.compile_functions(
-                (module.evaluate_caught, module.update_caught, outputs,
-                 module.derivatives_caught), signatures, path, blocks=len(job.blocks)))
-            types = (*types, *(numba.typeof(a) for a in rest))
-            kept[1] = (store.instants_loop(types), functions)
-        compiled_loop, functions = kept[1]
-        compiled_loop(*functions, *rest)
-
-    module.run_continuous(*args, store.step_machine(), loop)
+    if kept[1] is None:  # (a run's arrays are of the same types every run)
+        numba = _jit.numba_module()
+        rhs_args, _, results, state, buffers, _, _, _ = args
+        signatures, types = loops.evaluator_signatures(numba, rhs_args, results, state,
+                                                       buffers)
+        functions = job.compiled_once(signatures, lambda path: store.compile_functions(
+            (module.evaluate_caught, module.update_caught, module.outputs,
+             module.derivatives_caught), signatures, path, blocks=len(job.blocks)))
+        types = (*types, *(numba.typeof(a) for a in (store.step_machine(), *args)))
+        kept[1] = (store.instants_loop(types), functions)
+    compiled_loop, functions = kept[1]
+    compiled_loop(*functions, store.step_machine(), *args)
 
 
 def compile_integrator() -> str:
