@@ -243,6 +243,24 @@ def test_bad_solver_options_raise_as_python_control_s_run(case):
         controlkit.input_output_response(lag, T, 1.0, solve_ivp_kwargs=options, compile=False)
 
 
+def test_a_first_step_longer_than_a_sampled_data_interval_raises_scipy_s_error():
+    """scipy checks ``first_step`` on each interval it integrates, between the sample
+    instants: the fast engine checked it on the whole run and its integrator refused the
+    interval (a RuntimeError) where the reference raises scipy's ``ValueError``."""
+    import control as ct
+
+    from controlkit import input_output_response
+    from controlkit.sampled_data import interconnect
+
+    plant = ct.ss(-1.0, 1, 1, 0, name="plant", inputs="u", outputs="y")
+    gain = ct.ss([], [], [], [[-0.5]], dt=0.1, name="gain", inputs="y", outputs="u")
+    loop = interconnect([plant, gain], outputs="y")
+    for engine in ("fast", "python-control"):
+        with pytest.raises(ValueError, match="`first_step` exceeds bounds."):
+            input_output_response(loop, np.linspace(0.0, 1.0, 11), 0.0, [1.0],
+                                  solve_ivp_kwargs={"first_step": 0.2}, engine=engine)
+
+
 def test_an_rtol_per_state_is_left_to_python_control():
     """scipy takes an ``rtol`` per state, the integrator one number: such a run is
     python-control's own, said in a warning, with its numbers."""

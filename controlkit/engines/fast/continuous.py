@@ -144,7 +144,10 @@ class _Run:
         self.buffers = (ys, ui, np.empty(nx), np.empty(5 * widest), xt, cidx, self.yc,
                         self.y_eval, ubuf, self.work)
         self.method = method
-        self.solver = solver_options(nc, T[-1] - T[0], **solver)
+        # (scipy checks first_step on each interval it is given: between the instants)
+        spans = np.diff(np.append(self.instants, T[-1]))
+        self.solver = solver_options(nc, spans[spans > 0].min(initial=T[-1] - T[0]),
+                                     **solver)
 
     def arrays(self):
         """The run's state between pieces (results are written by index: a piece run again
