@@ -33,7 +33,7 @@ from ...blocks.contract import KernelBlock
 from ...blocks.sampling import SampledSystem
 from .. import source
 from . import store
-from .tiers import _local_params
+from .tiers import _keep_on, _kept_on, _local_params
 
 
 class _Unknown(Exception):
@@ -196,10 +196,7 @@ def reused(sys, key):
     """
     if key is None:
         return None
-    kept = getattr(sys, _ATTRIBUTE, None)
-    if not isinstance(kept, _Kept):
-        return None
-    key_kept, job = kept.jobs.get(key[1], (None, None))
+    key_kept, job = (_kept_on(sys, _ATTRIBUTE) or {}).get(key[1], (None, None))
     if job is None or job.sys is not sys or key_kept != key:
         return None
     return job
@@ -217,28 +214,12 @@ def keep(sys, key, job) -> None:
     """
     if key is None:
         return
-    kept = getattr(sys, _ATTRIBUTE, None)
-    if not isinstance(kept, _Kept):
-        kept = _Kept()
-        try:
-            setattr(sys, _ATTRIBUTE, kept)
-        except (AttributeError, TypeError):  # an object that takes no attributes
-            return
-    kept.jobs[key[1]] = (key, job)
+    jobs = _kept_on(sys, _ATTRIBUTE)
+    if jobs is None:
+        jobs = {}
+        _keep_on(sys, _ATTRIBUTE, jobs)
+    jobs[key[1]] = (key, job)
 
 
-#: The attribute of a diagram its kept job is held in.
+#: The attribute of a diagram its kept jobs (by way of running) are held in.
 _ATTRIBUTE = "_controlkit_kept_job"
-
-
-class _Kept:
-    """A diagram's last jobs (by way of running) and their keys; copied or pickled as
-    None."""
-
-    __slots__ = ("jobs",)
-
-    def __init__(self):
-        self.jobs = {}
-
-    def __reduce__(self):  # (copy and deepcopy too: a pickle needs no controlkit to load)
-        return (type(None), ())

@@ -286,17 +286,14 @@ def as_interconnect(sys):
         return sys
     if not isinstance(sys, ct.InputOutputSystem):
         raise UnsupportedSystem(f"a {type(sys).__name__} is not an I/O system")
-    kept, shape = getattr(sys, _ONE_BLOCK, None), (  # (dt True is not dt 1)
+    kept, shape = _kept_on(sys, "_controlkit_one_block"), (  # (dt True is not dt 1)
         sys.name, repr(sys.dt), sys.nstates, tuple(sys.input_labels), tuple(sys.output_labels))
-    if isinstance(kept, _OneBlock) and kept.shape == shape and kept.diagram.syslist[0] is sys:
-        return kept.diagram  # (whose prepared job is kept on it: a short run's most time)
+    if kept is not None and kept[0] == shape and kept[1].syslist[0] is sys:
+        return kept[1]  # (whose prepared job is kept on it: a short run's most time)
     if isinstance(sys, ct.TransferFunction):  # as python-control's interconnect takes it
         return _one_block(ct.ss(sys, name=sys.name))
     wrapped = _one_block(sys)
-    try:
-        setattr(sys, _ONE_BLOCK, _OneBlock(shape, wrapped))
-    except (AttributeError, TypeError):  # an object that takes no attributes
-        pass
+    _keep_on(sys, "_controlkit_one_block", (shape, wrapped))
     return wrapped
 
 
@@ -315,21 +312,31 @@ def _one_block(sys):
     return wrapped
 
 
-#: The attribute of a system its one-block diagram is kept in.
-_ONE_BLOCK = "_controlkit_one_block"
+class _Kept:
+    """What the engine keeps on a python-control system for its next call (a block's
+    one-block diagram, a diagram's jobs: :mod:`.reuse`); copied or pickled as None."""
 
+    __slots__ = ("value",)
 
-class _OneBlock:
-    """A system's one-block diagram, and the sizes and labels it was made for; copied or
-    pickled as None (as the jobs kept on a diagram, :mod:`.reuse`)."""
-
-    __slots__ = ("shape", "diagram")
-
-    def __init__(self, shape, diagram):
-        self.shape, self.diagram = shape, diagram
+    def __init__(self, value):
+        self.value = value
 
     def __reduce__(self):  # (copy and deepcopy too: a pickle needs no controlkit to load)
         return (type(None), ())
+
+
+def _kept_on(sys, attribute):
+    """What :func:`_keep_on` kept on ``sys`` under ``attribute``, else None."""
+    kept = getattr(sys, attribute, None)
+    return kept.value if isinstance(kept, _Kept) else None
+
+
+def _keep_on(sys, attribute, value) -> None:
+    """Keep ``value`` on ``sys`` (nothing when it takes no attributes)."""
+    try:
+        setattr(sys, attribute, _Kept(value))
+    except (AttributeError, TypeError):  # an object that takes no attributes
+        pass
 
 
 def blocks_of(sys, params=None, *, compiled=False):
