@@ -121,11 +121,13 @@ class _Sweep:
     until the signals settle (no order known beforehand)."""
 
     def __init__(self, sys, params):
+        from .fast.tiers import _local_params
+
         self.sys = sys
         self.blocks, xs, us, ys = [], 0, 0, 0
         for s in sys.syslist:
             local = (None if isinstance(s, ct.StateSpace)  # (python-control's LTI takes none)
-                     else {**s.params, **sys.params, **(params or {})})
+                     else _local_params(sys, s, params))
             discrete = s.isdtime(strict=True) and s.dt is not True
             every = round(s.dt / sys.base_period) if discrete else 0
             self.blocks.append((s, slice(xs, xs + s.nstates), slice(us, us + s.ninputs),
