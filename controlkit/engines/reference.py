@@ -105,13 +105,16 @@ def simulate_sampled_data(sys, T, X0, U, *, params=None, t_eval=None, method="RK
     [[1.0, 0.75, 0.5, 0.375, 0.25]]
     """
     from .fast.continuous import _Run
+    from .fast.loops import scipy_loop
 
-    evaluator = _Sweep(sys, params)
-    run = _Run(sys, evaluator, np.asarray(T, dtype=float), U, X0,
+    sweep = _Sweep(sys, params)
+    run = _Run(sys, sweep, np.asarray(T, dtype=float), U, X0,
                np.asarray(T if t_eval is None else t_eval, dtype=float), method,
                solve_ivp_kwargs or {})
+    # (scipy's solve_ivp between instants, under numpy's error mode as the caller set it)
     with SYSTEM_CALLS:  # (python-control's systems keep a call's params on themselves)
-        run.piece(SimpleNamespace(compiled=False, P=None, functions=lambda: evaluator), 0)
+        scipy_loop(sweep.evaluate, sweep.update, sweep.outputs, sweep.derivatives, None,
+                   *run.loop_arguments(None, method))
     return response(sys, run.t_eval, run.Y, run.X, run.Uo)
 
 
@@ -134,7 +137,7 @@ class _Sweep:
                                 slice(ys, ys + s.noutputs), local, every))
             xs, us, ys = xs + s.nstates, us + s.ninputs, ys + s.noutputs
         # (what the run's arrays are made from, as of a plan: fast.continuous._Run)
-        self.ny, self.nu, self.calls_users = ys, us, True
+        self.ny, self.nu, self.calls_users = ys, us, False
         self.rows = [SimpleNamespace(NX=s.nstates) for s in sys.syslist]
         self.continuous = np.array([i for s, xi, *_ , every in self.blocks if not every
                                     for i in range(xi.start, xi.stop)], dtype=np.int64)

@@ -149,6 +149,15 @@ class _Run:
         self.solver = solver_options(nc, spans[spans > 0].min(initial=T[-1] - T[0]),
                                      **solver)
 
+    def loop_arguments(self, P, method):
+        """What the instants' loops take after the evaluator's four functions and the step
+        machine (:func:`.loops.instants_loop`, :func:`.loops.scipy_loop`), for parameters
+        ``P`` and ``method`` (the integrator's index of it, or scipy's name)."""
+        return ((*self.rhs_args[:6], P, *self.rhs_args[7:]),
+                (self.instants, float(self.T[-1]), self.T, self.U, self.t_eval,
+                 self.eval_instant), (self.Y, self.X, self.Uo), (self.x, P, self.held),
+                self.buffers, (method, *self.solver), self.ctrl, self.status)
+
     def arrays(self):
         """The run's state between pieces (results are written by index: a piece run again
         writes the same columns again)."""
@@ -179,12 +188,8 @@ class _Run:
         self.ctrl[BUDGET] = budget
         stiff = self.method in STIFF_METHODS
         self.ctrl[WATCH_STAGES] = int(job.compiled and self.users)
-        x, P, held = self.x, job.P, self.held
-        args = ((*self.rhs_args[:6], P, *self.rhs_args[7:]),
-                (self.instants, float(self.T[-1]), self.T, self.U, self.t_eval,
-                 self.eval_instant), (self.Y, self.X, self.Uo), (x, P, held), self.buffers,
-                (self.method if stiff else rk.METHOD_INDEX[self.method], *self.solver),
-                self.ctrl, self.status)
+        args = self.loop_arguments(job.P, self.method if stiff else
+                                   rk.METHOD_INDEX[self.method])
         try:
             if job.compiled and not stiff:
                 _run_compiled(job, args)
