@@ -10,6 +10,7 @@ Python on one piece, and if their numbers differ the run goes on as Python.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from types import SimpleNamespace
 
@@ -34,8 +35,7 @@ RULE = ("compiled when asked (compile=True), when the diagram's module is compil
         "else as Python")
 #: Compiling pays when the rest of the run as Python, with the earlier runs of the same
 #: module, would take this many times longer than loading numba and compiling: 1, the
-#: ski-rental rule (a session that goes on pays at most twice what the best choice made
-#: in hindsight would have).
+#: ski-rental rule (a session pays at most twice what hindsight's best choice would).
 PAYS = 1.0
 #: numba's own start in a process in two steps, ``(seconds, done, make)``: the import, the
 #: first use (numba fills its tables: loading the step machine kept in the store).
@@ -50,9 +50,9 @@ COMPILE_SECONDS = (2.0, 1.0)
 #: The modules compiled in this process, by text: their compiled entry points.
 _COMPILED: dict[str, dict] = {}
 #: The compiled job made in this process for a module run as Python (by its text), or why
-#: it cannot be made: a diagram built anew with the same text reads what compiling it
-#: would cost without translating its functions again (0.1-0.2 s a call for 40 blocks),
-#: and runs compiled from its start once that job's module is compiled here.
+#: it cannot be made: a diagram built anew with the same text reads its cost without
+#: translating its functions again (0.1-0.2 s for 40 blocks), and runs compiled from its
+#: start once that module is compiled here.
 _TWINS: dict = {}
 #: Compiled modules whose numbers were compared with Python's on a piece in this process.
 CHECKED: set[str] = set()
@@ -111,8 +111,7 @@ class Job:
         """The module's functions run as Python (a namespace; made once)."""
         if self._python is None:
             namespace = dict(self.kernels())
-            exec(compile(self.source, f"<controlkit diagram {self.sys.name!r}>", "exec"),
-                 namespace)
+            exec(_module_code(self.source), namespace)
             self._python = SimpleNamespace(**namespace)
         return self._python
 
@@ -151,6 +150,12 @@ class Job:
             return self.source in _COMPILED or store.compiled_before(self.source, "diagram")
         except store.StoreRefused:
             return False
+
+
+@functools.lru_cache(maxsize=64)  # (a diagram built again writes the same text)
+def _module_code(source: str):
+    """A module text's code, compiled once a process (half of a rebuilt diagram's call)."""
+    return compile(source, "<controlkit diagram module>", "exec")
 
 
 def _compile_kernels(kernels) -> None:

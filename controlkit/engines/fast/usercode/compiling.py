@@ -82,12 +82,16 @@ class UserKernel:
         self._plan = self._text = None
 
     def __call__(self, t, x, u, p, out):
-        what, unit = ROLES[self.role]
         try:
             result = self.fn(t, x, u, self.params)
         except Exception as error:  # Python's own error, told where it happened
-            _told_where(error, f"in block {self.block!r}, its {what}, at t = {t:g} s")
+            _told_where(error, f"in block {self.block!r}, its {ROLES[self.role][0]}, at "
+                               f"t = {t:g} s")
             raise
+        if type(result) is np.ndarray and result.shape == out.shape:
+            out[:] = result  # (the most common return, a third of the time of the rest)
+            return out
+        what, unit = ROLES[self.role]
         if result is None:
             raise TypeError(f"block {self.block!r}: its {what} returned None at t = {t:g} "
                             f"s (a return statement missing?); it must return its "
