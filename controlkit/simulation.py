@@ -6,6 +6,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import sys as _sys
 import time
 import weakref
@@ -178,8 +179,8 @@ def input_output_response(sys, timepts=None, inputs=0.0, initial_state=0.0, para
     :class:`control.TimeResponseData`: a user switches by changing one import. Where the
     diagram can run on the fast engine (:mod:`controlkit.engines.fast`) it does, with the
     same numbers; otherwise python-control runs it, with a warning naming the block and
-    why (:func:`controlkit.engines.fast.explain`). Until the engine has started in the
-    process, a run too short for its start (about 25 ms) to pay is python-control's own
+    why (:func:`controlkit.engines.fast.explain`). A run too short for the engine's start
+    and preparing a diagram it has not run before to pay is python-control's own
     (:func:`controlkit.engines.fast_start_pays`; ``engine_mode`` ``"python-control"``), so
     that no call is slower than python-control's. A diagram of continuous and discrete
     blocks (:func:`controlkit.interconnect`), which python-control cannot simulate, runs
@@ -252,11 +253,10 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
                              "for a sampled-data diagram, integrated between its instants: "
                              "give the times, or 'T'")
         return _sampled_data_response(sys, T, U, X0, engine, options, compile)
-    if engine == "fast" and t_eval is not None and not _python_control_s_own(sys, T, options):
-        # (t_eval None: python-control's solver's steps)
-        if compile is None and not _compiled_lone(sys) \
-                and not engines.fast_start_pays(sys, np.size(T), _LONGEST[0]):
-            return _python_control(sys, T, U, X0, options)
+    # (t_eval None: its solver's steps; a short run: its own, before more is asked of T)
+    if engine == "fast" and t_eval is not None and (
+            compile is not None or _starts_engine(sys, np.size(T))) \
+            and not _python_control_s_own(sys, T, options):
         from ._checks import Diverged  # (as the engine, about to run, imports it)
 
         try:
@@ -320,9 +320,8 @@ def _python_control_s_own(sys, T, options) -> bool:
     return np.isfinite(times).all() and not (np.diff(times) > 0).all()
 
 
-#: The longest run :func:`input_output_response` left to python-control in this process,
-#: seconds (:func:`controlkit.engines.fast_start_pays` reads it).
-_LONGEST = [0.0]
+#: The attribute of a system holding python-control's slowest pace on it, s a time point.
+_PACE = "_controlkit_python_control_pace"
 #: Lone systems (not interconnects) that a run compiled in this process (``compile=True``):
 #: their later runs stay on the engine, compiled, whatever their length.
 _COMPILED_LONE = weakref.WeakSet()
@@ -330,8 +329,7 @@ _COMPILED_LONE = weakref.WeakSet()
 
 def _compiled_lone(sys, add=False) -> bool:
     """Whether ``sys`` is in :data:`_COMPILED_LONE` (added first with ``add``); False for
-    what cannot be kept there (a system that is not hashable, as one that defines ``__eq__``
-    alone)."""
+    a system that is not hashable (one that defines ``__eq__`` alone)."""
     try:
         if add:
             _COMPILED_LONE.add(sys)
@@ -341,22 +339,30 @@ def _compiled_lone(sys, add=False) -> bool:
 
 
 def _warn(message: str) -> None:
-    """:func:`controlkit._checks.warn_caller`, imported when a warning is first given (a
-    fresh script's first call does not pay for it)."""
+    """:func:`controlkit._checks.warn_caller`, imported when first needed."""
     from ._checks import warn_caller
 
     warn_caller(message)
 
 
+def _starts_engine(sys, points: int) -> bool:
+    """Whether a run of ``points`` time points (a batch's together) of ``sys`` goes to the
+    engine when ``compile`` is None (:func:`controlkit.engines.fast_start_pays`)."""
+    return _compiled_lone(sys) or engines.fast_start_pays(
+        sys, points, getattr(sys, _PACE, 0.0) * points)
+
+
 def _python_control(sys, T, U, X0, options):
-    """python-control's own run, timed for :data:`_LONGEST`; ``engine_mode``
-    ``"python-control"``."""
+    """python-control's own run, its pace kept on ``sys`` (:data:`_PACE`);
+    ``engine_mode`` ``"python-control"``."""
     from .compat import SYSTEM_CALLS
 
     start = time.perf_counter()
     with SYSTEM_CALLS:  # (its systems keep a call's params on themselves)
         resp = ct.input_output_response(sys, T, U, X0, **options)
-    _LONGEST[0] = max(_LONGEST[0], time.perf_counter() - start)
+    pace = (time.perf_counter() - start) / max(np.size(T), 1)
+    with contextlib.suppress(AttributeError, TypeError):  # (one that takes no attributes)
+        setattr(sys, _PACE, max(pace, getattr(sys, _PACE, 0.0)))
     resp.engine_mode = "python-control"
     return resp
 
@@ -403,12 +409,11 @@ def _runs(sys, X0, params):
         return None
     if listed and not params:
         raise ValueError("params must not be an empty list (a dict, or one dict per run)")
-    count = max(len(params) if listed else 1, states.shape[0] if many_states else 1)
-    if listed and len(params) not in (1, count) or many_states and states.shape[0] not in (
-            1, count):
-        raise ValueError(f"params ({len(params) if listed else 1} sets) and initial_state "
-                         f"({states.shape[0] if many_states else 1} rows) must give the same "
-                         f"number of runs, or one of them a single value for every run")
+    sets, rows = len(params) if listed else 1, states.shape[0] if many_states else 1
+    count = max(sets, rows)
+    if sets not in (1, count) or rows not in (1, count):
+        raise ValueError(f"params ({sets} sets) and initial_state ({rows} rows) must give the "
+                         f"same number of runs, or one of them a single value for every run")
     params_list = list(params) * (count // len(params)) if listed else [params] * count
     if many_states:
         X0s = np.array(np.broadcast_to(np.asarray(states, dtype=float), (count, sys.nstates)))
@@ -437,7 +442,9 @@ def _many(sys, T, U, X0, runs, engine, options, compile):
     # (integers or float32 in a discrete run: each run checks python-control's first step)
     kept = rows is not None and sys.isdtime(strict=True) and kept_state(
         rows[0], sys.nstates) is not None
-    if engine == "fast" and not _numpy_raises() and not kept:  # (else run by run)
+    # (a batch python-control would finish sooner than the engine starts: run by run)
+    if engine == "fast" and not _numpy_raises() and not kept and (
+            compile is not None or _starts_engine(sys, np.size(T) * len(params_list))):
         from ._checks import Diverged
         from .engines.fast import many
         from .engines.fast.response import outputs

@@ -30,10 +30,12 @@ def scaled_error(ours, ref):
     return float(np.abs((ours - ref) / scale).max())
 
 
-def fast(loop, T, U, X0=0, **kwargs):
+def fast(loop, T, U, X0=0, compile=False, **kwargs):
+    """The engine's response (as Python unless ``compile`` says otherwise: the rule leaves
+    a new diagram's short run to python-control)."""
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no fallback to python-control allowed
-        return controlkit.input_output_response(loop, T, U, X0, **kwargs)
+        return controlkit.input_output_response(loop, T, U, X0, compile=compile, **kwargs)
 
 
 @pytest.mark.parametrize("method", ["RK45", "RK23", "DOP853"])

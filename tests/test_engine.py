@@ -431,22 +431,47 @@ def _fresh_script(last_line):
 
 def test_a_fresh_script_s_short_runs_are_python_control_s_own_until_the_engine_pays():
     # a fresh process: a 101-point PI loop (about 20 ms in python-control) is left to
-    # python-control, engine unimported (its start, about 25 ms, would make the call
+    # python-control, engine unimported (its start, about 16 ms, would make the call
     # slower); a 11-point run python-control took over 50 ms on starts it on the next
-    # call, and from then on every run is the engine's. compile=False starts it at once.
-    # (The rule reads python-control's longest run so far: on a machine so busy that the
-    # PI loop's took over 50 ms, the engine starts at the first decay run; the script says
-    # what the rule decided there, and the test holds the run to it.)
+    # call, and from then on that diagram's runs are the engine's; a new diagram's short
+    # run is python-control's still. compile=False starts it at once.
+    # (The rule reads python-control's pace on the system itself: the PI loop's, however
+    # long on a busy machine, does not start the engine for another diagram.)
     (result,) = _fresh_script(
         'from controlkit import engines, simulation\n'
         'first = run(loop(), 101)\n'
-        'pays = engines.fast_start_pays(decay, 11, simulation._LONGEST[0])\n'
+        'pays = engines.fast_start_pays(decay, 11, getattr(decay, simulation._PACE, 0) * 11)\n'
         'print("RESULT", first, pays, run(decay, 11), run(decay, 11), run(loop(), 101))')
     assert result[0] == "python-control:False"
+    # (the PI loop built again is a new diagram: its short run is python-control's still)
     assert result[2:] == ["python:True" if result[1] == "True" else "python-control:False",
-                          "python:True", "python:True"], result
+                          "python:True", "python-control:True"], result
     assert _fresh_script('print("RESULT", run(loop(), 101, compile=False))') == [
         ["python:True"]]
+
+
+def test_a_new_diagram_s_short_run_is_python_control_s_and_one_run_before_the_engine_s():
+    # a notebook cell run again builds its diagram anew: preparing it (about half a
+    # millisecond a block) made a 10-point run slower than python-control's whole call
+    # (0.4-0.8x); the same diagram called again keeps its prepared job
+    def build():
+        lag = ct.nlsys(lambda t, x, u, p: 0.9 * x + 0.1 * u, lambda t, x, u, p: x,
+                       inputs="u", outputs="y", states=1, dt=0.1, name="lag")
+        return ct.interconnect([lag], inputs="u", outputs="y")
+
+    import controlkit
+    from controlkit import engines
+
+    T = np.arange(10) * 0.1
+    loop = build()
+    modes = [controlkit.input_output_response(loop, T, 1.0, compile=compile).engine_mode
+             for compile in (None, False, None)]
+    assert modes == ["python-control", "python", "python"]
+    assert controlkit.input_output_response(build(), T, 1.0).engine_mode == "python-control"
+    assert engines.fast_start_pays(build(), 20_000)  # (about 0.2 s in python-control)
+    # a batch of a lone system's short runs: run by run, python-control's
+    batch = controlkit.input_output_response(loop.syslist[0], T, 1.0, [[0.0], [1.0]])
+    assert [r.engine_mode for r in batch] == ["python-control"] * 2
 
 
 def test_a_lone_system_is_python_control_s_unless_its_run_would_be_long():

@@ -70,15 +70,20 @@ def check_engine(name):
 
 
 #: python-control takes at least this many times as long as the fast engine's Python run
-#: of a diagram (measured on the benchmark rows: 2.1-10.6x).
+#: of a diagram (measured on the benchmark rows: 2.1-10.6x; a chain of one-line user
+#: functions, 1.2x).
 PYTHON_CONTROL_SLOWER = 2.0
-#: The fast engine's start in a process: importing its modules (about 16 ms) and reading
-#: the functions of a first diagram's blocks (about 2 ms each), measured on a 2-core
-#: machine.
-FAST_START_SECONDS = 0.025
-#: python-control's time per output point and per block of a diagram, at least: 35-130 us
-#: measured on the continuous benchmark rows, 80 us on a discrete one.
-PYTHON_CONTROL_POINT_SECONDS = 35e-6
+#: The fast engine's start in a process: importing its modules (13-16 ms measured on a
+#: 2-core machine).
+FAST_START_SECONDS = 0.016
+#: What the engine pays to prepare a diagram it has not run before in the process (a new
+#: one, or one built again, as a notebook's cell run again builds it): seconds, and
+#: seconds per block (reading each block's functions, writing the diagram's module).
+PREPARE_SECONDS = (0.0005, 0.0005)
+#: python-control's time per output point and per block of a diagram, at least: 11-24 us
+#: measured on chains of one-line user functions, 35-130 us on the continuous benchmark
+#: rows, 80 us on a discrete one.
+PYTHON_CONTROL_POINT_SECONDS = 10e-6
 #: python-control's time per output point of a lone system (not an interconnect), at
 #: least: 16 us measured on a one-state nlsys. It calls the system's own functions, as
 #: the engine's Python run does, which is then no faster (0.95-1.05x): only a compiled
@@ -89,34 +94,41 @@ LONE_SECONDS = 3.0
 
 
 def fast_start_pays(sys, points: int, longest: float = 0.0) -> bool:
-    """Whether a call of :func:`controlkit.input_output_response` on ``sys`` starts the
+    """Whether a call of :func:`controlkit.input_output_response` on ``sys`` goes to the
     fast engine, rather than leave the run to python-control.
 
-    A diagram (an interconnect): always once the engine has started in this process (its
-    modules imported). Before that, only when python-control would take longer than the
-    engine's start and its own run, ``FAST_START_SECONDS * PYTHON_CONTROL_SLOWER /
-    (PYTHON_CONTROL_SLOWER - 1)`` (50 ms): python-control's time estimated as ``points``
-    times the blocks times :data:`PYTHON_CONTROL_POINT_SECONDS` (its least measured: an
-    estimate that errs towards python-control), or ``longest``, the longest run
-    python-control made in this process (a stiff run of few points). A lone system: only
-    when python-control would take longer than :data:`LONE_SECONDS`, estimated as
-    ``points`` times :data:`LONE_POINT_SECONDS`, or ``longest``.
+    A diagram (an interconnect) run before in this process: always (the engine keeps its
+    prepared job). Else only when python-control would take longer than what the engine
+    pays before its run (its start, :data:`FAST_START_SECONDS`, unless it has started in
+    this process; preparing the diagram, :data:`PREPARE_SECONDS`) and its own run, taken
+    as :data:`PYTHON_CONTROL_SLOWER` times shorter: python-control's time estimated as
+    ``points`` times the blocks times :data:`PYTHON_CONTROL_POINT_SECONDS` (its least
+    measured: an estimate that errs towards python-control), or ``longest``,
+    python-control's own time on ``sys`` at its pace in this process (a stiff run of few
+    points). A lone system: only when python-control would take longer than
+    :data:`LONE_SECONDS`, estimated as ``points`` times :data:`LONE_POINT_SECONDS`, or
+    ``longest``.
 
     Examples
     --------
     >>> import control as ct
     >>> loop = ct.interconnect([ct.tf([1], [1, 1], name="p", inputs="u", outputs="y")],
     ...                        inputs="u", outputs="y")
-    >>> fast_start_pays(loop, 100_000)  # about 3.5 s in python-control
+    >>> fast_start_pays(loop, 100_000)  # about 1 s in python-control
     True
+    >>> fast_start_pays(loop, 100)  # about 1 ms: less than preparing the diagram
+    False
     >>> fast_start_pays(loop.syslist[0], 100_000)  # a lone system: about 1.6 s
     False
     """
     if getattr(sys, "syslist", None) is None:  # a lone system
         return max(points * LONE_POINT_SECONDS, longest) > LONE_SECONDS
-    if "controlkit.engines.fast" in _sys.modules:
+    started = "controlkit.engines.fast" in _sys.modules
+    if started and _sys.modules["controlkit.engines.fast.reuse"].prepared(sys):
         return True
     blocks = len(sys.syslist)
     expected = max(points * blocks * PYTHON_CONTROL_POINT_SECONDS, longest)
+    paid = (0.0 if started else FAST_START_SECONDS) + PREPARE_SECONDS[0] \
+        + PREPARE_SECONDS[1] * blocks
     slower = PYTHON_CONTROL_SLOWER
-    return expected > FAST_START_SECONDS * slower / (slower - 1.0)
+    return expected > paid * slower / (slower - 1.0)

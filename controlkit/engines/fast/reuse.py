@@ -202,6 +202,17 @@ def reused(sys, key):
     return job
 
 
+def prepared(sys) -> bool:
+    """Whether a job of ``sys`` is kept on it (made by an earlier call in this process).
+
+    Examples
+    --------
+    >>> prepared(object())
+    False
+    """
+    return bool(_kept_on(sys, _ATTRIBUTE))
+
+
 def keep(sys, key, job) -> None:
     """Keep ``job`` for ``sys`` under ``key`` (one job run as Python and one compiled).
 
