@@ -284,16 +284,12 @@ def _numpy_raises() -> bool:
 
 def _python_control_s_own(sys, T, options) -> bool:
     """Whether the call's arguments take a form python-control answers in its own way
-    (an error, or integrating backwards), which the engine, whose time points increase,
-    leaves to it: a list ``T`` or ``t_eval`` for a discrete system (python-control
-    subtracts lists),
-    a single time point, time points that do not increase, ``t_eval`` in
-    ``solve_ivp_kwargs``, time points of another float type than float64 (python-control
-    evaluates the functions at them), a discrete diagram without states (python-control
-    evaluates its outputs at any time points, spaced by its period or not), and numpy told
-    to raise, call or log on a floating-point error (``np.seterr``, ``np.errstate``:
-    python-control's functions run under it; compiled code cannot raise). Rare forms:
-    python-control's own run answers them exactly."""
+    (an error, or integrating backwards), which the engine leaves to it: a list ``T`` or
+    ``t_eval`` for a discrete system (python-control subtracts lists), a single time point,
+    time points that do not increase, ``t_eval`` in ``solve_ivp_kwargs``, time points of
+    another float type (python-control evaluates the functions at them), a discrete
+    diagram without states (its outputs at any time points), and numpy told to raise, call
+    or log on a floating-point error (``np.seterr``: compiled code cannot raise)."""
     if getattr(sys, "nstates", None) == 0 and sys.isdtime(strict=True):
         return True
     if _numpy_raises():
@@ -346,8 +342,7 @@ def _warn(message: str) -> None:
 
 
 def _starts_engine(sys, points: int) -> bool:
-    """Whether a run of ``points`` time points (a batch's together) of ``sys`` goes to the
-    engine when ``compile`` is None (:func:`controlkit.engines.fast_start_pays`)."""
+    """Whether ``points`` time points of ``sys`` (a batch's together) go to the engine."""
     return _compiled_lone(sys) or engines.fast_start_pays(
         sys, points, getattr(sys, _PACE, 0.0) * points)
 
@@ -425,6 +420,26 @@ def _runs(sys, X0, params):
 
 def _many(sys, T, U, X0, runs, engine, options, compile):
     """Many runs of ``sys``: one compiled call over all cores where it can be."""
+    X0s, params_list = runs
+    options = dict(options, params=None)
+    rows = X0s  # (each run alone is given its row as the call gave it: integers, float32)
+    if X0s is not None and np.asarray(X0).dtype.kind in "biuf":
+        rows = np.broadcast_to(np.asarray(X0), X0s.shape)
+    # (a batch python-control would finish sooner than the engine starts: run by run)
+    if engine == "fast" and not _numpy_raises() and (
+            compile is not None or _starts_engine(sys, np.size(T) * len(params_list))):
+        listed = _many_on_the_engine(sys, T, U, X0, X0s, rows, params_list, options, compile)
+        if listed is not None:
+            return listed
+    return TimeResponseList([
+        input_output_response(sys, T, U, rows[r] if rows is not None else X0, engine=engine,
+                              compile=compile, **dict(options, params=p))
+        for r, p in enumerate(params_list)])
+
+
+def _many_on_the_engine(sys, T, U, X0, X0s, rows, params_list, options, compile):
+    """:func:`_many`'s runs in one call of the engine, or None to answer them run by run."""
+    from ._checks import Diverged
     from .engines.contract import (
         UnsupportedSystem,
         check_arguments,
@@ -433,52 +448,37 @@ def _many(sys, T, U, X0, runs, engine, options, compile):
         response,
         result_flags,
     )
+    from .engines.fast import many
+    from .engines.fast.response import outputs
+    from .engines.fast.tiers import as_interconnect
 
-    X0s, params_list = runs
-    options = dict(options, params=None)
-    rows = X0s  # (each run alone is given its row as the call gave it: integers, float32)
-    if X0s is not None and np.asarray(X0).dtype.kind in "biuf":
-        rows = np.broadcast_to(np.asarray(X0), X0s.shape)
-    # (integers or float32 in a discrete run: each run checks python-control's first step)
-    kept = rows is not None and sys.isdtime(strict=True) and kept_state(
-        rows[0], sys.nstates) is not None
-    # (a batch python-control would finish sooner than the engine starts: run by run)
-    if engine == "fast" and not _numpy_raises() and not kept and (
-            compile is not None or _starts_engine(sys, np.size(T) * len(params_list))):
-        from ._checks import Diverged
-        from .engines.fast import many
-        from .engines.fast.response import outputs
-        from .engines.fast.tiers import as_interconnect
-
-        diagram = as_interconnect(sys)
-        T_, U_, x0, t_eval, method, solver = python_control_arguments(
-            diagram, T, U, X0s[0] if X0s is not None else X0, options)
-        if diagram.isdtime(strict=True):  # (its evaluation times are its steps, checked)
-            check_arguments(diagram, t_eval, x0)
-        X0s = X0s if X0s is not None else np.tile(x0, (len(params_list), 1))
-        try:
-            responses, errors = many.run_many(diagram, T_, U_, X0s, params_list,
-                                              t_eval=t_eval, method=method,
-                                              compile=compile, **solver)
-        except UnsupportedSystem as reason:
-            _warn(f"fast engine not used, running python-control instead: {reason}")
-        else:  # (a run that diverged, or that python-control runs, is answered run by
-            # run, below, as a single run is)
-            if not any(isinstance(error, Diverged | UnsupportedSystem) for error in errors):
-                for r, error in enumerate(errors):
-                    if error is not None:
-                        raise type(error)(f"run {r}: {error}") from error
-                listed = TimeResponseList([
-                    response(sys, resp.t, outputs(sys, diagram, resp, params_list[r]),
-                             resp.x, resp.u, **result_flags(dict(options, params=params_list[r])))
-                    for r, resp in enumerate(responses)])
-                for mine, theirs in zip(listed, responses, strict=True):
-                    mine.engine_mode = theirs.engine_mode
-                return listed
-    return TimeResponseList([
-        input_output_response(sys, T, U, rows[r] if rows is not None else X0, engine=engine,
-                              compile=compile, **dict(options, params=p))
-        for r, p in enumerate(params_list)])
+    if rows is not None and sys.isdtime(strict=True) and kept_state(rows[0], sys.nstates) \
+            is not None:  # (integers or float32 in a discrete run: python-control's first step)
+        return None
+    diagram = as_interconnect(sys)
+    T_, U_, x0, t_eval, method, solver = python_control_arguments(
+        diagram, T, U, X0s[0] if X0s is not None else X0, options)
+    if diagram.isdtime(strict=True):  # (its evaluation times are its steps, checked)
+        check_arguments(diagram, t_eval, x0)
+    X0s = X0s if X0s is not None else np.tile(x0, (len(params_list), 1))
+    try:
+        responses, errors = many.run_many(diagram, T_, U_, X0s, params_list, t_eval=t_eval,
+                                          method=method, compile=compile, **solver)
+    except UnsupportedSystem as reason:
+        _warn(f"fast engine not used, running python-control instead: {reason}")
+        return None
+    if any(isinstance(error, Diverged | UnsupportedSystem) for error in errors):
+        return None  # (a run that diverged, or python-control's: run by run, as alone)
+    for r, error in enumerate(errors):
+        if error is not None:
+            raise type(error)(f"run {r}: {error}") from error
+    listed = TimeResponseList([
+        response(sys, resp.t, outputs(sys, diagram, resp, params_list[r]), resp.x, resp.u,
+                 **result_flags(dict(options, params=params_list[r])))
+        for r, resp in enumerate(responses)])
+    for mine, theirs in zip(listed, responses, strict=True):
+        mine.engine_mode = theirs.engine_mode
+    return listed
 
 
 def _sampled_data_response(sys, T, U, X0, engine, options, compile):
