@@ -123,9 +123,11 @@ def fast_start_pays(sys, points: int, longest: float = 0.0) -> bool:
     """
     if getattr(sys, "syslist", None) is None:  # a lone system
         return max(points * LONE_POINT_SECONDS, longest) > LONE_SECONDS
-    started = "controlkit.engines.fast" in _sys.modules
-    if started and _sys.modules["controlkit.engines.fast.reuse"].prepared(sys):
+    # (read from the module once imported: another thread may be importing the engine)
+    prepared = getattr(_sys.modules.get("controlkit.engines.fast.reuse"), "prepared", None)
+    if prepared is not None and prepared(sys):
         return True
+    started = "controlkit.engines.fast" in _sys.modules
     blocks = len(sys.syslist)
     expected = max(points * blocks * PYTHON_CONTROL_POINT_SECONDS, longest)
     paid = (0.0 if started else FAST_START_SECONDS) + PREPARE_SECONDS[0] \
