@@ -26,6 +26,7 @@ from .loops import (
     INSTANT,
     INTEGRATOR_FAILED,
     NEXT_TIME,
+    SERVES,
     UNDER_WAY,
     WATCH_STAGES,
 )
@@ -131,7 +132,7 @@ class _Run:
         self.X = np.zeros((sys.nstates, m))
         self.Uo = np.zeros((sys.ninputs, m))
         self.x, self.held = np.array(X0, dtype=float), np.zeros(plan.ny)
-        self.ctrl = np.zeros(WATCH_STAGES + 1, dtype=np.int64)
+        self.ctrl = np.zeros(SERVES + 1, dtype=np.int64)
         self.users = plan.calls_users  # (whose compiled stages are watched)
         self.status = np.full(4, -1, dtype=np.int64)
         self.work = rk.make_workspace(nc, 0, m)

@@ -51,9 +51,10 @@ INSTANT_TOLERANCE = 1e-9
 #: Slots of the ``ctrl`` array of :func:`continuous_run`: the next evaluation time to
 #: serve, the instant the run is at, whether that instant's interval is under way
 #: (paused), the most right-hand side evaluations a call may make (0: no limit; an
-#: instant with nothing to integrate counts as one), how many it made, and whether a
-#: stage that is not finite stops the call (:data:`AGAIN_AS_PYTHON`).
-NEXT_TIME, INSTANT, UNDER_WAY, BUDGET, SPENT, WATCH_STAGES = range(6)
+#: instant with nothing to integrate counts as one), how many it made, whether a stage
+#: that is not finite stops the call (:data:`AGAIN_AS_PYTHON`), and one past the
+#: evaluation times the interval under way serves.
+NEXT_TIME, INSTANT, UNDER_WAY, BUDGET, SPENT, WATCH_STAGES, SERVES = range(7)
 
 
 def instant_of(t_eval, times, h):
@@ -280,10 +281,11 @@ def continuous_run(evaluate, update, outputs, integrate, machine, rhs_args, time
         i = ctrl[NEXT_TIME]
         last = k + 1 == K
         t1 = t_final if last else instants[k + 1]
-        stop = i  # the evaluation times this interval serves
-        while stop < m and eval_instant[stop] < 0 and (
+        stop = ctrl[SERVES] if resume else i  # the evaluation times this interval serves
+        while not resume and stop < m and eval_instant[stop] < 0 and (
                 t_eval[stop] < t1 or last and t_eval[stop] <= t1):
-            stop += 1
+            stop += 1  # (once an interval: every time point of a continuous run's one)
+        ctrl[SERVES] = stop
         if nc == 0 or not t1 > t:  # nothing to integrate: the signals at those times
             for j in range(i, stop):
                 failed = _record(evaluate, outputs, t_eval[j], x, T, U, ubuf, P, ys, ui,
