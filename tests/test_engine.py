@@ -229,6 +229,7 @@ def test_the_rule_counts_the_earlier_python_runs_of_a_module(monkeypatch):
     monkeypatch.setattr(run, "_COMPILED", {})
     monkeypatch.setattr(run.Job, "is_compiled", lambda job: False)  # nor kept in the store
     first = run.Runner(loop, None, None)
+    assert first.decide(0.5, 1 / 8) is None  # (the rule reads two pieces' paces)
     assert first.decide(1.0, 1 / 4) is None  # 3 s to go, against 5 s to compile
     first.finished(4.0)
     assert run.PYTHON_SECONDS == {first.python.source: 4.0}
@@ -238,9 +239,17 @@ def test_the_rule_counts_the_earlier_python_runs_of_a_module(monkeypatch):
     assert again.compiled is None
     # paid for, but a short run: compiling in it would make the call slower than
     # python-control's (about twice the run as Python: 0.4 s, against 5 s to compile)
-    assert run.Runner(loop, None, None).decide(0.1, 1 / 2) is None
+    short = run.Runner(loop, None, None)
+    assert short.decide(0.05, 1 / 4) is None and short.decide(0.1, 1 / 2) is None
+    assert again.decide(0.5, 1 / 8) is None
     chosen = again.decide(1.0, 1 / 4)
     assert chosen is not None and chosen.compiled
+    # a first piece slowed by one-time costs does not foretell a long run: 0.13% in 0.14 s
+    # (104 s at that pace), then 5% in 0.06 s more, a run of about 3 s
+    slowed = run.Runner(loop, None, None)
+    assert slowed.decide(0.14, 0.00134) is None and slowed.decide(0.2, 0.05) is None
+    steady = run.Runner(loop, None, None)  # (the same pace throughout: it pays)
+    assert steady.decide(0.14, 0.00134) is None and steady.decide(0.28, 0.00268) is not None
     forced = run.Runner(loop, None, False)  # compile=False runs are not counted
     forced.finished(50.0)
     assert run.PYTHON_SECONDS[first.python.source] == 100.0

@@ -324,6 +324,13 @@ def compiles_after_a_piece(tmp_path, monkeypatch):
     monkeypatch.setattr(run, "PIECE_SECONDS", 0.0)
     monkeypatch.setattr(run, "PAYS", 0.0)
     monkeypatch.setattr(run, "PYTHON_CONTROL_SLOWER", 1e9)  # (any call may compile)
+    decide = run.Runner.decide
+
+    def after_the_first_piece(runner, elapsed, done):  # (the run's start its piece before)
+        runner.last = runner.last or (0.0, 0.0)
+        return decide(runner, elapsed, done)
+
+    monkeypatch.setattr(run.Runner, "decide", after_the_first_piece)
     entry = run.Job.entry
 
     def differing_entry(job, name, args):

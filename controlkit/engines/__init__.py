@@ -78,8 +78,9 @@ PYTHON_CONTROL_SLOWER = 2.0
 FAST_START_SECONDS = 0.016
 #: What the engine pays to prepare a diagram it has not run before in the process (a new
 #: one, or one built again, as a notebook's cell run again builds it): seconds, and
-#: seconds per block (reading each block's functions, writing the diagram's module).
-PREPARE_SECONDS = (0.0005, 0.0005)
+#: seconds per block (reading each block's functions, writing the diagram's module:
+#: 0.2-0.5 ms a block measured, counted at 1 ms for a Python run under 2x faster).
+PREPARE_SECONDS = (0.0005, 0.001)
 #: python-control's time per output point and per block of a diagram, at least: 11-24 us
 #: measured on chains of one-line user functions, 35-130 us on the continuous benchmark
 #: rows, 80 us on a discrete one.

@@ -31,8 +31,7 @@ from .tiers import BlockTier, NotCompiled, _resolve, as_interconnect, blocks_of,
 RULE = ("compiled when asked (compile=True), when the diagram's module is compiled "
         "already, or when the run, with the earlier runs of the same module in this "
         "process, would take longer as Python than compiling it takes, and the call "
-        "stays no slower than python-control's (timed on its first tenth of a second); "
-        "else as Python")
+        "stays no slower than python-control's (timed on its first pieces); else as Python")
 #: Compiling pays when the rest of the run as Python, with the earlier runs of the same
 #: module, would take this many times longer than loading numba and compiling: 1, the
 #: ski-rental rule (a session pays at most twice what hindsight's best choice would).
@@ -44,16 +43,16 @@ NUMBA_START = ((0.15, lambda: bool(_jit._NUMBA), _jit.numba_module),
                                    or store.integrator_to_compile()), store.step_machine))
 #: What a run pays before its first compiled step even when its module is kept compiled.
 NUMBA_START_SECONDS = sum(seconds for seconds, _, _ in NUMBA_START)
-#: About how long a new diagram's module takes to compile before one was measured in this
-#: store: seconds, plus seconds per block (measured on a 2-core machine: 1.5-30 s).
+#: A new diagram's compile before one was measured in this store: s, and s a block.
 COMPILE_SECONDS = (2.0, 1.0)
 #: The modules compiled in this process, by text: their compiled entry points.
 _COMPILED: dict[str, dict] = {}
 #: The compiled job made in this process for a module run as Python (by its text), or why
-#: it cannot be made: a diagram built anew with the same text reads its cost without
-#: translating its functions again (0.1-0.2 s for 40 blocks), and runs compiled from its
-#: start once that module is compiled here.
+#: it cannot be made: a diagram built anew with the same text reads its cost from it, and
+#: runs compiled from its start once that module is compiled here.
 _TWINS: dict = {}
+#: About how long making a compiled job takes, a block (translating its functions).
+TWIN_SECONDS = 0.003
 #: Compiled modules whose numbers were compared with Python's on a piece in this process.
 CHECKED: set[str] = set()
 #: About how long loading a module kept compiled takes, numba started.
@@ -212,12 +211,9 @@ def prepare(sys, params=None, *, compiled=False, like=None) -> Job:
 
 
 def compile_estimate(job) -> float:
-    """About how long compiling ``job``'s module takes, in seconds: the median time per
-    block of the modules of its kind (discrete, or continuous and sampled-data) compiled
-    in this store before (:func:`.store.compile_times`), else :data:`COMPILE_SECONDS`;
-    plus its user's kernels not compiled yet (:func:`.usercode.kernels_to_compile`), and
-    the integrator's when it is needed and not compiled yet
-    (:func:`.store.integrator_to_compile`).
+    """About how long compiling ``job``'s module takes, in seconds: the store's median time
+    per block for its kind (:func:`.store.compile_times`, else :data:`COMPILE_SECONDS`),
+    its user's kernels not compiled yet, and the integrator if needed and not compiled.
 
     Examples
     --------
@@ -263,8 +259,8 @@ def compiled_job(sys, params, like=None):
 
 
 def compiled_cost(candidate) -> float:
-    """Seconds before the compiled job ``candidate`` can run: numba's start if it has not
-    started, and loading the module if it is kept compiled, else compiling it.
+    """Seconds before the compiled job ``candidate`` can run: numba's start if not made,
+    and loading its module if kept compiled, else compiling it.
 
     Examples
     --------
@@ -294,7 +290,7 @@ class Runner:
         self.sys, self.params, self.asked = sys, params, compile
         self.python = prepare(sys, params)
         self.compiled, self.decided = None, compile is False
-        self.spent = 0.0  # (seconds of steps made before the run: :meth:`decide` counts them)
+        self.spent, self.last = 0.0, None  # (steps' seconds; the last piece's elapsed, done)
         twin = _TWINS.get(self.python.source)
         if compile or compile is None and getattr(twin, "source", None) in _COMPILED:
             # asked for, or compiled already in this process: compiled from the start
@@ -311,22 +307,22 @@ class Runner:
 
     def _compile_if_earlier_runs_paid(self) -> None:
         """Compiled from the start when the earlier runs of this module in this process
-        took, as Python, longer than compiling it takes (the rule, for runs that end in
-        their first piece, before :meth:`decide` is asked), and compiling takes no longer
-        than :data:`~controlkit.engines.PYTHON_CONTROL_SLOWER` of those runs (about
-        python-control's call) and numba has started and the user's kernels are compiled;
-        else it makes those steps (numba's start, each kernel) that fit in this call."""
+        took, as Python, longer than compiling it takes, and it fits in this call (about
+        python-control's), numba started and the user's kernels compiled; else the steps
+        (numba's start, each kernel) that fit in this call are made."""
         source = self.python.source
         before = PYTHON_SECONDS.get(source, 0.0)
+        typical = before / max(PYTHON_RUNS.get(source, 1), 1)
         if before <= PAYS * NUMBA_START_SECONDS:
             return
         if source not in _TWINS:  # (its cost, read by the diagrams of this text to come)
+            if TWIN_SECONDS * len(self.python.blocks) > (PYTHON_CONTROL_SLOWER - 1) * typical:
+                return  # (making it would not fit in this call: 0.1 s for 40 blocks)
             _TWINS[source] = compiled_job(self.sys, self.params, self.python)
         twin = _TWINS[source]
         if isinstance(twin, str):
             return
         cost = compiled_cost(twin)
-        typical = before / max(PYTHON_RUNS.get(source, 1), 1)
         if before <= PAYS * cost:
             return
         # numba's start, then the user's kernels: steps runs as Python can make first
@@ -381,12 +377,16 @@ class Runner:
     def decide(self, elapsed: float, done: float) -> Job | None:
         """After a piece as Python: the compiled job if compiling now pays, else None
         (and no more asking). ``elapsed`` seconds so far, ``done`` the fraction done."""
-        if self.decided or elapsed < PIECE_SECONDS and done < 1.0:
+        last, self.last = self.last, (elapsed, done)
+        if self.decided or elapsed < PIECE_SECONDS and done < 1.0 or last is None:
             return None
         self.decided = True
         if done >= 1.0:
             return None
-        rest = elapsed * (1.0 - done) / max(done, 1e-9)
+        # (at the faster pace, the run's so far or its last piece's: the first pieces carry
+        # one-time costs; 0.13% of a 3-s run in 0.14 s foretold 104 s, and a vain compile)
+        rest = (1.0 - done) * min(elapsed / max(done, 1e-9),
+                                  (elapsed - last[0]) / max(done - last[1], 1e-9))
         before = PYTHON_SECONDS.get(self.python.source, 0.0)
         # what compiling can save: this run's rest, and as much again for the runs to come
         # when earlier ones of the same module took that long (a sunk cost that predicts)
