@@ -224,7 +224,7 @@ def test_the_rule_counts_the_earlier_python_runs_of_a_module(monkeypatch):
     loop = cmg_scenario.build_loop("thesis")
     monkeypatch.setattr(run, "compile_estimate", lambda job: 5.0)  # what the store says
     monkeypatch.setattr(run, "PYTHON_SECONDS", {})
-    monkeypatch.setattr(run, "PYTHON_RUNS", {})
+    monkeypatch.setattr(run, "PYTHON_POINTS", {})
     monkeypatch.setattr(run, "_TWINS", {})  # as in a process that has not compiled it
     monkeypatch.setattr(run, "_COMPILED", {})
     monkeypatch.setattr(run.Job, "is_compiled", lambda job: False)  # nor kept in the store
@@ -234,7 +234,7 @@ def test_the_rule_counts_the_earlier_python_runs_of_a_module(monkeypatch):
     first.finished(4.0)
     assert run.PYTHON_SECONDS == {first.python.source: 4.0}
     run.PYTHON_SECONDS[first.python.source] = 100.0
-    run.PYTHON_RUNS[first.python.source] = 1000  # short runs: not compiled from the start
+    run.PYTHON_POINTS[first.python.source] = 1000  # short runs: not compiled from the start
     again = run.Runner(loop, None, None)
     assert again.compiled is None
     # paid for, but a short run: compiling in it would make the call slower than
@@ -272,7 +272,7 @@ def test_a_run_compiles_from_its_start_when_earlier_runs_paid_and_the_call_stays
                                    (2.0, 2, True),    # paid; a run of 1 s: 1.5 <= 2 x 1
                                    (2.0, 20, False)):  # paid; runs of 0.1 s: too short
         monkeypatch.setattr(run, "PYTHON_SECONDS", {source: before})
-        monkeypatch.setattr(run, "PYTHON_RUNS", {source: runs})
+        monkeypatch.setattr(run, "PYTHON_POINTS", {source: runs})
         monkeypatch.setattr(run, "_TWINS", {})  # as in a process that has not compiled it
         monkeypatch.setattr(run, "_COMPILED", {})
         runner = run.Runner(loop, None, None)
@@ -297,7 +297,7 @@ def test_a_diagram_built_anew_reads_its_module_s_compile_cost_without_translatin
     monkeypatch.setattr(run, "_COMPILED", {})
     source = run.prepare(cmg_scenario.build_loop("thesis")).source
     monkeypatch.setattr(run, "PYTHON_SECONDS", {source: 10.0})
-    monkeypatch.setattr(run, "PYTHON_RUNS", {source: 10})
+    monkeypatch.setattr(run, "PYTHON_POINTS", {source: 10})
     for _ in range(3):
         runner = run.Runner(cmg_scenario.build_loop("thesis"), None, None)
         assert runner.compiled is None and runner.python.source == source
@@ -337,7 +337,7 @@ def test_runs_as_python_make_numba_s_start_in_steps_when_start_and_compile_overf
             for step, seconds in enumerate((0.15, 0.25))))
         for expected in made_then_compiled:
             monkeypatch.setattr(run, "PYTHON_SECONDS", {source: 8 * typical})
-            monkeypatch.setattr(run, "PYTHON_RUNS", {source: 8})
+            monkeypatch.setattr(run, "PYTHON_POINTS", {source: 8})
             monkeypatch.setattr(run, "_TWINS", {})
             monkeypatch.setattr(run, "_COMPILED", {})
             runner = run.Runner(loop, None, None)

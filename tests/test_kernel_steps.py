@@ -100,7 +100,7 @@ def _earlier_runs(monkeypatch, source, seconds, twins=None):
     monkeypatch.setattr(run.Job, "is_compiled", lambda job: False)
     monkeypatch.setattr(run, "NUMBA_START", ())
     monkeypatch.setattr(run, "PYTHON_SECONDS", {source: seconds})
-    monkeypatch.setattr(run, "PYTHON_RUNS", {source: 10})
+    monkeypatch.setattr(run, "PYTHON_POINTS", {source: 10})
     monkeypatch.setattr(run, "_TWINS", dict(twins or {}))
     monkeypatch.setattr(run, "_COMPILED", {})
 
@@ -165,6 +165,23 @@ def test_the_steps_count_what_they_took_and_the_call_s_compile_counts_them(monke
     later = run.Runner(loop, None, None)  # no step left: the whole room for the compile
     chosen = later.compiled or later.decide(0.1, 1 / 4)
     assert later.spent == 0.0 and chosen is not None and chosen.compiled
+
+
+def test_a_short_call_after_long_runs_makes_no_step_its_own_run_cannot_hold(monkeypatch):
+    # the room for a step is this call's run, at the earlier runs' pace: ten runs of 1 000
+    # points took 4 s as Python; a 10-point call (about 4 ms) made a 0.1-s step, 25 times
+    # its python-control's time, when the room was the earlier runs' average (0.4 s)
+    loop = cmg_scenario.build_loop("thesis")
+    source = run.prepare(loop).source
+    made = []
+    monkeypatch.setattr(run.usercode, "kernels_to_compile", lambda _: [
+        (0.1, lambda: made.append(0))] if not made else [])
+    monkeypatch.setattr(run, "compile_estimate", lambda job: 0.5)
+    _earlier_runs(monkeypatch, source, 4.0)
+    monkeypatch.setattr(run, "PYTHON_POINTS", {source: 10_000})
+    assert run.Runner(loop, None, None, points=10).compiled is None and made == []
+    run.Runner(loop, None, None, points=1_000)
+    assert made == [0]
 
 
 def test_a_kernel_numba_cannot_compile_ends_the_steps_not_the_call(monkeypatch):

@@ -260,7 +260,7 @@ def run_continuous(sys, T, U, X0, *, params=None, t_eval=None, method="RK45",
         raise ValueError("Values in `t_eval` are not properly sorted.")
     if method not in EXPLICIT_METHODS + STIFF_METHODS:
         raise UnsupportedSystem(f"solve_ivp method {method!r}")
-    runner = Runner(sys, params, False if method in STIFF_METHODS else compile)
+    runner = Runner(sys, params, False if method in STIFF_METHODS else compile, T.size)
     run = _Run(sys, runner.python.plan, T, U, X0, t_eval, method, solver)
     pieces, start = Pieces(first=256), now()
     first = runner.check_first()  # a compiled module new here: compared on the first piece

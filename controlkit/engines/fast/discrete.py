@@ -64,8 +64,8 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
         return run_continuous(sys, T, U, X0, params=params, compile=compile,
                               progress=progress, record_every=record_every,
                               on_chunk=on_chunk)
-    runner = Runner(sys, params, compile)
     N = len(T)
+    runner = Runner(sys, params, compile, N)
     kept = recorded_indices(N, record_every)
     streamed = record_every > 1 or on_chunk is not None
     step = STREAM_CHUNK_STEPS if streamed else N

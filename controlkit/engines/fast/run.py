@@ -62,8 +62,8 @@ DIFFERS: dict[str, str] = {}
 #: Seconds the runs of a module (by text) took as Python in this process: a diagram run
 #: again and again (a notebook's cell, a loop over gains) compiles once they would pay.
 PYTHON_SECONDS: dict[str, float] = {}
-#: How many runs :data:`PYTHON_SECONDS` counts, by module.
-PYTHON_RUNS: dict[str, int] = {}
+#: How many time points (or steps) the runs :data:`PYTHON_SECONDS` counts had, by module.
+PYTHON_POINTS: dict[str, int] = {}
 
 
 @dataclass
@@ -285,9 +285,9 @@ class Runner:
     (False, True)
     """
 
-    def __init__(self, sys, params, compile):
+    def __init__(self, sys, params, compile, points=1):
         check_compile(compile)
-        self.sys, self.params, self.asked = sys, params, compile
+        self.sys, self.params, self.asked, self.points = sys, params, compile, points
         self.python = prepare(sys, params)
         self.compiled, self.decided = None, compile is False
         self.spent, self.last = 0.0, None  # (steps' seconds; the last piece's elapsed, done)
@@ -312,7 +312,7 @@ class Runner:
         (numba's start, each kernel) that fit in this call are made."""
         source = self.python.source
         before = PYTHON_SECONDS.get(source, 0.0)
-        typical = before / max(PYTHON_RUNS.get(source, 1), 1)
+        typical = before * self.points / max(PYTHON_POINTS.get(source, 1), 1)  # (this call's)
         if before <= PAYS * NUMBA_START_SECONDS:
             return
         if source not in _TWINS:  # (its cost, read by the diagrams of this text to come)
@@ -411,7 +411,7 @@ class Runner:
         if self.compiled is None and self.asked is None:
             source = self.python.source
             PYTHON_SECONDS[source] = PYTHON_SECONDS.get(source, 0.0) + seconds
-            PYTHON_RUNS[source] = PYTHON_RUNS.get(source, 0) + 1
+            PYTHON_POINTS[source] = PYTHON_POINTS.get(source, 0) + self.points
 
     def differs(self, job, why: str) -> None:
         """The compiled module cannot be trusted: Python from now on, with a warning."""
