@@ -6,7 +6,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import sys as _sys
 import time
 import weakref
@@ -344,7 +343,7 @@ def _warn(message: str) -> None:
 def _starts_engine(sys, points: int) -> bool:
     """Whether ``points`` time points of ``sys`` (a batch's together) go to the engine."""
     return _compiled_lone(sys) or engines.fast_start_pays(
-        sys, points, getattr(sys, _PACE, 0.0) * points)
+        sys, points, (engines._kept_on(sys, _PACE) or 0.0) * points)
 
 
 def _python_control(sys, T, U, X0, options):
@@ -356,8 +355,7 @@ def _python_control(sys, T, U, X0, options):
     with SYSTEM_CALLS:  # (its systems keep a call's params on themselves)
         resp = ct.input_output_response(sys, T, U, X0, **options)
     pace = (time.perf_counter() - start) / max(np.size(T), 1)
-    with contextlib.suppress(AttributeError, TypeError):  # (one that takes no attributes)
-        setattr(sys, _PACE, max(pace, getattr(sys, _PACE, 0.0)))
+    engines._keep_on(sys, _PACE, max(pace, engines._kept_on(sys, _PACE) or 0.0))
     resp.engine_mode = "python-control"
     return resp
 

@@ -449,7 +449,8 @@ def test_a_fresh_script_s_short_runs_are_python_control_s_own_until_the_engine_p
     (result,) = _fresh_script(
         'from controlkit import engines, simulation\n'
         'first = run(loop(), 101)\n'
-        'pays = engines.fast_start_pays(decay, 11, getattr(decay, simulation._PACE, 0) * 11)\n'
+        'pays = engines.fast_start_pays(decay, 11, (engines._kept_on(decay, simulation._PACE)'
+        ' or 0.0) * 11)\n'
         'print("RESULT", first, pays, run(decay, 11), run(decay, 11), run(loop(), 101))')
     assert result[0] == "python-control:False"
     # (the PI loop built again is a new diagram: its short run is python-control's still)

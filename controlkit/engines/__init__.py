@@ -69,6 +69,36 @@ def check_engine(name):
     return name
 
 
+class _Kept:
+    """What controlkit keeps on a python-control system for its next call (python-control's
+    pace on it, a block's one-block diagram, a diagram's prepared jobs); copied or pickled
+    as None."""
+
+    __slots__ = ("value",)
+
+    def __init__(self, value):
+        self.value = value
+
+    def __reduce__(self):  # (copy and deepcopy too: a pickle needs no controlkit to load)
+        return (type(None), ())
+
+
+def _kept_on(sys, attribute):
+    """What :func:`_keep_on` kept on ``sys`` under ``attribute``, else None."""
+    kept = getattr(sys, attribute, None)
+    return kept.value if isinstance(kept, _Kept) else None
+
+
+def _keep_on(sys, attribute, value) -> None:
+    """Keep ``value`` on ``sys`` (nothing when it takes no attributes)."""
+    try:
+        setattr(sys, attribute, _Kept(value))
+    except (AttributeError, TypeError):  # an object that takes no attributes
+        pass
+
+
+#: The attribute of a diagram its prepared jobs are kept in (:mod:`.fast.reuse`).
+_KEPT_JOBS = "_controlkit_kept_job"
 #: python-control takes at least this many times as long as the fast engine's Python run
 #: of a diagram (measured on the benchmark rows: 2.1-10.6x; a chain of one-line user
 #: functions, 1.2x).
@@ -124,9 +154,7 @@ def fast_start_pays(sys, points: int, longest: float = 0.0) -> bool:
     """
     if getattr(sys, "syslist", None) is None:  # a lone system
         return max(points * LONE_POINT_SECONDS, longest) > LONE_SECONDS
-    # (read from the module once imported: another thread may be importing the engine)
-    prepared = getattr(_sys.modules.get("controlkit.engines.fast.reuse"), "prepared", None)
-    if prepared is not None and prepared(sys):
+    if _kept_on(sys, _KEPT_JOBS):  # (run before: its prepared job is kept on it)
         return True
     started = "controlkit.engines.fast" in _sys.modules
     blocks = len(sys.syslist)

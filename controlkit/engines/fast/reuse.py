@@ -31,9 +31,9 @@ import numpy as np
 
 from ...blocks.contract import KernelBlock
 from ...blocks.sampling import SampledSystem
-from .. import source
+from .. import _KEPT_JOBS, _keep_on, _kept_on, source
 from . import store
-from .tiers import _keep_on, _kept_on, _local_params
+from .tiers import _local_params
 
 
 class _Unknown(Exception):
@@ -196,21 +196,10 @@ def reused(sys, key):
     """
     if key is None:
         return None
-    key_kept, job = (_kept_on(sys, _ATTRIBUTE) or {}).get(key[1], (None, None))
+    key_kept, job = (_kept_on(sys, _KEPT_JOBS) or {}).get(key[1], (None, None))
     if job is None or job.sys is not sys or key_kept != key:
         return None
     return job
-
-
-def prepared(sys) -> bool:
-    """Whether a job of ``sys`` is kept on it (made by an earlier call in this process).
-
-    Examples
-    --------
-    >>> prepared(object())
-    False
-    """
-    return bool(_kept_on(sys, _ATTRIBUTE))
 
 
 def keep(sys, key, job) -> None:
@@ -225,12 +214,8 @@ def keep(sys, key, job) -> None:
     """
     if key is None:
         return
-    jobs = _kept_on(sys, _ATTRIBUTE)
+    jobs = _kept_on(sys, _KEPT_JOBS)
     if jobs is None:
         jobs = {}
-        _keep_on(sys, _ATTRIBUTE, jobs)
+        _keep_on(sys, _KEPT_JOBS, jobs)
     jobs[key[1]] = (key, job)
-
-
-#: The attribute of a diagram its kept jobs (by way of running) are held in.
-_ATTRIBUTE = "_controlkit_kept_job"

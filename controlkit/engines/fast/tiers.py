@@ -22,7 +22,7 @@ from ...blocks.contract import BlockKernels, KernelBlock
 from ...blocks.sampling import SampledSystem
 from ...compat import SYSTEM_CALLS
 from ...kernels import common, lti
-from .. import source
+from .. import _keep_on, _kept_on, source
 from ..contract import UnsupportedSystem
 from . import usercode
 
@@ -310,33 +310,6 @@ def _one_block(sys):
     # interconnect's blocks numpy's products of its maps (a -0.0 becomes 0.0): codegen asks
     wrapped.single_system = True
     return wrapped
-
-
-class _Kept:
-    """What the engine keeps on a python-control system for its next call (a block's
-    one-block diagram, a diagram's jobs: :mod:`.reuse`); copied or pickled as None."""
-
-    __slots__ = ("value",)
-
-    def __init__(self, value):
-        self.value = value
-
-    def __reduce__(self):  # (copy and deepcopy too: a pickle needs no controlkit to load)
-        return (type(None), ())
-
-
-def _kept_on(sys, attribute):
-    """What :func:`_keep_on` kept on ``sys`` under ``attribute``, else None."""
-    kept = getattr(sys, attribute, None)
-    return kept.value if isinstance(kept, _Kept) else None
-
-
-def _keep_on(sys, attribute, value) -> None:
-    """Keep ``value`` on ``sys`` (nothing when it takes no attributes)."""
-    try:
-        setattr(sys, attribute, _Kept(value))
-    except (AttributeError, TypeError):  # an object that takes no attributes
-        pass
 
 
 def blocks_of(sys, params=None, *, compiled=False):
