@@ -281,11 +281,13 @@ def continuous_run(evaluate, update, outputs, integrate, machine, rhs_args, time
         i = ctrl[NEXT_TIME]
         last = k + 1 == K
         t1 = t_final if last else instants[k + 1]
-        stop = ctrl[SERVES] if resume else i  # the evaluation times this interval serves
-        while not resume and stop < m and eval_instant[stop] < 0 and (
-                t_eval[stop] < t1 or last and t_eval[stop] <= t1):
-            stop += 1  # (once an interval: every time point of a continuous run's one)
-        ctrl[SERVES] = stop
+        if not resume:  # the evaluation times this interval serves, found once (a paused
+            stop = i  # interval keeps them: a continuous run's one spans every time point)
+            while stop < m and eval_instant[stop] < 0 and (
+                    t_eval[stop] < t1 or last and t_eval[stop] <= t1):
+                stop += 1
+            ctrl[SERVES] = stop
+        stop = ctrl[SERVES]
         if nc == 0 or not t1 > t:  # nothing to integrate: the signals at those times
             for j in range(i, stop):
                 failed = _record(evaluate, outputs, t_eval[j], x, T, U, ubuf, P, ys, ui,

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import ast
 import builtins
+import functools
 import inspect
 import random
 import types
@@ -307,8 +308,9 @@ class _Effects:
         if owner is None or isinstance(owner, (types.ModuleType, *_GENERATORS)):
             return None
         found = inspect.getattr_static(owner, node.attr, None)
-        getter, bound = getattr(found, "fget", None) or getattr(found, "func", None), owner
-        if not isinstance(getter, types.FunctionType):  # (a descriptor of its own)
+        if isinstance(found, property | functools.cached_property):
+            getter, bound = getattr(found, "fget", None) or found.func, owner
+        else:  # (a descriptor of its own; a plain value or a function has none in Python)
             getter, bound = getattr(type(found), "__get__", None), found
         if not isinstance(getter, types.FunctionType):
             return None
