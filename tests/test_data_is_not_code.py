@@ -184,35 +184,24 @@ def test_a_helper_s_name_is_not_written_as_code(tmp_path):
     assert not target.exists()
 
 
-def test_a_module_is_never_imported_by_a_name_read_from_an_attribute(tmp_path, monkeypatch):
-    target = tmp_path / "ran"
-    (tmp_path / "ck_not_the_one.py").write_text(_touch(target) + "\nk = 5.0\n")
-    monkeypatch.syspath_prepend(str(tmp_path))
-    namespace = types.ModuleType("ck_not_the_one")  # a namespace made from data
-    namespace.k = 2.0
-
-    def out(t, x, u, params):
-        m = namespace  # (the module itself, not its number, goes into the kernel's text)
-        return [m.k * u[0]]
-
-    loop = _gain_loop(out)
-    (row,) = controlkit.explain(loop)
-    assert row.tier == "python" and "ck_not_the_one" in row.reason, row
-    _run_both(loop)
-    assert not target.exists() and "ck_not_the_one" not in sys.modules
-
-
-def test_a_module_under_a_package_not_imported_is_not_imported_by_its_package_name(
-        tmp_path, monkeypatch):
+@pytest.mark.parametrize(("planted", "name", "registered"), [
+    # a namespace made from data, named as a module planted on sys.path: the module
+    # itself, not its number, goes into the kernel's text
+    ("ck_not_the_one", "ck_not_the_one", False),
     # a module registered as 'a.b' alone (as plugin loaders do): the kernel's text said
     # `import a.b as ...`, and Python's import statement imports the package `a` by name,
     # from sys.path, first (a review ran a planted ck_parent.py, from explain already)
+    ("ck_parent", "ck_parent.sub", True),
+], ids=["read from an attribute", "under a package not imported"])
+def test_a_module_is_imported_only_when_it_and_its_packages_are_imported(
+        tmp_path, monkeypatch, planted, name, registered):
     target = tmp_path / "ran"
-    (tmp_path / "ck_parent.py").write_text(_touch(target) + "\n")
+    (tmp_path / f"{planted}.py").write_text(_touch(target) + "\nk = 5.0\n")
     monkeypatch.syspath_prepend(str(tmp_path))
-    namespace = types.ModuleType("ck_parent.sub")
+    namespace = types.ModuleType(name)
     namespace.k = 2.0
-    monkeypatch.setitem(sys.modules, "ck_parent.sub", namespace)
+    if registered:
+        monkeypatch.setitem(sys.modules, name, namespace)
 
     def out(t, x, u, params):
         m = namespace
@@ -220,9 +209,9 @@ def test_a_module_under_a_package_not_imported_is_not_imported_by_its_package_na
 
     loop = _gain_loop(out)
     (row,) = controlkit.explain(loop)
-    assert row.tier == "python" and "ck_parent.sub" in row.reason, row
+    assert row.tier == "python" and name in row.reason, row
     _run_both(loop)
-    assert not target.exists() and "ck_parent" not in sys.modules
+    assert not target.exists() and planted not in sys.modules
 
 
 class _Gain(float):  # 2.0, but ten times as much on signals above 3
