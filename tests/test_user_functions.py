@@ -394,11 +394,14 @@ def test_compile_true_never_gives_a_number_python_would_not(compiles_after_a_pie
 
 def test_a_module_compiled_on_one_run_is_not_trusted_blindly_on_the_next(
         compiles_after_a_piece):
-    # inputs of 1: the check agrees and the module is kept compiled; the next run (or the
-    # next process, loading it from the store) has inputs where compiled code differs
+    # inputs of 1: the check agrees and the module is kept compiled; the next process,
+    # loading it, has inputs where compiled code differs (a process checks a module once:
+    # its first compiled piece, here emptied as a new process has it)
     loop = halving_loop("differs")
     T = np.arange(300) * TS
     assert simulate(loop, T, X0=[0.0], U=1.0, engine="fast").engine_mode == "compiled"
+    assert len(run.CHECKED) == 1
+    run.CHECKED.clear()
     ref = ct.input_output_response(loop, T, 1e6, [0.0])
     with pytest.warns(UserWarning, match="its compiled numbers differ from Python's"):
         resp = simulate(loop, T, X0=[0.0], U=1e6, engine="fast")

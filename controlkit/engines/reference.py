@@ -115,7 +115,7 @@ def simulate_sampled_data(sys, T, X0, U, *, params=None, t_eval=None, method="RK
     with SYSTEM_CALLS:  # (python-control's systems keep a call's params on themselves)
         scipy_loop(sweep.evaluate, sweep.update, sweep.outputs, sweep.derivatives, None,
                    *run.loop_arguments(None, method))
-    return response(sys, run.t_eval, run.Y, run.X, run.Uo)
+    return response(sys, run.times, run.Y, run.X, run.Uo)
 
 
 class _Sweep:

@@ -8,9 +8,10 @@ described in ``docs/architecture.md`` (*The engine*).
 from __future__ import annotations
 
 from .continuous import StiffProblem, run_continuous
+from .diagnose import explain
 from .discrete import STREAM_CHUNK_STEPS, simulate
 from .response import response
-from .run import RULE, compiled_job, explain, prepare
+from .run import RULE, compiled_job, prepare
 from .store import CACHE_DIR
 from .tiers import TIERS, BlockTier
 

@@ -30,9 +30,8 @@ from .loops import (
     UNDER_WAY,
     WATCH_STAGES,
 )
-from .pieces import Pieces, interrupted, now, quiet_numbers, same_numbers
-from .run import CHECKED, Runner
-from .tiers import NotCompiled
+from .pieces import Pieces, interrupted, now, quiet_numbers
+from .run import Runner
 
 #: The methods integrated by the engine's own code; the stiff ones go to scipy.
 EXPLICIT_METHODS = tuple(rk.METHODS)
@@ -118,7 +117,7 @@ class _Run:
     """The arrays of one run, which its pieces fill (see :func:`run_continuous`)."""
 
     def __init__(self, sys, plan, T, U, X0, t_eval, method, solver):
-        self.sys, self.T, self.U, self.t_eval = sys, T, U, t_eval
+        self.sys, self.T, self.U, self.times = sys, T, U, t_eval
         self.instants = sample_times(getattr(sys, "base_period", 0.0), T[0], T[-1])
         h = float(getattr(sys, "base_period", 0.0) or 0.0)
         self.eval_instant = loops.instant_of(t_eval, self.instants, h)
@@ -155,7 +154,7 @@ class _Run:
         machine (:func:`.loops.instants_loop`, :func:`.loops.scipy_loop`), for parameters
         ``P`` and ``method`` (the integrator's index of it, or scipy's name)."""
         return ((*self.rhs_args[:6], P, *self.rhs_args[7:]),
-                (self.instants, float(self.T[-1]), self.T, self.U, self.t_eval,
+                (self.instants, float(self.T[-1]), self.T, self.U, self.times,
                  self.eval_instant), (self.Y, self.X, self.Uo), (self.x, P, self.held),
                 self.buffers, (method, *self.solver), self.ctrl, self.status)
 
@@ -170,6 +169,25 @@ class _Run:
     def restore(self, saved):
         for array, kept in zip(self.arrays(), saved, strict=True):
             array[...] = kept
+
+    @property
+    def position(self) -> int:
+        """The outputs written so far."""
+        return int(self.ctrl[NEXT_TIME])
+
+    def stopped(self) -> bool:
+        return self.status[1] != -1
+
+    def handed_back(self) -> bool:
+        return self.status[1] == AGAIN_AS_PYTHON  # (a user's function compiled went on)
+
+    def written(self, n0, n1):
+        """Results ``n0:n1``, and the integrator's states served past them (not written as
+        outputs yet: a piece from the same start writes over them)."""
+        return [a[:, n0:n1].copy() for a in (self.Y, self.X, self.Uo)] + [self.y_eval[n0:].copy()]
+
+    def put_back(self, written, n0, n1):
+        self.Y[:, n0:n1], self.X[:, n0:n1], self.Uo[:, n0:n1], self.y_eval[n0:] = written
 
     def done(self) -> bool:
         return (self.status[1] != -1 or self.ctrl[INSTANT] >= self.instants.size
@@ -265,32 +283,20 @@ def run_continuous(sys, T, U, X0, *, params=None, t_eval=None, method="RK45",
     pieces, start = Pieces(first=256), now()
     first = runner.check_first()  # a compiled module new here: compared on the first piece
     if first is not None:
-        _switch(runner, first, run, pieces)
+        runner.check(first, run, min(pieces.next(), CHECK_EVALUATIONS))
     while not run.done():
         began = now()
-        if runner.job.compiled:  # where Python takes over if the piece stops
-            runner.last_snapshot = run.snapshot()
         try:
-            run.piece(runner.job, pieces.next())
+            runner.piece(run, pieces.next())
         except KeyboardInterrupt as stop:
-            n = int(run.ctrl[NEXT_TIME])
+            n = run.position
             raise interrupted(stop, base_response(sys, t_eval[:n], run.Y[:, :n],
                                                   run.X[:, :n], run.Uo[:, :n])) from None
-        except NotCompiled as why:  # numba's compile failed: the run is Python's
-            run.restore(runner.last_snapshot)
-            runner.python_from_now(str(why))
-            continue
-        except Exception:
-            if not runner.job.compiled:
-                raise
-            _python_from_here(runner, run, pieces)  # Python's error, or Python's numbers
         pieces.took(pieces.next(), now() - began)
-        if run.status[1] != -1 and runner.job.compiled:
-            _python_from_here(runner, run, pieces)
         if not runner.decided:
             new = runner.decide(now() - start, run.fraction())
             if new is not None:
-                _switch(runner, new, run, pieces)
+                runner.check(new, run, min(pieces.next(), CHECK_EVALUATIONS))
         if progress is not None:
             progress(run.fraction())
     _failed(runner.job, run)
@@ -344,67 +350,9 @@ def compile_integrator() -> str:
     return run_continuous(loop, T, np.ones((1, 3)), np.zeros(1), compile=True).engine_mode
 
 
-def _python_from_here(runner, run, pieces):
-    """A compiled piece stopped: run it again as Python (which raises Python's own error
-    if there is one), and the rest of the run as Python."""
-    run.restore(runner.last_snapshot)
-    runner.compiled = None
-    run.piece(runner.python, pieces.next())
-
-
-def _switch(runner, job, run, pieces):
-    """Compile ``job`` and run the next piece both ways: compiled from then on if they
-    agree, else Python."""
-    saved = run.snapshot()
-    budget = min(pieces.next(), CHECK_EVALUATIONS)
-    n0 = int(run.ctrl[NEXT_TIME])
-    run.piece(runner.python, budget)
-    python = run.snapshot()
-    n1 = int(run.ctrl[NEXT_TIME])
-    # (with the states the integrator served past the piece's last output, not yet written
-    # as outputs: the compiled piece from the same start writes over them)
-    results = [a[:, n0:n1].copy() for a in (run.Y, run.X, run.Uo)] + [run.y_eval[n0:].copy()]
-    if run.status[1] != -1:  # Python stopped in this piece: it says why
-        return
-    run.restore(saved)
-    try:
-        run.piece(job, budget)
-    except NotCompiled as why:
-        _back_to(run, python, results, n0, n1)
-        runner.python_from_now(str(why))
-        return
-    except Exception as error:  # noqa: BLE001 - the run goes on as Python
-        _back_to(run, python, results, n0, n1)
-        runner.differs(job, f"its compiled module failed ({type(error).__name__}: {error})")
-        return
-    if run.status[1] == AGAIN_AS_PYTHON:  # (Python's functions went on or raised: its piece)
-        _back_to(run, python, results, n0, n1)
-        return
-    # the whole state compared, the integrator's too: a short piece may end inside its
-    # first step, before any output or state is written
-    agree = (run.status[1] == -1 and int(run.ctrl[NEXT_TIME]) == n1
-             and same_numbers(run.Y[:, n0:n1], results[0])
-             and same_numbers(run.y_eval[n0:], results[3])
-             and all(same_numbers(mine, theirs)
-                     for mine, theirs in zip(run.snapshot(), python, strict=True)))
-    if not agree:
-        _back_to(run, python, results, n0, n1)
-        runner.differs(job, f"its compiled numbers differ from Python's near t = "
-                            f"{run.t_eval[min(n1, run.t_eval.size - 1)]:g} s")
-        return
-    runner.compiled = job
-    runner.last_snapshot = None
-    CHECKED.add(job.source)
-
-
-def _back_to(run, state, results, n0, n1):
-    run.restore(state)
-    run.Y[:, n0:n1], run.X[:, n0:n1], run.Uo[:, n0:n1], run.y_eval[n0:] = results
-
-
 def _failed(job, run):
     """Raise what stopped the run, if something did."""
-    status, t_eval = run.status, run.t_eval
+    status, t_eval = run.status, run.times
     if status[1] == INTEGRATOR_FAILED:
         raise _integrator_error(job, run)
     if status[1] >= 0:
@@ -418,7 +366,7 @@ def _failed(job, run):
 
 def _integrator_error(job, run):
     """The integrator stopped: say where, why, and what to do."""
-    sys, status, t_eval, method, x = job.sys, run.status, run.t_eval, run.method, run.x
+    sys, status, t_eval, method, x = job.sys, run.status, run.times, run.method, run.x
     code, served = int(status[2]), int(status[0])
     where = t_eval[served - 1] if served > 0 else t_eval[0]
     blocks = [b.system.name for b in job.blocks if b.system.nstates and b.system.dt == 0]

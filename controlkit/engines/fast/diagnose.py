@@ -1,4 +1,5 @@
-"""Why a run stopped, in the words of the block that stopped it.
+"""Why a run stopped, in the words of the block that stopped it; and how each block runs
+(:func:`explain`, the tiers of :mod:`.tiers` and a compiled module's verdict).
 
 Compiled kernels signal failure with NaN (block contract, rule 6). When a run stops on
 one, the failing step is evaluated again as Python, so that the block's python-control
@@ -8,10 +9,15 @@ became non-finite is the loop diverging, said with the block and the time.
 
 from __future__ import annotations
 
+import control as ct
 import numpy as np
 
-from ... import _checks
-from .plan import held_logic
+from ... import _checks, _jit
+from ..contract import UnsupportedSystem
+from . import store
+from .plan import evaluation_order, held_logic
+from .run import compiled_job
+from .tiers import BlockTier, NotCompiled, _resolve, as_interconnect, blocks_of
 
 
 def signals_at(job, t, x, u, k):
@@ -126,3 +132,77 @@ def sampled_block_blew_up(job, t, x, u, k, after=None):
             s = b.system
             with np.errstate(all="ignore"):
                 s.dynamics(t, x[b.x0:b.x0 + s.nstates], ui[b.u0:b.u0 + s.ninputs])
+
+
+def explain(sys, params=None) -> list[BlockTier]:
+    """How the fast engine runs each block of ``sys``: its tier and the reason.
+
+    Tiers (:data:`.tiers.TIERS`): ``"compiled"`` (the block can be compiled: the diagram
+    runs compiled when every block can be, and :data:`RULE` says when), ``"python"`` (the
+    block runs as Python, and with it the whole diagram: the reason says why; also every
+    block of a diagram whose compiled module gave other numbers than Python, or did not
+    compile) and ``"python-control"`` (the whole diagram falls back to
+    :func:`control.input_output_response`; the reason says why).
+
+    Parameters
+    ----------
+    sys : control.InterconnectedSystem
+        The diagram.
+    params : dict, optional
+        Parameters as for :func:`controlkit.simulation.simulate` (their types and
+        shapes decide the code compiled for user functions; a value that compiled
+        code cannot take, such as a string, sends its block to the ``python`` tier).
+
+    Returns
+    -------
+    list of BlockTier
+        ``(name, tier, reason)`` per block, in ``sys.syslist`` order.
+
+    Raises
+    ------
+    ValueError
+        ``sys`` is not a python-control system.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> pi = ct.sample_system(ct.tf([1.0, 0.5], [1.0, 0.0]), 0.1, name="pi",
+    ...                       inputs="e", outputs="u")
+    >>> plant = ct.nlsys(lambda t, x, u, p: x + 0.1 * (u - p.get("a", 1.0) * x ** 3),
+    ...                  lambda t, x, u, p: x, inputs="u", outputs="y", states=1,
+    ...                  dt=0.1, name="plant")
+    >>> error = ct.summing_junction(["r", "-y"], "e", name="error")
+    >>> loop = ct.interconnect([plant, pi, error], inputs="r", outputs="y")
+    >>> for row in explain(loop):
+    ...     print(row.name, "|", row.tier, "|", row.reason)
+    plant | compiled | user nlsys compiled (parameters passed at run time)
+    pi | compiled | LTI block (state space)
+    error | compiled | LTI block (state space)
+    """
+    if not isinstance(sys, ct.InputOutputSystem):
+        raise ValueError(f"sys must be a python-control system (a block or an interconnect), "
+                         f"got {type(sys).__name__} {sys!r:.60}"
+                         + ("; call explain on each system of the list" if isinstance(
+                             sys, list | tuple) else ""))
+    try:
+        sys = as_interconnect(sys)  # a single block runs as a one-block diagram
+        evaluation_order(sys, blocks_of(sys, params))
+    except UnsupportedSystem as why:
+        return [BlockTier(s.name, "python-control", str(why))
+                for s in getattr(sys, "syslist", [sys])]
+    rows = []
+    for block in sys.syslist:
+        try:
+            _, tier, reason = _resolve(sys, block, params, compiled=True)
+        except NotCompiled as why:
+            tier, reason = "python", str(why).split(": ", 1)[-1]
+        except store.StoreRefused as why:
+            tier, reason = "python", str(why)
+        if tier == "compiled" and not _jit.available():
+            tier, reason = "python", reason + " (numba not installed: the loop runs as Python)"
+        rows.append(BlockTier(block.name, tier, reason))
+    job = compiled_job(sys, params) if all(r.tier == "compiled" for r in rows) else None
+    if isinstance(job, str):  # its compiled module differed from Python, or failed
+        rows = [BlockTier(r.name, "python", f"{r.reason}; but the diagram runs as Python: "
+                                            f"{job}") for r in rows]
+    return rows

@@ -14,9 +14,8 @@ import numpy as np
 from ..contract import UnsupportedSystem, check_arguments, chunk_bounds, recorded_indices
 from ..contract import response as base_response
 from .diagnose import diverged, explain_failure, sampled_block_blew_up
-from .pieces import Pieces, interrupted, now, quiet_numbers, same_numbers, where_they_part
-from .run import CHECKED, Runner
-from .tiers import NotCompiled
+from .pieces import Pieces, interrupted, now, quiet_numbers
+from .run import Runner
 
 #: Steps simulated per chunk when a run is streamed (bounds the memory of long runs).
 STREAM_CHUNK_STEPS = 20_000
@@ -75,21 +74,20 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
         else (Y, X)
     reports = set(chunk_bounds(N - 1, chunks)[1:].tolist()) if progress else set()
     x = X0.astype(float)
-    pieces, start, done_steps = Pieces(), now(), 0
+    pieces, start = Pieces(), now()
     first = runner.check_first()  # a compiled module new here: compared on the first piece
     for c0 in range(0, N, step):
         c1 = min(c0 + step, N)
-        Tc = np.ascontiguousarray(T[c0:c1], dtype=float)
-        Uc = np.require(U[:, c0:c1], dtype=float, requirements=["C", "W"])
-        k = 0
+        run = _Steps(np.ascontiguousarray(T[c0:c1], dtype=float),
+                     np.require(U[:, c0:c1], dtype=float, requirements=["C", "W"]), Yb, Xb, x)
         if first is not None:
-            k, x = _switch(runner, first, Tc, x, Uc, Yb, Xb, 0, c1 - c0, pieces)
+            runner.check(first, run, pieces.next())
+            _said(runner.job, run)
             first = None
-        while k < c1 - c0:
-            k1 = min(k + pieces.next(), c1 - c0)
-            began = now()
+        while run.position < run.times.size:
+            k, began = run.position, now()
             try:
-                x = _piece(runner, Tc, x, Uc, Yb, Xb, k, k1)
+                runner.piece(run, pieces.next())
             except KeyboardInterrupt as stop:
                 if streamed:  # the samples kept so far, this chunk's too
                     mine = (kept >= c0) & (kept < c0 + k)
@@ -98,20 +96,20 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
                 raise interrupted(stop, base_response(
                     sys, np.asarray(T[kept[:n]], dtype=float), Y[:, :n], X[:, :n],
                     U[:, kept[:n]])) from None
-            pieces.took(k1 - k, now() - began)
-            done_steps = c0 + k1
-            k = k1
+            pieces.took(run.position - k, now() - began)
+            _said(runner.job, run)
             if not runner.decided:
-                new = runner.decide(now() - start, done_steps / N)
+                new = runner.decide(now() - start, (c0 + run.position) / N)
                 if new is not None:
-                    k, x = _switch(runner, new, Tc, x, Uc, Yb, Xb, k, c1 - c0, pieces)
-                    done_steps = c0 + k
+                    runner.check(new, run, pieces.next())
+                    _said(runner.job, run)
             if progress is not None:
-                for bound in sorted(b for b in reports if b <= done_steps):
+                for bound in sorted(b for b in reports if b <= c0 + run.position):
                     reports.discard(bound)
                     progress(bound / max(N - 1, 1))
+        x = run.x
         if on_chunk is not None:
-            on_chunk(Tc, Yb[:, :c1 - c0], Xb[:, :c1 - c0])
+            on_chunk(run.times, Yb[:, :c1 - c0], Xb[:, :c1 - c0])
         if streamed:
             mine = (kept >= c0) & (kept < c1)
             Y[:, mine], X[:, mine] = Yb[:, kept[mine] - c0], Xb[:, kept[mine] - c0]
@@ -124,42 +122,55 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
     return resp
 
 
-def _run(job, args):
-    """``job``'s ``run_discrete`` on ``args``: its compiled entry or its Python one."""
-    if job.compiled:
-        return job.entry("run_discrete", args)(*args)
-    with quiet_numbers():
-        return job.functions().run_discrete(*args)
+class _Steps:
+    """A chunk of a discrete run (see :func:`simulate`): its times, inputs and results, the
+    state ``x`` after its first ``position`` steps, and the status a failing step leaves
+    (its step and block); :meth:`.run.Runner.piece` and :meth:`~.run.Runner.check` run it."""
+
+    def __init__(self, times, U, Y, X, x):
+        self.times, self.U, self.Y, self.X, self.x, self.position = times, U, Y, X, x, 0
+        self.status = np.full(2, -1, dtype=np.int64)
+
+    def piece(self, job, steps):
+        k1 = min(self.position + steps, self.times.size)
+        args = (self.times, self.x, self.U, job.P, self.Y, self.X, self.status,
+                self.position, k1)
+        if job.compiled:
+            self.x = job.entry("run_discrete", args)(*args)
+        else:
+            with quiet_numbers():
+                self.x = job.functions().run_discrete(*args)
+        self.position = k1
+
+    def snapshot(self):
+        return [self.x.copy(), np.array([self.position]), self.status.copy()]
+
+    def restore(self, saved):
+        self.x, self.position, self.status[:] = saved[0].copy(), int(saved[1][0]), saved[2]
+
+    def stopped(self) -> bool:
+        return bool(self.status[0] >= 0 or not np.isfinite(self.x).all())
+
+    def handed_back(self) -> bool:
+        return False
+
+    def written(self, n0, n1):
+        return [self.Y[:, n0:n1].copy(), self.X[:, n0:n1].copy()]
+
+    def put_back(self, written, n0, n1):
+        self.Y[:, n0:n1], self.X[:, n0:n1] = written
 
 
-def _piece(runner, T, x, U, Y, X, k0, k1):
-    """Steps ``k0 .. k1 - 1``: the state after them (failures explained)."""
-    job = runner.job
-    status = np.full(2, -1, dtype=np.int64)
-    args = (T, x, U, job.P, Y, X, status, k0, k1)
-    try:
-        x1 = _run(job, args)
-    except NotCompiled as why:  # numba's compile failed: the run is Python's
-        runner.python_from_now(str(why))
-        return _piece(runner, T, x, U, Y, X, k0, k1)
-    except Exception:
-        if not job.compiled:
-            raise
-        # compiled code stopped (an index out of range, a parameter missing): the same
-        # steps as Python raise Python's own error, with the block and the time
-        x1 = _replay(runner, T, x, U, Y, X, status, k0, k1)
-    else:  # a NaN, or a state gone non-finite: Python's error, or Python's numbers
-        if job.compiled and (status[0] >= 0 or not np.isfinite(x1).all()):
-            x1 = _replay(runner, T, x, U, Y, X, status, k0, k1)
-    job = runner.job
+def _said(job, run) -> None:
+    """Raise what stopped ``run``'s last piece, in the words of the block that stopped it."""
+    times, X, U, status = run.times, run.X, run.U, run.status
     if status[0] >= 0:
         k = int(status[0])
-        _blown_up(job, T, X, U, k, X[:, k])
-        explain_failure(job, T[k], X[:, k], U[:, k], status[1])
-    if not np.isfinite(x1).all():
-        k = _blown_up(job, T, X, U, k1, x1)
-        raise diverged(job, T[min(k, T.size - 1)], x1)
-    return x1
+        _blown_up(job, times, X, U, k, X[:, k])
+        explain_failure(job, times[k], X[:, k], U[:, k], status[1])
+    if not np.isfinite(run.x).all():
+        k = _blown_up(job, times, X, U, run.position, run.x)
+        raise diverged(job, times[min(k, times.size - 1)], run.x)
 
 
 def _blown_up(job, T, X, U, k, x):
@@ -172,49 +183,3 @@ def _blown_up(job, T, X, U, k, x):
         sampled_block_blew_up(job, T[first - 1], X[:, first - 1], U[:, first - 1],
                               first - 1, states[:, first])
     return first
-
-
-def _replay(runner, T, x, U, Y, X, status, k0, k1):
-    """Run steps ``k0 .. k1 - 1`` as Python (from ``x``); from then on the run is Python.
-
-    A compiled piece that stopped is run again as Python: Python's error is raised from
-    here if there is one; if there is none, Python's numbers stand and the run goes on
-    as Python (compiled code and Python part ways here, and Python is the meaning)."""
-    runner.compiled = None
-    status[:] = -1
-    return _run(runner.python, (T, x, U, runner.python.P, Y, X, status, k0, k1))
-
-
-def _switch(runner, job, T, x, U, Y, X, k, n, pieces):
-    """Compile ``job`` and check it against Python on the next piece; returns where the
-    run stands after that piece ``(k, x)``, compiled from then on if they agree."""
-    k1 = min(k + pieces.next(), n)
-    if k1 <= k:
-        return k, x
-    status = np.full(2, -1, dtype=np.int64)
-    x_python = _run(runner.python, (T, x, U, runner.python.P, Y, X, status, k, k1))
-    Yp, Xp = Y[:, k:k1].copy(), X[:, k:k1].copy()
-    if status[0] >= 0 or not np.isfinite(x_python).all():
-        # Python stopped or diverged in this piece: said by the piece run again
-        runner.decided = True
-        return k, x
-    args = (T, x, U, job.P, Y, X, np.full(2, -1, dtype=np.int64), k, k1)
-    try:
-        x_compiled = job.entry("run_discrete", args)(*args)
-    except NotCompiled as why:
-        Y[:, k:k1], X[:, k:k1] = Yp, Xp
-        runner.python_from_now(str(why))
-        return k1, x_python
-    except Exception as error:  # noqa: BLE001 - the run goes on as Python
-        runner.differs(job, f"its compiled module failed ({type(error).__name__}: {error})")
-        Y[:, k:k1], X[:, k:k1] = Yp, Xp
-        return k1, x_python
-    if not (same_numbers(Y[:, k:k1], Yp) and same_numbers(X[:, k:k1], Xp)):
-        runner.differs(job, f"its compiled numbers differ from Python's between t = "
-                            f"{T[k]:g} and {T[k1 - 1]:g} s"
-                            + where_they_part(job.blocks, T[k:k1], X[:, k:k1], Xp))
-        Y[:, k:k1], X[:, k:k1] = Yp, Xp
-        return k1, x_python
-    runner.compiled = job
-    CHECKED.add(job.source)
-    return k1, x_compiled

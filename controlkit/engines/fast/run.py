@@ -14,18 +14,16 @@ import functools
 from dataclasses import dataclass, field
 from types import SimpleNamespace
 
-import control as ct
 import numpy as np
 
 from ... import _jit
 from ..._checks import warn_caller
 from .. import PYTHON_CONTROL_SLOWER, check_compile
-from ..contract import UnsupportedSystem
 from . import reuse, store, usercode
 from .codegen import generate
-from .pieces import PIECE_SECONDS, now
+from .pieces import PIECE_SECONDS, now, same_numbers, where_they_part
 from .plan import Plan, evaluation_order, held_logic, make_plan
-from .tiers import BlockTier, NotCompiled, _resolve, as_interconnect, blocks_of, same_kernels
+from .tiers import NotCompiled, blocks_of, same_kernels
 
 #: How the engine chooses between running a diagram as Python and compiled.
 RULE = ("compiled when asked (compile=True), when the diagram's module is compiled "
@@ -405,6 +403,71 @@ class Runner:
         _TWINS[self.python.source] = candidate
         return candidate
 
+    def piece(self, run, budget) -> None:
+        """One piece of ``run`` (a driver's, as :meth:`check` takes it) on the job running
+        now. A compiled piece that fails or stops is run again as Python from the same
+        start, and so is the rest of the run: Python's error is raised if there is one, else
+        Python's numbers stand (compiled code and Python part ways there, and Python is the
+        meaning)."""
+        if not self.job.compiled:
+            run.piece(self.job, budget)
+            return
+        start = run.snapshot()
+        try:
+            run.piece(self.job, budget)
+            if not run.stopped():
+                return
+            self.compiled = None
+        except NotCompiled as why:  # numba's compile failed: the run is Python's
+            self.python_from_now(str(why))
+        except Exception:  # noqa: BLE001 - the piece run as Python says what it is
+            self.compiled = None
+        run.restore(start)
+        run.piece(self.python, budget)
+
+    def check(self, job, run, budget) -> None:
+        """The next piece of ``run`` as Python, then on the compiled ``job`` from the same
+        start: compiled from then on when the two agree to the bit (what the piece wrote,
+        and all the run carries), else Python's piece stands and the run goes on as Python,
+        saying why. A piece where Python stops is left as Python ran it: the driver says why.
+
+        ``run`` is a driver's run: ``snapshot()`` and ``restore(saved)`` of what it
+        carries, ``piece(job, budget)``, ``position`` (results written so far) and their
+        ``times``, ``written(n0, n1)`` (copies of results ``n0:n1``, the states second)
+        and ``put_back(written, n0, n1)``, ``stopped()`` and ``handed_back()`` (a
+        compiled piece that asked for Python: no verdict)."""
+        start, n0 = run.snapshot(), run.position
+        run.piece(self.python, budget)
+        if run.stopped():
+            return
+        python, n1 = run.snapshot(), run.position
+        written = run.written(n0, n1)
+        run.restore(start)
+        try:
+            run.piece(job, budget)
+        except Exception as error:  # noqa: BLE001 - the run goes on as Python
+            verdict = str(error) if isinstance(error, NotCompiled) else (
+                f"its compiled module failed ({type(error).__name__}: {error})")
+        else:
+            mine = run.written(n0, n1)
+            if run.handed_back():
+                verdict = None
+            elif run.position == n1 and all(same_numbers(a, b) for a, b in zip(
+                    (*run.snapshot(), *mine), (*python, *written), strict=True)):
+                self.compiled = job
+                CHECKED.add(job.source)
+                return
+            else:
+                at = run.times[min(n0, run.times.size - 1):max(n1, n0 + 1)]
+                verdict = "its compiled numbers differ from Python's " + (
+                    f"at t = {at[0]:g} s" if at.size == 1 else
+                    f"between t = {at[0]:g} and {at[-1]:g} s") + where_they_part(
+                    job.blocks, run.times[n0:n1], mine[1], written[1])
+        run.restore(python)
+        run.put_back(written, n0, n1)
+        if verdict is not None:
+            self.differs(job, verdict)
+
     def finished(self, seconds: float) -> None:
         """A run that took ``seconds`` ended: counted for its module when it ran as Python
         by the rule (``compile=None``)."""
@@ -425,76 +488,3 @@ class Runner:
         warn_caller(f"{self.sys.name!r} runs as Python: {why} (controlkit.explain lists "
                     f"every block's tier)")
 
-
-def explain(sys, params=None) -> list[BlockTier]:
-    """How the fast engine runs each block of ``sys``: its tier and the reason.
-
-    Tiers (:data:`.tiers.TIERS`): ``"compiled"`` (the block can be compiled: the diagram
-    runs compiled when every block can be, and :data:`RULE` says when), ``"python"`` (the
-    block runs as Python, and with it the whole diagram: the reason says why; also every
-    block of a diagram whose compiled module gave other numbers than Python, or did not
-    compile) and ``"python-control"`` (the whole diagram falls back to
-    :func:`control.input_output_response`; the reason says why).
-
-    Parameters
-    ----------
-    sys : control.InterconnectedSystem
-        The diagram.
-    params : dict, optional
-        Parameters as for :func:`controlkit.simulation.simulate` (their types and
-        shapes decide the code compiled for user functions; a value that compiled
-        code cannot take, such as a string, sends its block to the ``python`` tier).
-
-    Returns
-    -------
-    list of BlockTier
-        ``(name, tier, reason)`` per block, in ``sys.syslist`` order.
-
-    Raises
-    ------
-    ValueError
-        ``sys`` is not a python-control system.
-
-    Examples
-    --------
-    >>> import control as ct
-    >>> pi = ct.sample_system(ct.tf([1.0, 0.5], [1.0, 0.0]), 0.1, name="pi",
-    ...                       inputs="e", outputs="u")
-    >>> plant = ct.nlsys(lambda t, x, u, p: x + 0.1 * (u - p.get("a", 1.0) * x ** 3),
-    ...                  lambda t, x, u, p: x, inputs="u", outputs="y", states=1,
-    ...                  dt=0.1, name="plant")
-    >>> error = ct.summing_junction(["r", "-y"], "e", name="error")
-    >>> loop = ct.interconnect([plant, pi, error], inputs="r", outputs="y")
-    >>> for row in explain(loop):
-    ...     print(row.name, "|", row.tier, "|", row.reason)
-    plant | compiled | user nlsys compiled (parameters passed at run time)
-    pi | compiled | LTI block (state space)
-    error | compiled | LTI block (state space)
-    """
-    if not isinstance(sys, ct.InputOutputSystem):
-        raise ValueError(f"sys must be a python-control system (a block or an interconnect), "
-                         f"got {type(sys).__name__} {sys!r:.60}"
-                         + ("; call explain on each system of the list" if isinstance(
-                             sys, list | tuple) else ""))
-    try:
-        sys = as_interconnect(sys)  # a single block runs as a one-block diagram
-        evaluation_order(sys, blocks_of(sys, params))
-    except UnsupportedSystem as why:
-        return [BlockTier(s.name, "python-control", str(why))
-                for s in getattr(sys, "syslist", [sys])]
-    rows = []
-    for block in sys.syslist:
-        try:
-            _, tier, reason = _resolve(sys, block, params, compiled=True)
-        except NotCompiled as why:
-            tier, reason = "python", str(why).split(": ", 1)[-1]
-        except store.StoreRefused as why:
-            tier, reason = "python", str(why)
-        if tier == "compiled" and not _jit.available():
-            tier, reason = "python", reason + " (numba not installed: the loop runs as Python)"
-        rows.append(BlockTier(block.name, tier, reason))
-    job = compiled_job(sys, params) if all(r.tier == "compiled" for r in rows) else None
-    if isinstance(job, str):  # its compiled module differed from Python, or failed
-        rows = [BlockTier(r.name, "python", f"{r.reason}; but the diagram runs as Python: "
-                                            f"{job}") for r in rows]
-    return rows
