@@ -262,22 +262,23 @@ def kernel_identity(fn) -> str:
     return f"{name} (source {hashlib.sha256(text.encode()).hexdigest()[:16]})"
 
 
-def generate(plan, held_logic):
+def generate(plan):
     """The source of ``plan``'s module (see the module's description).
 
     Kernels are named ``kernel_<i>``, a comment says which (:func:`kernel_identity`); the
     engine hands them in, compiled or as Python. No block's or diagram's name appears.
-    ``held_logic``: :func:`.plan.held_logic` (without it every block fires at every step).
+    Blocks fire at their instants when :attr:`.plan.Plan.held` (else at every step).
     A NaN output stops the run at its block (block contract rule 6).
 
     Examples
     --------
     >>> from controlkit.engines.fast.run import prepare
     >>> from controlkit.studies.cmg.diagrams import cmg_loop
-    >>> source = generate(prepare(cmg_loop()).plan, held_logic=False)
+    >>> source = generate(prepare(cmg_loop()).plan)
     >>> [line[:22] for line in source.splitlines() if line.startswith("def run")]
     ['def run_discrete(T, X0']
     """
+    held_logic = plan.held
     P = plan.parameters()  # (which LTI blocks are written out depends on its zeros)
     identities = tuple(map(kernel_identity, plan.kernels))
     rows, ny = plan.rows, plan.ny

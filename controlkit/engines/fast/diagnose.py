@@ -15,7 +15,7 @@ import numpy as np
 from ... import _checks, _jit
 from ..contract import UnsupportedSystem
 from . import store
-from .plan import evaluation_order, held_logic
+from .plan import evaluation_order
 from .run import compiled_job
 from .tiers import BlockTier, NotCompiled, _resolve, as_interconnect, blocks_of
 
@@ -69,7 +69,7 @@ def explain_failure(job, t, x, u, block_index, k=0):
     if not np.isfinite(x).all():  # the loop diverged before the block's output did
         raise diverged(job, t, x)
     with np.errstate(all="ignore"):
-        if not held_logic(job.sys):  # python-control's own evaluation, as its path would
+        if not job.plan.held:  # python-control's own evaluation, as its path would
             try:
                 job.sys.output(t, x, u)
             except RuntimeError as error:  # its sweep cannot settle on non-finite signals

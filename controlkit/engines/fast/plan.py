@@ -93,6 +93,15 @@ class Plan:
     ny: int
     nu: int
 
+    @property
+    def held(self) -> bool:
+        """Whether discrete blocks hold their outputs between their instants (a sampled-data
+        diagram: of several rates, or of continuous and discrete blocks), which
+        python-control's own evaluation of a diagram cannot do."""
+        from ...sampled_data import SampledDataSystem
+
+        return isinstance(self.sys, SampledDataSystem)
+
     @functools.cached_property
     def controlkit_s_own(self) -> set[int]:
         """The indexes of the kernels that are controlkit's own (NaN in, NaN out, never an
@@ -185,22 +194,6 @@ def exact_sum(coefficients) -> bool:
     """
     nonzero = coefficients[coefficients != 0.0]
     return nonzero.size <= 1 or nonzero.size == 2 and bool(np.all(np.abs(nonzero) == 1.0))
-
-
-def held_logic(sys) -> bool:
-    """Whether discrete blocks hold their outputs between their instants (a diagram of
-    several rates, or of continuous and discrete blocks), which python-control's own
-    evaluation of the diagram cannot do.
-
-    Examples
-    --------
-    >>> from controlkit.studies.cmg.diagrams import cmg_loop
-    >>> held_logic(cmg_loop())
-    False
-    """
-    from ...sampled_data import SampledDataSystem
-
-    return isinstance(sys, SampledDataSystem)
 
 
 def _kind(block, kernel, diagram_dt) -> int:

@@ -22,7 +22,7 @@ from .. import PYTHON_CONTROL_SLOWER, check_compile
 from . import reuse, store, usercode
 from .codegen import generate
 from .pieces import PIECE_SECONDS, now, same_numbers, where_they_part
-from .plan import Plan, evaluation_order, held_logic, make_plan
+from .plan import Plan, evaluation_order, make_plan
 from .tiers import NotCompiled, blocks_of, same_kernels
 
 #: How the engine chooses between running a diagram as Python and compiled.
@@ -202,8 +202,7 @@ def prepare(sys, params=None, *, compiled=False, like=None) -> Job:
         job = Job(sys, like.plan, like.P, like.source, compiled)
     else:
         plan = make_plan(sys, blocks, evaluation_order(sys, blocks))
-        job = Job(sys, plan, plan.parameters(), generate(plan, held_logic=held_logic(sys)),
-                  compiled)
+        job = Job(sys, plan, plan.parameters(), generate(plan), compiled)
     reuse.keep(sys, key, job)
     return job
 
@@ -219,7 +218,7 @@ def compile_estimate(job) -> float:
     >>> compile_estimate(prepare(cmg_loop())) > 0
     True
     """
-    continuous = bool(job.plan.continuous.size or held_logic(job.sys))
+    continuous = bool(job.plan.continuous.size or job.plan.held)
     measured = store.compile_times("continuous" if continuous else "run_discrete")
     if measured:
         seconds = float(np.median(measured)) * len(job.blocks)
