@@ -49,8 +49,9 @@ def _solve_interval_compiled(machine_function, rhs, args, method_index, t0, t1, 
     method_index : int
         ``METHOD_INDEX[name]``: 0 RK23, 1 RK45, 2 DOP853 (the tableaux :data:`TABLEAUX`).
     t0, t1 : float
-        The interval; ``t1 < t0`` integrates backwards; ``t1 == t0`` takes no step and,
-        as in scipy, serves no evaluation time.
+        The interval, forward (``t1 < t0`` is an invalid argument: the engine never
+        integrates backwards); ``t1 == t0`` takes no step and, as in scipy, serves no
+        evaluation time.
     y0 : numpy.ndarray, shape (n,)
         State at ``t0`` (read only).
     rtol : float
@@ -60,9 +61,9 @@ def _solve_interval_compiled(machine_function, rhs, args, method_index, t0, t1, 
     max_step : float
         Largest step (``numpy.inf``: unbounded); > 0.
     first_step : float
-        First step; 0 lets the integrator choose; else in ``(0, |t1 - t0|]``.
+        First step; 0 lets the integrator choose; else in ``(0, t1 - t0]``.
     t_eval : numpy.ndarray, shape (m,)
-        Evaluation times, strictly monotone in the direction of integration.
+        Evaluation times, increasing (the interval is integrated forward: ``t1 >= t0``).
     i_eval : int
         First index of ``t_eval`` this call serves; ``t_eval[i_eval]`` at or after ``t0``.
     closed_right : bool

@@ -25,7 +25,8 @@ starting step, Hairer, Norsett & Wanner 1993, Sec. II.4, or ``first_step``) is
 
 (``SAFETY``, ``MIN_FACTOR``, ``MAX_FACTOR``; ``q`` the order of the error estimate).
 After each accepted step, its interpolant serves the evaluation times ``t_e <= t`` not
-served yet, in the direction of integration (scipy's ``searchsorted(side="right")``).
+served yet (scipy's ``searchsorted(side="right")``). It integrates forward only (``t1 >=
+t0``): the engine's runs do.
 """
 
 from __future__ import annotations
@@ -51,7 +52,6 @@ from .workspace import (
     _ATOL,
     _CLOSED_RIGHT,
     _D1,
-    _DIRECTION,
     _ERR,
     _EVAL_END,
     _FIRST_STEP,
@@ -214,14 +214,11 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
             return _finish(st, INVALID_ARGUMENT)
         t0 = f[_T0]
         t1 = f[_T1]
-        direction = 1.0 if t1 >= t0 else -1.0
-        eval_end = _evaluation_end(t0, t1, direction, t_eval, st[NEXT_EVAL],
-                                   st[_CLOSED_RIGHT] == 1)
+        eval_end = _evaluation_end(t0, t1, t_eval, st[NEXT_EVAL], st[_CLOSED_RIGHT] == 1)
         if eval_end < 0:
             return _finish(st, INVALID_ARGUMENT)
         st[_EVAL_END] = eval_end
         f[_T] = t0
-        f[_DIRECTION] = direction
         f[_RTOL] = _py_max(f[_RTOL_GIVEN], RTOL_FLOOR)
         if not _all_finite(f, y, n):
             return _finish(st, NON_FINITE)
@@ -231,7 +228,6 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
 
     method = TABLEAUX[st[_METHOD]]
     S = method.n_stages
-    direction = f[_DIRECTION]
     while True:
         if phase == _PHASE_STAGE:
             # The last stage is in K (machine_on_arrays asked for the others): the new
@@ -272,9 +268,8 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
                 if st[_LAST_ERROR_FINITE] == 1:
                     return _finish(st, STEP_TOO_SMALL)
                 return _finish(st, NON_FINITE)
-            h = h_abs * direction
-            t_new = t + h
-            if direction * (t_new - f[_T1]) > 0:
+            t_new = t + h_abs
+            if t_new > f[_T1]:
                 t_new = f[_T1]
             h = t_new - t
             f[_H] = h
@@ -303,11 +298,11 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
             f[TIME_REACHED] = t
             if method.stiffness_bound > 0.0 and _too_stiff(method, K, f, st, n, t):
                 return _finish(st, STIFF)
-            # The evaluation times this step serves: t_e <= t, in the direction of travel.
+            # The evaluation times this step serves: t_e <= t.
             first = st[NEXT_EVAL]
             stop = first
             eval_end = st[_EVAL_END]
-            while stop < eval_end and direction * (t_eval[stop] - t) <= 0:
+            while stop < eval_end and t_eval[stop] <= t:
                 stop += 1
             st[_STOP] = stop
             phase = _PHASE_STEP_END
@@ -319,7 +314,7 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
                     return _finish(st, NON_FINITE)
 
         elif phase == _PHASE_STEP_END:
-            if direction * (f[_T] - f[_T1]) >= 0:
+            if f[_T] >= f[_T1]:
                 return _finish(st, SUCCESS)
             for i in range(n):
                 K[0, i] = K[S, i]
@@ -328,7 +323,7 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
         elif phase == _PHASE_STEP:
             # A new step from (t, y) with f in K[0]: bound the proposed size.
             t = f[_T]
-            min_step = 10 * abs(math.nextafter(t, direction * math.inf) - t)
+            min_step = 10 * abs(math.nextafter(t, math.inf) - t)
             h_abs = f[_H_ABS]
             if h_abs > f[_MAX_STEP]:
                 h_abs = f[_MAX_STEP]
@@ -392,10 +387,10 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
                 h0 = 0.01 * d0 / d1
             h0 = _py_min(h0, interval)
             for i in range(n):
-                f[y_stage + i] = f[y + i] + h0 * direction * K[0, i]
+                f[y_stage + i] = f[y + i] + h0 * K[0, i]
             f[_H0] = h0
             f[_D1] = d1
-            return _request(f, st, t0 + h0 * direction, 1, _PHASE_F1)
+            return _request(f, st, t0 + h0, 1, _PHASE_F1)
 
         elif phase == _PHASE_F1:
             # Second half: f1 = rhs(t0 + h0, y0 + h0 f0) is in K[1].

@@ -29,17 +29,17 @@ from .tableaux import TABLEAUX
 T_REQUEST = 0
 #: ``floats`` slot: last time reached (the end of the last accepted step).
 TIME_REACHED = 1
-(_T, _T_OLD, _T_NEW, _H, _H_ABS, _MIN_STEP, _T0, _T1, _DIRECTION, _RTOL, _MAX_STEP,
- _FIRST_STEP, _H0, _D1, _RTOL_GIVEN) = range(2, 17)
+(_T, _T_OLD, _T_NEW, _H, _H_ABS, _MIN_STEP, _T0, _T1, _RTOL, _MAX_STEP, _FIRST_STEP, _H0,
+ _D1, _RTOL_GIVEN) = range(2, 16)
 #: ``floats`` slot: the stiffness estimate ``|h lambda|`` of the last accepted step
 #: (see :func:`set_horizon`; 0 for a method without the test).
-STIFFNESS = 17
+STIFFNESS = 16
 #: ``floats`` slot: the steps the whole run was projected to need when it stopped as
 #: :data:`STIFF`.
-PROJECTED_STEPS = 18
-_RUN_START, _RUN_END = 19, 20
+PROJECTED_STEPS = 17
+_RUN_START, _RUN_END = 18, 19
 #: Number of scalar slots at the start of ``work.floats``.
-N_FLOAT_SLOTS = 21
+N_FLOAT_SLOTS = 20
 
 # The vectors after the scalars, in this order (each of the state's size).
 _Y, _Y_NEW, _Y_OLD, _Y_STAGE, _SCALE, _ERR, _ERR_LOW, _ATOL, _N_VECTORS = range(9)
@@ -111,9 +111,9 @@ STATUS_MESSAGES = {
             "not accuracy, and the run would need too many steps; use an implicit method "
             "(BDF, LSODA or Radau)."),
     PAUSED: "Paused after its evaluation budget; resume to go on.",
-    INVALID_ARGUMENT: ("Invalid argument: max_step must be > 0, first_step in [0, |t1 - t0|], "
-                       "atol >= 0 of the state's size, t0 and t1 finite, the evaluation "
-                       "times strictly monotone inside [t0, t1], and the work arrays of the "
+    INVALID_ARGUMENT: ("Invalid argument: max_step must be > 0, first_step in [0, t1 - t0], "
+                       "atol >= 0 of the state's size, t0 <= t1 finite, the evaluation "
+                       "times increasing inside [t0, t1], and the work arrays of the "
                        "method's size."),
 }
 
@@ -253,12 +253,12 @@ def _arguments_valid(t_eval, y_eval, f, K, st):
     n = K.shape[1]
     t0 = f[_T0]
     t1 = f[_T1]
-    if not (math.isfinite(t0) and math.isfinite(t1)):
+    if not (math.isfinite(t0) and math.isfinite(t1) and t1 >= t0):  # (forward only)
         return False
     if not (f[_MAX_STEP] > 0):
         return False
     first_step = f[_FIRST_STEP]
-    if not (first_step >= 0) or first_step > abs(t1 - t0):
+    if not (first_step >= 0) or first_step > t1 - t0:
         return False
     atol = _at(_ATOL, n)
     for i in range(n):
@@ -277,24 +277,22 @@ def _arguments_valid(t_eval, y_eval, f, K, st):
 
 
 @jit(inline=True)
-def _evaluation_end(t0, t1, direction, t_eval, i_eval, closed_right):
+def _evaluation_end(t0, t1, t_eval, i_eval, closed_right):
     """One past the last evaluation time this interval serves, or -1 when they are bad.
 
     The interval serves ``t_eval[i_eval:end]``: the times ``t`` with ``t0 <= t < t1``
-    (``t <= t1`` when ``closed_right``), read in the direction of integration; they
-    must start at or after ``t0`` and be strictly monotone.
+    (``t <= t1`` when ``closed_right``); they must start at or after ``t0`` and increase.
     """
     end = i_eval
     previous = t0
     while end < t_eval.shape[0]:
         t = t_eval[end]
-        ahead = direction * (t - t1)
-        if ahead > 0 or (ahead == 0 and not closed_right):
+        if t > t1 or (t == t1 and not closed_right):
             break
         if end == i_eval:
-            if direction * (t - t0) < 0:
+            if t < t0:
                 return -1
-        elif not (direction * (t - previous) > 0):
+        elif not (t > previous):
             return -1
         previous = t
         end += 1
