@@ -184,6 +184,30 @@ def test_a_short_call_after_long_runs_makes_no_step_its_own_run_cannot_hold(monk
     assert made == [0]
 
 
+@pytest.mark.parametrize(("numba_started", "twin_seconds", "twin_made"), [
+    (True, 0.001, True),
+    # numba's start (0.15 s) does not fit in a 0.1-s room: no twin, as no step could follow
+    (False, 0.001, False),
+    # a twin of 0.05 s fits in the room python-control's call leaves at twice this run's
+    # time (0.1 s), not beside its quickest (1.2 times: 0.02 s), where its call was 0.75x
+    (True, 0.05, False),
+])
+def test_a_compiled_twin_is_made_only_where_it_fits_beside_python_control_s_quickest_call(
+        monkeypatch, numba_started, twin_seconds, twin_made):
+    loop = cmg_scenario.build_loop("thesis")
+    source = run.prepare(loop).source
+    _earlier_runs(monkeypatch, source, 1.0)  # ten runs of 0.1 s as Python
+    monkeypatch.setattr(run, "compile_estimate", lambda job: 5.0)  # (never in a call)
+    started = []
+    if not numba_started:
+        monkeypatch.setattr(run, "NUMBA_START", ((0.15, lambda: False,
+                                                  lambda: started.append(1)),))
+    monkeypatch.setattr(run, "TWIN_SECONDS", twin_seconds / len(loop.syslist))
+    runner = run.Runner(loop, None, None)
+    assert (source in run._TWINS) == twin_made
+    assert runner.compiled is None and started == []
+
+
 def test_a_kernel_numba_cannot_compile_ends_the_steps_not_the_call(monkeypatch):
     # a step's compile that fails does not fail the user's call: the rule makes no more
     # steps for the diagram in this process (a long run may still compile it, whose

@@ -103,6 +103,9 @@ _KEPT_JOBS = "_controlkit_kept_job"
 #: of a diagram (measured on the benchmark rows: 2.1-10.6x; a chain of one-line user
 #: functions, 1.2x).
 PYTHON_CONTROL_SLOWER = 2.0
+#: The least python-control took against it, measured (a chain of one-line functions):
+#: what work done on speculation (its worth not known yet) must fit in.
+PYTHON_CONTROL_LEAST = 1.2
 #: The fast engine's start in a process: importing its modules (13-16 ms measured on a
 #: 2-core machine).
 FAST_START_SECONDS = 0.016

@@ -18,7 +18,7 @@ import numpy as np
 
 from ... import _jit
 from ..._checks import warn_caller
-from .. import PYTHON_CONTROL_SLOWER, check_compile
+from .. import PYTHON_CONTROL_LEAST, PYTHON_CONTROL_SLOWER, check_compile
 from . import reuse, store, usercode
 from .codegen import generate
 from .pieces import PIECE_SECONDS, now, same_numbers, where_they_part
@@ -310,11 +310,16 @@ class Runner:
         source = self.python.source
         before = PYTHON_SECONDS.get(source, 0.0)
         typical = before * self.points / max(PYTHON_POINTS.get(source, 1), 1)  # (this call's)
-        if before <= PAYS * NUMBA_START_SECONDS:
-            return
+        # what this call can spend on steps: what it saves against python-control's call
+        room = (PYTHON_CONTROL_SLOWER - 1.0) * typical
+        if before <= PAYS * NUMBA_START_SECONDS or any(
+                seconds > room for seconds, done, _ in NUMBA_START if not done()):
+            return  # (not worth numba's start, or a start that never fits in a call)
         if source not in _TWINS:  # (its cost, read by the diagrams of this text to come)
-            if TWIN_SECONDS * len(self.python.blocks) > (PYTHON_CONTROL_SLOWER - 1) * typical:
-                return  # (making it would not fit in this call: 0.1 s for 40 blocks)
+            # made before its steps are known: only where it fits even beside
+            # python-control's quickest call (0.75x on a 20-block chain of one-line functions)
+            if TWIN_SECONDS * len(self.python.blocks) > (PYTHON_CONTROL_LEAST - 1) * typical:
+                return
             _TWINS[source] = compiled_job(self.sys, self.params, self.python)
         twin = _TWINS[source]
         if isinstance(twin, str):
@@ -340,10 +345,9 @@ class Runner:
                     candidate.plan.kernels):
                 self.compiled, self.decided = candidate, True
             return
-        # each run as Python makes the steps that fit in what it saves against
-        # python-control's call: a call that made them and compiled too would be slower
-        # (the continuous cruise cell: runs of 0.3 s, a compile of 1.1-1.3 s)
-        room = (PYTHON_CONTROL_SLOWER - 1.0) * typical
+        # each run as Python makes the steps that fit in its room: a call that made them and
+        # compiled too would be slower (the continuous cruise cell: runs of 0.3 s, a compile
+        # of 1.1-1.3 s)
         if max(seconds for seconds, _ in steps) > room:
             return  # (a step that never fits in a call: the others would be for nothing)
         for seconds, make in steps:
