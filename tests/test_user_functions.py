@@ -409,6 +409,28 @@ def test_a_module_compiled_on_one_run_is_not_trusted_blindly_on_the_next(
     np.testing.assert_array_equal(resp.outputs, ref.outputs)
 
 
+def test_a_module_the_rule_chose_at_a_chunk_s_end_is_checked_on_the_next_chunk(
+        compiles_after_a_piece, monkeypatch):
+    # a streamed run's rule chose the compiled module after a chunk's last piece: its check
+    # ran on a piece of no steps there, compared nothing, and the module went on unchecked,
+    # with other numbers than Python's and no warning (found by a review)
+    from controlkit.engines.contract import recorded_indices
+    from controlkit.engines.fast import discrete
+
+    monkeypatch.setattr(discrete, "STREAM_CHUNK_STEPS", 64)  # (a chunk: the first piece)
+    for memory in ("PYTHON_SECONDS", "PYTHON_POINTS"):  # (no earlier run: decided after it)
+        monkeypatch.setattr(run, memory, {})
+    loop = halving_loop("differs")
+    T = np.arange(300) * TS
+    ref = ct.input_output_response(loop, T, 1e6, [0.0])
+    with pytest.warns(UserWarning, match=r"its compiled numbers differ from Python's between "
+                                         r"t = 3\.2 and"):
+        resp = simulate(loop, T, X0=[0.0], U=1e6, engine="fast", record_every=2)
+    assert resp.engine_mode == "python"
+    np.testing.assert_array_equal(np.ravel(resp.outputs),
+                                  np.ravel(ref.outputs)[recorded_indices(300, 2)])
+
+
 class Settings:
     """Values and a function a user function reads through an object."""
 
@@ -1254,6 +1276,54 @@ def test_pow_compiles_as_python_computes_it_and_math_exp_overflows_as_python_rai
     for compile in (True, False):
         with pytest.raises(OverflowError, match="math range error"):
             controlkit.input_output_response(loop, T, U, 0.0, compile=compile)
+
+
+def root_compared(t, x, u, params):  # a comparison loses the NaN of sqrt(-1)
+    r = math.sqrt(u[0])
+    return [0.5 * x[0] + (1.0 if r > 0.5 else 0.0)]
+
+
+def log_unused(t, x, u, params):  # a result left unused: numba's NaN is lost
+    math.log(u[0])
+    return [0.5 * x[0] + u[0]]
+
+
+def roots_and_logs(t, x, u, params):
+    return [-x[0] + math.sqrt(u[0]) + math.log1p(u[0]) + math.atanh(0.5 * math.tanh(u[0]))]
+
+
+@pytest.mark.parametrize("update", [root_compared, log_unused])
+def test_math_s_domain_errors_raise_as_python_raises_them_where_numba_s_nan_is_lost(update):
+    # compiled, a square root or a logarithm of a negative was numba's NaN, which a
+    # comparison or an unused result drops: the run answered where python-control raises
+    # (found by a review: past the first piece, which is compared with Python)
+    block = ct.nlsys(update, None, inputs="u", outputs="y", states=1, dt=TS, name="domain")
+    loop = ct.interconnect([block], inputs="u", outputs="y")
+    T = np.arange(4000) * TS
+    U = np.where(T > 150.0, -1.0, 1.0)
+    with pytest.raises(ValueError, match="math domain error"):
+        ct.input_output_response(loop, T, U, 0.1)
+    with pytest.raises(ValueError, match=r"math domain error \(in block 'domain', its update "
+                                         r"function, at t = 150\.05 s\)"):
+        controlkit.input_output_response(loop, T, U, 0.1, compile=True)
+    if update is root_compared:  # within the domain: compiled, python-control's numbers
+        U = np.ones_like(T)
+        ours = controlkit.input_output_response(loop, T, U, 0.1, compile=True)
+        assert ours.engine_mode == "compiled"
+        assert np.array_equal(ours.outputs, ct.input_output_response(loop, T, U, 0.1).outputs)
+
+
+def test_math_s_checked_functions_compile_with_numba_s_numbers_in_a_continuous_loop():
+    block = ct.nlsys(roots_and_logs, None, inputs="u", outputs="y", states=1, name="logs")
+    loop = ct.interconnect([block], inputs="u", outputs="y")
+    T = np.linspace(0.0, 30.0, 301)
+    U = np.where(T > 25.0, 2.0, 1.0)
+    ours = controlkit.input_output_response(loop, T, U, 0.1, compile=True)
+    assert ours.engine_mode == "compiled"
+    assert np.array_equal(ours.outputs, ct.input_output_response(loop, T, U, 0.1).outputs)
+    with pytest.raises(ValueError, match="math domain error"):
+        controlkit.input_output_response(loop, T, np.where(T > 25.0, -1.0, 1.0), 0.1,
+                                         compile=True)
 
 
 def test_the_math_functions_sent_to_python_are_the_ones_numba_refuses():

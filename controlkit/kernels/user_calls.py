@@ -361,21 +361,39 @@ def missing_parameter(key):
     raise KeyError(key)
 
 
-def _raising_on_overflow(function):
+def _raising_as_python(function, domain=False):
     """``function`` of the math module as Python runs it: its ``OverflowError`` where a
-    finite argument gives an infinite result, which numba's returns without a word (and a
-    later ``1 / (1 + inf)`` makes a number again)."""
-    def checked(x):
-        y = function(x)
-        if math.isinf(y) and not math.isinf(x):
-            raise OverflowError("math range error")
-        return y
+    finite argument gives an infinite result, or with ``domain`` its ``ValueError`` where
+    the argument is outside its domain (NaN from a number, an infinity at a pole). numba's
+    returns those without a word, and a later ``1 / (1 + inf)``, a comparison or a result
+    left unused makes a number again; Python's own run of the piece then says what it is.
+    """
+    if domain:
+        def checked(x):
+            y = function(x)
+            if math.isnan(y) and not math.isnan(x) or math.isinf(y) and not math.isinf(x):
+                raise ValueError("math domain error")
+            return y
+    else:
+        def checked(x):
+            y = function(x)
+            if math.isinf(y) and not math.isinf(x):
+                raise OverflowError("math range error")
+            return y
 
     checked.__name__ = checked.__qualname__ = f"math_{function.__name__}"
-    checked.__doc__ = f"``math.{function.__name__}``, raising Python's ``OverflowError``."
+    checked.__doc__ = (f"``math.{function.__name__}``, raising Python's "
+                       f"``{'ValueError' if domain else 'OverflowError'}``.")
     return _jit.jit(checked)
 
 
 #: What compiled user code calls instead of ``math.exp``, ``expm1``, ``sinh``, ``cosh``.
 math_exp, math_expm1, math_sinh, math_cosh = map(
-    _raising_on_overflow, (math.exp, math.expm1, math.sinh, math.cosh))
+    _raising_as_python, (math.exp, math.expm1, math.sinh, math.cosh))
+#: What compiled user code calls instead of ``math.sqrt``, ``log``, ``log10``, ``log2``,
+#: ``log1p``, ``acos``, ``asin``, ``acosh``, ``atanh`` (of one argument: numba has no
+#: ``log(x, base)``, whose function runs as Python).
+(math_sqrt, math_log, math_log10, math_log2, math_log1p, math_acos, math_asin, math_acosh,
+ math_atanh) = (_raising_as_python(f, domain=True) for f in (
+    math.sqrt, math.log, math.log10, math.log2, math.log1p, math.acos, math.asin,
+    math.acosh, math.atanh))

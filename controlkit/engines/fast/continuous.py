@@ -189,6 +189,10 @@ class _Run:
     def put_back(self, written, n0, n1):
         self.Y[:, n0:n1], self.X[:, n0:n1], self.Uo[:, n0:n1], self.y_eval[n0:] = written
 
+    def span(self, n0, n1) -> str:
+        """(A piece ends inside an interval, its states served beyond its last output.)"""
+        return f"after t = {self.times[max(n0 - 1, 0)]:g} s"
+
     def done(self) -> bool:
         return (self.status[1] != -1 or self.ctrl[INSTANT] >= self.instants.size
                 and self.ctrl[UNDER_WAY] == 0)
@@ -281,28 +285,24 @@ def run_continuous(sys, T, U, X0, *, params=None, t_eval=None, method="RK45",
     runner = Runner(sys, params, False if method in STIFF_METHODS else compile, T.size)
     run = _Run(sys, runner.python.plan, T, U, X0, t_eval, method, solver)
     pieces, start = Pieces(first=256), now()
-    first = runner.check_first()  # a compiled module new here: compared on the first piece
-    if first is not None:
-        runner.check(first, run, min(pieces.next(), CHECK_EVALUATIONS))
     while not run.done():
-        began = now()
+        began, n0, checking = now(), run.position, runner.to_check
         try:
-            runner.piece(run, pieces.next())
+            runner.piece(run, pieces.next(), CHECK_EVALUATIONS)
         except KeyboardInterrupt as stop:
-            n = run.position
+            n = n0 if checking else run.position  # (a check's results: not yet checked)
             raise interrupted(stop, base_response(sys, t_eval[:n], run.Y[:, :n],
                                                   run.X[:, :n], run.Uo[:, :n])) from None
-        pieces.took(pieces.next(), now() - began)
-        if not runner.decided:
-            new = runner.decide(now() - start, run.fraction())
-            if new is not None:
-                runner.check(new, run, min(pieces.next(), CHECK_EVALUATIONS))
+        if not checking:  # (a check runs its piece twice: not the pace of pieces)
+            pieces.took(pieces.next(), now() - began)
+        if not runner.decided:  # (a compiled job chosen: checked on the next piece)
+            runner.decide(now() - start, run.fraction())
         if progress is not None:
             progress(run.fraction())
     _failed(runner.job, run)
     runner.finished(now() - start)
     resp = base_response(sys, t_eval, run.Y, run.X, run.Uo)
-    resp.engine_mode = "compiled" if runner.compiled else "python"
+    resp.engine_mode = runner.mode
     if record_every != 1 or on_chunk is not None:
         if on_chunk is not None:
             on_chunk(t_eval, run.Y, run.X)

@@ -75,17 +75,12 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
     reports = set(chunk_bounds(N - 1, chunks)[1:].tolist()) if progress else set()
     x = X0.astype(float)
     pieces, start = Pieces(), now()
-    first = runner.check_first()  # a compiled module new here: compared on the first piece
     for c0 in range(0, N, step):
         c1 = min(c0 + step, N)
         run = _Steps(np.ascontiguousarray(T[c0:c1], dtype=float),
                      np.require(U[:, c0:c1], dtype=float, requirements=["C", "W"]), Yb, Xb, x)
-        if first is not None:
-            runner.check(first, run, pieces.next())
-            _said(runner.job, run)
-            first = None
         while run.position < run.times.size:
-            k, began = run.position, now()
+            k, began, checking = run.position, now(), runner.to_check
             try:
                 runner.piece(run, pieces.next())
             except KeyboardInterrupt as stop:
@@ -96,13 +91,11 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
                 raise interrupted(stop, base_response(
                     sys, np.asarray(T[kept[:n]], dtype=float), Y[:, :n], X[:, :n],
                     U[:, kept[:n]])) from None
-            pieces.took(run.position - k, now() - began)
+            if not checking:  # (a check runs its piece twice: not the pace of pieces)
+                pieces.took(run.position - k, now() - began)
             _said(runner.job, run)
-            if not runner.decided:
-                new = runner.decide(now() - start, (c0 + run.position) / N)
-                if new is not None:
-                    runner.check(new, run, pieces.next())
-                    _said(runner.job, run)
+            if not runner.decided:  # (a compiled job chosen: checked on the next piece)
+                runner.decide(now() - start, (c0 + run.position) / N)
             if progress is not None:
                 for bound in sorted(b for b in reports if b <= c0 + run.position):
                     reports.discard(bound)
@@ -118,7 +111,7 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
     resp = base_response(sys, T[kept] if streamed else np.asarray(T, dtype=float), Y, X,
                          U[:, kept] if streamed else U)
     runner.finished(now() - start)
-    resp.engine_mode = "compiled" if runner.compiled else "python"
+    resp.engine_mode = runner.mode
     return resp
 
 
@@ -156,6 +149,10 @@ class _Steps:
 
     def written(self, n0, n1):
         return [self.Y[:, n0:n1].copy(), self.X[:, n0:n1].copy()]
+
+    def span(self, n0, n1) -> str:
+        a, b = self.times[n0], self.times[n1 - 1]
+        return f"at t = {a:g} s" if n1 - n0 == 1 else f"between t = {a:g} and {b:g} s"
 
     def put_back(self, written, n0, n1):
         self.Y[:, n0:n1], self.X[:, n0:n1] = written

@@ -361,14 +361,17 @@ class Runner:
                 return
             self.spent += now() - began  # (what it took: an estimate errs)
 
-    def check_first(self) -> Job | None:
-        """The compiled job, taken back when it is new in this process: the caller compares
-        it with Python on the first piece."""
-        job = self.compiled
-        if job is None or job.source in CHECKED:
-            return None
-        self.compiled = None
-        return job
+    @property
+    def mode(self) -> str:
+        """How the run goes on: ``"compiled"`` (a compiled job checked in this process) or
+        ``"python"``."""
+        return "compiled" if self.compiled is not None and not self.to_check else "python"
+
+    @property
+    def to_check(self) -> bool:
+        """Whether the next piece compares the compiled job with Python (:meth:`check`): it
+        is new in this process."""
+        return self.compiled is not None and self.compiled.source not in CHECKED
 
     @property
     def job(self) -> Job:
@@ -376,8 +379,9 @@ class Runner:
         return self.compiled or self.python
 
     def decide(self, elapsed: float, done: float) -> Job | None:
-        """After a piece as Python: the compiled job if compiling now pays, else None
-        (and no more asking). ``elapsed`` seconds so far, ``done`` the fraction done."""
+        """After a piece as Python: the compiled job if compiling now pays (the next piece
+        checks it), else None (and no more asking). ``elapsed`` seconds so far, ``done``
+        the fraction done."""
         last, self.last = self.last, (elapsed, done)
         if self.decided or elapsed < PIECE_SECONDS and done < 1.0 or last is None:
             return None
@@ -404,14 +408,20 @@ class Runner:
         if saved <= PAYS * cost or cost > room:
             return None
         _TWINS[self.python.source] = candidate
+        self.compiled = candidate  # (compared with Python on the next piece)
         return candidate
 
-    def piece(self, run, budget) -> None:
+    def piece(self, run, budget, check_budget=None) -> None:
         """One piece of ``run`` (a driver's, as :meth:`check` takes it) on the job running
-        now. A compiled piece that fails or stops is run again as Python from the same
+        now, or its check when :attr:`to_check` (at most ``check_budget`` long). A compiled
+        piece that fails or stops is run again as Python from the same
         start, and so is the rest of the run: Python's error is raised if there is one, else
         Python's numbers stand (compiled code and Python part ways there, and Python is the
         meaning)."""
+        if self.to_check:
+            job, self.compiled = self.compiled, None
+            self.check(job, run, min(budget, check_budget or budget))
+            return
         if not self.job.compiled:
             run.piece(self.job, budget)
             return
@@ -437,8 +447,9 @@ class Runner:
         ``run`` is a driver's run: ``snapshot()`` and ``restore(saved)`` of what it
         carries, ``piece(job, budget)``, ``position`` (results written so far) and their
         ``times``, ``written(n0, n1)`` (copies of results ``n0:n1``, the states second)
-        and ``put_back(written, n0, n1)``, ``stopped()`` and ``handed_back()`` (a
-        compiled piece that asked for Python: no verdict)."""
+        and ``put_back(written, n0, n1)``, ``span(n0, n1)`` (when the piece ran, in
+        words), ``stopped()`` and ``handed_back()`` (a compiled piece that asked for
+        Python: no verdict)."""
         start, n0 = run.snapshot(), run.position
         run.piece(self.python, budget)
         if run.stopped():
@@ -461,11 +472,9 @@ class Runner:
                 CHECKED.add(job.source)
                 return
             else:
-                at = run.times[min(n0, run.times.size - 1):max(n1, n0 + 1)]
-                verdict = "its compiled numbers differ from Python's " + (
-                    f"at t = {at[0]:g} s" if at.size == 1 else
-                    f"between t = {at[0]:g} and {at[-1]:g} s") + where_they_part(
-                    job.blocks, run.times[n0:n1], mine[1], written[1])
+                verdict = (f"its compiled numbers differ from Python's {run.span(n0, n1)}"
+                           + where_they_part(job.blocks, run.times[n0:n1], mine[1],
+                                             written[1]))
         run.restore(python)
         run.put_back(written, n0, n1)
         if verdict is not None:
@@ -474,7 +483,7 @@ class Runner:
     def finished(self, seconds: float) -> None:
         """A run that took ``seconds`` ended: counted for its module when it ran as Python
         by the rule (``compile=None``)."""
-        if self.compiled is None and self.asked is None:
+        if self.mode == "python" and self.asked is None:
             source = self.python.source
             PYTHON_SECONDS[source] = PYTHON_SECONDS.get(source, 0.0) + seconds
             PYTHON_POINTS[source] = PYTHON_POINTS.get(source, 0) + self.points

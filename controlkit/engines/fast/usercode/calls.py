@@ -21,9 +21,11 @@ import numpy as np
 
 from ...source import NotCompilable, as_written
 
-#: ``math``'s functions that overflow: compiled user code calls ``math_<name>`` of
-#: :mod:`controlkit.kernels.user_calls` instead, which raises Python's ``OverflowError``.
-OVERFLOWING = ("exp", "expm1", "sinh", "cosh")
+#: ``math``'s functions that raise where numba's return inf or NaN (an overflow, an
+#: argument outside the domain): compiled user code calls ``math_<name>`` of
+#: :mod:`controlkit.kernels.user_calls` instead, which raises Python's error.
+RAISING = ("exp", "expm1", "sinh", "cosh", "sqrt", "log", "log10", "log2", "log1p", "acos",
+           "asin", "acosh", "atanh")
 
 
 class Calls(ast.NodeTransformer):
@@ -49,8 +51,8 @@ class Calls(ast.NodeTransformer):
                np.sign: "_ck_sign", np.maximum: "_ck_maximum", np.minimum: "_ck_minimum",
                np.mod: "_ck_mod", np.floor_divide: "_ck_floor_divide",
                np.divmod: "_ck_divmod", builtins.sum: "_ck_python_sum",
-               # math's functions that overflow: Python raises, numba's return inf
-               **{getattr(math, name): f"_ck_math_{name}" for name in OVERFLOWING}}
+               # math's functions that raise in Python, where numba's return inf or NaN
+               **{getattr(math, name): f"_ck_math_{name}" for name in RAISING}}
     #: Python's functions that make an integer of a float: their argument is checked first
     INTEGERS = (builtins.int, builtins.round, math.floor, math.ceil, math.trunc)
     #: ``math``'s functions numba does not compile (0.59-0.68): a function calling one runs
@@ -67,7 +69,7 @@ class Calls(ast.NodeTransformer):
     USER_CALLS = {"_ck_matmul": "matmul", "_ck_dot": "numpy_dot", "_ck_int64": "within_int64",
                   "_ck_python_sum": "python_sum", "_ck_missing": "missing_parameter",
                   "store": "store", **{f"_ck_math_{name}": f"math_{name}"
-                                       for name in OVERFLOWING}}
+                                       for name in RAISING}}
 
     def __init__(self, frozen):
         self.frozen = frozen
