@@ -443,13 +443,10 @@ class Runner:
         start: compiled from then on when the two agree to the bit (what the piece wrote,
         and all the run carries), else Python's piece stands and the run goes on as Python,
         saying why. A piece where Python stops is left as Python ran it: the driver says why.
-
-        ``run`` is a driver's run: ``snapshot()`` and ``restore(saved)`` of what it
-        carries, ``piece(job, budget)``, ``position`` (results written so far) and their
-        ``times``, ``written(n0, n1)`` (copies of results ``n0:n1``, the states second)
-        and ``put_back(written, n0, n1)``, ``span(n0, n1)`` (when the piece ran, in
-        words), ``stopped()`` and ``handed_back()`` (a compiled piece that asked for
-        Python: no verdict)."""
+        ``run``: ``snapshot()``, ``restore(saved)``, ``piece(job, budget)``, ``position``
+        (results written) and their ``times``, ``written(n0, n1)`` (copies of results
+        ``n0:n1``, the states second), ``put_back``, ``span(n0, n1)`` (in words),
+        ``stopped()``, ``handed_back()`` (a compiled piece asked for Python: no verdict)."""
         start, n0 = run.snapshot(), run.position
         run.piece(self.python, budget)
         if run.stopped():
