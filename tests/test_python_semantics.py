@@ -1192,6 +1192,36 @@ def test_a_stopped_run_raises_the_interrupt_it_was_stopped_by_with_what_was_comp
     assert 0 < kept.size <= 200 and np.array_equal(kept, T[:kept.size])
 
 
+@pytest.mark.parametrize("compile", [False, True])
+def test_a_stopped_continuous_run_keeps_the_times_its_interval_served(compile):
+    # a continuous run is one interval, whose outputs were made at its end: a run stopped
+    # at t = 50 of 100 s handed back an empty response
+    def lag_stopped(t, x, u, params):
+        if t >= 50.0:
+            raise Terminated("terminated (SIGTERM)")
+        return [-x[0] + u[0]]
+
+    def lag(t, x, u, params):
+        return [-x[0] + u[0]]
+
+    gain = ct.nlsys(None, lambda t, x, u, p: [2.0 * (1.0 - u[0])], inputs="y", outputs="u",
+                    name="k")
+    T = np.linspace(0.0, 100.0, 2001)
+    ref = ct.input_output_response(ct.interconnect(
+        [ct.nlsys(lag, None, inputs="u", outputs="y", states=1, name="lag"), gain],
+        inputs=[], outputs="y"), T, 0.0, 0.0)
+    loop = ct.interconnect([ct.nlsys(lag_stopped, None, inputs="u", outputs="y", states=1,
+                                     name="lag"), gain], inputs=[], outputs="y")
+    with warnings.catch_warnings(), pytest.raises(Terminated) as raised:
+        warnings.simplefilter("ignore")  # (numba refuses the raise: it runs as Python)
+        controlkit.input_output_response(loop, T, 0.0, 0.0, compile=compile)
+    kept = raised.value.response
+    n = kept.time.size
+    assert 900 < n <= 1001 and np.array_equal(kept.time, T[:n])  # (served up to t < 50 s)
+    assert np.array_equal(kept.outputs, ref.outputs[..., :n])
+    assert np.array_equal(kept.states, ref.states[..., :n])
+
+
 def _zeros_like_update(t, x, u, params):
     new = np.zeros_like(x)  # integers when python-control hands it an integer state
     new[0] = 0.5 * x[0] + u[0]

@@ -175,6 +175,26 @@ class _Run:
         """The outputs written so far."""
         return int(self.ctrl[NEXT_TIME])
 
+    def served_so_far(self, job) -> int:
+        """The outputs written so far, and those of the states a paused interval served,
+        made now as Python (its own are made at its end; a continuous run's one interval
+        spans the whole run): a run stopped by Ctrl-C keeps what it computed."""
+        n = self.position  # (the integrator's first time not served, in the interval)
+        served = max(n, int(self.work.ints[rk.NEXT_EVAL]))
+        f, (ys, ui, _, _, xt, cidx, *_) = job.functions(), self.buffers
+        for j in range(n, served):
+            xt[:] = self.x
+            xt[cidx] = self.y_eval[j]
+            try:
+                with quiet_numbers():
+                    if loops._record(f.evaluate, f.outputs, self.times[j], xt, self.T,
+                                     self.U, self.buffers[8], job.P, ys, ui, self.held, j,
+                                     self.Y, self.X, self.Uo) != -1:
+                        return j
+            except Exception:  # noqa: BLE001 - an output that fails ends what was computed
+                return j
+        return served
+
     def stopped(self) -> bool:
         return self.status[1] != -1
 
@@ -290,7 +310,7 @@ def run_continuous(sys, T, U, X0, *, params=None, t_eval=None, method="RK45",
         try:
             runner.piece(run, pieces.next(), CHECK_EVALUATIONS)
         except KeyboardInterrupt as stop:
-            n = n0 if checking else run.position  # (a check's results: not yet checked)
+            n = n0 if checking else run.served_so_far(runner.python)
             raise interrupted(stop, base_response(sys, t_eval[:n], run.Y[:, :n],
                                                   run.X[:, :n], run.Uo[:, :n])) from None
         if not checking:  # (a check runs its piece twice: not the pace of pieces)

@@ -79,6 +79,7 @@ from .workspace import (
     INVALID_ARGUMENT,
     N_ACCEPTED,
     N_REJECTED,
+    NEXT_EVAL,
     NFEV,
     NON_FINITE,
     PAUSED,
@@ -98,7 +99,7 @@ from .workspace import (
 
 # what the engine, the tests and the benchmarks take from here
 __all__ = [
-    "INVALID_ARGUMENT", "METHODS", "METHOD_INDEX", "NFEV", "NON_FINITE", "N_ACCEPTED",
+    "INVALID_ARGUMENT", "METHODS", "METHOD_INDEX", "NEXT_EVAL", "NFEV", "NON_FINITE", "N_ACCEPTED",
     "N_REJECTED", "PAUSED", "PROJECTED_STEPS", "RTOL_FLOOR", "STATUS_MESSAGES",
     "STEP_TOO_SMALL", "STIFF", "STIFFNESS", "STIFF_STEP_BUDGET",
     "STIFF_STEPS_BEFORE_PROJECTING", "SUCCESS", "TABLEAUX", "TIME_REACHED", "machine",
