@@ -414,10 +414,9 @@ class Runner:
     def piece(self, run, budget, check_budget=None) -> None:
         """One piece of ``run`` (a driver's, as :meth:`check` takes it) on the job running
         now, or its check when :attr:`to_check` (at most ``check_budget`` long). A compiled
-        piece that fails or stops is run again as Python from the same
-        start, and so is the rest of the run: Python's error is raised if there is one, else
-        Python's numbers stand (compiled code and Python part ways there, and Python is the
-        meaning)."""
+        piece that fails or stops is run again as Python from the same start, and so is the
+        rest of the run: Python's error is raised if there is one, else Python's numbers
+        stand (compiled code and Python part ways there, and Python is the meaning)."""
         if self.to_check:
             job, self.compiled = self.compiled, None
             self.check(job, run, min(budget, check_budget or budget))
