@@ -188,7 +188,9 @@ def test_a_rejected_compiled_piece_leaves_none_of_its_states_behind(differing_co
     T = np.linspace(0.0, 10.0, 2001)
     U = np.ones((loop.ninputs, T.size))
     ref = ct.input_output_response(loop, T, U, X0)
-    with pytest.warns(UserWarning, match="its compiled numbers differ from Python's"):
+    with pytest.warns(UserWarning, match=r"its compiled numbers differ from Python's after "
+                                         r"t = 0 s; first at t = [\d.e-]+ s, in the state "
+                                         r"of '\w+'"):  # (the served states say which)
         ours = controlkit.input_output_response(loop, T, U, X0, compile=True)
     assert ours.engine_mode == "python"
     assert scaled_error(ours.y, ref.y) <= 1e-9

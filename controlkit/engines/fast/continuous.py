@@ -30,7 +30,7 @@ from .loops import (
     UNDER_WAY,
     WATCH_STAGES,
 )
-from .pieces import Pieces, interrupted, now, quiet_numbers
+from .pieces import Pieces, interrupted, now, quiet_numbers, where_they_part
 from .run import Runner
 
 #: The methods integrated by the engine's own code; the stiff ones go to scipy.
@@ -209,9 +209,13 @@ class _Run:
     def put_back(self, written, n0, n1):
         self.Y[:, n0:n1], self.X[:, n0:n1], self.Uo[:, n0:n1], self.y_eval[n0:] = written
 
-    def span(self, n0, n1) -> str:
-        """(A piece ends inside an interval, its states served beyond its last output.)"""
-        return f"after t = {self.times[max(n0 - 1, 0)]:g} s"
+    def where(self, job, n0, n1, mine, theirs) -> str:
+        """(A piece ends inside an interval: the blocks named by the states it served.)"""
+        served = [np.zeros((self.x.size, len(y))) for y in (mine[3], theirs[3])]
+        for states, y in zip(served, (mine[3], theirs[3]), strict=True):
+            states[self.rhs_args[2]] = y.T  # (the continuous states, at cidx)
+        return f"after t = {self.times[max(n0 - 1, 0)]:g} s" + where_they_part(
+            job.blocks, self.times[n0:], *served)
 
     def done(self) -> bool:
         return (self.status[1] != -1 or self.ctrl[INSTANT] >= self.instants.size

@@ -14,7 +14,7 @@ import numpy as np
 from ..contract import UnsupportedSystem, check_arguments, chunk_bounds, recorded_indices
 from ..contract import response as base_response
 from .diagnose import diverged, explain_failure, sampled_block_blew_up
-from .pieces import Pieces, interrupted, now, quiet_numbers
+from .pieces import Pieces, interrupted, now, quiet_numbers, where_they_part
 from .run import Runner
 
 #: Steps simulated per chunk when a run is streamed (bounds the memory of long runs).
@@ -150,9 +150,10 @@ class _Steps:
     def written(self, n0, n1):
         return [self.Y[:, n0:n1].copy(), self.X[:, n0:n1].copy()]
 
-    def span(self, n0, n1) -> str:
+    def where(self, job, n0, n1, mine, theirs) -> str:
         a, b = self.times[n0], self.times[n1 - 1]
-        return f"at t = {a:g} s" if n1 - n0 == 1 else f"between t = {a:g} and {b:g} s"
+        return (f"at t = {a:g} s" if n1 - n0 == 1 else f"between t = {a:g} and {b:g} s") + \
+            where_they_part(job.blocks, self.times[n0:n1], mine[1], theirs[1])
 
     def put_back(self, written, n0, n1):
         self.Y[:, n0:n1], self.X[:, n0:n1] = written

@@ -31,8 +31,8 @@ def where_they_part(blocks, times, mine, theirs) -> str:
     """Where a compiled piece's states ``mine`` first differ from Python's ``theirs`` (one
     column a time of ``times``): the time, and the blocks whose states differ there, whose
     compiled code answered otherwise or was fed by code that did ("" where they agree).
-    For a discrete run, where a step's update reads the states of the step before (an
-    integrator's adaptive steps would spread a difference over every state).
+    Sharpest for a discrete run, where a step's update reads the states of the step
+    before; an integrator's steps spread a difference over the states they couple.
 
     Examples
     --------

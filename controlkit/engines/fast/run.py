@@ -21,7 +21,7 @@ from ..._checks import warn_caller
 from .. import PYTHON_CONTROL_LEAST, PYTHON_CONTROL_SLOWER, check_compile
 from . import reuse, store, usercode
 from .codegen import generate
-from .pieces import PIECE_SECONDS, now, same_numbers, where_they_part
+from .pieces import PIECE_SECONDS, now, same_numbers
 from .plan import Plan, evaluation_order, make_plan
 from .tiers import NotCompiled, blocks_of, same_kernels
 
@@ -444,8 +444,8 @@ class Runner:
         saying why. A piece where Python stops is left as Python ran it: the driver says why.
         ``run``: ``snapshot()``, ``restore(saved)``, ``piece(job, budget)``, ``position``
         (results written) and their ``times``, ``written(n0, n1)`` (copies of results
-        ``n0:n1``, the states second), ``put_back``, ``span(n0, n1)`` (in words),
-        ``stopped()``, ``handed_back()`` (a compiled piece asked for Python: no verdict)."""
+        ``n0:n1``), ``put_back``, ``where(job, n0, n1, mine, theirs)`` (where results part,
+        in words), ``stopped()``, ``handed_back()`` (a compiled piece asked for Python)."""
         start, n0 = run.snapshot(), run.position
         run.piece(self.python, budget)
         if run.stopped():
@@ -468,9 +468,8 @@ class Runner:
                 CHECKED.add(job.source)
                 return
             else:
-                verdict = (f"its compiled numbers differ from Python's {run.span(n0, n1)}"
-                           + where_they_part(job.blocks, run.times[n0:n1], mine[1],
-                                             written[1]))
+                verdict = (f"its compiled numbers differ from Python's "
+                           f"{run.where(job, n0, n1, mine, written)}")
         run.restore(python)
         run.put_back(written, n0, n1)
         if verdict is not None:
