@@ -181,15 +181,14 @@ class _Run:
         spans the whole run): a run stopped by Ctrl-C keeps what it computed."""
         n = self.position  # (the integrator's first time not served, in the interval)
         served = max(n, int(self.work.ints[rk.NEXT_EVAL]))
-        f, (ys, ui, _, _, xt, cidx, *_) = job.functions(), self.buffers
+        f, (ys, ui, _, _, xt, cidx, _, _, ubuf, _) = job.functions(), self.buffers
         for j in range(n, served):
-            xt[:] = self.x
-            xt[cidx] = self.y_eval[j]
             try:
                 with quiet_numbers():
-                    if loops._record(f.evaluate, f.outputs, self.times[j], xt, self.T,
-                                     self.U, self.buffers[8], job.P, ys, ui, self.held, j,
-                                     self.Y, self.X, self.Uo) != -1:
+                    if loops.record_served(f.evaluate, f.outputs, j, self.x, xt, cidx,
+                                           self.y_eval, self.times, self.T, self.U, ubuf,
+                                           job.P, ys, ui, self.held, self.Y, self.X,
+                                           self.Uo) != -1:
                         return j
             except Exception:  # noqa: BLE001 - an output that fails ends what was computed
                 return j
@@ -213,7 +212,7 @@ class _Run:
         """(A piece ends inside an interval: the blocks named by the states it served.)"""
         served = [np.zeros((self.x.size, len(y))) for y in (mine[3], theirs[3])]
         for states, y in zip(served, (mine[3], theirs[3]), strict=True):
-            states[self.rhs_args[2]] = y.T  # (the continuous states, at cidx)
+            states[self.buffers[5]] = y.T  # (the continuous states, at cidx)
         return f"after t = {self.times[max(n0 - 1, 0)]:g} s" + where_they_part(
             job.blocks, self.times[n0:], *served)
 

@@ -198,6 +198,19 @@ def _record(evaluate, outputs, t, x, T, U, ubuf, P, ys, ui, held, j, Y, X, Uo):
 
 
 @jit(inline=True)
+def record_served(evaluate, outputs, j, x, xt, cidx, y_eval, t_eval, T, U, ubuf, P, ys, ui,
+                  held, Y, X, Uo):
+    """The diagram at evaluation time ``j``, whose continuous states (at ``cidx`` of ``x``)
+    the integrator served in ``y_eval[j]``, recorded as :func:`_record` does."""
+    for q in range(x.shape[0]):
+        xt[q] = x[q]
+    for q in range(cidx.shape[0]):
+        xt[cidx[q]] = y_eval[j, q]
+    return _record(evaluate, outputs, t_eval[j], xt, T, U, ubuf, P, ys, ui, held, j, Y, X,
+                   Uo)
+
+
+@jit(inline=True)
 def diagram_rhs(t, y, args, out):
     """The integrator's right-hand side: the continuous states' derivatives at ``(t, y)``
     (``y`` at ``cidx`` of ``x``, whose other states are held; ``args`` as unpacked below).
@@ -326,12 +339,8 @@ def continuous_run(evaluate, update, outputs, integrate, machine, rhs_args, time
             return
         ctrl[UNDER_WAY] = 0
         for j in range(i, served):
-            for q in range(nx):
-                xt[q] = x[q]
-            for q in range(nc):
-                xt[cidx[q]] = y_eval[j, q]
-            failed = _record(evaluate, outputs, t_eval[j], xt, T, U, ubuf, P, ys, ui,
-                             held, j, Y, X, Uo)
+            failed = record_served(evaluate, outputs, j, x, xt, cidx, y_eval, t_eval, T, U,
+                                   ubuf, P, ys, ui, held, Y, X, Uo)
             if failed != -1:
                 status[0] = j
                 status[1] = failed
