@@ -192,7 +192,10 @@ def test_a_helper_s_name_is_not_written_as_code(tmp_path):
     # `import a.b as ...`, and Python's import statement imports the package `a` by name,
     # from sys.path, first (a review ran a planted ck_parent.py, from explain already)
     ("ck_parent", "ck_parent.sub", True),
-], ids=["read from an attribute", "under a package not imported"])
+    # registered under a name Python's parser normalizes (a fullwidth 'c', NFKC): the
+    # text's `import ｃk_planted` would have imported ck_planted from sys.path
+    ("ck_planted", "\uff43k_planted", True),
+], ids=["read from an attribute", "under a package not imported", "normalized by the parser"])
 def test_a_module_is_imported_only_when_it_and_its_packages_are_imported(
         tmp_path, monkeypatch, planted, name, registered):
     target = tmp_path / "ran"
@@ -342,3 +345,73 @@ def test_a_compile_record_of_other_types_is_ignored(tmp_path, monkeypatch):
     monkeypatch.setattr(store, "folder", lambda: tmp_path)
     monkeypatch.setattr(store, "_TIMES", {})
     assert store.compile_times("run_discrete") == [0.5]
+
+
+def test_a_function_s_name_normalized_by_the_parser_is_not_imported_by_it(
+        tmp_path, monkeypatch):
+    # `from helpers import ｔriple` would import helpers.triple, another function
+    (tmp_path / "ck_helpers_nfkc.py").write_text(
+        "from controlkit._jit import jit\n\n\n@jit\ndef double(v):\n    return 2.0 * v\n"
+        "\n\n@jit\ndef triple(v):\n    return 3.0 * v\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    import ck_helpers_nfkc as helpers
+
+    odd = "\uff54riple"
+    helpers.double.py_func.__name__ = odd
+    monkeypatch.setattr(helpers, odd, helpers.double, raising=False)
+    helper = helpers.double
+
+    def out(t, x, u, params):
+        return [helper(u[0])]
+
+    ours = _run_both(_gain_loop(out))  # (compiled as a helper, not imported)
+    assert ours.engine_mode == "compiled" and ours.outputs[0] == 2.0
+
+
+def _factory_kernel(k):
+    from controlkit._jit import jit
+
+    @jit
+    def gain(t, x, u, p, out):
+        out[0] = k * u[0]
+        return out
+
+    return gain
+
+
+def test_kernels_made_by_a_factory_with_other_values_are_other_modules():
+    # the same code and name, another closure value: the compiled module of the first
+    # was taken for the second (2.0 where python-control gave 3.0, no warning)
+    from controlkit.blocks.contract import KernelBlock
+
+    for k in (2.0, 3.0):
+        block = KernelBlock(_factory_kernel(k), feedthrough=True, dt=None, name="g",
+                            inputs=["u"], outputs=["y"])
+        loop = ct.interconnect([block], inputs="u", outputs="y", name="factory")
+        ours = _run_both(loop)
+        assert ours.engine_mode == "compiled" and ours.outputs[0] == k
+
+
+def test_a_kernel_s_identity_follows_the_helpers_it_calls(tmp_path, monkeypatch):
+    # numba's cache knows a module by its own file: a helper edited in another module
+    # would have been loaded as compiled before (an older session's numbers)
+    import importlib
+
+    from controlkit.engines.fast.codegen import kernel_identity
+
+    monkeypatch.syspath_prepend(str(tmp_path))
+    (tmp_path / "ck_kernel_mod.py").write_text(
+        "from controlkit._jit import jit\nfrom ck_helper_mod import helper\n\n\n@jit\n"
+        "def kernel(t, x, u, p, out):\n    out[0] = helper(u[0])\n    return out\n")
+    identities = []
+    for body in ("2.0 * v", "3.0 * v"):
+        (tmp_path / "ck_helper_mod.py").write_text(
+            f"from controlkit._jit import jit\n\n\n@jit\ndef helper(v):\n    return {body}\n")
+        for name in ("ck_helper_mod", "ck_kernel_mod"):
+            sys.modules.pop(name, None)
+        importlib.invalidate_caches()
+        identities.append(kernel_identity(importlib.import_module("ck_kernel_mod").kernel))
+    for name in ("ck_helper_mod", "ck_kernel_mod"):
+        sys.modules.pop(name, None)
+    assert identities[0] != identities[1]
+    assert identities[0].startswith("ck_kernel_mod.kernel (source ")

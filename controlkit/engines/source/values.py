@@ -12,6 +12,7 @@ import keyword
 import math
 import sys
 import types
+import unicodedata
 
 import numpy as np
 
@@ -96,15 +97,17 @@ def _is_plain(value):
 
 
 def _dotted(name) -> bool:
-    """Whether ``name`` is a dotted name of identifiers (what may be written after import).
+    """Whether ``name`` is a dotted name of identifiers (what may be written after import)
+    that Python reads as written: a name its parser would normalize (NFKC: a fullwidth
+    letter, a ligature) would name another module or function in the text.
 
     Examples
     --------
-    >>> _dotted("numpy.linalg"), _dotted("os; os.system('x')")
-    (True, False)
+    >>> _dotted("numpy.linalg"), _dotted("os; os.system('x')"), _dotted("\uff43k")
+    (True, False, False)
     """
-    return isinstance(name, str) and all(part.isidentifier() and not keyword.iskeyword(part)
-                                         for part in name.split("."))
+    return isinstance(name, str) and unicodedata.normalize("NFKC", name) == name and all(
+        part.isidentifier() and not keyword.iskeyword(part) for part in name.split("."))
 
 
 def imported(name: str) -> bool:
@@ -140,7 +143,7 @@ def _import_name(value):
     module = name_text(getattr(fn, "__module__", None))
     name = name_text(getattr(fn, "__name__", None))
     # (a module imported already: a name read from an attribute is data, never imported)
-    found = _dotted(module) and name.isidentifier() and imported(module) and getattr(
+    found = _dotted(module) and _dotted(name) and "." not in name and imported(module) and getattr(
         sys.modules.get(module), name, None) is value
     return (module, name) if found else None
 
