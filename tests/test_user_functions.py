@@ -716,7 +716,7 @@ def test_an_imported_helper_s_frozen_globals_name_the_kernel(tmp_path, monkeypat
     # (a new process once got the edited file's helper with the old tuple's numbers)
     import importlib
 
-    from controlkit.engines.fast.usercode.writer import _runs
+    from controlkit.engines.source.runs import runs as _runs
 
     monkeypatch.syspath_prepend(str(tmp_path))
 

@@ -76,10 +76,12 @@ class KernelBlock(ct.NonlinearIOSystem):
 
     **Kernels.**
 
-    1. A kernel is a module-level function ``f(t, x, u, p, out) -> out`` in an
-       importable module (the engine writes ``from <module> import <name>`` into
-       the loop it generates; a lambda or a function defined in ``__main__`` or
-       inside another function cannot be imported: *checked* by the engine). The
+    1. A kernel is a function ``f(t, x, u, p, out) -> out``, best at a module's
+       level. The engine hands it to the module it generates and names it there by
+       its name, a digest of its module's source and one of what it runs (the
+       values of its closure and of the globals it reads, the helpers it calls:
+       a kernel made by a factory with other values, or a helper edited since, is
+       compiled anew: *checked* by the engine). The
        controlkit kernels live in :mod:`controlkit.kernels`, one module per family,
        named ``<block>_output``, ``<block>_update`` (discrete: the next state) or
        ``<block>_rhs`` (continuous: the derivative).

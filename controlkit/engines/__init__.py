@@ -100,8 +100,8 @@ def _keep_on(sys, attribute, value) -> None:
 #: The attribute of a diagram its prepared jobs are kept in (:mod:`.fast.reuse`).
 _KEPT_JOBS = "_controlkit_kept_job"
 #: python-control takes at least this many times as long as the fast engine's Python run
-#: of a diagram (measured on the benchmark rows: 2.5-3.4x, the spacecraft 9.8x; a chain of one-line user
-#: functions, 1.2x).
+#: of a diagram (measured on the benchmark rows: 2.5-3.4x, the spacecraft 9.8x; a chain
+#: of one-line user functions, 1.2x).
 PYTHON_CONTROL_SLOWER = 2.0
 #: The least python-control took against it, measured (a chain of one-line functions):
 #: what work done on speculation (its worth not known yet) must fit in.

@@ -20,6 +20,7 @@ import numpy as np
 
 from ... import _jit
 from ...kernels import lti
+from ..source.runs import runs
 from .loops import STAGE, caught
 from .plan import CONTINUOUS, DISCRETE, SAMPLED, exact_sum
 
@@ -237,9 +238,11 @@ def _rk4_lines(kernel, row, view):
 
 def kernel_identity(fn) -> str:
     """What a kernel is, for the module's text (and so its name in the store): a
-    controlkit kernel by its dotted name, another kernel by its name and a digest of
-    its module's source (an edit of it is then a new module), a user function by its
-    compiled module's name (:attr:`identity`).
+    controlkit kernel by its dotted name, another kernel by its name, a digest of its
+    module's source and one of what it runs (:func:`controlkit.engines.source.runs.runs`:
+    the values of its closure and its globals, the helpers it calls), so that a kernel
+    made by a factory with other values, or a helper edited in another module, is a new
+    module; a user function by its compiled module's name (:attr:`identity`).
 
     Examples
     --------
@@ -259,7 +262,7 @@ def kernel_identity(fn) -> str:
         text = inspect.getsource(inspect.getmodule(py))
     except (OSError, TypeError):
         text = repr(getattr(py, "__code__", py))
-    return f"{name} (source {hashlib.sha256(text.encode()).hexdigest()[:16]})"
+    return f"{name} (source {hashlib.sha256(text.encode()).hexdigest()[:16]}, runs {runs(fn)})"
 
 
 def generate(plan):

@@ -18,9 +18,10 @@ import numpy as np
 from .... import _jit
 from ...source import NotCompilable, Plan, as_written, plan_function
 from ...source.reading import call_target
+from ...source.runs import code_digest
 from .. import store
 from .layout import ParamLayout
-from .writer import code_digest, kernel_source
+from .writer import kernel_source
 
 #: What each role of a user function computes, for messages.
 ROLES = {"output": ("output function", "outputs"), "update": ("update function", "states")}
