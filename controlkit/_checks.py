@@ -13,6 +13,8 @@ import inspect
 import math
 import os
 import stat
+import struct
+import sys
 import warnings
 from collections.abc import Callable
 from pathlib import Path
@@ -367,8 +369,10 @@ def folder(name: str, path) -> Path:
 def not_own(path: Path) -> str | None:
     """Why ``path`` is not the user's own folder (None when it is).
 
-    It must be a folder, not a link, owned by the user and writable by nobody else (the
-    user's private group, named as the user, allowed, as a umask of 002 leaves folders);
+    It must be a folder, not a link, owned by the user and writable by nobody else, by
+    its mode or by an access control list, nor give what is made in it to others by a
+    default list (the user's private group, named as the user, allowed, as a umask of 002
+    leaves folders);
     every folder above it owned by the user or root and not writable by others unless
     sticky (as ``/tmp``), so that nobody else can rename it away; and every link on the
     way owned by the user or root, in such a folder, so that nobody else can point it
@@ -395,6 +399,10 @@ def not_own(path: Path) -> str | None:
         return f"{path} is owned by another user (uid {info.st_uid})"
     if _writable_by_others(info):
         return f"{path} can be written by others (mode {stat.S_IMODE(info.st_mode):o})"
+    for acl, what in ((ACCESS_ACL, "can be written by others"),
+                      (DEFAULT_ACL, "gives what is made in it to others to write")):
+        if _acl_lets_others_write(path, acl):
+            return f"{path} {what} (an access control list: getfacl {path})"
     # every link on the written path, and every folder above the folder it leads to
     for prefix in list(path.parents)[::-1]:
         link = os.lstat(prefix)
@@ -404,10 +412,68 @@ def not_own(path: Path) -> str | None:
         info = os.stat(parent)
         if info.st_uid not in (uid, 0):
             return f"{parent} is owned by another user (uid {info.st_uid})"
-        if _writable_by_others(info) and not info.st_mode & stat.S_ISVTX:
+        if info.st_mode & stat.S_ISVTX:
+            continue
+        if _writable_by_others(info):
             return (f"{parent} can be written by others (mode "
                     f"{stat.S_IMODE(info.st_mode):o}), who could replace the folder")
+        if _acl_lets_others_write(parent, ACCESS_ACL):
+            return (f"{parent} can be written by others (an access control list: getfacl "
+                    f"{parent}), who could replace the folder")
     return None
+
+
+def numba_cache_not_own() -> str | None:
+    """Why numba's cache folder is not the user's own (:func:`not_own`), None when it is or
+    when none is set: as numba read it at its import (``NUMBA_CACHE_DIR``, or a
+    ``.numba_config.yaml`` in the folder it was imported from), else the variable. A folder
+    not there yet is made now, the user's: numba would make it after the check.
+
+    Examples
+    --------
+    >>> numba_cache_not_own() is None or "numba's cache folder" in numba_cache_not_own()
+    True
+    """
+    config = getattr(sys.modules.get("numba"), "config", None)
+    cache = getattr(config, "CACHE_DIR", None) or os.environ.get("NUMBA_CACHE_DIR", "")
+    if not cache:
+        return None
+    folder = Path(os.path.abspath(cache))
+    try:
+        folder.mkdir(mode=0o700, parents=True, exist_ok=True)
+        why = not_own(folder)
+    except OSError as error:
+        why = f"it cannot be created ({error.strerror or error})"
+    return why and f"numba's cache folder {folder}: {why}"
+
+
+#: The extended attributes holding a folder's POSIX access control lists (acl(5)): the
+#: one in force, and the default that what is made in the folder inherits.
+ACCESS_ACL, DEFAULT_ACL = "system.posix_acl_access", "system.posix_acl_default"
+
+
+def _acl_lets_others_write(path, attribute) -> bool:
+    """Whether the POSIX access control list ``attribute`` of ``path`` lets another user
+    or a group write (an entry with ``w`` within the list's mask). A folder's mode shows
+    only the mask in its group bits, so a list can let others write where the mode seems
+    the user's own. The attribute is Linux's (a version, then entries of tag, permissions
+    and id: ``linux/posix_acl_xattr.h``); none there, or no such attributes, is no list.
+    A default list counts its owning group and others too: they are what new folders get.
+    """
+    try:
+        data = os.getxattr(path, attribute, follow_symlinks=False)
+    except (AttributeError, OSError):
+        return False
+    entries = [struct.unpack_from("<HHI", data, offset) for offset in range(4, len(data) - 7, 8)]
+    mask = next((perm for tag, perm, _ in entries if tag == _ACL_MASK), 0o7)
+    others = (_ACL_USER, _ACL_GROUP) + (
+        (_ACL_GROUP_OBJ, _ACL_OTHER) if attribute == DEFAULT_ACL else ())
+    return any(tag in others and perm & 0o2 and (tag == _ACL_OTHER or perm & mask & 0o2)
+               and not (tag == _ACL_USER and qualifier == os.getuid())
+               for tag, perm, qualifier in entries)
+
+
+_ACL_USER, _ACL_GROUP_OBJ, _ACL_GROUP, _ACL_MASK, _ACL_OTHER = 0x02, 0x04, 0x08, 0x10, 0x20
 
 
 def _writable_by_others(info) -> bool:

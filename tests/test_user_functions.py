@@ -660,11 +660,61 @@ def test_a_refused_store_runs_the_diagram_as_python_and_writes_nothing_there(
 def test_numbas_cache_folder_is_checked_as_the_store_is(tmp_path, monkeypatch):
     monkeypatch.setattr(store, "CACHE_DIR", _private(tmp_path / "store"))
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(_shared(tmp_path)))
-    with pytest.raises(store.StoreRefused, match=r"numba's cache folder NUMBA_CACHE_DIR=.*"
-                                                 r"shared: .*can be written by others"):
+    with pytest.raises(store.StoreRefused, match=r"numba's cache folder .*shared: .*can be "
+                                                 r"written by others"):
         store.folder()
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(_private(tmp_path / "numba")))
     assert store.folder() == tmp_path / "store"
+    # one not made yet is made now, the user's own (numba would make it after the check)
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "later" / "numba"))
+    assert store.folder() == tmp_path / "store"
+    assert (tmp_path / "later" / "numba").stat().st_mode & 0o777 == 0o700
+
+
+def test_numbas_cache_folder_is_checked_as_numba_read_it(tmp_path, monkeypatch):
+    # a .numba_config.yaml in the folder numba was imported from (a course's folder, a
+    # cloned assignment) can set its cache folder where the variable says nothing: a
+    # review had another user's pickle there run at the next load
+    numba = pytest.importorskip("numba")
+    monkeypatch.setattr(store, "CACHE_DIR", _private(tmp_path / "store"))
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    monkeypatch.setattr(numba.config, "CACHE_DIR", str(_shared(tmp_path)))
+    with pytest.raises(store.StoreRefused, match=r"numba's cache folder .*shared: .*can be "
+                                                 r"written by others"):
+        store.numba_checked()
+
+
+def _acl(*entries):
+    """A POSIX access control list as Linux keeps it in an extended attribute."""
+    import struct
+
+    return struct.pack("<I", 2) + b"".join(struct.pack("<HHI", *entry) for entry in entries)
+
+
+_ANY = 0xFFFFFFFF
+#: user::rwx, user:4321:<perm>, group::---, mask::rwx, other::---
+_LETS_4321 = lambda perm: _acl((0x01, 7, _ANY), (0x02, perm, 4321), (0x04, 0, _ANY),  # noqa: E731
+                               (0x10, 7, _ANY), (0x20, 0, _ANY))
+
+
+@pytest.mark.parametrize("attribute, perm, reason", [
+    ("system.posix_acl_access", 7, r"store can be written by others \(an access control list"),
+    ("system.posix_acl_default", 7, r"store gives what is made in it to others to write"),
+    ("system.posix_acl_access", 5, None),  # another user may read: the store is still mine
+])
+def test_a_store_an_access_control_list_opens_to_others_is_refused(tmp_path, attribute, perm,
+                                                                   reason):
+    # the mode shows only the list's mask (drwxrwx---): a course folder's default list
+    # (setfacl -d -m u:ta:rwx) gave a review's other user the store, and numba's pickles
+    folder = _private(tmp_path / "store")
+    try:
+        os.setxattr(folder, attribute, _LETS_4321(perm))
+    except OSError as error:
+        pytest.skip(f"no access control lists on this file system ({error})")
+    if reason is None:
+        assert store.not_own(folder) is None
+    else:
+        assert re.search(reason, store.not_own(folder))
 
 
 def test_a_store_folder_is_made_private_and_one_that_cannot_be_made_is_refused(

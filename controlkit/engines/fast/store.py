@@ -8,9 +8,9 @@ Python, numpy and scipy: an edit or an upgrade makes new modules, never a stale 
 are written whole (again if found changed); a compiled module has a record (``<name>.json``),
 as has a user's function numba refused (later sessions run it as Python: :func:`refuse`).
 
-Code is imported from the store only if the folder, and numba's cache folder
-(``NUMBA_CACHE_DIR``, if set), is the user's own (:func:`controlkit._checks.not_own`),
-checked at each use; else the engine compiles nothing and says why.
+Code is imported from the store only if the folder and numba's cache folder are the
+user's own (:func:`controlkit._checks.not_own`), checked at each use and before any compile
+or load (:func:`numba_checked`); else the engine compiles nothing and says why.
 ``CONTROLKIT_CACHE_DIR`` sets the folder (default ``~/.cache/controlkit/store``).
 """
 
@@ -33,7 +33,7 @@ import numpy as np
 import scipy
 
 from ... import _jit
-from ..._checks import not_own
+from ..._checks import not_own, numba_cache_not_own
 
 #: Where compiled code is kept (see the module's description).
 CACHE_DIR = Path(os.environ.get("CONTROLKIT_CACHE_DIR")  # (set but empty: the default)
@@ -57,8 +57,7 @@ def folder() -> Path:
     Raises
     ------
     StoreRefused
-        When the folder (or ``NUMBA_CACHE_DIR``) fails the check of
-        :func:`controlkit._checks.not_own`.
+        When it, or numba's cache folder, is not the user's own (:mod:`controlkit._checks`).
 
     Examples
     --------
@@ -71,17 +70,25 @@ def folder() -> Path:
     except OSError as error:
         raise StoreRefused(f"the store {path} cannot be created "
                            f"({error.strerror or error})") from None
-    why = not_own(path)
-    if why is None and os.environ.get("NUMBA_CACHE_DIR"):
-        numba_folder = Path(os.path.abspath(os.environ["NUMBA_CACHE_DIR"]))
-        if numba_folder.exists():
-            why = not_own(numba_folder)
-            if why is not None:
-                why = f"numba's cache folder NUMBA_CACHE_DIR={numba_folder}: {why}"
+    why = not_own(path) or numba_cache_not_own()
     if why is not None:
         raise StoreRefused(f"controlkit compiles nothing: {why} (set CONTROLKIT_CACHE_DIR "
                            f"to a folder of your own)")
     return path
+
+
+def numba_checked():
+    """numba (imported now if need be), the store and numba's cache folder checked as
+    numba read it (:func:`folder`): what every compile or load of the store calls first.
+
+    Examples
+    --------
+    >>> numba_checked().__name__ if _jit.available() else "numba"
+    'numba'
+    """
+    module = _jit.numba_module()
+    folder()
+    return module
 
 
 #: The source files of controlkit's whose code a compiled module can hold, by its kind.
@@ -291,7 +298,7 @@ def compile_entry(function, args, path: Path, blocks: int = 1):
     ...     4.0
     4.0
     """
-    numba = _jit.numba_module()
+    numba = numba_checked()
     dispatcher = numba.njit(cache=True, nogil=True)(function)
     start = time.perf_counter()
     dispatcher.compile(tuple(numba.typeof(a) for a in args))
@@ -317,15 +324,12 @@ def compile_functions(functions, signatures, path: Path, blocks: int = 1,
     --------
     >>> path = module_file("def twice(x):\\n    return 2.0 * x\\n", "diagram")
     >>> if _jit.available():
-    ...     numba = _jit.numba_module()
-    ...     (twice,) = compile_functions([import_module(path).twice],
-    ...                                  [numba.float64(numba.float64)], path, entry="twice")
-    ...     float(twice(1.5))
-    ... else:
-    ...     3.0
+    ...     (twice,) = compile_functions([import_module(path).twice], ["float64(float64)"],
+    ...                                  path, entry="twice")
+    >>> float(twice(1.5)) if _jit.available() else 3.0
     3.0
     """
-    numba = _jit.numba_module()
+    numba = numba_checked()
     start = time.perf_counter()
     with _first_class_functions(numba):
         compiled = tuple(numba.cfunc(signature, cache=True, nogil=True)(
@@ -393,7 +397,7 @@ def step_machine():
     """
     with LOCK:
         if not _MACHINE:
-            numba = _jit.numba_module()
+            numba = numba_checked()
             _MACHINE.append(_kept_once(
                 _MACHINE_TEXT, "machine", "the integrator's step machine",
                 MACHINE_COMPILE_SECONDS,
@@ -438,21 +442,17 @@ def instants_loop(argument_types):
 
     Examples
     --------
-    A continuous diagram run compiled goes through it:
-
     >>> import control as ct
     >>> from controlkit import input_output_response
-    >>> lag = ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], name="lag", inputs="u",
-    ...             outputs="y")
-    >>> loop = ct.interconnect([lag], inputs="u", outputs="y")
-    >>> T = np.linspace(0.0, 1.0, 3)
-    >>> response = input_output_response(loop, T, np.ones(3), compile=True)
+    >>> loop = ct.interconnect([ct.ss(-1, 1, 1, 0, name="lag", inputs="u", outputs="y")],
+    ...                        inputs="u", outputs="y")  # (a continuous run compiled)
+    >>> response = input_output_response(loop, [0.0, 0.5, 1.0], 1.0, compile=True)
     >>> bool(_LOOPS) == (response.engine_mode == "compiled")
     True
     """
     with LOCK:
         if argument_types not in _LOOPS:
-            numba = _jit.numba_module()
+            numba = numba_checked()
 
             def compile_it(module):
                 with _first_class_functions(numba):

@@ -209,7 +209,7 @@ def compile_kernel(kernel) -> None:
     []
     """
     path = _kept_in(kernel)
-    numba = _jit.numba_module()
+    numba = store.numba_checked()
     vector = numba.types.Array(numba.float64, 1, "C")
     with store.LOCK:  # (a thread, or a process, that compiled it first recorded its time)
         if store.record(path) is not None:
