@@ -238,11 +238,12 @@ def _rk4_lines(kernel, row, view):
 
 def kernel_identity(fn) -> str:
     """What a kernel is, for the module's text (and so its name in the store): a
-    controlkit kernel by its dotted name, another kernel by its name, a digest of its
-    module's source and one of what it runs (:func:`controlkit.engines.source.runs.runs`:
-    the values of its closure and its globals, the helpers it calls), so that a kernel
-    made by a factory with other values, or a helper edited in another module, is a new
-    module; a user function by its compiled module's name (:attr:`identity`).
+    controlkit kernel, or one of a store module, by its dotted name; another by its name,
+    a digest of its module's source and one of what it runs
+    (:func:`controlkit.engines.source.runs.runs`: the values of its closure and its
+    globals, the helpers it calls), so that a kernel made by a factory with other values,
+    or a helper edited in another module, is a new module; a user function by its
+    compiled module's name (:attr:`identity`).
 
     Examples
     --------
@@ -256,8 +257,8 @@ def kernel_identity(fn) -> str:
     py = _jit.python_function(fn)
     module = str(getattr(py, "__module__", None))
     name = f"{module}.{getattr(py, '__qualname__', getattr(py, '__name__', '?'))}"
-    if module.startswith("controlkit."):
-        return name
+    if module.startswith(("controlkit.", "controlkit_store_")):
+        return name  # (a store module's name is a digest of its text, which freezes all)
     try:
         text = inspect.getsource(inspect.getmodule(py))
     except (OSError, TypeError):
