@@ -23,11 +23,13 @@ import sys
 import textwrap
 import warnings
 
+import control as ct
 import numpy as np
 import pytest
 import rk_problems as P
 import scipy.integrate
 
+import controlkit
 from controlkit import _jit
 from controlkit.engines.fast import rk, store
 
@@ -562,6 +564,24 @@ def test_bad_arguments_give_the_invalid_argument_status(changes, way):
     status, next_eval, _, _ = interval_call(way, **changes)
     assert status == rk.INVALID_ARGUMENT
     assert next_eval == changes.get("i_eval", 0)
+
+
+@pytest.mark.parametrize("way", WAYS)
+def test_a_zero_error_scale_stops_where_scipy_never_ends(way):
+    # atol=0 and a state at 0: solve_ivp's error scale is 0, its starting step NaN, and its
+    # trials go on at NaN forever; the machine stops at once, compiled code dividing by
+    # the zero scale as numpy does (it raised ZeroDivisionError, which a C function prints
+    # and drops, again and again)
+    status, next_eval, _, _ = interval_call(way, atol=np.zeros(2), y0=np.zeros(2))
+    assert (status, next_eval) == (rk.STEP_NOT_A_NUMBER, 0)
+
+
+def test_a_zero_error_scale_is_said_where_python_control_would_never_end():
+    lag = ct.nlsys(lambda t, x, u, p: -x + u, None, inputs=1, states=1, outputs=1, name="lag")
+    with pytest.raises(RuntimeError, match=r"'lag': the step size of RK45 is not a number "
+                                           r"after t = 0 s: .* give solve_ivp_kwargs an atol"):
+        controlkit.input_output_response(lag, np.linspace(0.0, 1.0, 11), 1.0, [0.0],
+                                         solve_ivp_kwargs={"atol": 0.0}, compile=False)
 
 
 @pytest.mark.parametrize("way", WAYS)

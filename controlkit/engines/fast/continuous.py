@@ -401,6 +401,11 @@ def _integrator_error(job, run):
             f"after t = {where:g} s, with the largest state of {state} at {size:.3g}: the "
             f"loop diverges there (a state without bound), or a block is stiff or "
             f"discontinuous; for a stiff block try solve_ivp_method='BDF' (or 'LSODA', 'Radau')")
+    if code == rk.STEP_NOT_A_NUMBER:  # (python-control's solver would never end)
+        return RuntimeError(
+            f"{sys.name!r}: the step size of {method} is not a number after t = {where:g} "
+            f"s: solve_ivp's error scale atol + rtol |x| is 0 for a state at 0 with atol=0 "
+            f"(scipy's solver never ends there); give solve_ivp_kwargs an atol > 0")
     if code == rk.STIFF:
         return StiffProblem(
             f"{sys.name!r} is stiff for {method}: after t = {where:g} s its steps are held "

@@ -85,6 +85,7 @@ from .workspace import (
     PAUSED,
     PROJECTED_STEPS,
     STATUS_MESSAGES,
+    STEP_NOT_A_NUMBER,
     STEP_TOO_SMALL,
     STIFF,
     STIFF_STEP_BUDGET,
@@ -101,7 +102,7 @@ from .workspace import (
 __all__ = [
     "INVALID_ARGUMENT", "METHODS", "METHOD_INDEX", "NEXT_EVAL", "NFEV", "NON_FINITE", "N_ACCEPTED",
     "N_REJECTED", "PAUSED", "PROJECTED_STEPS", "RTOL_FLOOR", "STATUS_MESSAGES",
-    "STEP_TOO_SMALL", "STIFF", "STIFFNESS", "STIFF_STEP_BUDGET",
+    "STEP_NOT_A_NUMBER", "STEP_TOO_SMALL", "STIFF", "STIFFNESS", "STIFF_STEP_BUDGET",
     "STIFF_STEPS_BEFORE_PROJECTING", "SUCCESS", "TABLEAUX", "TIME_REACHED", "machine",
     "make_workspace", "set_horizon", "solve_interval", "step_times",
 ]

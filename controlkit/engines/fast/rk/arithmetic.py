@@ -42,6 +42,18 @@ def _py_min(a, b):
 
 
 @jit(inline=True)
+def _divided(a, b):
+    """``a / b`` as numpy divides two float64: by a zero, an infinity of the quotient's
+    sign, or NaN (``0 / 0``, NaN), where compiled code would raise ZeroDivisionError (a
+    state at 0 with ``atol=0`` makes solve_ivp's error scale 0)."""
+    if b == 0.0:
+        if a == 0.0 or a != a:
+            return math.nan
+        return math.copysign(math.inf, a) * math.copysign(1.0, b)
+    return a / b
+
+
+@jit(inline=True)
 def _py_max(a, b):
     """``max(a, b)`` with Python's rule: ``b`` only if ``b > a`` (a NaN ``b`` loses)."""
     return b if b > a else a
@@ -128,13 +140,13 @@ def _error_norm(method, K, K_flat, f, h, rtol, n):
     _combine(K, K_flat, rows, method.E, f, err, n)
     if not method.dop853:
         for i in range(n):
-            f[err + i] = f[err + i] * h / f[scale + i]
+            f[err + i] = _divided(f[err + i] * h, f[scale + i])
         return _rms(f, err, n)
     err_low = _at(_ERR_LOW, n)
     _combine(K, K_flat, rows, method.E_low, f, err_low, n)
     for i in range(n):
-        f[err + i] = f[err + i] / f[scale + i]
-        f[err_low + i] = f[err_low + i] / f[scale + i]
+        f[err + i] = _divided(f[err + i], f[scale + i])
+        f[err_low + i] = _divided(f[err_low + i], f[scale + i])
     norm5 = math.sqrt(_sum_of_squares(f, err, n)) ** 2
     norm3 = math.sqrt(_sum_of_squares(f, err_low, n)) ** 2
     if norm5 == 0 and norm3 == 0:

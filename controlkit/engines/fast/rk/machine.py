@@ -39,6 +39,7 @@ from .arithmetic import (
     _all_finite,
     _build_interpolant,
     _combine,
+    _divided,
     _error_norm,
     _evaluate_interpolant,
     _py_max,
@@ -101,6 +102,7 @@ from .workspace import (
     RUN_ACCEPTED,
     STAGE_ROWS,
     STATUS,
+    STEP_NOT_A_NUMBER,
     STEP_TOO_SMALL,
     STIFF,
     SUCCESS,
@@ -264,6 +266,8 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
             # A trial step of the proposed size, clipped at t1.
             t = f[_T]
             h_abs = f[_H_ABS]
+            if h_abs != h_abs:  # (scipy's trials go on at NaN forever)
+                return _finish(st, STEP_NOT_A_NUMBER)
             if h_abs < f[_MIN_STEP]:
                 if st[_LAST_ERROR_FINITE] == 1:
                     return _finish(st, STEP_TOO_SMALL)
@@ -376,10 +380,10 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
             for i in range(n):
                 f[scale + i] = f[atol + i] + abs(f[y + i]) * rtol
             for i in range(n):
-                f[ratio + i] = f[y + i] / f[scale + i]
+                f[ratio + i] = _divided(f[y + i], f[scale + i])
             d0 = _rms(f, ratio, n)
             for i in range(n):
-                f[ratio + i] = K[0, i] / f[scale + i]
+                f[ratio + i] = _divided(K[0, i], f[scale + i])
             d1 = _rms(f, ratio, n)
             if d0 < 1e-5 or d1 < 1e-5:
                 h0 = 1e-6
@@ -399,7 +403,7 @@ def _machine_general(t_eval, y_eval, f, K, K_flat, st):
             scale = _at(_SCALE, n)
             ratio = _at(_ERR, n)
             for i in range(n):
-                f[ratio + i] = (K[1, i] - K[0, i]) / f[scale + i]
+                f[ratio + i] = _divided(K[1, i] - K[0, i], f[scale + i])
             d2 = _rms(f, ratio, n) / h0
             if d1 <= 1e-15 and d2 <= 1e-15:
                 h1 = _py_max(1e-6, h0 * 1e-3)

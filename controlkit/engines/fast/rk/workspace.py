@@ -85,6 +85,9 @@ NON_FINITE = -2
 INVALID_ARGUMENT = -3
 #: The problem is stiff for the method and the run would take too many steps.
 STIFF = -4
+#: The step size is NaN, where scipy's trials would go on forever (its error scale
+#: ``atol + rtol |y|`` is 0 for a state at 0 with ``atol=0``).
+STEP_NOT_A_NUMBER = -5
 #: Not an end: the interval is paused after its evaluation budget, to be resumed.
 PAUSED = 1
 
@@ -111,6 +114,8 @@ STATUS_MESSAGES = {
             "not accuracy, and the run would need too many steps; use an implicit method "
             "(BDF, LSODA or Radau)."),
     PAUSED: "Paused after its evaluation budget; resume to go on.",
+    STEP_NOT_A_NUMBER: ("The step size is not a number: the error scale atol + rtol |y| is "
+                        "0 (a state at 0 with atol=0), where scipy's solver never ends."),
     INVALID_ARGUMENT: ("Invalid argument: max_step must be > 0, first_step in [0, t1 - t0], "
                        "atol >= 0 of the state's size, t0 <= t1 finite, the evaluation "
                        "times increasing inside [t0, t1], and the work arrays of the "
