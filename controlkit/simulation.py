@@ -421,7 +421,9 @@ def _many(sys, T, U, X0, runs, engine, options, compile):
     X0s, params_list = runs
     options = dict(options, params=None)
     rows = X0s  # (each run alone is given its row as the call gave it: integers, float32)
-    if X0s is not None and np.asarray(X0).dtype.kind in "biuf":
+    if X0s is not None and isinstance(X0, list | tuple) and len(X0) == len(X0s):
+        rows = list(X0)  # (a list's rows each as written: numpy would make all floats)
+    elif X0s is not None and np.asarray(X0).dtype.kind in "biuf":
         rows = np.broadcast_to(np.asarray(X0), X0s.shape)
     # (a batch python-control would finish sooner than the engine starts: run by run)
     if engine == "fast" and not _numpy_raises() and (
@@ -438,26 +440,20 @@ def _many(sys, T, U, X0, runs, engine, options, compile):
 def _many_on_the_engine(sys, T, U, X0, X0s, rows, params_list, options, compile):
     """:func:`_many`'s runs in one call of the engine, or None to answer them run by run."""
     from ._checks import Diverged
-    from .engines.contract import (
-        UnsupportedSystem,
-        check_arguments,
-        kept_state,
-        python_control_arguments,
-        response,
-        result_flags,
-    )
+    from .engines import contract
+    from .engines.contract import UnsupportedSystem
     from .engines.fast import many
     from .engines.fast.response import outputs
     from .engines.fast.tiers import as_interconnect
 
-    if rows is not None and sys.isdtime(strict=True) and kept_state(rows[0], sys.nstates) \
-            is not None:  # (integers or float32 in a discrete run: python-control's first step)
-        return None
+    if sys.isdtime(strict=True) and any(contract.kept_state(row, sys.nstates) is not None
+                                        for row in (rows if rows is not None else [X0])):
+        return None  # (integers or float32 in a discrete run: python-control's first step)
     diagram = as_interconnect(sys)
-    T_, U_, x0, t_eval, method, solver = python_control_arguments(
+    T_, U_, x0, t_eval, method, solver = contract.python_control_arguments(
         diagram, T, U, X0s[0] if X0s is not None else X0, options)
     if diagram.isdtime(strict=True):  # (its evaluation times are its steps, checked)
-        check_arguments(diagram, t_eval, x0)
+        contract.check_arguments(diagram, t_eval, x0)
     X0s = X0s if X0s is not None else np.tile(x0, (len(params_list), 1))
     try:
         responses, errors = many.run_many(diagram, T_, U_, X0s, params_list, t_eval=t_eval,
@@ -468,11 +464,12 @@ def _many_on_the_engine(sys, T, U, X0, X0s, rows, params_list, options, compile)
     if any(isinstance(error, Diverged | UnsupportedSystem) for error in errors):
         return None  # (a run that diverged, or python-control's: run by run, as alone)
     for r, error in enumerate(errors):
-        if error is not None:
-            raise type(error)(f"run {r}: {error}") from error
+        if error is not None:  # (its own class, whatever its constructor takes)
+            error.add_note(f"(in run {r} of {len(errors)})")
+            raise error
     listed = TimeResponseList([
-        response(sys, resp.t, outputs(sys, diagram, resp, params_list[r]), resp.x, resp.u,
-                 **result_flags(dict(options, params=params_list[r])))
+        contract.response(sys, resp.t, outputs(sys, diagram, resp, params_list[r]), resp.x,
+                          resp.u, **contract.result_flags(dict(options, params=params_list[r])))
         for r, resp in enumerate(responses)])
     for mine, theirs in zip(listed, responses, strict=True):
         mine.engine_mode = theirs.engine_mode

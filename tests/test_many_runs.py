@@ -167,3 +167,53 @@ def test_a_batch_answers_as_its_runs_alone_do(compile):
         ct.input_output_response(loop, T, 1.0, [0.0], t_eval=list(T))
     with pytest.raises(TypeError):
         controlkit.input_output_response(loop, T, 1.0, [0.0], t_eval=list(T), compile=compile)
+
+
+def _halved_into_zeros_like(t, x, u, params):
+    y = np.zeros_like(x)  # integers while x is (python-control's first step keeps them)
+    y[0] = params.get("a", 0.5) * x[0] + u[0]
+    return y
+
+
+@pytest.mark.parametrize("compile", [None, True, False])
+@pytest.mark.parametrize("X0", [[1], np.array([1.1], dtype=np.float32), [[1], [2.5]]],
+                         ids=["one integer state", "one float32 state", "rows as written"])
+def test_a_batch_s_runs_start_from_the_state_each_alone_is_given(compile, X0):
+    # a review's batch: one initial state of integers (or float32) for every run, or a
+    # list whose rows numpy would make floats, ran from floats: 0.9 and 4.8e-8 off the
+    # runs alone, which python-control makes in the state's own type, without a word
+    T = np.linspace(0.0, 2.0, 21)
+    loop = _loop(_halved_into_zeros_like, lambda t, x, u, p: x[0])
+    sets = [{"a": 0.5}, {"a": 0.25}]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        batch = controlkit.input_output_response(loop, T, 1.0, X0, params=sets,
+                                                 compile=compile)
+    for r, mine in enumerate(batch):
+        alone = X0[r] if isinstance(X0, list) and len(X0) == len(sets) else X0
+        theirs = ct.input_output_response(loop, T, 1.0, alone, params=sets[r])
+        np.testing.assert_array_equal(mine.states, theirs.states)
+
+
+class _Saturated(ValueError):
+    def __init__(self, block, value):  # (not one message, as Exception's own)
+        super().__init__(f"{block} saturated at {value}")
+
+
+def _saturating(t, x, u, params):
+    if x[0] > params["limit"]:
+        raise _Saturated("P", x[0])
+    return [0.9 * x[0] + u[0]]
+
+
+@pytest.mark.parametrize("compile", [True, False])
+def test_a_run_s_error_in_a_batch_is_its_own_whatever_its_class_takes(compile):
+    # the batch made a new error of the class from one message: a TypeError where
+    # python-control raised the user's own
+    loop = _loop(_saturating, lambda t, x, u, p: x[0])
+    T = np.linspace(0.0, 3.0, 31)
+    with pytest.raises(_Saturated, match="P saturated at") as raised:
+        controlkit.input_output_response(loop, T, 10.0, 0.0, params=[{"limit": 100.0},
+                                                                     {"limit": 2.0}],
+                                         compile=compile)
+    assert "(in run 1 of 2)" in raised.value.__notes__
