@@ -1363,6 +1363,44 @@ def test_math_s_domain_errors_raise_as_python_raises_them_where_numba_s_nan_is_l
         assert np.array_equal(ours.outputs, ct.input_output_response(loop, T, U, 0.1).outputs)
 
 
+def complex_power_compared(t, x, u, params):  # a Python float's complex power, compared
+    s = float(1.5 - u[0])  # (a Python float: numpy's would make NaN, as compiled code)
+    return [0.5 * x[0] + (1.0 if abs(s ** 1.5) > 0.2 else 0.0)]
+
+
+def math_power_compared(t, x, u, params):  # math.pow's domain error, dropped by a comparison
+    return [0.5 * x[0] + (1.0 if math.pow(u[0], 1.5) > 0.5 else 0.0)]
+
+
+def overflowing_power(t, x, u, params):  # Python's float raises, C's pow gives inf
+    return [0.5 * x[0] + (1.0 if 10.0 ** (200.0 * u[0]) > 1.0 else 0.0)]
+
+
+@pytest.mark.parametrize("update", [complex_power_compared, math_power_compared,
+                                    overflowing_power])
+def test_a_power_python_s_float_makes_no_float_of_runs_as_python(update):
+    # compiled, a negative Python float to a fractional power was NaN where Python makes
+    # a complex number (a comparison of it took the other branch, 1.0 off python-control,
+    # from t = 20 314 s of a review's run), math.pow's domain error and a power's overflow
+    # were numbers where python-control raises
+    block = ct.nlsys(update, None, inputs="u", outputs="y", states=1, dt=TS, name="power")
+    loop = ct.interconnect([block], inputs="u", outputs="y")
+    T = np.arange(4000) * TS
+    U = np.where(T > 150.0, -1.0 if update is math_power_compared else 2.0, 1.0)
+    try:
+        expected = ct.input_output_response(loop, T, U, 0.1).outputs
+    except (ValueError, OverflowError) as error:
+        with pytest.raises(type(error), match=re.escape(str(error))):
+            controlkit.input_output_response(loop, T, U, 0.1, compile=True)
+    else:
+        ours = controlkit.input_output_response(loop, T, U, 0.1, compile=True)
+        assert np.array_equal(ours.outputs, expected)
+    within = controlkit.input_output_response(loop, T[:2000], 1.0, 0.1, compile=True)
+    assert within.engine_mode == "compiled"  # (Python's float numbers: compiled)
+    assert np.array_equal(within.outputs,
+                          ct.input_output_response(loop, T[:2000], 1.0, 0.1).outputs)
+
+
 def test_math_s_checked_functions_compile_with_numba_s_numbers_in_a_continuous_loop():
     block = ct.nlsys(roots_and_logs, None, inputs="u", outputs="y", states=1, name="logs")
     loop = ct.interconnect([block], inputs="u", outputs="y")

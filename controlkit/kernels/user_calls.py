@@ -62,8 +62,10 @@ def power(a, b):
     """``a ** b``, which compiled user functions call instead, with Python's numbers: a
     number to a power is the C library's ``pow`` (numba multiplies for an integer power,
     ``x ** 3`` as ``x * x * x``, and LLVM turns ``pow(x, 2.0)`` into ``x * x``: the last bit
-    differs from Python's on 0.1-25 % of values); a float array to a number as numpy
-    computes it (a square, a reciprocal or a square root for 2, -1 and 0.5; else ``pow``).
+    differs from Python's on 0.1-25 % of values), raising where Python's float gives no
+    float (a complex number, an error), so that the piece runs as Python; a float array to
+    a number as numpy computes it (a square, a reciprocal or a square root for 2, -1 and
+    0.5; else ``pow``).
 
     Examples
     --------
@@ -251,7 +253,18 @@ def _overloads(numba):
                     b, _nbtypes.Float | _nbtypes.Integer) and not (
                     isinstance(a, _nbtypes.Integer) and isinstance(b, _nbtypes.Integer)):
                 def impl(a, b):
-                    return _c_pow(float(a), float(b))
+                    x, y = float(a), float(b)
+                    result = _c_pow(x, y)
+                    # where Python's float has no float: a complex number (a negative to a
+                    # fractional power), ZeroDivisionError (0.0 to a negative power) or
+                    # OverflowError (numpy's float gives NaN, inf): the piece runs as Python
+                    if result != result and x == x and y == y:
+                        raise ValueError("a negative number to a fractional power, which "
+                                         "Python's float makes complex")
+                    if math.isinf(result) and math.isfinite(x) and math.isfinite(y):
+                        raise OverflowError("a power out of a float's range (or 0.0 to a "
+                                            "negative power), which Python's float raises")
+                    return result
                 return impl
             if isinstance(a, _nbtypes.Array) and a.dtype == _nbtypes.float64 \
                     and isinstance(b, _nbtypes.Float | _nbtypes.Integer):
