@@ -671,17 +671,23 @@ def test_numbas_cache_folder_is_checked_as_the_store_is(tmp_path, monkeypatch):
     assert (tmp_path / "later" / "numba").stat().st_mode & 0o777 == 0o700
 
 
-def test_numbas_cache_folder_is_checked_as_numba_read_it(tmp_path, monkeypatch):
-    # a .numba_config.yaml in the folder numba was imported from (a course's folder, a
-    # cloned assignment) can set its cache folder where the variable says nothing: a
-    # review had another user's pickle there run at the next load
+def test_numbas_cache_folder_is_checked_as_numba_reads_it(tmp_path, monkeypatch):
+    # a .numba_config.yaml in the current folder (a course's folder, a cloned assignment)
+    # sets numba's cache folder where the variable says nothing, read again at each
+    # compile: a review had another user's pickle there run at the next load
     numba = pytest.importorskip("numba")
     monkeypatch.setattr(store, "CACHE_DIR", _private(tmp_path / "store"))
     monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
-    monkeypatch.setattr(numba.config, "CACHE_DIR", str(_shared(tmp_path)))
-    with pytest.raises(store.StoreRefused, match=r"numba's cache folder .*shared: .*can be "
-                                                 r"written by others"):
-        store.numba_checked()
+    course = _private(tmp_path / "course")
+    (course / ".numba_config.yaml").write_text(f"cache_dir: {_shared(tmp_path)}\n")
+    monkeypatch.chdir(course)  # (after numba's import: its next compile reads it)
+    try:
+        with pytest.raises(store.StoreRefused, match=r"numba's cache folder .*shared: .*can "
+                                                     r"be written by others"):
+            store.numba_checked()
+    finally:
+        monkeypatch.undo()
+        numba.config.reload_config()
 
 
 def _acl(*entries):
