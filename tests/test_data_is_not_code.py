@@ -415,3 +415,26 @@ def test_a_kernel_s_identity_follows_the_helpers_it_calls(tmp_path, monkeypatch)
         sys.modules.pop(name, None)
     assert identities[0] != identities[1]
     assert identities[0].startswith("ck_kernel_mod.kernel (source ")
+
+
+def test_a_kernel_s_global_changed_between_calls_of_one_diagram_is_compiled_anew(
+        tmp_path, monkeypatch):
+    # the diagram's kept job was taken again (a review: 2.0 where python-control gave 3.0)
+    import importlib
+
+    from controlkit.blocks.contract import KernelBlock
+
+    monkeypatch.syspath_prepend(str(tmp_path))
+    (tmp_path / "ck_gain_mod.py").write_text(
+        "from controlkit._jit import jit\n\nGAIN = 2.0\n\n\n@jit\n"
+        "def gain(t, x, u, p, out):\n    out[0] = GAIN * u[0]\n    return out\n")
+    module = importlib.import_module("ck_gain_mod")
+    block = KernelBlock(module.gain, feedthrough=True, dt=None, name="g", inputs=["u"],
+                        outputs=["y"])
+    loop = ct.interconnect([block], inputs="u", outputs="y", name="global_gain")
+    try:
+        for gain in (2.0, 3.0):
+            module.GAIN = gain
+            assert _run_both(loop).outputs[0] == gain
+    finally:
+        sys.modules.pop("ck_gain_mod", None)

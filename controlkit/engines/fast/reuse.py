@@ -12,7 +12,8 @@ arrays by their contents (a digest above 4 kB):
 
 - the diagram's wiring: its connection, input and output maps and its rate;
 - each block's sizes and rate, and
-  - a controlkit block: the block, its kernels and their parameter vector;
+  - a controlkit block: the block, its kernels, what they run
+    (:func:`~.codegen.kernel_identity`) and their parameter vector;
   - an LTI block: its ``A``, ``B``, ``C``, ``D`` (changed in place or not);
   - a user's ``nlsys``: its functions, their :class:`~controlkit.engines.source.Plan`
     (the same plan object only while everything it read from outside is unchanged:
@@ -33,6 +34,7 @@ from ...blocks.contract import KernelBlock
 from ...blocks.sampling import SampledSystem
 from .. import _KEPT_JOBS, _keep_on, _kept_on, source
 from . import store
+from .codegen import kernel_identity
 from .tiers import _local_params
 
 
@@ -126,8 +128,11 @@ def _rate(dt):
 
 
 def _own(block):
-    """A controlkit block: its kernels (made when it was built) and their parameters."""
-    return (_Same(block), _Same(block.kernels), _value(block.kernels.params))
+    """A controlkit block: its kernels (made when it was built), what they run (a global
+    they read may change between calls) and their parameters."""
+    kernels = block.kernels
+    return (_Same(block), _Same(kernels), _value(kernels.params), tuple(
+        kernel_identity(f) for f in (kernels.output, kernels.update) if f is not None))
 
 
 def _kernels(sys, block, params, compiled):
