@@ -259,11 +259,14 @@ def _overloads(numba):
                     # fractional power), ZeroDivisionError (0.0 to a negative power) or
                     # OverflowError (numpy's float gives NaN, inf): the piece runs as Python
                     if result != result and x == x and y == y:
-                        raise ValueError("a negative number to a fractional power, which "
-                                         "Python's float makes complex")
+                        raise ValueError("a negative number to a fractional power: "
+                                         "complex for Python's float, NaN for numpy's, "
+                                         "which compiled code cannot tell apart")
                     if math.isinf(result) and math.isfinite(x) and math.isfinite(y):
                         raise OverflowError("a power out of a float's range (or 0.0 to a "
-                                            "negative power), which Python's float raises")
+                                            "negative power): an error for Python's float, "
+                                            "inf for numpy's, which compiled code cannot "
+                                            "tell apart")
                     return result
                 return impl
             if isinstance(a, _nbtypes.Array) and a.dtype == _nbtypes.float64 \
