@@ -275,9 +275,8 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
 
 
 def _numpy_raises() -> bool:
-    """Whether numpy is told to raise, call or log on a floating-point error (``np.seterr``,
-    ``np.errstate``): the blocks' functions must then run as python-control runs them,
-    under it (the engine's Python run keeps them quiet, compiled code cannot raise)."""
+    """Whether numpy is told to raise, call or log on a floating-point error (``np.seterr``):
+    the blocks' functions then run as python-control runs them (compiled code cannot)."""
     return any(mode not in ("ignore", "warn") for mode in np.geterr().values())
 
 
@@ -431,10 +430,16 @@ def _many(sys, T, U, X0, runs, engine, options, compile):
         listed = _many_on_the_engine(sys, T, U, X0, X0s, rows, params_list, options, compile)
         if listed is not None:
             return listed
-    return TimeResponseList([
-        input_output_response(sys, T, U, rows[r] if rows is not None else X0, engine=engine,
-                              compile=compile, **dict(options, params=p))
-        for r, p in enumerate(params_list)])
+    listed = []
+    for r, p in enumerate(params_list):
+        try:
+            listed.append(input_output_response(sys, T, U, rows[r] if rows is not None else X0,
+                                                engine=engine, compile=compile,
+                                                **dict(options, params=p)))
+        except Exception as error:  # (raised as itself, the run named)
+            error.add_note(f"(in run {r} of {len(params_list)})")
+            raise
+    return TimeResponseList(listed)
 
 
 def _many_on_the_engine(sys, T, U, X0, X0s, rows, params_list, options, compile):

@@ -207,13 +207,15 @@ def _saturating(t, x, u, params):
 
 
 @pytest.mark.parametrize("compile", [True, False])
-def test_a_run_s_error_in_a_batch_is_its_own_whatever_its_class_takes(compile):
+@pytest.mark.parametrize("X0", [0.0, [[0], [0]]], ids=["in one call", "run by run"])
+def test_a_run_s_error_in_a_batch_is_its_own_whatever_its_class_takes(compile, X0):
     # the batch made a new error of the class from one message: a TypeError where
-    # python-control raised the user's own
+    # python-control raised the user's own (integer rows of a discrete diagram: each run
+    # alone, as python-control makes it)
     loop = _loop(_saturating, lambda t, x, u, p: x[0])
     T = np.linspace(0.0, 3.0, 31)
     with pytest.raises(_Saturated, match="P saturated at") as raised:
-        controlkit.input_output_response(loop, T, 10.0, 0.0, params=[{"limit": 100.0},
-                                                                     {"limit": 2.0}],
+        controlkit.input_output_response(loop, T, 10.0, X0, params=[{"limit": 100.0},
+                                                                    {"limit": 2.0}],
                                          compile=compile)
     assert "(in run 1 of 2)" in raised.value.__notes__
