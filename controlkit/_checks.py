@@ -425,8 +425,9 @@ def not_own(path: Path) -> str | None:
 
 def numba_cache_not_own() -> str | None:
     """Why numba's cache folder is not the user's own (:func:`not_own`), None when it is or
-    when none is set: as numba reads it when it compiles (``NUMBA_CACHE_DIR``, or a
-    ``.numba_config.yaml`` in the current folder), else the variable. A folder not there
+    when none is set: as numba last read it (``NUMBA_CACHE_DIR``, or a
+    ``.numba_config.yaml`` in the current folder; read again at each compile), else the
+    variable. A folder not there
     yet is made now, the user's: numba would make it after the check.
 
     Examples
@@ -435,8 +436,6 @@ def numba_cache_not_own() -> str | None:
     True
     """
     config = getattr(sys.modules.get("numba"), "config", None)
-    if config is not None:  # (as its next compile reads it: numba reads it again at each)
-        config.reload_config()
     cache = getattr(config, "CACHE_DIR", None) or os.environ.get("NUMBA_CACHE_DIR", "")
     if not cache:
         return None

@@ -79,7 +79,7 @@ def folder() -> Path:
 
 def numba_checked():
     """numba (imported now if need be), the store and numba's cache folder checked as
-    numba read it (:func:`folder`): what every compile or load of the store calls first.
+    numba's next compile reads it (:func:`folder`): what every compile or load calls first.
 
     Examples
     --------
@@ -87,6 +87,7 @@ def numba_checked():
     'numba'
     """
     module = _jit.numba_module()
+    module.config.reload_config()  # (numba's settings as its next compile reads them)
     folder()
     return module
 
@@ -291,11 +292,8 @@ def compile_entry(function, args, path: Path, blocks: int = 1):
     Examples
     --------
     >>> path = module_file("def double(x):\\n    return 2 * x\\n", "diagram")
-    >>> if _jit.available():
-    ...     fn = compile_entry(import_module(path).double, (1.0,), path)
-    ...     float(fn(2.0))
-    ... else:
-    ...     4.0
+    >>> fn = compile_entry(import_module(path).double, (1.0,), path) if _jit.available() else 0
+    >>> float(fn(2.0)) if fn else 4.0
     4.0
     """
     numba = numba_checked()
