@@ -216,6 +216,10 @@ def test_stiff_methods_run_scipy_on_the_diagrams_right_hand_side(method):
     ref = ct.input_output_response(loop, T, U, X0, solve_ivp_method=method)
     ours = fast(loop, T, U, X0, solve_ivp_method=method)
     assert scaled_error(ours.y, ref.y) <= 1e-9
+    with pytest.warns(UserWarning, match=rf"running '.*' as Python: {method} is scipy's"):
+        asked = controlkit.input_output_response(loop, T, U, X0, solve_ivp_method=method,
+                                                 compile=True)  # (asked for: said why not)
+    assert asked.engine_mode == "python"
 
 
 def test_python_control_options_and_result_flags_are_kept():

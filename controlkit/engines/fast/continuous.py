@@ -305,6 +305,9 @@ def run_continuous(sys, T, U, X0, *, params=None, t_eval=None, method="RK45",
         raise ValueError("Values in `t_eval` are not properly sorted.")
     if method not in EXPLICIT_METHODS + STIFF_METHODS:
         raise UnsupportedSystem(f"solve_ivp method {method!r}")
+    if compile and method in STIFF_METHODS:  # (asked for: said, as a block's reason is)
+        warn_caller(f"running {sys.name!r} as Python: {method} is scipy's own solver, which "
+                    f"calls the diagram's Python functions (RK45, RK23 and DOP853 compile)")
     runner = Runner(sys, params, False if method in STIFF_METHODS else compile, T.size)
     run = _Run(sys, runner.python.plan, T, U, X0, t_eval, method, solver)
     pieces, start = Pieces(first=256), now()
