@@ -427,8 +427,8 @@ def numba_cache_not_own() -> str | None:
     """Why numba's cache folder is not the user's own (:func:`not_own`), None when it is or
     when none is set: as numba last read it (``NUMBA_CACHE_DIR``, or a
     ``.numba_config.yaml`` in the current folder; read again at each compile), else the
-    variable. A folder not there
-    yet is made now, the user's: numba would make it after the check.
+    variable. A folder not there yet is made now, the user's: numba would make it after
+    the check.
 
     Examples
     --------
