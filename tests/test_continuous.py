@@ -220,6 +220,10 @@ def test_stiff_methods_run_scipy_on_the_diagrams_right_hand_side(method):
         asked = controlkit.input_output_response(loop, T, U, X0, solve_ivp_method=method,
                                                  compile=True)  # (asked for: said why not)
     assert asked.engine_mode == "python"
+    with pytest.warns(UserWarning, match=rf"running '.*' as Python: {method} is scipy's"):
+        batch = controlkit.input_output_response(loop, T, U, [X0, X0], solve_ivp_method=method,
+                                                 compile=True)  # (many runs: the same)
+    assert [resp.engine_mode for resp in batch] == ["python", "python"]
 
 
 def test_python_control_options_and_result_flags_are_kept():

@@ -94,8 +94,8 @@ def run_many(sys, T, U, X0s, params_list, *, t_eval=None, method="RK45", compile
     job = None if compile is False or method in STIFF_METHODS else compiled_job(
         sys, params_list[0])
     if isinstance(job, str) or job is None:
-        for r in range(runs):
-            alone(r, False)
+        for r in range(runs):  # (compile=True: each run says why it runs as Python)
+            alone(r, compile)
         return responses, errors
     todo = list(range(runs))
     if compile is None and not job.is_compiled():
