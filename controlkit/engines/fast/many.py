@@ -95,7 +95,7 @@ def run_many(sys, T, U, X0s, params_list, *, t_eval=None, method="RK45", compile
         sys, params_list[0])
     if isinstance(job, str) or job is None:
         for r in range(runs):  # (compile=True: each run says why it runs as Python)
-            alone(r, compile)
+            alone(r, compile is True)
         return responses, errors
     todo = list(range(runs))
     if compile is None and not job.is_compiled():
