@@ -212,7 +212,7 @@ class _Run:
         """(A piece ends inside an interval: the blocks named by the states it served.)"""
         served = [np.zeros((self.x.size, len(y))) for y in (mine[3], theirs[3])]
         for states, y in zip(served, (mine[3], theirs[3]), strict=True):
-            states[self.buffers[5]] = y.T  # (the continuous states, at cidx)
+            states[job.plan.continuous] = y.T
         return f"after t = {self.times[max(n0 - 1, 0)]:g} s" + where_they_part(
             job.blocks, self.times[n0:], *served)
 
