@@ -57,14 +57,14 @@ class _Translator(_OutsideReads, ast.NodeTransformer):
                 self.sources[name] = binding.value
             elif isinstance(binding.value, str):
                 self.strings[name] = binding.value  # a key handed in: reads are constant
-            elif _is_plain(binding.value) and not isinstance(binding.value, types.ModuleType
-                                                                    | types.FunctionType):
+            elif _is_plain(binding.value) and not callable(binding.value) \
+                    and not isinstance(binding.value, types.ModuleType):
                 frozen = self._freeze_value(name, binding.value)
                 prologue.append(ast.Assign([ast.Name(name, ast.Store())],
                                            ast.Name(frozen, ast.Load()), lineno=0))
                 kept.add(name)
-            else:
-                self.fixed[name] = binding.value  # an object, a module, a function
+            else:  # an object, a module, a function: read as a name from outside is
+                self.fixed[name] = binding.value  # (a default np.tanh by numpy's last bits)
         body = self._hoist_imports(body)
         body = _Unroll(self._lookup).visit(ast.Module(body, [])).body
         counts = _store_counts(body)
