@@ -59,9 +59,8 @@ def initial_state(sys, /, **by_block) -> np.ndarray:
     names = {s.name for s in subsystems}
     unknown = set(by_block) - names
     if unknown:
-        raise ValueError(
-            f"no block named {sorted(unknown)} in {sys.name}; blocks: {sorted(names)}"
-        )
+        raise ValueError(f"no block named {sorted(unknown)} in {sys.name}; blocks: "
+                         f"{sorted(names)}")
     parts = []
     for s in subsystems:
         if s.nstates == 0:
@@ -69,15 +68,12 @@ def initial_state(sys, /, **by_block) -> np.ndarray:
         value = by_block.get(s.name, getattr(s, "x0", np.zeros(s.nstates)))
         value = _checks.float_array(f"initial state of block {s.name!r}", value).reshape(-1)
         if value.size != s.nstates:
-            raise ValueError(
-                f"initial state of block {s.name!r} must have {s.nstates} values "
-                f"({s.state_labels}), got {value.size}"
-            )
+            raise ValueError(f"initial state of block {s.name!r} must have {s.nstates} "
+                             f"values ({s.state_labels}), got {value.size}")
         if s.name in by_block:
             check_initial_state(s, value)
         parts.append(value)
     return np.concatenate(parts) if parts else np.zeros(0)
-
 
 
 def simulate(
@@ -253,9 +249,12 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
                              "give the times, or 'T'")
         return _sampled_data_response(sys, T, U, X0, engine, options, compile)
     # (t_eval None: its solver's steps; a short run: its own, before more is asked of T)
-    if engine == "fast" and t_eval is not None and (
-            compile is not None or _starts_engine(sys, np.size(T))) \
-            and not _python_control_s_own(sys, T, options):
+    own = engine == "fast" and t_eval is not None and (
+        compile is not None or _starts_engine(sys, np.size(T))) and \
+        _python_control_s_own(sys, T, options)
+    if own and compile:  # (asked for, so said: as for a stiff method)
+        _warn(f"compile=True not used: python-control runs this call itself ({own})")
+    if own == "":  # (the engine's run: False is python-control's by the rule above)
         from ._checks import Diverged  # (as the engine, about to run, imports it)
 
         try:
@@ -274,44 +273,45 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
     return _python_control(sys, T, U, X0, options)
 
 
-def _numpy_raises() -> bool:
+def _numpy_raises(compile=None) -> bool:
     """Whether numpy is told to raise, call or log on a floating-point error (``np.seterr``):
-    the blocks' functions then run as python-control runs them (compiled code cannot)."""
-    return any(mode not in ("ignore", "warn") for mode in np.geterr().values())
+    the blocks' functions then run as Python (compiled code cannot), said if compile=True."""
+    raises = any(mode not in ("ignore", "warn") for mode in np.geterr().values())
+    if raises and compile:
+        _warn("compile=True not used: numpy is told to raise, call or log on a floating-point "
+              "error (np.seterr), which compiled code cannot")
+    return raises
 
 
-def _python_control_s_own(sys, T, options) -> bool:
-    """Whether the call's arguments take a form python-control answers in its own way
-    (an error, or integrating backwards), which the engine leaves to it: a list ``T`` or
-    ``t_eval`` for a discrete system (python-control subtracts lists), a single time point,
-    time points that do not increase, ``t_eval`` in ``solve_ivp_kwargs``, time points of
-    another float type (python-control evaluates the functions at them), a discrete
-    diagram without states (its outputs at any time points), and numpy told to raise, call
-    or log on a floating-point error (``np.seterr``: compiled code cannot raise)."""
+def _python_control_s_own(sys, T, options) -> str:
+    """Why python-control answers the call's arguments in its own way, which the engine
+    leaves to it (an error, integrating backwards, functions evaluated at times of another
+    float type, numpy told to raise, which compiled code cannot); else ``""``."""
     if getattr(sys, "nstates", None) == 0 and sys.isdtime(strict=True):
-        return True
+        return "a discrete diagram without states: its outputs at any time points"
     if _numpy_raises():
-        return True
+        return "numpy is told to raise, call or log on a floating-point error (np.seterr)"
     if "controlkit.blocks.sampling" in _sys.modules:  # (imported for a grid)
         from .blocks.sampling import TimeGrid  # (waits for a thread still importing it)
 
         if isinstance(T, TimeGrid):
-            return False  # increasing by construction, and kept lazy
+            return ""  # increasing by construction, and kept lazy
     if "t_eval" in options["solve_ivp_kwargs"] or np.size(T) < 2:
-        return True
+        return "t_eval in solve_ivp_kwargs, or a single time point"
     isdtime = getattr(sys, "isdtime", None)  # (not a system: python-control's error)
     times = options.get("evaluation_times", "T")  # (the default: the string "T")
     listed = not isinstance(T, np.ndarray) or not isinstance(times, str | np.ndarray)
     if listed and (isdtime is None or isdtime(strict=True)):
-        return True
+        return "time points as a list, which python-control subtracts as lists"
     if isinstance(T, np.ndarray) and T.dtype != np.float64 and T.dtype.kind not in "iu":
-        return True  # float32, longdouble: python-control computes the times in them
+        return f"time points of {T.dtype}"
     try:
         times = np.asarray(T, dtype=float).reshape(-1)
     except (TypeError, ValueError):  # (not numbers: python-control's error)
-        return True
+        return "time points that are not numbers"
     # (NaN or inf: python-control refuses in its solver's words, the engine names T)
-    return np.isfinite(times).all() and not (np.diff(times) > 0).all()
+    return "time points that do not increase" if np.isfinite(times).all() and not (
+        np.diff(times) > 0).all() else ""
 
 
 #: The attribute of a system holding python-control's slowest pace on it, s a time point.
@@ -425,7 +425,7 @@ def _many(sys, T, U, X0, runs, engine, options, compile):
     elif X0s is not None and np.asarray(X0).dtype.kind in "biuf":
         rows = np.broadcast_to(np.asarray(X0), X0s.shape)
     # (a batch python-control would finish sooner than the engine starts: run by run)
-    if engine == "fast" and not _numpy_raises() and (
+    if engine == "fast" and not _numpy_raises() and (  # (else run by run: each says so)
             compile is not None or _starts_engine(sys, np.size(T) * len(params_list))):
         listed = _many_on_the_engine(sys, T, U, X0, X0s, rows, params_list, options, compile)
         if listed is not None:
@@ -486,7 +486,7 @@ def _sampled_data_response(sys, T, U, X0, engine, options, compile):
     from .engines import reference
     from .engines.contract import python_control_arguments, response, result_flags
 
-    if engine == "fast" and not _numpy_raises():  # (else the reference, which raises)
+    if engine == "fast" and not _numpy_raises(compile):  # (else the reference: it raises)
         fast = _fast_response(sys, T, U, X0, options, "controlkit's Python reference",
                               compile=compile)
         if fast is not None:
