@@ -15,6 +15,7 @@ import control as ct
 import numpy as np
 import pytest
 
+import controlkit
 from controlkit import _jit
 from controlkit.engines.fast import run, store, usercode
 from controlkit.engines.fast.usercode.compiling import KERNEL_LINE_SECONDS, KERNEL_MORE_LINES
@@ -228,6 +229,26 @@ def test_a_kernel_numba_cannot_compile_ends_the_steps_not_the_call(monkeypatch):
     assert tried == [1]
     assert run._TWINS[source] == ("numba could not compile a function (TypeError: No "
                                   "implementation of function)")
+
+
+def test_numba_s_refusal_of_a_block_s_function_names_the_block(monkeypatch, tmp_path):
+    # a diagram's user functions compile one by one before its module: the first numba
+    # refuses names its block, and the module is not compiled for nothing (a review saw
+    # the warning name the diagram, 'sys[4]', after the module's compile failed again)
+    monkeypatch.setattr(store, "CACHE_DIR", tmp_path / "store")
+    coefficients = np.array([0.2, -0.1, 1.0])
+    first = ct.nlsys(lambda t, x, u, p: x + 0.1 * (u - x), lambda t, x, u, p: x, states=1,
+                     inputs="r", outputs="ya", dt=0.1, name="first")
+    shaper = ct.nlsys(None, lambda t, x, u, p: np.polyval(coefficients, u[0]), inputs="ya",
+                      outputs="yb", dt=0.1, name="shaper")
+    loop = ct.interconnect([first, shaper], inputs="r", outputs="yb")
+    modules = []
+    monkeypatch.setattr(store, "compile_entry", lambda *args, **kw: modules.append(args))
+    T = np.arange(100) * 0.1
+    with pytest.warns(UserWarning, match=r"numba could not compile block 'shaper' \(Typing"):
+        ours = controlkit.input_output_response(loop, T, 1.0, compile=True)
+    assert ours.engine_mode == "python" and modules == []
+    assert np.array_equal(ours.outputs, ct.input_output_response(loop, T, 1.0).outputs)
 
 
 def test_a_kernel_recorded_by_another_process_keeps_its_record(monkeypatch, tmp_path):

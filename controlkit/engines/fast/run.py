@@ -30,9 +30,8 @@ RULE = ("compiled when asked (compile=True), when the diagram's module is compil
         "already, or when the run, with the earlier runs of the same module in this "
         "process, would take longer as Python than compiling it takes, and the call "
         "stays no slower than python-control's (timed on its first pieces); else as Python")
-#: Compiling pays when the rest of the run as Python, with the earlier runs of the same
-#: module, would take this many times longer than loading numba and compiling: 1, the
-#: ski-rental rule (a session pays at most twice what hindsight's best choice would).
+#: Compiling pays when the rest of the run as Python, with the module's earlier runs, takes
+#: this times numba's start and the compile: 1, ski rental (at most twice hindsight's best).
 PAYS = 1.0
 #: numba's own start in a process in two steps, ``(seconds, done, make)``: the import, the
 #: first use (numba fills its tables: loading the step machine kept in the store).
@@ -133,11 +132,11 @@ class Job:
                                    f"{expected:.0f} s, once: later runs load it)")
                 try:
                     if store.record(path) is None:  # its user's kernels first, each timed
-                        _compile_kernels(self.plan.kernels)
+                        _compile_kernels(self.blocks)
                     entries[key] = compile_it(path)
                 except Exception as error:  # noqa: BLE001 - numba's: runs as Python
-                    said = store.numba_said(error)
-                    DIFFERS[self.source] = f"numba could not compile it ({said})"
+                    DIFFERS[self.source] = str(error) if isinstance(error, NotCompiled) \
+                        else f"numba could not compile it ({store.numba_said(error)})"
                     raise NotCompiled(DIFFERS[self.source]) from error
             return entries[key]
 
@@ -155,14 +154,18 @@ def _module_code(source: str):
     return compile(source, "<controlkit diagram module>", "exec")
 
 
-def _compile_kernels(kernels) -> None:
-    """Compile the user's ``kernels`` not compiled yet, one by one (timed for the
-    estimates); one that fails is left to the module's compile, which says why."""
-    for _, make in usercode.kernels_to_compile(kernels):
-        try:
-            make()
-        except Exception:  # noqa: BLE001, S112 - numba's: the module's compile will say
-            continue
+def _compile_kernels(blocks) -> None:
+    """Compile the user's kernels of ``blocks`` not compiled yet, one by one (timed for
+    the estimates); numba's refusal of one is :class:`NotCompiled` naming its block."""
+    for b in blocks:
+        for _, make in usercode.kernels_to_compile([b.kernel.output, b.kernel.update]):
+            try:
+                make()
+            except (MemoryError, OSError):  # (the machine's: the module's compile says)
+                continue
+            except Exception as error:  # noqa: BLE001 - numba's refusal, kept in the store
+                raise NotCompiled(f"numba could not compile block {b.system.name!r} "
+                                  f"({store.numba_said(error)})") from error
 
 
 def _pasted(fn):
