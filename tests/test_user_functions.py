@@ -14,6 +14,7 @@ import warnings
 import control as ct
 import numpy as np
 import pytest
+import scipy.special
 from idiom_diagrams import DIAGRAMS, cruise, expected_tier
 
 import controlkit
@@ -371,6 +372,34 @@ def test_a_compiled_module_whose_numbers_agree_goes_on_compiled(compiles_after_a
     assert resp.engine_mode == "compiled"
     np.testing.assert_array_equal(resp.outputs,
                                   ct.input_output_response(loop, T, 1.0, [0.0]).outputs)
+
+
+PARTIAL_TANH = functools.partial(np.tanh)
+
+
+@pytest.mark.parametrize("output, said", [
+    (lambda t, x, u, p: scipy.special.erf(u[0]), "it reads 'erf', a ufunc, which numba"),
+    (lambda t, x, u, p: math.log(1.0 + u[0] ** 2, 10),
+     "it calls math.log(..., ...): its compiled form takes (x) only"),
+    (lambda t, x, u, p: PARTIAL_TANH(u[0]),
+     "it uses PARTIAL_TANH: it is a ufunc, not a Python function")],
+    ids=["scipy's ufunc", "math.log with a base", "a partial of a ufunc"])
+def test_a_block_s_reason_is_in_the_words_the_user_wrote(output, said):
+    # a review read "it reads 'scipy_0'" (the frozen value's name), "math.log(1.0 +
+    # _ck_power(u[0], 2), 10)" (the text as rewritten), and a reason naming nothing
+    (row,) = controlkit.explain(ct.nlsys(None, output, inputs=1, outputs=1, name="shaper"))
+    assert row.tier == "python" and row.reason.startswith(said), row.reason
+
+
+def test_explain_says_a_transfer_function_alone_is_python_control_s():
+    # python-control's input_output_response refuses one (explain said "compiled"); the
+    # MIMO one's conversion needs slycot, and explain raised its error
+    siso = ct.tf([1.0], [1.0, 2.0, 1.0], name="H")
+    mimo = ct.tf([[[1.0], [2.0]], [[1.0, 1.0], [1.0]]],
+                 [[[1.0, 1.0], [1.0, 3.0]], [[1.0, 2.0, 1.0], [1.0, 4.0]]], name="G")
+    for system in (siso, mimo):
+        (row,) = controlkit.explain(system)
+        assert row.tier == "python-control" and "ct.ss(sys) runs" in row.reason, row
 
 
 def test_explain_says_why_a_diagram_whose_compiled_numbers_differed_runs_as_python(
@@ -1276,11 +1305,10 @@ def taxicab(t, x, u, params):
     (single_precision, "it uses numpy.float32: numpy computes in its 32 bits, compiled code "
                        "in 64"),
     (fixed_point, "it uses numpy.int16: numpy computes in its 16 bits"),
-    (summed_over_an_axis, r"it calls np.sum\(np.outer\(x, \[0.1, 0.2\]\), axis=0\): compiled, "
-                          r"np.sum "
-                          r"takes \(a\) only"),
-    (taxicab, r"it calls np.linalg.norm\(np.array\(\[x\[0\], u\[0\]\]\), 1\): compiled, "
-              r"np.linalg.norm takes \(x\) only")])
+    (summed_over_an_axis, r"it calls np.sum\(np.outer\(x, \[0.1, 0.2\]\), axis=0\): its "
+                          r"compiled form takes \(a\) only"),
+    (taxicab, r"it calls np.linalg.norm\(np.array\(\[x\[0\], u\[0\]\]\), 1\): its compiled "
+              r"form takes \(x\) only")])
 def test_narrow_numpy_types_and_arguments_compiled_code_does_not_take_run_as_python(
         update, reason):
     # the narrow types compiled to other numbers (1.2e-7 for float32, 2.18 for int16),

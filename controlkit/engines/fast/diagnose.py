@@ -17,7 +17,14 @@ from ..contract import UnsupportedSystem
 from . import store
 from .plan import evaluation_order
 from .run import compiled_job
-from .tiers import BlockTier, NotCompiled, _resolve, as_interconnect, blocks_of
+from .tiers import (
+    LONE_TRANSFER_FUNCTION,
+    BlockTier,
+    NotCompiled,
+    _resolve,
+    as_interconnect,
+    blocks_of,
+)
 
 
 def signals_at(job, t, x, u, k):
@@ -137,8 +144,10 @@ def sampled_block_blew_up(job, t, x, u, k, after=None):
 def explain(sys, params=None) -> list[BlockTier]:
     """How the fast engine runs each block of ``sys``: its tier and the reason.
 
-    Tiers (:data:`.tiers.TIERS`): ``"compiled"`` (the block can be compiled: the diagram
-    runs compiled when every block can be, and :data:`RULE` says when), ``"python"`` (the
+    Tiers (:data:`.tiers.TIERS`): ``"compiled"`` (the block's functions read as code numba
+    compiles with Python's numbers: the diagram runs compiled when every block can, and
+    :data:`RULE` says when; numba's own verdict comes with the first compile, kept in the
+    store, and is said from then on), ``"python"`` (the
     block runs as Python, and with it the whole diagram: the reason says why; also every
     block of a diagram whose compiled module gave other numbers than Python, or did not
     compile) and ``"python-control"`` (the whole diagram falls back to
@@ -168,7 +177,7 @@ def explain(sys, params=None) -> list[BlockTier]:
     >>> import control as ct
     >>> pi = ct.sample_system(ct.tf([1.0, 0.5], [1.0, 0.0]), 0.1, name="pi",
     ...                       inputs="e", outputs="u")
-    >>> plant = ct.nlsys(lambda t, x, u, p: x + 0.1 * (u - p.get("a", 1.0) * x ** 3),
+    >>> plant = ct.nlsys(lambda t, x, u, p: x + 0.1 * (u - p.get("a", 1.0) * x[0] ** 3),
     ...                  lambda t, x, u, p: x, inputs="u", outputs="y", states=1,
     ...                  dt=0.1, name="plant")
     >>> error = ct.summing_junction(["r", "-y"], "e", name="error")
@@ -184,6 +193,8 @@ def explain(sys, params=None) -> list[BlockTier]:
                          f"got {type(sys).__name__} {sys!r:.60}"
                          + ("; call explain on each system of the list" if isinstance(
                              sys, list | tuple) else ""))
+    if isinstance(sys, ct.TransferFunction):  # (its conversion may even need slycot)
+        return [BlockTier(sys.name, "python-control", LONE_TRANSFER_FUNCTION)]
     try:
         sys = as_interconnect(sys)  # a single block runs as a one-block diagram
         evaluation_order(sys, blocks_of(sys, params))

@@ -13,7 +13,7 @@ from ..contract import UnsupportedSystem, kept_state, python_control_arguments, 
 from ..contract import response as base_response
 from .continuous import StiffProblem, run_continuous
 from .discrete import simulate
-from .tiers import _local_params, as_interconnect
+from .tiers import LONE_TRANSFER_FUNCTION, _local_params, as_interconnect
 
 
 def response(sys, T, U, X0, *, compile=None, **options) -> ct.TimeResponseData:
@@ -32,8 +32,7 @@ def response(sys, T, U, X0, *, compile=None, **options) -> ct.TimeResponseData:
     [1.0, 1.5, 1.75]
     """
     if isinstance(sys, ct.TransferFunction):  # (an interconnect's block converts, as ours)
-        raise UnsupportedSystem("a transfer function alone, which python-control's "
-                                "input_output_response refuses: ct.ss(sys) runs")
+        raise UnsupportedSystem(LONE_TRANSFER_FUNCTION)
     given, sys = sys, as_interconnect(sys)  # the response keeps a single block's labels
     return _response(given, sys, T, U, X0, compile, options)
 

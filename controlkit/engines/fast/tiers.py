@@ -272,6 +272,11 @@ def _resolve(sys, block, params, compiled, local=False):
                             f"{type(block).__name__}, not an I/O system the engine knows")
 
 
+#: Why a transfer function alone is python-control's (:func:`explain` and the run say it).
+LONE_TRANSFER_FUNCTION = ("a transfer function alone, which python-control's "
+                          "input_output_response refuses: ct.ss(sys) runs")
+
+
 def as_interconnect(sys):
     """``sys`` itself if it is a diagram, else a one-block diagram around it.
 

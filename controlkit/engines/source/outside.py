@@ -283,8 +283,9 @@ class _OutsideReads:
         run time); left as it is when it cannot be planned."""
         try:
             fn, bound, keywords = call_target(value)
-        except NotCompilable as why:
-            self._problem(str(why))
+        except NotCompilable as why:  # (PART = partial(np.tanh): "it uses PART: it is a ufunc")
+            shown = ast.unparse(node)[:40]
+            self._problem(str(why) if shown in str(why) else f"it uses {shown}: {why}")
             return node
         if bound or keywords or not _helper_allowed(fn):
             self._problem(f"it uses {getattr(value, '__qualname__', value)!r} as a value")

@@ -163,10 +163,11 @@ def _taken(name, call, args):
     try:
         inspect.Signature(parameters).bind(*args, **{k.arg: k for k in call.keywords})
     except TypeError:
-        def text(node):
-            return as_written(ast.unparse(node))
-
-        raise NotCompilable(f"it calls {text(call)[:50]}: compiled, {text(call.func)[:30]} takes "
-                            f"({', '.join(p.name for p in parameters)}) only, and numba's "
-                            f"own would give other numbers") from None
+        called = as_written(ast.unparse(call))[:50]
+        if "_ck_" in called:  # (arguments rewritten already, x ** 2 as _ck_power: not shown)
+            given = [*(["..."] * len(call.args)), *(f"{k.arg}=..." for k in call.keywords)]
+            called = f"{as_written(ast.unparse(call.func))[:30]}({', '.join(given)})"
+        raise NotCompilable(f"it calls {called}: its compiled form takes "
+                            f"({', '.join(p.name for p in parameters)}) only (numba's own "
+                            f"gives other numbers, or none)") from None
     return ast.Call(ast.Name(name, ast.Load()), args, call.keywords)

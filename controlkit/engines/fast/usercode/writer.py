@@ -125,9 +125,10 @@ def _literal(name, value, lines, imports):
         # what it runs, in the text: numba's cache knows the kernel by its own file only,
         # and would hand back code compiled with an older version of the imported function
         imports.append(f"from {module} import {attr} as {name}  # {runs(value)}")
-    else:
-        raise NotCompilable(f"it reads {as_written(name)!r}, a {type(value).__name__}, "
-                            f"which numba cannot compile")
+    else:  # (named as the value names itself: scipy.special.erf, not its frozen name)
+        shown = getattr(value, "__name__", None) or as_written(name)
+        raise NotCompilable(f"it reads {shown!r}, a {type(value).__name__}, which numba "
+                            f"cannot compile")
 
 
 
