@@ -284,10 +284,20 @@ def generated(t, x, u, params):
     return [0.9 * x[0] + sum(u[i] for i in range(1))]
 
 
+def caught(t, x, u, params):
+    try:
+        root = math.sqrt(u[0])
+    except ValueError:
+        root = 0.0
+    return [0.9 * x[0] + root]
+
+
 @pytest.mark.parametrize("update, reason", [
     (remainder, "it calls math.fmod, which numba does not compile"),
     (generated, r"it uses a generator expression \(\(u\[i\] for i in range\(1\)\)\), which "
-                r"numba does not compile \(a list comprehension compiles\)")])
+                r"numba does not compile \(a list comprehension compiles\)"),
+    (caught, "it catches ValueError: compiled code \\(numba\\) catches every exception with "
+             "'except Exception:', or none")])
 def test_what_numba_refuses_runs_as_python_from_the_start_and_explain_says_why(update,
                                                                                reason):
     # explain said "compiled", and compile=True spent 0.4-1 s on numba's refusal first

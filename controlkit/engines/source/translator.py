@@ -262,6 +262,13 @@ class _Translator(_OutsideReads, ast.NodeTransformer):
 
     visit_Nonlocal = visit_Global
 
+    def visit_ExceptHandler(self, node):  # (numba refuses the others, after a compile)
+        if node.name or node.type is not None and ast.unparse(node.type) != "Exception":
+            self._problem(f"it catches {ast.unparse(node.type)[:30]}"
+                          f"{' as ' + node.name if node.name else ''}: compiled code (numba) "
+                          f"catches every exception with 'except Exception:', or none")
+        return self.generic_visit(node)
+
     def visit_Import(self, node):
         self._problem("it imports inside a block")
         return node
