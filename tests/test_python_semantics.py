@@ -864,6 +864,55 @@ def test_a_numpy_function_handed_in_as_an_argument_is_judged_as_one_read_from_ou
     assert np.array_equal(ours.outputs, expected.outputs)
 
 
+_BIG = 2 ** 62
+_MIXED = (0.5, np.float32(0.1))
+
+
+def _inverse_from_a_dict(t, x, u, params, cfg={"inv": np.linalg.inv}):  # noqa: B006
+    return 0.5 * x + cfg["inv"]([[2.0 + u[0] ** 2]])[0]
+
+
+def _mixed_sequence(t, x, u, params):
+    return 0.9 * x + (_MIXED[1] * 3.0 + 1e-9) * u[0]
+
+
+def _outside_integer(t, x, u, params):
+    return 0.9 * x + 1e-19 * (_BIG * int(u[0]))
+
+
+def _inverted_flag(t, x, u, params, flag=True):
+    return 0.9 * x + (~flag) * u[0]
+
+
+def _sum_by_another_name(t, x, u, params):
+    total = np.sum
+    return 0.5 * x + total(u[0] * np.arange(1.0, 40.0) * 0.1234567)
+
+
+@pytest.mark.parametrize("update, reason", [
+    (_inverse_from_a_dict, "numpy.linalg.inv"),
+    (_mixed_sequence, "'_MIXED', which holds an item of type float32"),
+    (_outside_integer, r"it computes _BIG \* int\(u\[0\]\) with integers"),
+    (_inverted_flag, r"it inverts a bool \(~\): Python's ~True is -2"),
+    (_sum_by_another_name, "it uses np.sum otherwise than in a call of it by name")],
+    ids=["a numpy function in a dict", "a float32 in a tuple", "an integer from outside",
+         "~ of a bool", "np.sum by another name"])
+def test_values_reaching_compiled_code_by_other_routes_are_judged_as_by_name(update, reason):
+    # a review's routes past the checks a name read from outside gets (np.linalg.inv in a
+    # default dict, a float32 in a tuple frozen as float64, 2**62 from a global times an
+    # int, ~True (-2 in Python, not True compiled), np.sum called by another name): each
+    # compiled with other numbers and no word, unseen by the check of a first piece whose
+    # input was zero
+    block = ct.nlsys(update, None, inputs=1, states=1, outputs=1, dt=1, name="route")
+    T = np.arange(200.0)
+    U = np.where(T < 100, 0.0, 0.5 + np.random.default_rng(7).uniform(-2.0, 2.0, 200))
+    expected = ct.input_output_response(block, T, U, 0.0)
+    with pytest.warns(UserWarning, match=reason):
+        ours = controlkit.input_output_response(block, T, U, 0.0, compile=True)
+    assert ours.engine_mode == "python"
+    assert np.array_equal(ours.outputs, expected.outputs)
+
+
 def _cubic_spring(t, x, u, params):
     k = params.get("k", 2)  # an integer power read from params, and literal ones
     return [x[0] + 0.01 * x[1],

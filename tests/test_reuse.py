@@ -3,6 +3,8 @@ changed: each change a notebook makes between two calls gives python-control's n
 
 import functools
 import linecache
+import sys
+import types
 
 import control as ct
 import numpy as np
@@ -63,6 +65,23 @@ def test_a_closure_array_changed_in_place_between_calls_is_read_again():
     gains[1] = 3.0
     after = agrees(loop, 1.0, [0.0])
     assert after[-1] == pytest.approx(1.0 / 3.0, rel=1e-3) and before[-1] > 0.8
+
+
+def test_a_name_imported_inside_a_function_is_read_again_at_each_call(monkeypatch):
+    # `from gains import K` inside the function was read once, and the compiled run went
+    # on with the old K after gains.K changed (0.86 for python-control's 4.28, no word)
+    gains = types.ModuleType("controlkit_test_gains")
+    monkeypatch.setitem(sys.modules, gains.__name__, gains)
+
+    def update(t, x, u, params):
+        from controlkit_test_gains import K
+        return [K * u[0] - x[0]]
+
+    loop = lag_loop(update, dt=0.05)
+    outputs = []
+    for gains.K in (0.1, 0.5):
+        outputs.append(agrees(loop, 1.0, [0.0], compile=True)[-1])
+    assert outputs[1] == pytest.approx(5 * outputs[0])
 
 
 def test_a_closure_list_changed_in_place_between_calls_is_read_again():

@@ -138,6 +138,20 @@ def python_sum(iterable, start=0):
     return sum(iterable, start)
 
 
+def invert(x):
+    """``~x``, which compiled user functions call instead: Python's ``~True`` is ``-2`` (a
+    bool is an integer) and numpy's ``~np.True_`` is ``False``, and compiled code holds
+    both as one boolean; there, the compiler stops and the block runs as Python. An
+    integer's bits and a boolean array's values are inverted as numba inverts them.
+
+    Examples
+    --------
+    >>> invert(True), invert(np.True_), invert(5)
+    (-2, np.False_, -6)
+    """
+    return ~x
+
+
 @_jit.on_numba_import
 def _overloads(numba):
     """numba's implementations of the functions above (made when numba loads)."""
@@ -327,6 +341,14 @@ def _overloads(numba):
         def impl(iterable, start=0):
             return sum(iterable, start)
         return impl
+
+    @overload(invert, inline="always")
+    def _invert_overload(x):
+        if isinstance(x, _nbtypes.Boolean):
+            raise TypingError("it inverts a bool (~): Python's ~True is -2, numpy's "
+                              "~np.True_ is False, and compiled code cannot tell the two "
+                              "apart ('not' compiles)")
+        return lambda x: ~x
 
     overload(power, inline="always")(_power_overload(refuse_arrays=False))
     overload(power_of_numbers, inline="always")(_power_overload(refuse_arrays=True))

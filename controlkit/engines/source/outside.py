@@ -81,6 +81,12 @@ class _OutsideReads:
             return node
         if getattr(builtins, name, None) is value and name in vars(builtins):
             return node  # a builtin numba knows (or reports)
+        return self._value_read(name, value, node)
+
+    def _value_read(self, name, value, node, key=None):
+        """``node``, which reads ``value`` from outside the function (by ``name``, or by
+        ``key`` from a dict known now), as compiled code reads it: frozen, a helper's plan,
+        or left as it is with the reason it cannot be compiled."""
         why = numpy_last_bits(value)
         if why:
             self._problem(why)
@@ -88,12 +94,17 @@ class _OutsideReads:
         if isinstance(value, types.FunctionType | functools.partial) \
                 or _is_numba_function(value) and not self._importable(value):
             return self._helper_name(value, node)
+        shown = name if key is None else f"{name}[{key!r}]"
         if not _is_plain(value):
-            self._problem(f"it reads {name!r}, a {type(value).__name__}, which numba "
+            self._problem(f"it reads {shown!r}, a {type(value).__name__}, which numba "
                           f"cannot compile")
             return node
-        if name not in self.renamed:  # (np.clip: the compiled clip, which takes numbers too)
-            self.renamed[name] = self._freeze_value(name, clip if value is np.clip else value)
+        value = clip if value is np.clip else value  # (the compiled clip takes numbers too)
+        if key is not None:  # (each read its own frozen name)
+            return ast.copy_location(ast.Name(self._freeze_value(
+                f"param_{len(self.plan.frozen)}", value), ast.Load()), node)
+        if name not in self.renamed:
+            self.renamed[name] = self._freeze_value(name, value)
         return ast.copy_location(ast.Name(self.renamed[name], ast.Load()), node)
 
     @staticmethod

@@ -71,7 +71,11 @@ class _Translator(_OutsideReads, ast.NodeTransformer):
         self._find_aliases(body)
         self._find_strings(body, counts)
         self.local = (_stored_names(body) | kept | set(plan.arguments)) - set(self.sources)
-        self.ints = _integer_names(body)
+        outside = {node.id for node in walk(ast.Module(body, []))  # (integers from outside
+                   if isinstance(node, ast.Name) and node.id not in self.local}  # count too)
+        self.ints = _integer_names(body, {name for name in outside if type(
+            self._lookup_getter(name)[1]) is int} | {name for name in kept - _stored_names(
+                body) if type(self.bindings[name].value) is int})
         for name in self.sources:
             if counts.get(name, 0) > (1 if name not in self.bindings else 0):
                 self._opaque(f"params ({name!r}) is assigned more than once")
@@ -91,7 +95,10 @@ class _Translator(_OutsideReads, ast.NodeTransformer):
                     if alias.name == "*":
                         self._problem("it imports * inside itself")
                         continue
-                    self.fixed[alias.asname or alias.name] = getattr(module, alias.name)
+                    value = getattr(module, alias.name)  # (read again at each call)
+                    self.plan.checks.append((functools.partial(getattr, module, alias.name,
+                                                               _MISSING), value))
+                    self.fixed[alias.asname or alias.name] = value
             else:
                 kept.append(stmt)
         return kept
@@ -166,9 +173,8 @@ class _Translator(_OutsideReads, ast.NodeTransformer):
                                  source.get(key, _MISSING)))
         if how == "in":
             return ast.copy_location(ast.Constant(key in source), node)
-        if key in source:
-            return ast.copy_location(ast.Name(self._freeze_value(
-                f"param_{len(self.plan.frozen)}", source[key]), ast.Load()), node)
+        if key in source:  # (read as a name from outside is: np.tanh by numpy's last bits)
+            return self._value_read(source_name, source[key], node, key)
         if how == "item":
             self._problem(f"params has no key {key!r}")
             return ast.copy_location(ast.Constant(None), node)
@@ -339,9 +345,10 @@ def _integer(node, ints=frozenset()) -> bool:
             and node.func.id in ("int", "len", "round") and len(node.args) == 1)
 
 
-def _integer_names(body) -> set:
-    """The names a function assigns integers to, only integers (``n = int(u[0])``)."""
-    assigned, ints = {}, set()
+def _integer_names(body, ints=frozenset()) -> set:
+    """The names a function assigns integers to, only integers (``n = int(u[0])``), and
+    ``ints``, names of integers known already."""
+    assigned, ints = {}, set(ints)
     for node in walk(ast.Module(body, [])):
         if isinstance(node, ast.Assign) and len(node.targets) == 1 \
                 and isinstance(node.targets[0], ast.Name):

@@ -310,6 +310,39 @@ def narrow(dtype) -> bool:
     return np.dtype(dtype).str[1:] not in ("i8", "f8", "c16")
 
 
+def _items(value):
+    for item in value:
+        if type(item) in (list, tuple):
+            yield from _items(item)
+        else:
+            yield item
+
+
+def sequence_loses(value) -> str | None:
+    """Why the one array compiled code makes of a list or tuple ``value`` would not compute
+    as its items do in Python (a numpy scalar narrower than 64 bits among them, an integer
+    past 2**53 made a float among floats), said after its name; else None.
+
+    Examples
+    --------
+    >>> sequence_loses([0.5, np.float32(0.1)]).split(":")[0], sequence_loses([0.5, 2])
+    ('holds an item of type float32', None)
+    """
+    if type(value) not in (list, tuple):
+        return None
+    items = list(_items(value))
+    kinds = [np.dtype(type(item)) for item in items if isinstance(item, np.generic)]
+    if any(kind.kind in "iufc" and narrow(kind) for kind in kinds):
+        kind = next(kind for kind in kinds if kind.kind in "iufc" and narrow(kind))
+        return f"holds an item of type {kind.name}: numpy computes in it, compiled code in 64 bits"
+    if any(isinstance(item, float | complex | np.floating) for item in items):
+        big = [i for i in items if isinstance(i, int | np.integer) and abs(int(i)) > 2 ** 53]
+        if big:
+            return (f"holds the integer {big[0]} among floats: compiled code holds it as a "
+                    f"float, rounded")
+    return None
+
+
 def numpy_last_bits(value) -> str | None:
     """Why compiled code would not give ``value``'s numbers, when it is a function that
     numba computes by another method (:data:`COMPUTED_OTHERWISE`), a numpy scalar type

@@ -67,6 +67,7 @@ class Calls(ast.NodeTransformer):
     NUMPY_CALLS = ("sum", "mean", "norm", "trace", "solve", "det", "slogdet", "sign",
                    "maximum", "minimum", "mod", "floor_divide", "divmod")
     USER_CALLS = {"_ck_matmul": "matmul", "_ck_dot": "numpy_dot", "_ck_int64": "within_int64",
+                  "_ck_invert": "invert",
                   "_ck_python_sum": "python_sum", "_ck_missing": "missing_parameter",
                   "store": "store", **{f"_ck_math_{name}": f"math_{name}"
                                        for name in RAISING}}
@@ -87,7 +88,19 @@ class Calls(ast.NodeTransformer):
                 return getattr(module, f.attr, None)
         return None
 
+    def _as_value(self, node):  # (s = np.sum; s(v): numba's own sum, other last bits)
+        target = None if getattr(node, "_called", False) or isinstance(node, ast.Name) and \
+            node.id not in self.frozen else self._target(node)  # (a local named sum: no)
+        if callable(target) and (target in self.INSTEAD or target in (builtins.pow, math.pow)):
+            raise NotCompilable(f"it uses {as_written(ast.unparse(node))[:30]} otherwise than "
+                                f"in a call of it by name, where compiled code would call "
+                                f"numba's own, with other numbers")
+        return self.generic_visit(node)
+
+    visit_Name = visit_Attribute = _as_value
+
     def visit_Call(self, node):
+        node.func._called = True
         node = self.generic_visit(node)
         f, target = node.func, self._target(node.func)
         name = self.INSTEAD.get(target) if callable(target) else None
@@ -141,6 +154,13 @@ class Calls(ast.NodeTransformer):
             return node
         return ast.copy_location(ast.Call(ast.Name(name, ast.Load()),
                                           [node.left, node.right], []), node)
+
+    def visit_UnaryOp(self, node):  # ~a -> _ck_invert(a): a Python bool's ~ is not numpy's
+        node = self.generic_visit(node)
+        if not isinstance(node.op, ast.Invert):
+            return node
+        return ast.copy_location(ast.Call(ast.Name("_ck_invert", ast.Load()), [node.operand],
+                                          []), node)
 
     def visit_AugAssign(self, node):  # y **= 3, the same as y = y ** 3 for a name
         node = self.generic_visit(node)

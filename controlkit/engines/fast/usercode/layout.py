@@ -9,7 +9,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ...source import NotCompilable
-from ...source.values import narrow, plain_values
+from ...source.values import narrow, plain_values, sequence_loses
 
 #: Integers up to this size are exact in a float64 (larger ones run as Python).
 _EXACT_INT = 2 ** 53
@@ -39,6 +39,8 @@ def _kind(key, value):
     if not plain_values(value):  # (a float subclass's own __mul__: Python's run calls it)
         raise NotCompilable(f"parameter {key!r} holds a {_not_plain(value).__name__}, whose "
                             f"own operators compiled code would not call")
+    if sequence_loses(value):
+        raise NotCompilable(f"parameter {key!r} {sequence_loses(value)}")
     if isinstance(value, np.generic | np.ndarray) and value.dtype.kind in "iufc" \
             and narrow(value.dtype):
         raise NotCompilable(f"parameter {key!r} is of type {value.dtype.name}: numpy "
