@@ -913,6 +913,29 @@ def test_values_reaching_compiled_code_by_other_routes_are_judged_as_by_name(upd
     assert np.array_equal(ours.outputs, expected.outputs)
 
 
+_N = 3
+
+
+def _known_integers_and_numpy_s_bools(t, x, u, params, order=2):
+    gain = 0.1 if ~np.isnan(u[0]) else 0.0  # (numpy's bool: its ~ is numba's)
+    return x[:_N] * 0.9 + 0.01 * (2 * _N) + 0.001 * order ** 2 + gain * u[0]
+
+
+def test_integers_known_now_and_numpy_s_bools_compile():
+    # the rules above keep to what can differ: 2 * N of a global N = 3 is 6 (a review saw
+    # x[N:2 * N] sent to Python by the rule for integers from outside), and ~ of numpy's
+    # bool is numba's
+    block = ct.nlsys(_known_integers_and_numpy_s_bools, None, inputs=1, states=3,
+                     outputs=3, dt=1, name="known")
+    T = np.arange(50.0)
+    (row,) = controlkit.explain(block)
+    assert row.tier == "compiled", row.reason
+    ours = controlkit.input_output_response(block, T, np.sin(T), 0.0, compile=True)
+    assert ours.engine_mode == "compiled"
+    assert np.array_equal(ours.outputs, ct.input_output_response(block, T, np.sin(T),
+                                                                 0.0).outputs)
+
+
 def _cubic_spring(t, x, u, params):
     k = params.get("k", 2)  # an integer power read from params, and literal ones
     return [x[0] + 0.01 * x[1],

@@ -8,6 +8,7 @@ from __future__ import annotations
 import ast
 import functools
 import importlib
+import math
 import re
 import types
 
@@ -73,9 +74,11 @@ class _Translator(_OutsideReads, ast.NodeTransformer):
         self.local = (_stored_names(body) | kept | set(plan.arguments)) - set(self.sources)
         outside = {node.id for node in walk(ast.Module(body, []))  # (integers from outside
                    if isinstance(node, ast.Name) and node.id not in self.local}  # count too)
-        self.ints = _integer_names(body, {name for name in outside if type(
-            self._lookup_getter(name)[1]) is int} | {name for name in kept - _stored_names(
-                body) if type(self.bindings[name].value) is int})
+        self.known = {name: self._lookup_getter(name)[1] for name in outside
+                      if type(self._lookup_getter(name)[1]) is int}
+        self.known.update({name: self.bindings[name].value for name in kept - _stored_names(
+            body) if type(self.bindings[name].value) is int})
+        self.ints = _integer_names(body, self.known)
         for name in self.sources:
             if counts.get(name, 0) > (1 if name not in self.bindings else 0):
                 self._opaque(f"params ({name!r}) is assigned more than once")
@@ -260,8 +263,9 @@ class _Translator(_OutsideReads, ast.NodeTransformer):
                           f"of compiled code")
 
     def visit_BinOp(self, node):
-        if isinstance(node.op, ast.LShift) or isinstance(node.op, ast.Pow | ast.Mult) and (
-                _integer(node.left, self.ints) and _integer(node.right, self.ints)):
+        if (isinstance(node.op, ast.LShift) or isinstance(node.op, ast.Pow | ast.Mult) and (
+                _integer(node.left, self.ints) and _integer(node.right, self.ints))) \
+                and not -2 ** 63 <= _known(node, self.known) < 2 ** 63:  # (2 * N: its value)
             self._problem(f"it computes {ast.unparse(node)[:40]} with integers, which can "
                           f"outgrow the 64 bits of compiled code (Python's integers do not)")
         return self.generic_visit(node)
@@ -343,6 +347,37 @@ def _integer(node, ints=frozenset()) -> bool:
         return _integer(node.left, ints) and _integer(node.right, ints)
     return (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
             and node.func.id in ("int", "len", "round") and len(node.args) == 1)
+
+
+def _known(node, known) -> float:
+    """The value of ``node`` when it is integer arithmetic of numbers known now (literals,
+    the names of ``known``), else infinity (or a power or shift past 64 bits).
+
+    Examples
+    --------
+    >>> _known(ast.parse("2 * N - 1", mode="eval").body, {"N": 3})
+    5
+    >>> _known(ast.parse("N * int(u)", mode="eval").body, {"N": 3})
+    inf
+    """
+    if isinstance(node, ast.Constant) and type(node.value) is int:
+        return node.value
+    if isinstance(node, ast.Name) and node.id in known:
+        return known[node.id]
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub | ast.UAdd):
+        value = _known(node.operand, known)
+        return -value if isinstance(node.op, ast.USub) else value
+    if isinstance(node, ast.BinOp) and isinstance(
+            node.op, ast.Add | ast.Sub | ast.Mult | ast.Pow | ast.LShift):
+        a, b = _known(node.left, known), _known(node.right, known)
+        if math.inf in (abs(a), abs(b)) or isinstance(node.op, ast.Pow | ast.LShift) and (
+                not 0 <= b <= 64):
+            return math.inf
+        if isinstance(node.op, ast.Add | ast.Sub):
+            return a + b if isinstance(node.op, ast.Add) else a - b
+        return a * b if isinstance(node.op, ast.Mult) else a ** b if isinstance(
+            node.op, ast.Pow) else a << b
+    return math.inf
 
 
 def _integer_names(body, ints=frozenset()) -> set:

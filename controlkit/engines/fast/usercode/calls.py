@@ -157,8 +157,9 @@ class Calls(ast.NodeTransformer):
 
     def visit_UnaryOp(self, node):  # ~a -> _ck_invert(a): a Python bool's ~ is not numpy's
         node = self.generic_visit(node)
-        if not isinstance(node.op, ast.Invert):
-            return node
+        if not isinstance(node.op, ast.Invert) or isinstance(node.operand, ast.Call) and \
+                isinstance(self._target(node.operand.func), np.ufunc):
+            return node  # (~np.isnan(v): numpy's bool, whose ~ is numba's)
         return ast.copy_location(ast.Call(ast.Name("_ck_invert", ast.Load()), [node.operand],
                                           []), node)
 
