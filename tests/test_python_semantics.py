@@ -936,6 +936,60 @@ def test_integers_known_now_and_numpy_s_bools_compile():
                                                                  0.0).outputs)
 
 
+def _integer_power_of_parameters(t, x, u, params):
+    return 0.5 * x + params["n"] ** params["m"] * u
+
+
+def _integer_cube_of_a_parameter(t, x, u, params):
+    return 0.5 * x + 1e-27 * (params["n"] * params["n"] * params["n"]) * u
+
+
+def _sum_of_bool_parameters(t, x, u, params):
+    return 0.5 * x + (params["a"] + params["b"]) * u
+
+
+@pytest.mark.parametrize("update, first, then", [
+    (_integer_power_of_parameters, {"n": 2, "m": 2}, {"n": 2, "m": -1}),
+    (_integer_cube_of_a_parameter, {"n": 3}, {"n": 2 ** 30}),
+    (_sum_of_bool_parameters, {"a": True, "b": True}, {"a": np.True_, "b": np.True_})],
+    ids=["a negative exponent", "an integer 2**30", "numpy's bools"])
+def test_a_module_checked_with_some_values_is_checked_again_with_values_of_another_class(
+        update, first, then):
+    # checked once with the first values, the module ran the others unchecked: numba's
+    # integer power (0 for Python's 0.5), a cube past 64 bits wrapped, np.True_ + np.True_
+    # as 2 (numpy's is True), each with no word (a review's find)
+    block = ct.nlsys(update, None, inputs="u", outputs="y", states=1, dt=1, name="s")
+    loop = ct.interconnect([block], inputs="u", outputs="y")
+    T = np.arange(50.0)
+    for params in (first, then):
+        expected = ct.input_output_response(loop, T, 1.0, 0.0, params=params)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # (the second says its module runs as Python)
+            ours = controlkit.input_output_response(loop, T, 1.0, 0.0, params=params,
+                                                    compile=True)
+        assert np.array_equal(ours.outputs, expected.outputs), params
+
+
+def _integer_fourth_power_of_a_parameter(t, x, u, params):
+    return 0.5 * x + 1e-36 * (params["n"] * params["n"] * params["n"] * params["n"]) * u
+
+
+def test_many_runs_check_each_class_of_values_once():
+    # one call, many runs: the first run's check held for the others, a 2**30 among them
+    block = ct.nlsys(_integer_fourth_power_of_a_parameter, None, inputs="u", outputs="y",
+                     states=1, dt=1, name="s")
+    loop = ct.interconnect([block], inputs="u", outputs="y")
+    T = np.arange(50.0)
+    values = [{"n": 3}, {"n": 4}, {"n": 2 ** 30}]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # (the third says its module runs as Python)
+        runs = controlkit.input_output_response(loop, T, 1.0, 0.0, params=values,
+                                                compile=True)
+    for params, ours in zip(values, runs, strict=True):
+        expected = ct.input_output_response(loop, T, 1.0, 0.0, params=params)
+        assert np.array_equal(ours.outputs, expected.outputs), params
+
+
 def _cubic_spring(t, x, u, params):
     k = params.get("k", 2)  # an integer power read from params, and literal ones
     return [x[0] + 0.01 * x[1],

@@ -23,7 +23,7 @@ from ..contract import response as base_response
 from .continuous import STIFF_METHODS, _failed, _Run, run_continuous
 from .discrete import simulate
 from .loops import AGAIN_AS_PYTHON
-from .pieces import now
+from .pieces import checked_as, now
 from .response import read_inputs
 from .run import CHECKED, PAYS, compiled_cost, compiled_job
 from .tiers import _local_params
@@ -125,11 +125,13 @@ def run_many(sys, T, U, X0s, params_list, *, t_eval=None, method="RK45", compile
         run.piece(jobs[r], 0)
         return run
 
-    if todo and job.source not in CHECKED:  # the first run alone: compiled, and compared
-        alone(todo[0], True)                  # with Python on its first piece
-        todo = todo[1:]
-        if job.source not in CHECKED:  # they differed (it said so): the others as Python
-            for r in todo:
+    for r in list(todo):  # a run of values of a class not checked yet (the first, say)
+        if checked_as(jobs[r], params_list[r]) in CHECKED:  # alone: compiled, compared with
+            continue                                         # Python on its first piece
+        alone(r, True)
+        todo.remove(r)
+        if checked_as(jobs[r], params_list[r]) not in CHECKED:  # they differed (it said
+            for r in todo:                                        # so): the others as Python
                 alone(r, False)
             return responses, errors
     if todo:  # then the others on every core

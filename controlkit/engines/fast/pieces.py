@@ -27,6 +27,33 @@ def same_numbers(a, b) -> bool:
                                equal_nan=True))
 
 
+def checked_as(job, params=None) -> tuple:
+    """What a compiled piece of ``job`` compared equal with Python's holds for: its module,
+    the classes of its parameter values whose compiled meaning can part from Python's
+    (zero, negative, fractional, not finite, their size by factors of 256: an integer's
+    power outgrows 64 bits) and the types of the call's own
+    ``params`` values. A module checked with one class is checked again with another:
+    ``1.0 / k`` raises in Python for ``k = 0.0``, ``n ** -1`` is 0.5 for an int, ``True +
+    True`` is 2 and ``np.True_ + np.True_`` is ``True``, where compiled code answers alike.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace as NS
+    >>> job = NS(source="m", P=np.array([2.0]))
+    >>> checked_as(job, {"k": 2.0}) == checked_as(NS(source="m", P=np.array([3.0])),
+    ...                                           {"k": 3.0})
+    True
+    >>> checked_as(job) == checked_as(NS(source="m", P=np.array([0.0])))
+    False
+    """
+    P = np.asarray(job.P, dtype=float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        classes = np.stack([np.sign(P), np.floor(np.log2(np.abs(P)) / 8), P != np.floor(P)])
+    types = sorted((repr(k), type(v).__module__, type(v).__qualname__)  # (numpy's bool is
+                   for k, v in (params or {}).items())                    # named bool too)
+    return job.source, classes.tobytes(), tuple(types)
+
+
 def where_they_part(blocks, times, mine, theirs) -> str:
     """Where a compiled piece's states ``mine`` first differ from Python's ``theirs`` (one
     column a time of ``times``): the time, and the blocks whose states differ there, whose

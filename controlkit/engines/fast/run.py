@@ -21,7 +21,7 @@ from ..._checks import warn_caller
 from .. import PYTHON_CONTROL_LEAST, PYTHON_CONTROL_SLOWER, check_compile
 from . import reuse, store, usercode
 from .codegen import generate
-from .pieces import PIECE_SECONDS, now, same_numbers
+from .pieces import PIECE_SECONDS, checked_as, now, same_numbers
 from .plan import Plan, evaluation_order, make_plan
 from .tiers import NotCompiled, blocks_of, same_kernels
 
@@ -50,8 +50,8 @@ _COMPILED: dict[str, dict] = {}
 _TWINS: dict = {}
 #: About how long making a compiled job takes, a block (translating its functions).
 TWIN_SECONDS = 0.003
-#: Compiled modules whose numbers were compared with Python's on a piece in this process.
-CHECKED: set[str] = set()
+#: Compiled modules compared equal with Python's on a piece in this process (checked_as).
+CHECKED: set[tuple] = set()
 #: About how long loading a module kept compiled takes, numba started.
 LOAD_SECONDS = 0.05
 #: Modules whose compiled numbers differed from Python's, by text: why (explain says it).
@@ -372,9 +372,9 @@ class Runner:
 
     @property
     def to_check(self) -> bool:
-        """Whether the next piece compares the compiled job with Python (:meth:`check`): it
-        is new in this process."""
-        return self.compiled is not None and self.compiled.source not in CHECKED
+        """Whether the next piece compares the compiled job with Python (:meth:`check`)."""
+        return self.compiled is not None and checked_as(self.compiled,
+                                                        self.params) not in CHECKED
 
     @property
     def job(self) -> Job:
@@ -468,7 +468,7 @@ class Runner:
             elif run.position == n1 and all(same_numbers(a, b) for a, b in zip(
                     (*run.snapshot(), *mine), (*python, *written), strict=True)):
                 self.compiled = job
-                CHECKED.add(job.source)
+                CHECKED.add(checked_as(job, self.params))
                 return
             else:
                 verdict = (f"its compiled numbers differ from Python's "
