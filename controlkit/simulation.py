@@ -249,9 +249,9 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
                              "give the times, or 'T'")
         return _sampled_data_response(sys, T, U, X0, engine, options, compile)
     # (t_eval None: its solver's steps; a short run: its own, before more is asked of T)
-    own = engine == "fast" and t_eval is not None and (
-        compile is not None or _starts_engine(sys, np.size(T))) and \
-        _python_control_s_own(sys, T, options)
+    own = engine == "fast" and (compile is not None or _starts_engine(sys, np.size(T))) and (
+        _python_control_s_own(sys, T, options) if t_eval is not None else
+        "evaluation_times=None: the solver's own steps")
     if own and compile:  # (asked for, so said: as for a stiff method)
         _warn(f"compile=True not used: python-control runs this call itself ({own})")
     if own == "":  # (the engine's run: False is python-control's by the rule above)

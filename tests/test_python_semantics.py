@@ -767,6 +767,9 @@ def test_compile_true_says_why_python_control_answers_the_call_itself():
     for diagram in (_sigmoid_loop(), mixed):
         with np.errstate(divide="raise"), pytest.warns(UserWarning, match=r"np\.seterr"):
             controlkit.input_output_response(diagram, T[:11], 0.0, [0.5], compile=True)
+    with pytest.warns(UserWarning, match=r"\(evaluation_times=None: the solver's own steps"):
+        controlkit.input_output_response(_sigmoid_loop(), T[:11], 0.0, [0.5], compile=True,
+                                         evaluation_times=None)
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # (not asked: nothing to say)
         controlkit.input_output_response(quantizer, T, np.sin(T))
