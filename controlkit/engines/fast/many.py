@@ -131,8 +131,8 @@ def run_many(sys, T, U, X0s, params_list, *, t_eval=None, method="RK45", compile
         alone(r, True)
         todo.remove(r)
         if checked_as(jobs[r], params_list[r]) not in CHECKED:  # they differed (it said
-            for r in todo:                                        # so): the others as Python
-                alone(r, False)
+            for rest in todo:                                     # so): the others as Python
+                alone(rest, False)
             return responses, errors
     if todo:  # then the others on every core
         one(todo[0])  # (compiled before the threads start)

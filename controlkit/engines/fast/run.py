@@ -132,7 +132,7 @@ class Job:
                                    f"{expected:.0f} s, once: later runs load it)")
                 try:
                     if store.record(path) is None:  # its user's kernels first, each timed
-                        _compile_kernels(self.blocks)
+                        _compile_kernels(self)
                     entries[key] = compile_it(path)
                 except Exception as error:  # noqa: BLE001 - numba's: runs as Python
                     DIFFERS[self.source] = str(error) if isinstance(error, NotCompiled) \
@@ -154,18 +154,18 @@ def _module_code(source: str):
     return compile(source, "<controlkit diagram module>", "exec")
 
 
-def _compile_kernels(blocks) -> None:
-    """Compile the user's kernels of ``blocks`` not compiled yet, one by one (timed for
-    the estimates); numba's refusal of one is :class:`NotCompiled` naming its block."""
-    for b in blocks:
-        for _, make in usercode.kernels_to_compile([b.kernel.output, b.kernel.update]):
-            try:
-                make()
-            except (MemoryError, OSError):  # (the machine's: the module's compile says)
-                continue
-            except Exception as error:  # noqa: BLE001 - numba's refusal, kept in the store
-                raise NotCompiled(f"numba could not compile block {b.system.name!r} "
-                                  f"({store.numba_said(error)})") from error
+def _compile_kernels(job) -> None:
+    """Compile the user's kernels of ``job`` not compiled yet, one by one (timed for the
+    estimates); numba's refusal of one is :class:`NotCompiled` naming its block."""
+    for _, make in usercode.kernels_to_compile(job.plan.kernels):
+        try:
+            make()  # (a partial of compile_kernel: its kernel is make.args[0])
+        except (MemoryError, OSError):  # (the machine's: the module's compile says)
+            continue
+        except Exception as error:  # noqa: BLE001 - numba's refusal, kept in the store
+            who = next(b for b in job.blocks if make.args[0] in (b.kernel.output, b.kernel.update))
+            raise NotCompiled(f"numba could not compile block {who.system.name!r} "
+                              f"({store.numba_said(error)})") from error
 
 
 def _pasted(fn):

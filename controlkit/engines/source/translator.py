@@ -74,8 +74,8 @@ class _Translator(_OutsideReads, ast.NodeTransformer):
         self.local = (_stored_names(body) | kept | set(plan.arguments)) - set(self.sources)
         outside = {node.id for node in walk(ast.Module(body, []))  # (integers from outside
                    if isinstance(node, ast.Name) and node.id not in self.local}  # count too)
-        self.known = {name: self._lookup_getter(name)[1] for name in outside
-                      if type(self._lookup_getter(name)[1]) is int}
+        read = {name: self._lookup_getter(name)[1] for name in outside}
+        self.known = {name: value for name, value in read.items() if type(value) is int}
         self.known.update({name: self.bindings[name].value for name in kept - _stored_names(
             body) if type(self.bindings[name].value) is int})
         self.ints = _integer_names(body, self.known)

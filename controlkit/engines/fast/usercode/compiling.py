@@ -184,7 +184,7 @@ def kernels_to_compile(kernels) -> list[tuple[float, object]]:
                 lines, numpy = _size(path)
                 steps.append((NUMPY_KERNEL_SECONDS if numpy
                               else per_line * (lines + KERNEL_MORE_LINES),
-                              lambda k=kernel: compile_kernel(k)))
+                              functools.partial(compile_kernel, kernel)))
     return steps
 
 

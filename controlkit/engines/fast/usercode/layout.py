@@ -39,8 +39,8 @@ def _kind(key, value):
     if not plain_values(value):  # (a float subclass's own __mul__: Python's run calls it)
         raise NotCompilable(f"parameter {key!r} holds a {_not_plain(value).__name__}, whose "
                             f"own operators compiled code would not call")
-    if sequence_loses(value):
-        raise NotCompilable(f"parameter {key!r} {sequence_loses(value)}")
+    if why := sequence_loses(value):
+        raise NotCompilable(f"parameter {key!r} {why}")
     if isinstance(value, np.generic | np.ndarray) and value.dtype.kind in "iufc" \
             and narrow(value.dtype):
         raise NotCompilable(f"parameter {key!r} is of type {value.dtype.name}: numpy "

@@ -100,8 +100,8 @@ def _literal(name, value, lines, imports):
         lines.append(f"{name} = complex({numbers(complex.real.__get__(value), '_np_')}, "
                      f"{numbers(complex.imag.__get__(value), '_np_')})")
     elif isinstance(value, np.ndarray | np.generic | list | tuple):
-        if sequence_loses(value):
-            raise NotCompilable(f"it reads {as_written(name)!r}, which {sequence_loses(value)}")
+        if why := sequence_loses(value):
+            raise NotCompilable(f"it reads {as_written(name)!r}, which {why}")
         array = np.asarray(value)
         if array.dtype.kind not in "biufc":
             raise NotCompilable(f"it reads {as_written(name)!r}, which is not numeric")
