@@ -222,11 +222,12 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
 
     T, U, X0, return_x, t_eval = timeresp_arguments(kwargs, timepts, inputs, initial_state,
                                                     return_states, evaluation_times)
-    unknown = {k: v for k, v in kwargs.items() if k not in ("solve_ivp_method", "method")}
-    if unknown:  # python-control's words, before any run (its own refuses them so)
-        raise TypeError("unrecognized keyword(s): ", str(unknown))
     if kwargs.get("solve_ivp_method") and kwargs.get("method"):  # (python-control's words)
         raise ValueError("ivp_method specified more than once")
+    unknown = {k: v for k, v in kwargs.items()  # (a method None or "": not read, unknown)
+               if k not in ("solve_ivp_method", "method") or not v}
+    if unknown:  # python-control's words, before any run (its own refuses them so)
+        raise TypeError("unrecognized keyword(s): ", str(unknown))
     options = dict(params=params, ignore_errors=ignore_errors, transpose=transpose,
                    return_states=return_x, squeeze=squeeze, evaluation_times=t_eval,
                    solve_ivp_kwargs=dict(solve_ivp_kwargs or {}), **kwargs)
@@ -248,10 +249,9 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
                              "for a sampled-data diagram, integrated between its instants: "
                              "give the times, or 'T'")
         return _sampled_data_response(sys, T, U, X0, engine, options, compile)
-    # (t_eval None: its solver's steps; a short run: its own, before more is asked of T)
-    own = engine == "fast" and (compile is not None or _starts_engine(sys, np.size(T))) and (
-        _python_control_s_own(sys, T, options) if t_eval is not None else
-        "evaluation_times=None: the solver's own steps")
+    # (a short run: python-control's own, before more is asked of T)
+    own = engine == "fast" and (compile is not None or _starts_engine(sys, np.size(T))) and \
+        engines.python_control_s_own(sys, T, options)
     if own and compile:  # (asked for, so said: as for a stiff method)
         _warn(f"compile=True not used: python-control runs this call itself ({own})")
     if own == "":  # (the engine's run: False is python-control's by the rule above)
@@ -274,44 +274,13 @@ return_states, squeeze, solve_ivp_kwargs, evaluation_times, **kwargs
 
 
 def _numpy_raises(compile=None) -> bool:
-    """Whether numpy is told to raise, call or log on a floating-point error (``np.seterr``):
-    the blocks' functions then run as Python (compiled code cannot), said if compile=True."""
-    raises = any(mode not in ("ignore", "warn") for mode in np.geterr().values())
+    """:func:`controlkit.engines.numpy_raises`: the blocks' functions then run as Python,
+    said if ``compile`` is True."""
+    raises = engines.numpy_raises()
     if raises and compile:
         _warn("compile=True not used: numpy is told to raise, call or log on a floating-point "
               "error (np.seterr), which compiled code cannot")
     return raises
-
-
-def _python_control_s_own(sys, T, options) -> str:
-    """Why python-control answers the call's arguments in its own way, which the engine
-    leaves to it (an error, integrating backwards, functions evaluated at times of another
-    float type, numpy told to raise, which compiled code cannot); else ``""``."""
-    if getattr(sys, "nstates", None) == 0 and sys.isdtime(strict=True):
-        return "a discrete diagram without states: its outputs at any time points"
-    if _numpy_raises():
-        return "numpy is told to raise, call or log on a floating-point error (np.seterr)"
-    if "controlkit.blocks.sampling" in _sys.modules:  # (imported for a grid)
-        from .blocks.sampling import TimeGrid  # (waits for a thread still importing it)
-
-        if isinstance(T, TimeGrid):
-            return ""  # increasing by construction, and kept lazy
-    if "t_eval" in options["solve_ivp_kwargs"] or np.size(T) < 2:
-        return "t_eval in solve_ivp_kwargs, or a single time point"
-    isdtime = getattr(sys, "isdtime", None)  # (not a system: python-control's error)
-    times = options.get("evaluation_times", "T")  # (the default: the string "T")
-    listed = not isinstance(T, np.ndarray) or not isinstance(times, str | np.ndarray)
-    if listed and (isdtime is None or isdtime(strict=True)):
-        return "time points as a list, which python-control subtracts as lists"
-    if isinstance(T, np.ndarray) and T.dtype != np.float64 and T.dtype.kind not in "iu":
-        return f"time points of {T.dtype}"
-    try:
-        times = np.asarray(T, dtype=float).reshape(-1)
-    except (TypeError, ValueError):  # (not numbers: python-control's error)
-        return "time points that are not numbers"
-    # (NaN or inf: python-control refuses in its solver's words, the engine names T)
-    return "time points that do not increase" if np.isfinite(times).all() and not (
-        np.diff(times) > 0).all() else ""
 
 
 #: The attribute of a system holding python-control's slowest pace on it, s a time point.
@@ -356,6 +325,7 @@ def _python_control(sys, T, U, X0, options):
     pace = (time.perf_counter() - start) / max(np.size(T), 1)
     engines._keep_on(sys, _PACE, max(pace, engines._kept_on(sys, _PACE) or 0.0))
     resp.engine_mode = "python-control"
+    resp.plot_inputs = resp.plot_inputs and resp.ninputs > 0  # (as the engine's response)
     return resp
 
 
@@ -424,8 +394,9 @@ def _many(sys, T, U, X0, runs, engine, options, compile):
         rows = list(X0)  # (a list's rows each as written: numpy would make all floats)
     elif X0s is not None and np.asarray(X0).dtype.kind in "biuf":
         rows = np.broadcast_to(np.asarray(X0), X0s.shape)
-    # (a batch python-control would finish sooner than the engine starts: run by run)
-    if engine == "fast" and not _numpy_raises() and (  # (else run by run: each says so)
+    # (a batch python-control would finish sooner than the engine starts, or answers in
+    # its own way: run by run, each saying why)
+    if engine == "fast" and not engines.python_control_s_own(sys, T, options) and (
             compile is not None or _starts_engine(sys, np.size(T) * len(params_list))):
         listed = _many_on_the_engine(sys, T, U, X0, X0s, rows, params_list, options, compile)
         if listed is not None:
@@ -455,12 +426,14 @@ def _many_on_the_engine(sys, T, U, X0, X0s, rows, params_list, options, compile)
                                         for row in (rows if rows is not None else [X0])):
         return None  # (integers or float32 in a discrete run: python-control's first step)
     diagram = as_interconnect(sys)
-    T_, U_, x0, t_eval, method, solver = contract.python_control_arguments(
-        diagram, T, U, X0s[0] if X0s is not None else X0, options)
-    if diagram.isdtime(strict=True):  # (its evaluation times are its steps, checked)
-        contract.check_arguments(diagram, t_eval, x0)
-    X0s = X0s if X0s is not None else np.tile(x0, (len(params_list), 1))
-    try:
+    try:  # (arguments python-control reads in its own way: run by run, each saying so)
+        T_, U_, x0, t_eval, method, solver = contract.python_control_arguments(
+            diagram, T, U, X0s[0] if X0s is not None else X0, options)
+        if X0s is not None and not np.isfinite(X0s).all():
+            raise UnsupportedSystem("an initial state not finite")
+        if diagram.isdtime(strict=True):  # (its evaluation times are its steps, checked)
+            contract.check_arguments(diagram, t_eval, x0)
+        X0s = X0s if X0s is not None else np.tile(x0, (len(params_list), 1))
         responses, errors = many.run_many(diagram, T_, U_, X0s, params_list, t_eval=t_eval,
                                           method=method, compile=compile, **solver)
     except UnsupportedSystem as reason:
@@ -483,18 +456,21 @@ def _many_on_the_engine(sys, T, U, X0, X0s, rows, params_list, options, compile)
 
 def _sampled_data_response(sys, T, U, X0, engine, options, compile):
     """A sampled-data diagram: on the fast engine where it can be, else the reference."""
-    from .engines import reference
-    from .engines.contract import python_control_arguments, response, result_flags
+    from .engines import contract, reference
 
+    try:  # (read once: a short X0's warning is given once; no python-control to answer)
+        T, U, X0, t_eval, method, solve_ivp_kwargs = contract.python_control_arguments(
+            sys, T, U, X0, options)
+    except contract.UnsupportedSystem as reason:
+        raise ValueError(f"cannot run the sampled-data diagram {sys.name!r}: {reason}") \
+            from None
     if engine == "fast" and not _numpy_raises(compile):  # (else the reference: it raises)
         fast = _fast_response(sys, T, U, X0, options, "controlkit's Python reference",
                               compile=compile)
         if fast is not None:
             return fast
-    # (read here, not before: a short X0's warning is given once)
-    T, U, X0, t_eval, method, solve_ivp_kwargs = python_control_arguments(sys, T, U, X0,
-                                                                          options)
     resp = reference.simulate_sampled_data(sys, T, X0, U, params=options["params"],
                                            t_eval=t_eval, method=method,
                                            solve_ivp_kwargs=solve_ivp_kwargs)
-    return response(sys, resp.t, resp.y, resp.x, resp.u, **result_flags(options))
+    return contract.response(sys, resp.t, resp.y, resp.x, resp.u,
+                             **contract.result_flags(options))

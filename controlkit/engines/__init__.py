@@ -18,6 +18,8 @@ from __future__ import annotations
 import importlib
 import sys as _sys
 
+import numpy as np
+
 #: Backend name to its module (imported when first used: numba loads only when asked for).
 BACKENDS = {"fast": "controlkit.engines.fast", "python-control": "controlkit.engines.reference"}
 
@@ -166,3 +168,87 @@ def fast_start_pays(sys, points: int, longest: float = 0.0) -> bool:
         + PREPARE_SECONDS[1] * blocks
     slower = PYTHON_CONTROL_SLOWER
     return expected > paid * slower / (slower - 1.0)
+
+
+def numpy_raises() -> bool:
+    """Whether numpy is told to raise, call or log on a floating-point error
+    (``np.seterr``), which compiled code cannot do.
+
+    Examples
+    --------
+    >>> with np.errstate(divide="raise"):
+    ...     numpy_raises()
+    True
+    """
+    return any(mode not in ("ignore", "warn") for mode in np.geterr().values())
+
+
+def python_control_s_own(sys, T, options) -> str:
+    """Why python-control answers a call of :func:`controlkit.input_output_response` in its
+    own way, which the engine leaves to it (its error, or its answer to arguments it reads
+    otherwise than the engine would: ``T`` not increasing, evaluation times it refuses or
+    evaluates one by one, functions handed time points of another float type, numpy told
+    to raise); else ``""``.
+
+    ``options`` are the call's keywords (``evaluation_times``, ``solve_ivp_kwargs``,
+    ``squeeze``).
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> gain = ct.nlsys(None, lambda t, x, u, p: 2.0 * u, inputs=1, outputs=1)
+    >>> T = np.linspace(0.0, 1.0, 11)
+    >>> python_control_s_own(gain, T, {"solve_ivp_kwargs": {}})
+    ''
+    >>> python_control_s_own(gain, T, {"solve_ivp_kwargs": {}, "evaluation_times": T[::-1]})
+    'evaluation times that do not increase'
+    """
+    isdtime = getattr(sys, "isdtime", None)  # (not a system: python-control's error)
+    discrete = isdtime is None or isdtime(strict=True)
+    if getattr(sys, "nstates", None) == 0 and discrete:
+        return "a discrete diagram without states: its outputs at any time points"
+    if numpy_raises():
+        return "numpy is told to raise, call or log on a floating-point error (np.seterr)"
+    squeeze = options.get("squeeze")
+    if not any(squeeze is allowed for allowed in (None, True, False)):
+        return f"squeeze={squeeze!r}"
+    times = options.get("evaluation_times", "T")  # (the default: the string "T")
+    if times is None:
+        return "evaluation_times=None: the solver's own steps"
+    if "controlkit.blocks.sampling" in _sys.modules:  # (imported for a grid)
+        from ..blocks.sampling import TimeGrid  # (waits for a thread still importing it)
+
+        if isinstance(T, TimeGrid):
+            return ""  # increasing by construction, and kept lazy
+    if "t_eval" in options["solve_ivp_kwargs"] or np.size(T) < 2:
+        return "t_eval in solve_ivp_kwargs, or a single time point"
+    listed = not isinstance(T, np.ndarray) or not isinstance(times, str | np.ndarray)
+    if listed and discrete:
+        return "time points as a list, which python-control subtracts as lists"
+    if isinstance(T, np.ndarray) and T.dtype != np.float64 and T.dtype.kind not in "iu":
+        return f"time points of {T.dtype}"
+    why = _times_own(T, "time points", False)  # (steps not dt: the engine's own error)
+    if why or isinstance(times, str) and times == "T":
+        return why
+    return _times_own(times, "evaluation times", sys.dt if discrete and isdtime else False)
+
+
+def _times_own(times, what, dt) -> str:
+    """Why python-control answers time points ``times`` in its own way (not numbers, not
+    1-D, not increasing; of a discrete system, ``dt`` not False: fewer than two, or not
+    equally spaced by ``dt``, which it refuses), else ``""``."""
+    try:
+        times = np.asarray(times, dtype=float)
+    except (TypeError, ValueError):
+        return f"{what} that are not numbers"
+    if times.ndim != 1 or times.size == 0:
+        return f"{what} of shape {times.shape}"
+    steps = np.diff(times)
+    if not np.isfinite(times).all():  # (python-control refuses in its solver's words, the
+        return "" if what == "time points" else f"{what} not finite"  # engine names T)
+    if not (steps > 0).all():
+        return f"{what} that do not increase"
+    if dt is not False and (times.size < 2 or not np.allclose(steps, steps[0]) or (
+            dt is not True and not np.isclose(steps[0], dt))):
+        return f"{what} not equally spaced by the sampling time"
+    return ""

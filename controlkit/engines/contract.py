@@ -150,7 +150,7 @@ def response(sys, time, outputs, states, inputs, **overrides) -> ct.TimeResponse
     """The :class:`control.TimeResponseData` of a run of ``sys``, as python-control labels it.
 
     Signal labels from ``sys``, its name, and ``plot_inputs`` only when it has inputs
-    (``.plot()`` fails on an empty input panel).
+    (python-control's ``.plot()`` fails on an empty input panel).
 
     Parameters
     ----------
@@ -182,7 +182,9 @@ def python_control_arguments(sys, T, U, X0, options):
 
     The input may be a list of per-signal parts, broadcast over time; a short initial
     state is padded with zeros (with python-control's warning); ``t_eval`` defaults to
-    ``T``.
+    ``T``. Values python-control runs as they are and the engine does not (complex
+    numbers, NaN and infinities, an initial state not of numbers) raise
+    :class:`UnsupportedSystem`.
 
     Examples
     --------
@@ -231,6 +233,9 @@ def python_control_arguments(sys, T, U, X0, options):
         raise UnsupportedSystem(f"an initial state of {X0.dtype} ({X0.tolist()!r:.40}), not "
                                 f"numbers")
     X0 = X0.astype(float, copy=False)
+    for name, values in (("X0", X0), ("U", U)):  # (the engine stops on them)
+        if not np.isfinite(values).all():
+            raise UnsupportedSystem(f"{name} holds {values[~np.isfinite(values)][0]}")
     return T, U, X0, t_eval, method, kwargs
 
 

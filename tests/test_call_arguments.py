@@ -1,0 +1,211 @@
+"""Arguments python-control reads in its own way get python-control's own answer or error.
+
+Each case was found by a review of the call's options (the twenty-first session's first
+work): the drop-in raised another error, refused what python-control answers, or answered
+what it refuses. Each test runs python-control first and asserts the same outcome from
+``controlkit.input_output_response`` on every ``compile``.
+"""
+
+import functools
+import warnings
+
+import control as ct
+import numpy as np
+import pytest
+
+import controlkit
+import controlkit.engines.fast  # noqa: F401  (the engine started, as in a session)
+
+T = np.linspace(0.0, 5.0, 51)
+
+
+def _static():
+    gain = ct.nlsys(None, lambda t, x, u, p: np.array([2.0 * u[0] + t]), inputs=1,
+                    outputs=1, name="gain")
+    sat = ct.nlsys(None, lambda t, x, u, p: np.clip(u, -1.0, 1.0), inputs=1, outputs=1,
+                   name="sat")
+    return ct.interconnect([gain, sat], connections=[["sat.u[0]", "gain.y[0]"]],
+                           inplist="gain.u[0]", outlist="sat.y[0]", name="static_chain")
+
+
+def _discrete():
+    return ct.nlsys(lambda t, x, u, p: np.array([0.9 * x[0] + 0.1 * x[1],
+                                                 -0.2 * x[0] + 0.8 * x[1] + u[0]]),
+                    lambda t, x, u, p: np.array([x[0] + 0.5 * u[0]]), inputs=1, states=2,
+                    outputs=1, name="d", dt=0.1)
+
+
+def _discrete_loop():
+    plant = ct.ss([[0.9, 0.1], [0.0, 0.8]], [[0.0], [1.0]], [[1.0, 0.0]], [[0.0]], dt=0.1,
+                  name="Pd", inputs="u", outputs="y")
+    pi = ct.ss([[1.0]], [[0.1]], [[1.0]], [[2.0]], dt=0.1, name="Cd", inputs="e", outputs="u")
+    error = ct.summing_junction(["r", "-y"], "e", name="S", dt=0.1)
+    return ct.interconnect([plant, pi, error], inputs="r", outputs="y", name="dloop")
+
+
+def _continuous_loop():
+    plant = ct.nlsys(lambda t, x, u, p: np.array([x[1], -x[0] - 0.3 * x[1] + u[0]]),
+                     lambda t, x, u, p: x[:1], inputs="u", outputs="y", states=2,
+                     name="plant")
+    lag = ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], name="lag", inputs="y", outputs="z")
+    return ct.interconnect([plant, lag], inputs="u", outputs="z", name="loop")
+
+
+def _with_nan(values, at):
+    values = np.array(values, dtype=float)
+    values[at] = np.nan
+    return values
+
+
+def _true_dt():
+    return ct.nlsys(lambda t, x, u, p: np.array([0.5 * x[0] + np.sin(t) * u[0]]),
+                    lambda t, x, u, p: x, inputs=1, states=1, outputs=1, dt=True, name="dd")
+
+
+# (system, the call's arguments) python-control answers
+_ANSWERED = {
+    "stateless, evaluation times decreasing": (
+        _static, dict(U=np.sin(T), X0=0, evaluation_times=T[::-1].copy())),
+    "stateless, an evaluation time repeated": (
+        _static, dict(U=np.sin(T), X0=0, evaluation_times=np.array([1.0, 1.0, 2.0]))),
+    "dt=True, evaluation times decreasing": (
+        _true_dt, dict(T=np.arange(20.0), U=1.0, X0=[0.5], evaluation_times=np.arange(
+            19.0, -1.0, -1.0))),
+    "discrete, NaN in X0": (_discrete, dict(T=np.arange(51) * 0.1, U=0.5, X0=[np.nan, 0.0])),
+    "discrete, NaN in U": (_discrete, dict(T=np.arange(51) * 0.1, U=_with_nan(
+        np.sin(T), 20), X0=[0.0, 0.0])),
+}
+
+
+@pytest.mark.parametrize("case", sorted(_ANSWERED))
+def test_what_python_control_answers_is_answered_the_same(case):
+    build, arguments = _ANSWERED[case]
+    arguments = {"T": T, **arguments}
+    expected = ct.input_output_response(build(), **arguments)
+    for compile in (True, False, None):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # (compile=True says why it is not used)
+            ours = controlkit.input_output_response(build(), compile=compile, **arguments)
+        assert np.array_equal(ours.time, expected.time)
+        assert np.array_equal(ours.outputs, expected.outputs, equal_nan=True), compile
+
+
+# (system, the call's arguments) python-control refuses
+_REFUSED = {
+    "evaluation times empty": (_continuous_loop, dict(evaluation_times=np.array([]))),
+    "evaluation times empty, LSODA": (_continuous_loop, dict(
+        evaluation_times=np.array([]), solve_ivp_method="LSODA")),
+    "evaluation times a number": (_continuous_loop, dict(evaluation_times=2.5)),
+    "evaluation times 2-D": (_continuous_loop, dict(evaluation_times=T[None, ::10])),
+    "evaluation times a string": (_continuous_loop, dict(evaluation_times="foo")),
+    "T 2-D": (_continuous_loop, dict(T=T[None, :], U=np.cos(T))),
+    "discrete, evaluation times not spaced by dt": (
+        _discrete_loop, dict(T=np.arange(51) * 0.1, evaluation_times=np.arange(11) * 0.5)),
+    "discrete, evaluation times not equally spaced": (
+        _discrete_loop, dict(T=np.arange(51) * 0.1, evaluation_times=np.r_[0.0, 0.1, 0.3])),
+    "discrete diagram, NaN in X0": (
+        _discrete_loop, dict(T=np.arange(51) * 0.1, X0=[np.nan, 0.0, 0.0])),
+    "continuous diagram, NaN in X0": (_continuous_loop, dict(X0=[np.nan, 0.0, 0.0])),
+    "continuous diagram, NaN in U": (_continuous_loop, dict(U=_with_nan(np.sin(T), 20))),
+    "solve_ivp_method=None": (_continuous_loop, dict(solve_ivp_method=None)),
+    "method=''": (_continuous_loop, dict(method="")),
+    "squeeze=1": (_continuous_loop, dict(squeeze=1)),
+    "squeeze=np.True_": (_continuous_loop, dict(squeeze=np.True_)),
+}
+
+
+@pytest.mark.parametrize("case", sorted(_REFUSED))
+def test_what_python_control_refuses_is_refused_in_its_words(case):
+    build, arguments = _REFUSED[case]
+    arguments = {"T": T, "U": 1.0, "X0": 0.0, **arguments}
+    with pytest.raises(Exception) as expected:
+        _ = ct.input_output_response(build(), **arguments).outputs  # (squeeze: raised here)
+    for compile in (True, False, None):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # (compile=True says why it is not used)
+            with pytest.raises(type(expected.value)) as ours:
+                controlkit.input_output_response(build(), compile=compile, **arguments)
+        assert str(ours.value) == str(expected.value), compile
+
+
+def test_a_batch_with_an_argument_python_control_reads_its_own_way_runs_run_by_run():
+    # a NaN in one of three initial states: python-control's answer for each run
+    sys = _discrete()
+    X0s = np.array([[0.0, 0.0], [np.nan, 0.0], [1.0, 0.0]])
+    Td = np.arange(51) * 0.1
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # (the engine's refusal, said)
+        runs = controlkit.input_output_response(sys, Td, 0.5, X0s, compile=True)
+    for row, ours in zip(X0s, runs, strict=True):
+        expected = ct.input_output_response(sys, Td, 0.5, row)
+        assert np.array_equal(ours.outputs, expected.outputs, equal_nan=True)
+
+
+def test_a_sampled_data_diagram_without_an_initial_state_is_refused_naming_it():
+    plant = ct.nlsys(lambda t, x, u, p: np.array([x[1], -x[0] - 0.3 * x[1] + u[0]]),
+                     lambda t, x, u, p: x[:1], inputs="u", outputs="y", states=2,
+                     name="plant")
+    pi = ct.sample_system(ct.tf([1.0, 0.5], [1.0, 0.0]), 0.1, name="pi", inputs="e",
+                          outputs="u")
+    error = ct.summing_junction(["r", "-y"], "e", name="error")
+    mixed = controlkit.interconnect([plant, pi, error], inputs="r", outputs="y",
+                                    name="mixed")
+    for compile in (True, False):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # (no fallback announced: nothing falls back)
+            with pytest.raises(ValueError, match=r"cannot run the sampled-data diagram "
+                                                 r"'mixed': an initial state of object"):
+                controlkit.input_output_response(mixed, T, 1.0, None, compile=compile)
+
+
+def test_a_response_without_inputs_plots_whichever_path_made_it():
+    # python-control's response asks for an input panel without inputs (its .plot() then
+    # raises): controlkit's asks for none, whether the engine or python-control ran it
+    free = ct.nlsys(lambda t, x, u, p: -x, lambda t, x, u, p: x, inputs=0, states=1,
+                    outputs=1, name="free")
+    assert ct.input_output_response(free, T, 0.0, [1.0]).plot_inputs
+    for compile in (True, False, None):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            ours = controlkit.input_output_response(free, T, 0.0, [1.0], compile=compile)
+        assert ours.plot_inputs is False, ours.engine_mode
+        assert len(ours.plot().lines) == 1
+
+
+def _accumulating(t, x, u, params):
+    total = params["acc"]  # (the block's own array in python-control's run)
+    total += u[0]
+    return 0.5 * x + 0.01 * total[0]
+
+
+def _scaled(t, x, u, params):
+    gain = params["k"]  # (a float: `*=` binds a new one)
+    gain *= 2.0
+    return 0.5 * x + 0.01 * gain * u[0]
+
+
+@pytest.mark.parametrize("compile", [True, False, None])
+def test_a_params_array_changed_in_place_through_a_name_changes_the_block_s_array(compile):
+    # python-control hands the functions a shallow copy of the block's params: `total +=`
+    # changes the block's own array, across calls and into another diagram of the block
+    Td = np.arange(40.0)
+    runs = []
+    for run in (ct.input_output_response, functools.partial(
+            controlkit.input_output_response, compile=compile)):
+        block = ct.nlsys(_accumulating, None, inputs="u", outputs="y", states=1, dt=1,
+                         params={"acc": np.zeros(1)}, name="s")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # (runs as Python, and says so)
+            for _ in range(2):
+                last = run(ct.interconnect([block], inputs="u", outputs="y"), Td, 1.0, 0.0)
+        runs.append((last.outputs[-1], block.params["acc"][0]))
+    assert runs[0] == runs[1], runs
+    assert runs[0][0] == pytest.approx(1.56, abs=1e-9) and runs[0][1] == 80.0
+    block = ct.nlsys(_accumulating, None, inputs="u", outputs="y", states=1, dt=1,
+                     params={"acc": np.zeros(1)}, name="s")
+    assert "in place (total += u[0])" in controlkit.explain(
+        ct.interconnect([block], inputs="u", outputs="y"))[0].reason
+    scaled = ct.nlsys(_scaled, None, inputs="u", outputs="y", states=1, dt=1,
+                      params={"k": 2.0}, name="s")  # (a float: compiled)
+    assert controlkit.explain(ct.interconnect([scaled], inputs="u",
+                                              outputs="y"))[0].tier == "compiled"
