@@ -1768,3 +1768,30 @@ def test_an_initial_state_of_python_numbers_in_an_object_array_runs_on_the_engin
         ours = controlkit.input_output_response(loop, T, 1.0, X0, compile=False)
         assert ours.engine_mode == "python"
         assert np.array_equal(ours.outputs, ct.input_output_response(loop, T, 1.0, X0).outputs)
+
+
+def _decay(name, rate):
+    return ct.nlsys(lambda t, x, u, p: -rate * x, lambda t, x, u, p: x, inputs=0,
+                    outputs="y", states=1, name=name)
+
+
+@pytest.mark.parametrize("wiring", ["an output summing three", "an input summing three"])
+def test_a_one_row_map_of_sums_not_exact_in_any_order_runs_as_in_python_control(wiring):
+    # one diagram output (or one block input) summing three signals: numpy's product of a
+    # one-row map, which controlkit makes as python-control does; it raised IndexError
+    # (a review of the interconnect drop-in found it, 92 of 600 random diagrams)
+    blocks = [_decay("A", 1.0), _decay("B", 2.0), _decay("C", 3.0)]
+    if wiring == "an output summing three":
+        loop = controlkit.interconnect(blocks, connections=False,
+                                       outlist=[["A.y", "B.y", "C.y"]], outputs="s")
+    else:
+        lag = ct.nlsys(lambda t, x, u, p: -x + u, lambda t, x, u, p: x, inputs="v",
+                       outputs="z", states=1, name="K")
+        loop = controlkit.interconnect(blocks + [lag], connections=[["K.v", "A.y", "B.y",
+                                                                     "C.y"]], outlist="K.z")
+    T = np.linspace(0.0, 1.0, 11)
+    X0 = [0.3, 0.7, 1.1] + [0.0] * (loop.nstates - 3)
+    expected = ct.input_output_response(loop, T, 0.0, X0)
+    for compile in (True, False, None):
+        ours = controlkit.input_output_response(loop, T, 0.0, X0, compile=compile)
+        assert np.array_equal(ours.outputs, expected.outputs), compile

@@ -170,15 +170,17 @@ def _output_lines(plan, column, ref):
     return [f"Y[{r}, {column}] = " + (_terms(output_map[r], lambda c: ref("ys", c) if c < ny
                                              else ref("ui", c - ny), from_zero=not single)
                                       if exact[r] else
-                                      f"{_product('_OUTPUT_MAP', plan.sys.output_map)}("
-                                      f"np.concatenate((ys, ui)))[{r}]")
+                                      _product("_OUTPUT_MAP", plan.sys.output_map,
+                                               "np.concatenate((ys, ui))", r))
             for r in range(plan.sys.noutputs)]
 
 
-def _product(name, matrix) -> str:
-    """The call that makes ``matrix @ v`` as numpy makes it, ``matrix`` being the module's
+def _product(name, matrix, vector, row) -> str:
+    """Row ``row`` of ``matrix @ vector`` as numpy makes it, ``matrix`` being the module's
     constant ``name``: a dot product for one row, the matrix-vector product for more."""
-    return f"{name}[0].dot" if np.shape(matrix)[0] == 1 else f"{name}.dot"
+    if np.shape(matrix)[0] == 1:
+        return f"{name}[0].dot({vector})"
+    return f"{name}.dot({vector})[{row}]"
 
 
 def _maps(plan) -> list[str]:
@@ -314,9 +316,8 @@ def generate(plan):
         lines = []
         for r in range(rows[b].U0, rows[b].U0 + rows[b].NU):
             if not exact[r]:
-                value = (f"{_product('_CONNECT', plan.sys.connect_map)}(ys)[{r}] + "
-                         f"{_product('_INPUT_MAP', plan.sys.input_map)}(U[:, col].copy())"
-                         f"[{r}]")
+                value = (_product("_CONNECT", plan.sys.connect_map, "ys", r) + " + "
+                         + _product("_INPUT_MAP", plan.sys.input_map, "U[:, col].copy()", r))
             elif lone_input:
                 given = _terms(inputs[r, ny:], lambda c: f"U[{c}, col]", from_zero=False)
                 fed = _terms(inputs[r, :ny], lambda c: ref("ys", c))
