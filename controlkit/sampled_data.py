@@ -21,6 +21,7 @@ Workman, *Digital Control of Dynamic Systems*, ch. 4; Astrom & Wittenmark,
 from __future__ import annotations
 
 import functools
+import inspect
 import math
 
 import control as ct
@@ -44,7 +45,8 @@ class SampledDataSystem(ct.InterconnectedSystem):
     Attributes
     ----------
     rates : dict
-        Block name to its sampling period, for the discrete blocks.
+        Block name to its sampling period, for the discrete blocks (of blocks sharing a
+        name, the last one's).
     base_period : float
         The shortest period: every instant of every discrete block is a multiple of it.
 
@@ -78,7 +80,7 @@ class SampledDataSystem(ct.InterconnectedSystem):
         self._refuse()
 
 
-def interconnect(syslist, connections=None, inplist=None, outlist=None, **kwargs):
+def interconnect(syslist, connections=None, inplist=None, outlist=None, *args, **kwargs):
     """:func:`control.interconnect`, also for blocks of different timebases.
 
     Takes exactly :func:`control.interconnect`'s arguments. When every block shares one
@@ -90,8 +92,9 @@ def interconnect(syslist, connections=None, inplist=None, outlist=None, **kwargs
 
     Parameters
     ----------
-    syslist, connections, inplist, outlist, **kwargs
-        As for :func:`control.interconnect`.
+    syslist, connections, inplist, outlist, *args, **kwargs
+        As for :func:`control.interconnect` (its later parameters, ``params``,
+        ``check_unused``..., by position too).
 
     Returns
     -------
@@ -126,6 +129,11 @@ def interconnect(syslist, connections=None, inplist=None, outlist=None, **kwargs
     the sampling periods must be integer multiples of the shortest (0.1 s of 'pi'); got
     'filter' at 0.25 s
     """
+    if args:  # (python-control's later parameters given by position: params, ...)
+        bound = inspect.signature(ct.interconnect).bind(
+            syslist, connections, inplist, outlist, *args, **kwargs).arguments
+        kwargs = {**{name: bound[name] for name in list(bound)[4:] if name != "kwargs"},
+                  **bound.get("kwargs", {})}
     systems = list(syslist)
     rates = _rates(systems)
     if rates is None:  # one timebase: python-control's own result
@@ -151,9 +159,11 @@ def interconnect(syslist, connections=None, inplist=None, outlist=None, **kwargs
     sys.set_output_map(matched.output_map)
     sys.set_connect_map(matched.connect_map)
     sys.syslist = systems
-    sys.rates = {s.name: float(s.dt) for s in systems
-                 if s.isdtime(strict=True) and s.dt is not True}
-    sys.base_period = min(sys.rates.values())
+    periods = [(s.name, float(s.dt)) for s in systems
+               if s.isdtime(strict=True) and s.dt is not True]
+    sys.rates = dict(periods)
+    # (of the blocks, not of the names: two blocks may share one, at other rates)
+    sys.base_period = min(period for _, period in periods)
     return sys
 
 

@@ -1795,3 +1795,60 @@ def test_a_one_row_map_of_sums_not_exact_in_any_order_runs_as_in_python_control(
     for compile in (True, False, None):
         ours = controlkit.input_output_response(loop, T, 0.0, X0, compile=compile)
         assert np.array_equal(ours.outputs, expected.outputs), compile
+
+
+def _two_rates(second_name):
+    plant = ct.tf([1.0], [1.0, 1.0], name="plant", inputs="u", outputs="y")
+    fast = ct.ss([[0.5]], [[1.0]], [[1.0]], [[0.0]], dt=0.1, name="c", inputs="y",
+                 outputs="yf")
+    slow = ct.ss([[0.0]], [[1.0]], [[-1.0]], [[-1.0]], dt=0.2, name=second_name,
+                 inputs="yf", outputs="u")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # (python-control's: a duplicate name, renamed)
+        return controlkit.interconnect(
+            [plant, fast, slow], inplist=[(0, 0)], outlist=[(0, 0), (1, 0)],
+            check_unused=False, connections=[[(1, 0), (0, 0)], [(2, 0), (1, 0)],
+                                             [(0, 0), (2, 0)]])
+
+
+def test_two_blocks_of_one_name_at_two_rates_keep_their_rates():
+    # the shortest period was read from a dict by block name: the 0.1 s block ran at 0.2 s
+    T = np.arange(21) * 0.1
+    named, shared = _two_rates("c2"), _two_rates("c")
+    assert shared.base_period == named.base_period == 0.1
+    for compile in (True, False):
+        expected = controlkit.input_output_response(named, T, 1.0, 0.0, compile=compile)
+        ours = controlkit.input_output_response(shared, T, 1.0, 0.0, compile=compile)
+        assert np.array_equal(ours.outputs, expected.outputs)
+        assert expected.outputs[1, 2] == pytest.approx(0.0951626, abs=1e-7)
+
+
+def test_a_diagram_declaring_more_states_than_its_blocks_hold_is_python_control_s_run():
+    # python-control builds `states=3` for blocks holding two and integrates the third
+    # (its solver's error norm counts it): its own run answers
+    plant = ct.nlsys(lambda t, x, u, p: -x + u, lambda t, x, u, p: x, inputs="u",
+                     outputs="y", states=1, name="P")
+    pi = ct.ss([[0.0]], [[1.0]], [[0.5]], [[2.0]], name="C", inputs="e", outputs="u")
+    error = ct.summing_junction(["r", "-y"], "e", name="S")
+    loop = controlkit.interconnect([plant, pi, error], inputs="r", outputs="y", states=3)
+    T = np.linspace(0.0, 3.0, 61)
+    expected = ct.input_output_response(loop, T, 1.0, [0.0, 0.0, 5.0], return_x=True)
+    for compile in (True, False, None):
+        with pytest.warns(UserWarning, match="declares 3 states where its blocks hold 2"):
+            ours = controlkit.input_output_response(loop, T, 1.0, [0.0, 0.0, 5.0],
+                                                    return_x=True, compile=compile)
+        assert np.array_equal(ours.outputs, expected.outputs)
+        assert np.array_equal(ours.states, expected.states)
+
+
+def test_interconnect_takes_python_control_s_later_parameters_by_position():
+    plant = ct.nlsys(lambda t, x, u, p: -p["a"] * x + u, lambda t, x, u, p: x, inputs="u",
+                     outputs="y", states="x", params={"a": 1.0}, name="P")
+    pi = ct.ss([[-2.0]], [[1.0]], [[3.0]], [[1.0]], name="C", inputs="e", outputs="u")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # (python-control's: e.u unused)
+        ours = controlkit.interconnect([plant, pi], None, "e", "y", {"a": 2.0}, False)
+        theirs = ct.interconnect([plant, pi], None, "e", "y", {"a": 2.0}, False)
+    assert ours.params == theirs.params == {"a": 2.0}
+    with pytest.raises(TypeError, match="multiple values for argument 'params'"):
+        controlkit.interconnect([plant, pi], None, "e", "y", {"a": 2.0}, params={})

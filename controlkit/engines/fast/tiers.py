@@ -340,6 +340,9 @@ def blocks_of(sys, params=None, *, compiled=False):
         us += block.ninputs
         ys += block.noutputs
         ps += kernel.params.size
+    if xs != sys.nstates:  # (python-control builds it: `states=3` given for two)
+        raise UnsupportedSystem(f"{sys.name!r} declares {sys.nstates} states where its blocks "
+                                f"hold {xs}")
     return blocks
 
 
