@@ -23,6 +23,7 @@ from __future__ import annotations
 import functools
 import inspect
 import math
+import warnings
 
 import control as ct
 import numpy as np
@@ -147,14 +148,18 @@ def interconnect(syslist, connections=None, inplist=None, outlist=None, *args, *
                for s in systems]
     # python-control's own signal matching, on stand-ins of the blocks that share one
     # timebase (it refuses mixed ones); the diagram is then built of the blocks themselves
-    matched = ct.interconnect([_stand_in(s) for s in systems], connections, inplist,
+    # (one stand-in per block object: a block listed twice is python-control's copy)
+    stand_ins = {id(s): _stand_in(s) for s in systems}
+    matched = ct.interconnect([stand_ins[id(s)] for s in systems], connections, inplist,
                               outlist, **kwargs)
     systems = [s if s.name == twin.name else s.copy(name=twin.name)  # a block used twice
                for s, twin in zip(systems, matched.syslist, strict=True)]
-    sys = SampledDataSystem(matched.syslist, params=matched.params, name=matched.name,
-                            inputs=matched.input_labels, outputs=matched.output_labels,
-                            states=matched.state_labels, dt=0,
-                            connection_type=matched.connection_type)
+    with warnings.catch_warnings():  # (python-control said it of the build just made)
+        warnings.filterwarnings("ignore", "duplicate (object|name) found")
+        sys = SampledDataSystem(matched.syslist, params=matched.params, name=matched.name,
+                                inputs=matched.input_labels, outputs=matched.output_labels,
+                                states=matched.state_labels, dt=0,
+                                connection_type=matched.connection_type)
     sys.set_input_map(matched.input_map)
     sys.set_output_map(matched.output_map)
     sys.set_connect_map(matched.connect_map)

@@ -1852,3 +1852,18 @@ def test_interconnect_takes_python_control_s_later_parameters_by_position():
     assert ours.params == theirs.params == {"a": 2.0}
     with pytest.raises(TypeError, match="multiple values for argument 'params'"):
         controlkit.interconnect([plant, pi], None, "e", "y", {"a": 2.0}, params={})
+
+
+def test_a_block_listed_twice_in_a_sampled_data_diagram_is_copied_as_python_control_copies():
+    plant = ct.tf([1.0], [1.0, 1.0], name="plant", inputs="u", outputs="y")
+    for dt, build in ((0, ct.interconnect), (0.1, controlkit.interconnect)):
+        block = ct.ss([[0.5]], [[1.0]], [[1.0]], [[0.0]], dt=dt, name="c", inputs="y",
+                      outputs="yf")
+        with warnings.catch_warnings(record=True) as said:
+            warnings.simplefilter("always")
+            diagram = build([plant, block, block], connections=[[(1, 0), (0, 0)],
+                                                                [(2, 0), (0, 0)]],
+                            inplist=[(0, 0)], outlist=[(1, 0), (2, 0)])
+        assert diagram.state_labels == ["plant_x[0]", "c_x[0]", "c$copy_x[0]"], dt
+        assert [str(w.message) for w in said] == [
+            "duplicate object found in system list; created copy: c$copy"], dt
