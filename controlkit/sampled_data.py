@@ -140,8 +140,9 @@ def interconnect(syslist, connections=None, inplist=None, outlist=None, *args, *
     if rates is None:  # one timebase: python-control's own result
         return ct.interconnect(systems, connections, inplist, outlist, **kwargs)
     if kwargs.get("dt") not in (None, 0):
-        raise ValueError(f"dt must be None or 0 for a diagram of continuous and discrete "
-                         f"blocks, got dt={kwargs['dt']!r}")
+        raise ValueError(f"dt must be None or 0 for a diagram of blocks of several "
+                         f"timebases (continuous and discrete, or several sampling "
+                         f"periods), got dt={kwargs['dt']!r}")
     kwargs.pop("dt", None)
     # as python-control does: a transfer function joins a diagram as its state space
     systems = [ct.ss(s, name=s.name) if isinstance(s, ct.TransferFunction) else s
