@@ -6,7 +6,6 @@ what it refuses. Each test runs python-control first and asserts the same outcom
 ``controlkit.input_output_response`` on every ``compile``.
 """
 
-import functools
 import warnings
 
 import control as ct
@@ -178,34 +177,69 @@ def _accumulating(t, x, u, params):
     return 0.5 * x + 0.01 * total[0]
 
 
+def _accumulating_0d(t, x, u, params):
+    total = params["acc"]  # (a 0-d array: `+=` changes it in place too)
+    total += u[0]
+    return 0.5 * x + 0.01 * total
+
+
+def _bump(values, by):
+    values += by  # (in place on the array it is handed)
+
+
+def _accumulating_output(t, x, u, params):
+    _bump(params["acc"], u[0])  # (python-control calls an output function twice a step)
+    return params["acc"][:1] + u[0]
+
+
 def _scaled(t, x, u, params):
-    gain = params["k"]  # (a float: `*=` binds a new one)
+    gain = params["gains"][0]  # (an element: `*=` binds a new number)
     gain *= 2.0
     return 0.5 * x + 0.01 * gain * u[0]
 
 
-@pytest.mark.parametrize("compile", [True, False, None])
-def test_a_params_array_changed_in_place_through_a_name_changes_the_block_s_array(compile):
-    # python-control hands the functions a shallow copy of the block's params: `total +=`
-    # changes the block's own array, across calls and into another diagram of the block
+def _block(update, output, params):
+    return ct.nlsys(update, output, inputs="u", outputs="y", states=1, dt=1, params=params,
+                    name="s")
+
+
+_IN_PLACE = {
+    "an update through a name": (lambda: _block(_accumulating, None, {"acc": np.zeros(1)}),
+                                 "in place (total += u[0])"),
+    "an output through a helper": (lambda: _block(lambda t, x, u, p: 0.5 * x,
+                                                  _accumulating_output, {"acc": np.zeros(1)}),
+                                   "in place (_bump(params['acc'], u[0]))"),
+    "a 0-d array": (lambda: _block(_accumulating_0d, None, {"acc": np.zeros(())}),
+                    "in place (total += u[0])"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(_IN_PLACE))
+def test_a_params_array_changed_in_place_is_python_control_s_run(case):
+    # python-control hands the functions a shallow copy of the block's params: an operator
+    # on a value read from it changes the block's own array, across calls and diagrams,
+    # as often as python-control calls the function (an output: more than once a step)
+    build, said = _IN_PLACE[case]
     Td = np.arange(40.0)
     runs = []
-    for run in (ct.input_output_response, functools.partial(
-            controlkit.input_output_response, compile=compile)):
-        block = ct.nlsys(_accumulating, None, inputs="u", outputs="y", states=1, dt=1,
-                         params={"acc": np.zeros(1)}, name="s")
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # (runs as Python, and says so)
-            for _ in range(2):
-                last = run(ct.interconnect([block], inputs="u", outputs="y"), Td, 1.0, 0.0)
-        runs.append((last.outputs[-1], block.params["acc"][0]))
-    assert runs[0] == runs[1], runs
-    assert runs[0][0] == pytest.approx(1.56, abs=1e-9) and runs[0][1] == 80.0
-    block = ct.nlsys(_accumulating, None, inputs="u", outputs="y", states=1, dt=1,
-                     params={"acc": np.zeros(1)}, name="s")
-    assert "in place (total += u[0])" in controlkit.explain(
-        ct.interconnect([block], inputs="u", outputs="y"))[0].reason
-    scaled = ct.nlsys(_scaled, None, inputs="u", outputs="y", states=1, dt=1,
-                      params={"k": 2.0}, name="s")  # (a float: compiled)
-    assert controlkit.explain(ct.interconnect([scaled], inputs="u",
+    for compile in ("python-control", True, False, None):
+        block = build()
+        for _ in range(2):
+            diagram = ct.interconnect([block], inputs="u", outputs="y")
+            if compile == "python-control":
+                last = ct.input_output_response(diagram, Td, 1.0, 0.0)
+            else:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")  # (python-control runs it, and says so)
+                    last = controlkit.input_output_response(diagram, Td, 1.0, 0.0,
+                                                            compile=compile)
+        runs.append((last.outputs.tolist(), np.ravel(block.params["acc"]).tolist()))
+    assert runs[1:] == runs[:1] * 3
+    assert said in controlkit.explain(ct.interconnect([build()], inputs="u",
+                                                      outputs="y"))[0].reason
+
+
+def test_an_element_of_a_params_array_changed_by_an_operator_compiles():
+    block = _block(_scaled, None, {"gains": np.array([2.0, 3.0])})
+    assert controlkit.explain(ct.interconnect([block], inputs="u",
                                               outputs="y"))[0].tier == "compiled"

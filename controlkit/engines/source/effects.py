@@ -64,22 +64,23 @@ def side_effect(fn) -> str | None:
     return _read(fn)[0]
 
 
-def _read(fn) -> tuple[str | None, str | None]:
-    """:func:`side_effect` and :func:`draws` of ``fn``: one reading, kept. The answers
+def _read(fn) -> tuple[str | None, str | None, tuple]:
+    """:func:`side_effect`, :func:`draws` and :func:`params_changed` of ``fn``: one
+    reading, kept. The answers
     follow from the code, what its outside names are (a module, an array) and the classes
     of what it is bound to (a method's self: its methods); they are asked again at every
     job made (a diagram built anew, new parameter values), 0.1 ms a function to read."""
     try:
         target, bound, _ = call_target(fn)
     except NotCompilable:
-        return None, None
+        return None, None, ()
     key = (target.__code__, *map(type, bound))
     if key not in _READ:
         try:
             reading = _Effects(target, 0, bound)
-            _READ[key] = reading.first()[0], reading.draw()
+            _READ[key] = reading.first()[0], reading.draw(), tuple(reading.in_place)
         except NotCompilable:  # (no source: nothing is known)
-            _READ[key] = None, None
+            _READ[key] = None, None, ()
     return _READ[key]
 
 
@@ -101,6 +102,46 @@ def draws(fn) -> str | None:
     True
     """
     return _read(fn)[1]
+
+
+def params_changed(fn) -> tuple:
+    """``(key, indexed, text)`` of each value read from ``params`` (``params[key]``, or
+    ``indexed`` indexes into it) that an operator changes through a name (``total =
+    params["acc"]; total += u[0]``), also through a slice, a view or a helper: in place if
+    the value there is an array or a list (python-control's run then changes the block's
+    own), a new number bound if it is a number. The caller, who knows the values, decides.
+
+    Examples
+    --------
+    >>> def accumulate(t, x, u, params):
+    ...     total = params["acc"]
+    ...     total += u[0]
+    ...     return x + total[0]
+    >>> params_changed(accumulate)
+    (('acc', 0, 'total += u[0]'),)
+    """
+    return _read(fn)[2]
+
+
+def changed_in_place(value, indexed) -> bool:
+    """Whether an operator (``+=``) on what ``indexed`` indexes into ``value`` reach
+    changes it in place: an array or a list (a row of a 2-D array), not a number.
+
+    Examples
+    --------
+    >>> changed_in_place(np.zeros(2), 0), changed_in_place(np.zeros(2), 1)
+    (True, False)
+    >>> changed_in_place(np.zeros((2, 2)), 1), changed_in_place(2.0, 0)
+    (True, False)
+    """
+    for _ in range(indexed):  # (an element: a number, or a row)
+        if not isinstance(value, np.ndarray | list) or np.ndim(value) == 0 or not len(value):
+            return False
+        value = value[0]
+    return not (value is None or _is_number(value) or isinstance(
+        value, str | bytes | tuple | frozenset))
+
+
 #: A name found neither in a function's module nor among the builtins (a closure's).
 _UNKNOWN = object()
 
@@ -116,7 +157,7 @@ def _nothing_to_write_into(value) -> bool:
 class _Effects:
     """One function's reading (see :func:`side_effect`)."""
 
-    def __init__(self, function, depth, bound=()):
+    def __init__(self, function, depth, bound=(), params=None):
         self.function, self.depth = function, depth
         # (what its first parameters are bound to: a method's self, a partial's values)
         self.bound = dict(zip(function.__code__.co_varnames, bound, strict=False))
@@ -131,9 +172,12 @@ class _Effects:
         # name -> ((the argument it may be bound to, or None for an outside object, the
         # text of what), whether the object itself or a view: not maybe an element)
         self.origin = {p: ((p, p), True) for p in self.parameters}
-        # a block's time (t of t, x, u, params): a number, which `t -= 1.0` binds anew
-        self.time = code.co_varnames[code.co_argcount - 4] \
-            if depth == 0 and code.co_argcount >= 4 else None
+        # a block's time and params (t, params of t, x, u, params, after what is bound):
+        # a number, which `t -= 1.0` binds anew; a dict, whose values may be arrays
+        given = len(bound)
+        self.time, self.params = code.co_varnames[given:given + 4:3] \
+            if depth == 0 and code.co_argcount >= given + 4 else (None, params)
+        self.in_place = []  # (key, indexed, text): see params_changed
         pairs = self._bindings()
         for p in self.parameters:  # (bound anew, first: its own copy is its own, an
             values = [v for t, v in pairs if isinstance(t, ast.Name) and t.id == p]
@@ -152,6 +196,18 @@ class _Effects:
                     if found is not None and name not in self.origin:
                         self.origin[name] = (found[0], found[1] and not unpacked)
                         changed = True
+        self.keys = {}  # name -> (params key, indexed) of the value it may be bound to
+        pairs = [pair for target, value in pairs for pair in (
+            zip(target.elts, value.elts, strict=False) if isinstance(target, ast.Tuple)
+            and isinstance(value, ast.Tuple) else [(target, value)])]
+        changed = self.params is not None
+        while changed:
+            changed = False
+            for target, value in pairs:
+                found = self._key(value)
+                if isinstance(target, ast.Name) and found and target.id not in self.keys:
+                    self.keys[target.id] = found
+                    changed = True
 
     def _bindings(self):
         """``(target, value)`` of each binding of a name in the function."""
@@ -199,6 +255,38 @@ class _Effects:
             return self._source(node.value)
         return None
 
+    def _key(self, node):
+        """``(key, indexed)`` of the ``params`` value ``node`` may be (or index into, or
+        view), else None."""
+        if isinstance(node, ast.Name):
+            return self.keys.get(node.id)
+        if isinstance(node, ast.Subscript):
+            base = self._source(node.value)
+            if base == ((self.params, self.params), True) and isinstance(
+                    node.slice, ast.Constant):
+                return node.slice.value, 0
+            found = self._key(node.value)  # (each index takes an axis; `:`, `...` none)
+            indexes = node.slice.elts if isinstance(node.slice, ast.Tuple) else [node.slice]
+            return found and (found[0], found[1] + sum(not isinstance(e, ast.Slice) and not (
+                isinstance(e, ast.Constant) and e.value in (None, Ellipsis)) for e in indexes))
+        if isinstance(node, ast.Attribute) and node.attr in ("T", "real", "imag"):
+            return self._key(node.value)
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute):
+            if node.func.attr in ("get", "setdefault") and node.args and isinstance(
+                    node.args[0], ast.Constant) and self._source(node.func.value) == (
+                    (self.params, self.params), True):
+                return node.args[0].value, 0
+            if node.func.attr in VIEW_METHODS:
+                return self._key(node.func.value)
+        if isinstance(node, ast.Call) and node.args and getattr(
+                node.func, "attr", getattr(node.func, "id", None)) in VIEW_FUNCTIONS:
+            return self._key(node.args[0])
+        if isinstance(node, ast.IfExp):
+            return self._key(node.body) or self._key(node.orelse)
+        if isinstance(node, ast.NamedExpr):
+            return self._key(node.value)
+        return None
+
     def draw(self) -> str | None:
         """The first call of a random generator's method, see :func:`draws`."""
         for node in self.nodes:
@@ -241,6 +329,8 @@ class _Effects:
                             and written.id != self.time:
                         return (*self._said(found, written.id, ast.unparse(written))[:2],
                                 True)
+                    if isinstance(node, ast.AugAssign) and written.id in self.keys:
+                        self.in_place.append((*self.keys[written.id], ast.unparse(node)))
                     continue
                 base = _base_name(written)
                 if base is not None and base not in self.local:
@@ -278,16 +368,22 @@ class _Effects:
         # a method of an object the function is bound to, `self.step(x)`: self comes first
         owner = self._value(func.value) if isinstance(func, ast.Attribute) else None
         method = owner is not None and not isinstance(owner, types.ModuleType)
+        code = called.__code__
+        whole = ((self.params, self.params), True)  # (params handed on: the helper's own)
+        handed = [code.co_varnames[i + method] for i, value in enumerate(node.args)
+                  if i + method < code.co_argcount and self._source(value) == whole]
+        handed += [k.arg for k in node.keywords if k.arg and self._source(k.value) == whole]
         try:
-            said, parameter, by_operator = _Effects(called, self.depth + 1,
-                                                    (owner,) if method else ()).first()
+            helper = _Effects(called, self.depth + 1, (owner,) if method else (),
+                              params=handed[0] if handed and self.params else None)
+            said, parameter, by_operator = helper.first()
         except NotCompilable:
             return None
+        self.in_place += helper.in_place
         if said is None:
             return None
         if parameter is None:
             return f"it calls {name}(), which {said.removeprefix('it ')}", None, False
-        code = called.__code__
         position = code.co_varnames.index(parameter) - method
         given = [k.value for k in node.keywords if k.arg == parameter]
         if 0 <= position < len(node.args) and position < code.co_argcount - method:
@@ -297,6 +393,8 @@ class _Effects:
             # (`v += 1` on a number given is the helper's own: in place on arrays only)
             if found is not None and (found[1] or not by_operator):
                 return self._said(found, _base_name(value), ast.unparse(node))
+            if by_operator and self._key(value):
+                self.in_place.append((*self._key(value), ast.unparse(node)[:40]))
         return None
 
     def _getter(self, node):

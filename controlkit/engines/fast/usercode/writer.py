@@ -13,7 +13,6 @@ import numpy as np
 
 from .... import _jit
 from ...source import PARAM_READ, NotCompilable, Plan, as_written, copy_tree, function_def, walk
-from ...source.effects import VIEW_METHODS
 from ...source.runs import runs
 from ...source.values import (
     _dotted,
@@ -357,7 +356,6 @@ def _functions(plan, layout):
     reads = _Reads(layout)
     texts = []
     for each in plan.tree():
-        _refuse_in_place_params(each.body, layout)
         body = _appended_lists(_read_only_lists(
             [Calls(each.frozen).visit(reads.visit(stmt)) for stmt in copy_tree(each.body)]))
         if each is plan:
@@ -367,42 +365,6 @@ def _functions(plan, layout):
         except ValueError as why:  # ("Unable to avoid backslash in f-string expression")
             raise NotCompilable(f"its text cannot be written out ({why})") from None
     return "\n\n\n".join(texts)
-
-
-def _refuse_in_place_params(body, layout) -> None:
-    """NotCompilable for an operator changing in place a name bound to an array read from
-    params (``a = params["acc"]; a += u[0]``, also through a slice or a view of it):
-    python-control hands the functions a shallow copy of the block's params, so its run
-    changes the block's own array, where compiled code would change its packed copy."""
-    arrays, nodes = {}, list(walk(ast.Module(body, [])))
-
-    def key_of(node):  # (the key of the params array ``node`` is, or is a view of)
-        while isinstance(node, ast.Subscript | ast.Attribute) or isinstance(
-                node, ast.Call) and isinstance(node.func, ast.Attribute):
-            if isinstance(node, ast.Call) and node.func.attr not in VIEW_METHODS or \
-                    isinstance(node, ast.Attribute) and node.attr not in ("T", "real", "imag"):
-                return None
-            node = node.func.value if isinstance(node, ast.Call) else node.value
-        if isinstance(node, ast.Name):
-            return arrays.get(node.id)
-        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) \
-                and node.func.id == PARAM_READ:
-            entry = layout.by_key[node.args[1].value]
-            return entry.key if entry.kind.startswith("array") else None
-        return None
-
-    assigned = [(node.targets[0].id, node.value) for node in nodes if isinstance(
-        node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name)]
-    while any(name not in arrays and key_of(value) is not None for name, value in assigned):
-        arrays.update((name, key_of(value)) for name, value in assigned
-                      if name not in arrays and key_of(value) is not None)
-    for node in nodes:
-        if isinstance(node, ast.AugAssign) and isinstance(node.target, ast.Name) \
-                and node.target.id in arrays:
-            raise NotCompilable(
-                f"it changes the params array {arrays[node.target.id]!r} in place "
-                f"({ast.unparse(node)[:40]}), which python-control's run does to the block's "
-                f"own array, compiled code to a copy")
 
 
 #: The constants a kernel's text may hold: their ``repr`` is Python's own literal.
