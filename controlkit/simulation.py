@@ -425,12 +425,12 @@ def _many_on_the_engine(sys, T, U, X0, X0s, rows, params_list, options, compile)
     if sys.isdtime(strict=True) and any(contract.kept_state(row, sys.nstates) is not None
                                         for row in (rows if rows is not None else [X0])):
         return None  # (integers or float32 in a discrete run: python-control's first step)
+    if X0s is not None and not np.isfinite(X0s).all():
+        return None  # (python-control's runs where a state is not finite: each says so)
     diagram = as_interconnect(sys)
     try:  # (arguments python-control reads in its own way: run by run, each saying so)
         T_, U_, x0, t_eval, method, solver = contract.python_control_arguments(
             diagram, T, U, X0s[0] if X0s is not None else X0, options)
-        if X0s is not None and not np.isfinite(X0s).all():
-            raise UnsupportedSystem("an initial state not finite")
         if diagram.isdtime(strict=True):  # (its evaluation times are its steps, checked)
             contract.check_arguments(diagram, t_eval, x0)
         X0s = X0s if X0s is not None else np.tile(x0, (len(params_list), 1))

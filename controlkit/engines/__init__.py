@@ -184,10 +184,11 @@ def numpy_raises() -> bool:
 
 
 def python_control_s_own(sys, T, options) -> str:
-    """Why python-control answers a call of :func:`controlkit.input_output_response` in its
-    own way, which the engine leaves to it (its error, or its answer to arguments it reads
-    otherwise than the engine would: ``T`` not increasing, evaluation times it refuses or
-    evaluates one by one, functions handed time points of another float type, numpy told
+    """Why python-control answers a call of :func:`controlkit.input_output_response` (one
+    run, or each of many) in its own way, which the engine leaves to it (its error, or its
+    answer to arguments it reads otherwise than the engine would: times not increasing,
+    evaluation times it refuses or evaluates one by one, a discrete diagram's times not
+    spaced by its period, functions handed time points of another float type, numpy told
     to raise); else ``""``.
 
     ``options`` are the call's keywords (``evaluation_times``, ``solve_ivp_kwargs``,
@@ -205,8 +206,7 @@ def python_control_s_own(sys, T, options) -> str:
     """
     isdtime = getattr(sys, "isdtime", None)  # (not a system: python-control's error)
     discrete = isdtime is None or isdtime(strict=True)
-    if getattr(sys, "nstates", None) == 0 and discrete:
-        return "a discrete diagram without states: its outputs at any time points"
+    dt = sys.dt if discrete and isdtime else False  # (a discrete diagram's period, or True)
     if numpy_raises():
         return "numpy is told to raise, call or log on a floating-point error (np.seterr)"
     squeeze = options.get("squeeze")
@@ -215,28 +215,32 @@ def python_control_s_own(sys, T, options) -> str:
     times = options.get("evaluation_times", "T")  # (the default: the string "T")
     if times is None:
         return "evaluation_times=None: the solver's own steps"
+    given = not (isinstance(times, str) and times == "T")
+    grid = False
     if "controlkit.blocks.sampling" in _sys.modules:  # (imported for a grid)
         from ..blocks.sampling import TimeGrid  # (waits for a thread still importing it)
 
-        if isinstance(T, TimeGrid):
-            return ""  # increasing by construction, and kept lazy
-    if "t_eval" in options["solve_ivp_kwargs"] or np.size(T) < 2:
-        return "t_eval in solve_ivp_kwargs, or a single time point"
-    listed = not isinstance(T, np.ndarray) or not isinstance(times, str | np.ndarray)
-    if listed and discrete:
-        return "time points as a list, which python-control subtracts as lists"
-    if isinstance(T, np.ndarray) and T.dtype != np.float64 and T.dtype.kind not in "iu":
-        return f"time points of {T.dtype}"
-    why = _times_own(T, "time points", False)  # (steps not dt: the engine's own error)
-    if why or isinstance(times, str) and times == "T":
-        return why
-    return _times_own(times, "evaluation times", sys.dt if discrete and isdtime else False)
+        grid = isinstance(T, TimeGrid)  # (increasing by construction, and kept lazy)
+    if not grid:
+        if "t_eval" in options["solve_ivp_kwargs"] or np.size(T) < 2:
+            return "t_eval in solve_ivp_kwargs, or a single time point"
+        listed = not isinstance(T, np.ndarray) or not isinstance(times, str | np.ndarray)
+        if listed and discrete:
+            return "time points as a list, which python-control subtracts as lists"
+        why = _times_own(T, "time points", False if given else dt)
+        if why:
+            return why
+    return _times_own(times, "evaluation times", dt) if given else ""
 
 
 def _times_own(times, what, dt) -> str:
     """Why python-control answers time points ``times`` in its own way (not numbers, not
-    1-D, not increasing; of a discrete system, ``dt`` not False: fewer than two, or not
-    equally spaced by ``dt``, which it refuses), else ``""``."""
+    1-D, not increasing, of a float type other than 64 bits; of a discrete system, ``dt``
+    not False: fewer than two, or not equally spaced by ``dt``, which it refuses, or, of a
+    system without states, evaluates at each), else ``""``."""
+    if isinstance(times, np.ndarray) and times.dtype != np.float64 \
+            and times.dtype.kind not in "iu":
+        return f"{what} of {times.dtype}"  # (handed to the functions as they are)
     try:
         times = np.asarray(times, dtype=float)
     except (TypeError, ValueError):
