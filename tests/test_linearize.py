@@ -383,3 +383,49 @@ def test_reduced_keeps_what_connects_inputs_to_outputs():
     np.testing.assert_allclose(complex(reduced(sys)(2.0)), complex(sys(2.0)))
     with pytest.raises(ValueError, match=r"outputs \['z'\] are not among \['y\[0\]'\]"):
         reduced(sys, outputs=["z"])
+
+
+def _pendulum():
+    return ct.nlsys(lambda t, x, u, p: np.array([x[1], -np.sin(x[0]) + u[0]]),
+                    lambda t, x, u, p: x[:1] * x[1:], states=2, inputs="u", outputs="y",
+                    name="pend")
+
+
+def test_a_zero_d_array_is_a_vector_of_one_as_in_python_control():
+    # python-control broadcasts a scalar only (np.isscalar): np.array(0.5) is padded
+    with pytest.warns(UserWarning, match="x0 too short"):
+        expected = ct.linearize(_pendulum(), np.array(0.5))
+    with pytest.warns(UserWarning, match="x0 too short"):
+        ours = linearize(_pendulum(), np.array(0.5))
+    assert ours.C.tolist() == [[0.0, 0.5]]  # (at [0.5, 0]; broadcast, [0.5, 0.5])
+    np.testing.assert_allclose(ours.C, expected.C, atol=1e-6)
+    np.testing.assert_allclose(ours.A, expected.A, atol=1e-6)
+    assert linearize(_pendulum(), 0.5).A[1, 0] == pytest.approx(-cos(0.5), abs=1e-9)
+
+
+def test_a_diagram_without_inputs_linearizes_where_python_control_holds_it():
+    plant = ct.nlsys(lambda t, x, u, p: np.array([x[1], -2.0 * x[0] - 0.2 * x[1] + u[0]]),
+                     lambda t, x, u, p: x[:1], states=2, inputs="u", outputs="y",
+                     name="plant")
+    lag = ct.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], name="lag", inputs="y", outputs="z")
+    loop = ct.interconnect([plant, lag], inputs=[], outputs=["y", "z"], name="loop",
+                           check_unused=False)
+    expected, ours = ct.linearize(loop, 0), linearize(loop, 0)
+    assert ours.B.shape == expected.B.shape == (3, 0)
+    np.testing.assert_allclose(ours.A, expected.A, atol=1e-6)
+
+
+def test_a_system_of_undeclared_sizes_is_python_control_s_to_size():
+    free = ct.nlsys(lambda t, x, u, p: -x + u, None, states=1, name="free")  # (no inputs=)
+    assert free.ninputs is None
+    assert linearize(free, [1.0], [2.0]).A.tolist() == ct.linearize(free, [1.0],
+                                                                       [2.0]).A.tolist()
+    assert find_eqpt(free, [0.0], [2.0]).states.tolist() == [2.0]
+
+
+def test_find_eqpt_takes_python_control_s_later_parameters_by_position():
+    loop = ct.nlsys(lambda t, x, u, p: -x + u, lambda t, x, u, p: x, states=1, inputs=1,
+                    outputs=1, name="lag")
+    args = (loop, 0.5, 1.0, [3.0], 0, None, [], None, None, None, None, "lm")
+    expected, ours = ct.find_eqpt(*args), find_eqpt(*args)
+    assert np.allclose(ours.states, expected.states) and np.allclose(ours.states, [3.0])

@@ -31,7 +31,11 @@ def linearize(sys, xeq, ueq=None, t=0, params=None, **kw):
     Jacobians and the wiring: LTI blocks and controlkit's blocks of the papers exactly,
     other blocks by central differences with the step
     :math:`h_j = \epsilon^{1/3}\max(1, |z_j|)` per variable (relative error about
-    ``1e-10``; python-control's forward differences with ``1e-6`` reach about ``1e-6``).
+    ``1e-10`` for a function smooth on that scale; python-control's forward differences
+    with ``1e-6`` reach about ``1e-6``). A function that bends on a finer scale
+    (``tanh(x / 1e-5)``), or has a kink at the point (``abs(x)`` at 0, where central
+    differences give the mean of the two slopes and python-control's the right one),
+    needs a step of its own (``eps``): there the two methods give other numbers.
 
     Sampled-data diagram (:func:`controlkit.interconnect` of continuous and discrete
     blocks): the discrete-time model at the base period ``h`` that is exact at the
@@ -105,6 +109,8 @@ def linearize(sys, xeq, ueq=None, t=0, params=None, **kw):
     ([[0.6]], [[0.4]], 0.5)
     """
     sys = _state_space_or_system(sys)
+    if _sizes_unknown(sys):  # (python-control sizes it from the point: its own answer)
+        return ct.linearize(sys, xeq, ueq, t, params, **kw)
     eps = kw.pop("eps", None)
     copy_names = kw.pop("copy_names", False)
     x, u = _operating_point(sys, xeq, ueq)
@@ -120,12 +126,15 @@ def linearize(sys, xeq, ueq=None, t=0, params=None, **kw):
         A, B, C, D, dt = compose_sampled(flat, jac)
     else:
         (A, B, C, D), dt = compose(flat, jac), sys.dt
-    if B.shape[1] == 0 and B.shape[0] > 0:
-        raise ValueError(
-            f"{sys.name!r} has no inputs, and python-control {ct.__version__} cannot hold a "
-            f"StateSpace without inputs (it reads an n x 0 matrix B as 0 x 0); give the "
-            f"diagram an input, or cut a loop open with controlkit.analysis.loop_transfers")
-    linsys = ct.StateSpace(A, B, C, D, dt, remove_useless_states=False)
+    try:
+        linsys = ct.StateSpace(A, B, C, D, dt, remove_useless_states=False)
+    except ValueError as error:
+        if B.shape[1] or not B.shape[0]:
+            raise
+        raise ValueError(  # (as python-control's own linearize of it raises)
+            f"{sys.name!r} has no inputs, and python-control {ct.__version__} cannot hold "
+            f"this StateSpace without inputs ({error}); give the diagram an input, or cut a "
+            f"loop open with controlkit.analysis.loop_transfers") from error
     if copy_names:
         prefix = ct.config.defaults["iosys.linearized_system_name_prefix"]
         suffix = ct.config.defaults["iosys.linearized_system_name_suffix"]
@@ -183,10 +192,12 @@ def _finite(name, value) -> float:
 
 
 def _vector(name, legacy, value, size, labels) -> np.ndarray:
-    """A state or input vector read as python-control reads it: a scalar for every entry,
+    """A state or input vector read as python-control reads it: a scalar for every entry
+    (a 0-d array is a vector of one),
     a list of numbers and arrays concatenated, a short vector padded with zeros (with
     python-control's warning when its last value is not zero); too long or not finite
     is refused."""
+    scalar = np.isscalar(value)  # (python-control's test: a 0-d array is a vector)
     if isinstance(value, (list, tuple)):
         try:
             parts = [np.asarray(v, dtype=float).reshape(-1) for v in value]
@@ -197,7 +208,7 @@ def _vector(name, legacy, value, size, labels) -> np.ndarray:
         value = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be numbers, got {value!r}") from None
-    value = np.full(size, float(value)) if value.ndim == 0 else value.reshape(-1)
+    value = np.full(size, float(value)) if scalar else value.reshape(-1)
     shown = ", ".join(labels[:6]) + (", ..." if len(labels) > 6 else "")
     if value.size > size:
         raise ValueError(f"{name} must have {size} values ({shown}), got {value.size}")
@@ -221,7 +232,7 @@ def _operating_point(sys, xeq, ueq):
             _vector("ueq", "u0", ueq, sys.ninputs, sys.input_labels))
 
 
-def find_eqpt(sys, initial_state=0.0, inputs=None, outputs=None, t=0, params=None,
+def find_eqpt(sys, initial_state=0.0, inputs=None, outputs=None, t=0, params=None, *args,
               **kwargs):
     """:func:`control.find_eqpt`, also for sampled-data diagrams.
 
@@ -236,8 +247,8 @@ def find_eqpt(sys, initial_state=0.0, inputs=None, outputs=None, t=0, params=Non
     Parameters
     ----------
     sys : control.InputOutputSystem
-    initial_state, inputs, outputs, t, params, **kwargs
-        As for :func:`control.find_eqpt` (``input_indices``, ``output_indices``,
+    initial_state, inputs, outputs, t, params, *args, **kwargs
+        As for :func:`control.find_eqpt`, by position too (``input_indices``, ``output_indices``,
         ``state_indices``, ``deriv_indices``, ``derivs``, ``root_method``,
         ``root_kwargs``, ``return_outputs``, ``return_result``).
 
@@ -262,11 +273,16 @@ def find_eqpt(sys, initial_state=0.0, inputs=None, outputs=None, t=0, params=Non
     """
     if not isinstance(sys, ct.InputOutputSystem):
         raise TypeError(f"find_eqpt needs a python-control system, got {type(sys).__name__}")
-    if not flatten(sys, params or {}).sampled_data():
-        return ct.find_eqpt(sys, initial_state, inputs, outputs, t=t, params=params,
-                            **kwargs)
-    return ct.find_eqpt(_residual_system(sys), initial_state, inputs, outputs, t=t,
-                        params=params, **kwargs)
+    if _sizes_unknown(sys) or not flatten(sys, params or {}).sampled_data():
+        return ct.find_eqpt(sys, initial_state, inputs, outputs, t, params, *args, **kwargs)
+    return ct.find_eqpt(_residual_system(sys), initial_state, inputs, outputs, t, params,
+                        *args, **kwargs)
+
+
+def _sizes_unknown(sys) -> bool:
+    """Whether ``sys`` leaves its number of inputs, outputs or states undeclared (an
+    ``nlsys`` python-control sizes from the arguments of each call)."""
+    return None in (sys.ninputs, sys.noutputs, sys.nstates)
 
 
 def _residual_system(sys):
