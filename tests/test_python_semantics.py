@@ -616,11 +616,13 @@ def test_uneven_time_steps_of_a_dt_true_system_are_refused_as_python_control_ref
     block = ct.nlsys(lambda t, x, u, p: 0.5 * x + u, None, states=1, inputs=1, outputs=1,
                      dt=True, name="any_rate")
     T = np.array([0.0, 1.0, 3.0, 4.0])
-    assert isinstance(python_control_error(block, T, 1.0, 1.0), ValueError)
-    for compile in (True, False):
-        with pytest.raises(ValueError, match="time steps of T must be equal .*dt=True.*from "
-                                             "1 to 2"):
-            controlkit.input_output_response(block, T, 1.0, 1.0, compile=compile)
+    expected = python_control_error(block, T, 1.0, 1.0)
+    assert isinstance(expected, ValueError)
+    for compile in (True, False):  # (its own words: "time values must be equally spaced")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # (compile=True says python-control answers)
+            with pytest.raises(ValueError, match=re.escape(str(expected))):
+                controlkit.input_output_response(block, T, 1.0, 1.0, compile=compile)
 
 
 def _outcome(function, sys_, T, **kwargs):

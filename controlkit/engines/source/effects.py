@@ -135,7 +135,8 @@ def changed_in_place(value, indexed) -> bool:
     (True, False)
     """
     for _ in range(indexed):  # (an element: a number, or a row)
-        if not isinstance(value, np.ndarray | list) or np.ndim(value) == 0 or not len(value):
+        if not (isinstance(value, np.ndarray) and value.ndim and len(value)
+                or isinstance(value, list) and value):
             return False
         value = value[0]
     return not (value is None or _is_number(value) or isinstance(
