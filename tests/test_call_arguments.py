@@ -89,8 +89,16 @@ def test_what_python_control_answers_is_answered_the_same(case):
         assert np.array_equal(ours.outputs, expected.outputs, equal_nan=True), compile
 
 
+def _stateless_reading_x():
+    # python-control hands a system alone without states x = [] (a list: no .shape)
+    return ct.nlsys(None, lambda t, x, u, p: np.array([u[0] + x.shape[0]]), inputs=1,
+                    outputs=1, dt=0.1, name="reads_x")
+
+
 # (system, the call's arguments) python-control refuses
 _REFUSED = {
+    "a system alone without states, reading x": (
+        _stateless_reading_x, dict(T=np.arange(51) * 0.1)),
     "evaluation times empty": (_continuous_loop, dict(evaluation_times=np.array([]))),
     "evaluation times empty, LSODA": (_continuous_loop, dict(
         evaluation_times=np.array([]), solve_ivp_method="LSODA")),
@@ -237,6 +245,54 @@ def test_a_params_array_changed_in_place_is_python_control_s_run(case):
     assert runs[1:] == runs[:1] * 3
     assert said in controlkit.explain(ct.interconnect([build()], inputs="u",
                                                       outputs="y"))[0].reason
+
+
+def _by_a_key_held_in_a_name(t, x, u, params):
+    for key in ("acc",):
+        total = params[key]
+        total += u[0]
+    return 0.5 * x + 0.01 * params["acc"][0]
+
+
+def _rows_unpacked(t, x, u, params):
+    first, _ = params["M"]  # (rows of a 2-D array: views)
+    first += u[0]
+    return 0.5 * x + 0.01 * first[0]
+
+
+def _bound_twice(t, x, u, params):
+    total = params["k"]
+    total = params["acc"]  # (any binding counts, wherever it is)
+    total += u[0]
+    return 0.5 * x + 0.01 * total[0]
+
+
+def _over_items(t, x, u, params):
+    for _, value in params.items():
+        value += u[0]
+    return 0.5 * x + 0.01 * params["acc"][0]
+
+
+@pytest.mark.parametrize("update", [_by_a_key_held_in_a_name, _rows_unpacked, _bound_twice,
+                                    _over_items])
+def test_other_routes_to_a_params_array_changed_in_place_are_python_control_s(update):
+    def build():
+        return _block(update, None, {"acc": np.zeros(1), "k": 2.0, "M": np.zeros((2, 2))})
+
+    Td = np.arange(20.0)
+    block = build()
+    expected = ct.input_output_response(ct.interconnect([block], inputs="u", outputs="y"),
+                                        Td, 1.0, 0.0)
+    ours_block = build()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # (python-control runs it, and says so)
+        ours = controlkit.input_output_response(
+            ct.interconnect([ours_block], inputs="u", outputs="y"), Td, 1.0, 0.0,
+            compile=True)
+    assert ours.engine_mode == "python-control"
+    assert np.array_equal(ours.outputs, expected.outputs)
+    for key in ("acc", "M"):
+        assert np.array_equal(ours_block.params[key], block.params[key])
 
 
 def test_an_element_of_a_params_array_changed_by_an_operator_compiles():

@@ -188,8 +188,8 @@ def python_control_s_own(sys, T, options) -> str:
     run, or each of many) in its own way, which the engine leaves to it (its error, or its
     answer to arguments it reads otherwise than the engine would: times not increasing,
     evaluation times it refuses or evaluates one by one, a discrete diagram's times not
-    spaced by its period, functions handed time points of another float type, numpy told
-    to raise); else ``""``.
+    spaced by its period, functions handed time points of another float type or a list as
+    the state of a system alone without states, numpy told to raise); else ``""``.
 
     ``options`` are the call's keywords (``evaluation_times``, ``solve_ivp_kwargs``,
     ``squeeze``).
@@ -197,16 +197,18 @@ def python_control_s_own(sys, T, options) -> str:
     Examples
     --------
     >>> import control as ct
-    >>> gain = ct.nlsys(None, lambda t, x, u, p: 2.0 * u, inputs=1, outputs=1)
+    >>> lag = ct.nlsys(lambda t, x, u, p: -x + u, None, inputs=1, states=1, outputs=1)
     >>> T = np.linspace(0.0, 1.0, 11)
-    >>> python_control_s_own(gain, T, {"solve_ivp_kwargs": {}})
+    >>> python_control_s_own(lag, T, {"solve_ivp_kwargs": {}})
     ''
-    >>> python_control_s_own(gain, T, {"solve_ivp_kwargs": {}, "evaluation_times": T[::-1]})
+    >>> python_control_s_own(lag, T, {"solve_ivp_kwargs": {}, "evaluation_times": T[::-1]})
     'evaluation times that do not increase'
     """
     isdtime = getattr(sys, "isdtime", None)  # (not a system: python-control's error)
     discrete = isdtime is None or isdtime(strict=True)
     dt = sys.dt if discrete and isdtime else False  # (a discrete diagram's period, or True)
+    if getattr(sys, "nstates", None) == 0 and getattr(sys, "syslist", None) is None:
+        return "a system alone without states, whose functions python-control hands x = []"
     if numpy_raises():
         return "numpy is told to raise, call or log on a floating-point error (np.seterr)"
     squeeze = options.get("squeeze")

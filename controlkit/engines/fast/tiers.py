@@ -178,11 +178,14 @@ def _user_kernels(block, local, compiled):
             effect = drawn and (f"its output function draws random numbers ({drawn}), "
                                 f"which python-control calls several times a step")
         changed = [(key, text) for key, indexed, text in (
-            source.params_changed(fn) if fn is not None else ()) if key in local
-            and source.changed_in_place(local[key], indexed)]
+            source.params_changed(fn) if fn is not None else ()) if any(
+            source.changed_in_place(value, indexed) for value in (
+                [local[key]] if key in local else local.values() if key is None else []))]
         if effect is None and changed:  # (the values in force decide: an array, a number)
-            effect = (f"it changes the params value {changed[0][0]!r} in place "
-                      f"({changed[0][1]}), the block's own in python-control's run")
+            key, text = changed[0]
+            which = f"the params value {key!r}" if key is not None else "a params value"
+            effect = (f"it changes {which} in place ({text}), the block's own in "
+                      f"python-control's run")
         if effect:
             raise UnsupportedSystem(f"block {block.name!r}: {effect}; python-control runs "
                                     f"the diagram, so that the block is called as many "

@@ -106,10 +106,12 @@ def draws(fn) -> str | None:
 
 def params_changed(fn) -> tuple:
     """``(key, indexed, text)`` of each value read from ``params`` (``params[key]``, or
-    ``indexed`` indexes into it) that an operator changes through a name (``total =
-    params["acc"]; total += u[0]``), also through a slice, a view or a helper: in place if
-    the value there is an array or a list (python-control's run then changes the block's
-    own), a new number bound if it is a number. The caller, who knows the values, decides.
+    ``indexed`` integer indexes into it) that an operator changes through a name (``total
+    = params["acc"]; total += u[0]``), also through a slice, a view or a helper: in place
+    if the value there is an array or a list (python-control's run then changes the
+    block's own), a new number bound if it is a number. The caller, who knows the values,
+    decides; ``key`` is None where the key is not known (any value may be the one). Every
+    binding of a name counts, wherever it is.
 
     Examples
     --------
@@ -136,7 +138,7 @@ def changed_in_place(value, indexed) -> bool:
     """
     for _ in range(indexed):  # (an element: a number, or a row)
         if not (isinstance(value, np.ndarray) and value.ndim and len(value)
-                or isinstance(value, list) and value):
+                or isinstance(value, list | tuple) and value):
             return False
         value = value[0]
     return not (value is None or _is_number(value) or isinstance(
@@ -197,17 +199,27 @@ class _Effects:
                     if found is not None and name not in self.origin:
                         self.origin[name] = (found[0], found[1] and not unpacked)
                         changed = True
-        self.keys = {}  # name -> (params key, indexed) of the value it may be bound to
-        pairs = [pair for target, value in pairs for pair in (
-            zip(target.elts, value.elts, strict=False) if isinstance(target, ast.Tuple)
-            and isinstance(value, ast.Tuple) else [(target, value)])]
+        # name -> {(params key or None for a key not known, indexes into it)} of the values
+        # it may be bound to, over all its bindings (a flow-free reading: any may be in force)
+        self.keys = {}
+        expanded = []
+        for target, value in pairs:  # (`a, b = p, q` pairwise; `a, b = M`: its rows)
+            if isinstance(target, ast.Tuple) and isinstance(value, ast.Tuple | ast.List) \
+                    and len(target.elts) == len(value.elts):
+                expanded += zip(target.elts, value.elts, strict=True)
+            elif isinstance(target, ast.Tuple):
+                expanded += [(element, ast.Subscript(value, ast.Constant(0)))
+                             for element in target.elts]
+            else:
+                expanded.append((target, value))
         changed = self.params is not None
         while changed:
             changed = False
-            for target, value in pairs:
-                found = self._key(value)
-                if isinstance(target, ast.Name) and found and target.id not in self.keys:
-                    self.keys[target.id] = found
+            for target, value in expanded:
+                name = getattr(target, "id", None)
+                found = self._key(value) - self.keys.get(name, set()) if name else set()
+                if found:
+                    self.keys[name] = self.keys.get(name, set()) | found
                     changed = True
 
     def _bindings(self):
@@ -256,37 +268,46 @@ class _Effects:
             return self._source(node.value)
         return None
 
-    def _key(self, node):
-        """``(key, indexed)`` of the ``params`` value ``node`` may be (or index into, or
-        view), else None."""
+    def _key(self, node) -> set:
+        """``{(key, indexed)}`` of the ``params`` values ``node`` may be, index into (by
+        ``indexed`` integers) or view; ``key`` None where the key is not known."""
+        whole = ((self.params, self.params), True)
         if isinstance(node, ast.Name):
-            return self.keys.get(node.id)
+            return self.keys.get(node.id, set())
         if isinstance(node, ast.Subscript):
-            base = self._source(node.value)
-            if base == ((self.params, self.params), True) and isinstance(
-                    node.slice, ast.Constant):
-                return node.slice.value, 0
-            found = self._key(node.value)  # (each index takes an axis; `:`, `...` none)
+            if self._source(node.value) == whole:  # (params[...]: a key, known or not)
+                key = node.slice.value if isinstance(node.slice, ast.Constant) else \
+                    self._value(node.slice) if isinstance(node.slice, ast.Name) else None
+                return {(key if isinstance(key, str | int | bytes) else None, 0)}
+            if isinstance(node.value, ast.List | ast.Tuple):  # ([a, b][0]: one of them)
+                return set().union(*map(self._key, node.value.elts))
+            if isinstance(node.value, ast.Call) and getattr(node.value.func, "attr", "") in (
+                    "values", "items") and self._source(node.value.func.value) == whole:
+                # (an element of params.values(): a value; of .items(), a pair holding one)
+                return {(None, 0 if node.value.func.attr == "values" else -1)}
             indexes = node.slice.elts if isinstance(node.slice, ast.Tuple) else [node.slice]
-            return found and (found[0], found[1] + sum(not isinstance(e, ast.Slice) and not (
-                isinstance(e, ast.Constant) and e.value in (None, Ellipsis)) for e in indexes))
+            taken = sum(isinstance(e, ast.Constant) and type(e.value) is int or isinstance(
+                e, ast.UnaryOp) and isinstance(e.operand, ast.Constant) for e in indexes)
+            return {(key, indexed + taken) for key, indexed in self._key(node.value)}
         if isinstance(node, ast.Attribute) and node.attr in ("T", "real", "imag"):
             return self._key(node.value)
         if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute):
-            if node.func.attr in ("get", "setdefault") and node.args and isinstance(
-                    node.args[0], ast.Constant) and self._source(node.func.value) == (
-                    (self.params, self.params), True):
-                return node.args[0].value, 0
+            if node.func.attr in ("get", "setdefault") and node.args and \
+                    self._source(node.func.value) == whole:
+                first = node.args[0]
+                return {(first.value if isinstance(first, ast.Constant) else None, 0)}
             if node.func.attr in VIEW_METHODS:
                 return self._key(node.func.value)
         if isinstance(node, ast.Call) and node.args and getattr(
                 node.func, "attr", getattr(node.func, "id", None)) in VIEW_FUNCTIONS:
             return self._key(node.args[0])
         if isinstance(node, ast.IfExp):
-            return self._key(node.body) or self._key(node.orelse)
+            return self._key(node.body) | self._key(node.orelse)
+        if isinstance(node, ast.BoolOp):
+            return set().union(*map(self._key, node.values))
         if isinstance(node, ast.NamedExpr):
             return self._key(node.value)
-        return None
+        return set()
 
     def draw(self) -> str | None:
         """The first call of a random generator's method, see :func:`draws`."""
@@ -330,8 +351,11 @@ class _Effects:
                             and written.id != self.time:
                         return (*self._said(found, written.id, ast.unparse(written))[:2],
                                 True)
-                    if isinstance(node, ast.AugAssign) and written.id in self.keys:
-                        self.in_place.append((*self.keys[written.id], ast.unparse(node)))
+                    if isinstance(node, ast.AugAssign):  # (a params value's, perhaps)
+                        known = self.keys.get(written.id) or (
+                            {(None, 0)} if found and found[0][0] == self.params else ())
+                        self.in_place += [(*key, ast.unparse(node)) for key in sorted(
+                            known, key=repr)]
                     continue
                 base = _base_name(written)
                 if base is not None and base not in self.local:
@@ -394,8 +418,9 @@ class _Effects:
             # (`v += 1` on a number given is the helper's own: in place on arrays only)
             if found is not None and (found[1] or not by_operator):
                 return self._said(found, _base_name(value), ast.unparse(node))
-            if by_operator and self._key(value):
-                self.in_place.append((*self._key(value), ast.unparse(node)[:40]))
+            if by_operator:
+                self.in_place += [(*key, ast.unparse(node)[:40])
+                                  for key in sorted(self._key(value), key=repr)]
         return None
 
     def _getter(self, node):
