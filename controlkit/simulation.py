@@ -112,28 +112,30 @@ def simulate(
         Parameter values, as for :func:`control.input_output_response`; a key
         no block reads is refused (:func:`controlkit.engines.params.check_params`).
     progress : callable, optional
-        Called with the fraction done (0 < f <= 1) after each chunk.
+        Called with the fraction done (0 < f <= 1) after each chunk (a continuous run:
+        after each piece the fast engine integrates, or once at the end).
     chunks : int
-        Number of pieces the run is cut into (for progress reports), >= 1 (more than the
-        run's steps: one step each).
+        Number of pieces a discrete run is cut into (for progress reports), >= 1 (more
+        than the run's steps: one step each); a continuous run is integrated in one.
     engine : {"python-control", "fast"}
         Which backend to use (see above).
     record_every : int
-        Keep every ``record_every``-th sample (and the last) in the result. On the fast
-        engine the run is then streamed through fixed buffers, so a long horizon needs
-        memory for the kept samples only.
+        Keep every ``record_every``-th sample (and the last) in the result. A discrete
+        run on the fast engine is then streamed through fixed buffers, so a long horizon
+        needs memory for the kept samples only (a continuous one holds its run).
     on_chunk : callable, optional
         ``on_chunk(time, outputs, states)``, called with every sample exactly once, in
         order, chunk by chunk and at full resolution: for metrics that need every step
-        (a maximum, a peak) while only decimated samples are kept.
+        (a maximum, a peak) while only decimated samples are kept. Its arrays are
+        read-only, and the callback's to keep.
     compile : bool or None
         On the fast engine, as for :func:`input_output_response`.
 
     Returns
     -------
     control.TimeResponseData
-        As :func:`control.input_output_response` with ``return_x=True`` semantics:
-        ``.states`` is filled.
+        As :func:`control.input_output_response` with ``return_x=True``: ``.states`` is
+        filled, and ``t, y, x = simulate(...)`` unpacks it.
 
     Examples
     --------
@@ -144,21 +146,30 @@ def simulate(
     """
     if isinstance(chunks, bool) or not isinstance(chunks, int | np.integer) or chunks < 1:
         raise ValueError(f"chunks must be an integer >= 1, got {chunks!r}")
-    from .engines.contract import UnsupportedSystem, check_arguments
+    for name, given in (("progress", progress), ("on_chunk", on_chunk)):
+        if given is not None and not callable(given):
+            raise TypeError(f"{name} must be a function or None, got {given!r}")
+    from .engines.contract import UnsupportedSystem, check_arguments, recorded_indices
     from .engines.params import check_params
 
     backend = engines.backend(engine)
+    engines.check_compile(compile)
+    recorded_indices(1, record_every)  # (its check, before a run)
     T, X0, U = check_arguments(sys, T, X0, U)
     check_params(sys, params)
     options = dict(params=params, progress=progress, chunks=chunks,
                    record_every=record_every, on_chunk=on_chunk)
+    resp = None
     if engine != "python-control":
         try:
-            return backend.simulate(sys, T, X0, U, compile=compile, **options)
+            resp = backend.simulate(sys, T, X0, U, compile=compile, **options)
         except UnsupportedSystem as reason:
             _warn(f"{engine} engine not used, running python-control instead: {reason} "
                   "(controlkit.engines.fast.explain(sys) lists every block's tier)")
-    return engines.backend("python-control").simulate(sys, T, X0, U, **options)
+    if resp is None:
+        resp = engines.backend("python-control").simulate(sys, T, X0, U, **options)
+    resp.return_x, resp.params = True, params  # (python-control's return_x=True response)
+    return resp
 
 
 def input_output_response(sys, timepts=None, inputs=0.0, initial_state=0.0, params=None,

@@ -146,6 +146,21 @@ def recorded_indices(N: int, record_every: int) -> np.ndarray:
     return kept if N == 0 or kept[-1] == N - 1 else np.append(kept, N - 1)
 
 
+def read_only(*arrays) -> tuple:
+    """Views of ``arrays`` that cannot be written: what ``on_chunk`` is handed, so that a
+    callback cannot change the run's result.
+
+    Examples
+    --------
+    >>> read_only(np.zeros(2))[0].flags.writeable
+    False
+    """
+    views = tuple(np.asarray(a).view() for a in arrays)
+    for view in views:
+        view.flags.writeable = False
+    return views
+
+
 def response(sys, time, outputs, states, inputs, **overrides) -> ct.TimeResponseData:
     """The :class:`control.TimeResponseData` of a run of ``sys``, as python-control labels it.
 

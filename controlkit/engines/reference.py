@@ -1,7 +1,11 @@
 """The reference backend: :func:`control.input_output_response`, in chunks.
 
-Chunks only add progress reports: each restarts from the state the previous one
-reached, so a discrete system run in chunks gives the numbers of one run, bit for bit.
+Chunks only add progress reports: a discrete system's each restart from the state the
+previous one reached, so it gives the numbers of one run, bit for bit; a continuous
+system runs in one piece (a restarted solver would take other steps: other numbers than
+the fast engine's, which integrates the whole horizon), its progress reported at its end.
+A sampled-data diagram, which python-control cannot run, runs on
+:func:`simulate_sampled_data`.
 """
 
 from __future__ import annotations
@@ -12,7 +16,7 @@ import control as ct
 import numpy as np
 
 from ..compat import SYSTEM_CALLS
-from .contract import chunk_bounds, recorded_indices, response
+from .contract import chunk_bounds, read_only, recorded_indices, response
 
 
 def simulate(sys, T, X0, U, *, params=None, progress=None, chunks=1, record_every=1,
@@ -31,28 +35,43 @@ def simulate(sys, T, X0, U, *, params=None, progress=None, chunks=1, record_ever
     >>> simulate(sys, np.arange(4.0), np.ones(1), np.zeros((0, 4)), chunks=2).outputs.tolist()
     [[1.0, 0.5, 0.25, 0.125]]
     """
+    from ..sampled_data import SampledDataSystem  # (imported with the diagram's build)
+
     kept = None if record_every == 1 else recorded_indices(len(T), record_every)
+    T = np.asarray(T, dtype=float)
+    if isinstance(sys, SampledDataSystem):
+        run = simulate_sampled_data(sys, T, X0, U, params=params)
+        time, outputs, states, inputs = run.t, run.y, run.x, run.u
+        if progress is not None:
+            progress(1.0)
+    else:
+        time, outputs, states, inputs = _in_chunks(
+            sys, T, X0, U, params, progress, chunks if sys.isdtime(strict=True) else 1)
+    if on_chunk is not None:  # this path holds the whole run anyway
+        on_chunk(*read_only(time, outputs, states))
+    if kept is not None:
+        time, outputs, states, inputs = (time[kept], outputs[:, kept], states[:, kept],
+                                         inputs[:, kept])
+    return response(sys, time, outputs, states, inputs)
+
+
+def _in_chunks(sys, T, X0, U, params, progress, chunks):
+    """``time, outputs, states, inputs`` of python-control's run of ``sys`` in ``chunks``."""
     bounds = chunk_bounds(len(T) - 1, chunks)  # chunks share their end samples
     x = np.asarray(X0, dtype=float)
     pieces = []
     for k, (i0, i1) in enumerate(zip(bounds[:-1], bounds[1:], strict=True)):
         with SYSTEM_CALLS:
             resp = ct.input_output_response(sys, T[i0 : i1 + 1], U[:, i0 : i1 + 1], x,
-                                        params=params, squeeze=False)
+                                            params=params, squeeze=False)
         first = 0 if k == 0 else 1  # the previous chunk already holds this sample
         states = resp.x if resp.x is not None else np.zeros((0, resp.time.size))
         arrays = (resp.time, resp.outputs, states, resp.inputs)
         pieces.append([a[..., first:] for a in arrays])
         x = states[:, -1]
         if progress is not None:
-            progress(i1 / (len(T) - 1))
-    time, outputs, states, inputs = (np.concatenate(a, axis=-1) for a in zip(*pieces, strict=True))
-    if on_chunk is not None:  # this path holds the whole run anyway
-        on_chunk(time, outputs, states)
-    if kept is not None:
-        time, outputs, states, inputs = (time[kept], outputs[:, kept], states[:, kept],
-                                         inputs[:, kept])
-    return response(sys, time, outputs, states, inputs)
+            progress(i1 / max(len(T) - 1, 1))
+    return (np.concatenate(a, axis=-1) for a in zip(*pieces, strict=True))
 
 
 def simulate_sampled_data(sys, T, X0, U, *, params=None, t_eval=None, method="RK45",

@@ -16,7 +16,7 @@ import numpy as np
 from ... import _jit
 from ..._checks import Diverged, warn_caller
 from ...sampled_data import sample_times
-from ..contract import UnsupportedSystem, recorded_indices
+from ..contract import UnsupportedSystem, read_only, recorded_indices
 from ..contract import response as base_response
 from . import loops, rk, store
 from .diagnose import explain_failure
@@ -317,8 +317,9 @@ def run_continuous(sys, T, U, X0, *, params=None, t_eval=None, method="RK45",
             runner.piece(run, pieces.next(), CHECK_EVALUATIONS)
         except KeyboardInterrupt as stop:
             n = n0 if checking else run.served_so_far(runner.python)
-            raise interrupted(stop, base_response(sys, t_eval[:n], run.Y[:, :n],
-                                                  run.X[:, :n], run.Uo[:, :n])) from None
+            kept = recorded_indices(n, record_every)  # (as the whole run would keep)
+            raise interrupted(stop, base_response(sys, t_eval[kept], run.Y[:, kept],
+                                                  run.X[:, kept], run.Uo[:, kept])) from None
         if not checking:  # (a check runs its piece twice: not the pace of pieces)
             pieces.took(pieces.next(), now() - began)
         if not runner.decided:  # (a compiled job chosen: checked on the next piece)
@@ -331,9 +332,10 @@ def run_continuous(sys, T, U, X0, *, params=None, t_eval=None, method="RK45",
     resp.engine_mode = runner.mode
     if record_every != 1 or on_chunk is not None:
         if on_chunk is not None:
-            on_chunk(t_eval, run.Y, run.X)
+            on_chunk(*read_only(t_eval, run.Y, run.X))
         kept = recorded_indices(t_eval.size, record_every)
         resp = base_response(sys, t_eval[kept], run.Y[:, kept], run.X[:, kept], run.Uo[:, kept])
+        resp.engine_mode = runner.mode
     return resp
 
 

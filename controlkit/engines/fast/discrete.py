@@ -11,7 +11,13 @@ from __future__ import annotations
 import control as ct
 import numpy as np
 
-from ..contract import UnsupportedSystem, check_arguments, chunk_bounds, recorded_indices
+from ..contract import (
+    UnsupportedSystem,
+    check_arguments,
+    chunk_bounds,
+    read_only,
+    recorded_indices,
+)
 from ..contract import response as base_response
 from .diagnose import diverged, explain_failure, sampled_block_blew_up
 from .pieces import Pieces, interrupted, now, quiet_numbers, where_they_part
@@ -77,6 +83,8 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
     pieces, start = Pieces(), now()
     for c0 in range(0, N, step):
         c1 = min(c0 + step, N)
+        if on_chunk is not None and c0:  # (the callback may keep the last chunk's arrays)
+            Yb, Xb = np.zeros_like(Yb), np.zeros_like(Xb)
         run = _Steps(np.ascontiguousarray(T[c0:c1], dtype=float),
                      np.require(U[:, c0:c1], dtype=float, requirements=["C", "W"]), Yb, Xb, x)
         while run.position < run.times.size:
@@ -102,7 +110,7 @@ def simulate(sys, T, X0, U=0.0, *, params=None, progress=None, chunks=1,
                     progress(bound / max(N - 1, 1))
         x = run.x
         if on_chunk is not None:
-            on_chunk(run.times, Yb[:, :c1 - c0], Xb[:, :c1 - c0])
+            on_chunk(*read_only(run.times, Yb[:, :c1 - c0], Xb[:, :c1 - c0]))
         if streamed:
             mine = (kept >= c0) & (kept < c1)
             Y[:, mine], X[:, mine] = Yb[:, kept[mine] - c0], Xb[:, kept[mine] - c0]

@@ -10,6 +10,7 @@ know sends the diagram to python-control. :func:`explain` lists the result.
 
 from __future__ import annotations
 
+import numbers
 import warnings
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -165,6 +166,18 @@ def _python_kernels(block, local, reason):
                          _feeds_through(block)), "python", reason)
 
 
+def _changed_in_place(value, indexed) -> bool:
+    """Whether an operator (``+=``) on what ``indexed`` integer indexes into ``value`` reach
+    changes it in place: an array or a list (a row of a 2-D array), not a number."""
+    for _ in range(indexed):  # (an element: a number, or a row)
+        if not (isinstance(value, np.ndarray) and value.ndim and len(value)
+                or isinstance(value, list | tuple) and value):
+            return False
+        value = value[0]
+    return not (value is None or isinstance(value, numbers.Number | str | bytes | tuple
+                                            | frozenset | np.generic))
+
+
 def _user_kernels(block, local, compiled):
     """A user's ``nlsys``: its functions as Python kernels, or compiled from their source
     for the types of its parameters (their values packed into ``p`` at run time). One
@@ -179,7 +192,7 @@ def _user_kernels(block, local, compiled):
                                 f"which python-control calls several times a step")
         changed = [(key, text) for key, indexed, text in (
             source.params_changed(fn) if fn is not None else ()) if any(
-            source.changed_in_place(value, indexed) for value in (
+            _changed_in_place(value, indexed) for value in (
                 [local[key]] if key in local else local.values() if key is None else []))]
         if effect is None and changed:  # (the values in force decide: an array, a number)
             key, text = changed[0]

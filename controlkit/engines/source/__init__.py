@@ -13,12 +13,12 @@ unknown (the ``params`` check then accepts every key, as python-control does) an
 function not compilable, with the reason.
 """
 
-from .effects import changed_in_place, draws, params_changed, side_effect
+from .effects import draws, params_changed, side_effect
 from .plan import Plan, plan_function, reads_input, used_params
 from .reading import PARAM_READ, NotCompilable
 from .rewrites import copy_tree, function_def, walk
 from .translator import as_written
 
-__all__ = ["PARAM_READ", "NotCompilable", "Plan", "as_written", "changed_in_place",
-           "copy_tree", "draws", "function_def", "params_changed", "plan_function",
-           "reads_input", "side_effect", "used_params", "walk"]
+__all__ = ["PARAM_READ", "NotCompilable", "Plan", "as_written", "copy_tree", "draws",
+           "function_def", "params_changed", "plan_function", "reads_input", "side_effect",
+           "used_params", "walk"]

@@ -125,26 +125,6 @@ def params_changed(fn) -> tuple:
     return _read(fn)[2]
 
 
-def changed_in_place(value, indexed) -> bool:
-    """Whether an operator (``+=``) on what ``indexed`` indexes into ``value`` reach
-    changes it in place: an array or a list (a row of a 2-D array), not a number.
-
-    Examples
-    --------
-    >>> changed_in_place(np.zeros(2), 0), changed_in_place(np.zeros(2), 1)
-    (True, False)
-    >>> changed_in_place(np.zeros((2, 2)), 1), changed_in_place(2.0, 0)
-    (True, False)
-    """
-    for _ in range(indexed):  # (an element: a number, or a row)
-        if not (isinstance(value, np.ndarray) and value.ndim and len(value)
-                or isinstance(value, list | tuple) and value):
-            return False
-        value = value[0]
-    return not (value is None or _is_number(value) or isinstance(
-        value, str | bytes | tuple | frozenset))
-
-
 #: A name found neither in a function's module nor among the builtins (a closure's).
 _UNKNOWN = object()
 
