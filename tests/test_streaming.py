@@ -121,3 +121,19 @@ def test_a_sampled_data_diagram_runs_on_the_reference_engine_too():
     reference = simulate(mixed, T, X0=np.zeros(2), U=1.0, engine="python-control")
     fast = simulate(mixed, T, X0=np.zeros(2), U=1.0, engine="fast")
     assert np.array_equal(reference.outputs, fast.outputs)
+
+
+def test_a_run_whose_state_turns_nan_stops_on_both_engines():
+    # the reference answered 13 NaN states silently where the fast engine stops
+    import control as ct
+
+    from controlkit._checks import Diverged
+    from controlkit.simulation import simulate
+
+    shrink = ct.nlsys(lambda t, x, u, p: np.array([x[0] - 0.1, np.log(x[0])]),
+                      lambda t, x, u, p: x[:1], inputs=1, outputs=1, states=2, dt=0.1,
+                      name="shrink")
+    loop = ct.interconnect([shrink], inputs="u[0]", outputs="y[0]", name="nan_loop")
+    for engine in ("python-control", "fast"):
+        with pytest.raises(Diverged, match=r"diverged at t = 0\.[67] s"):
+            simulate(loop, np.arange(20) * 0.1, X0=[0.5, 0.0], U=1.0, engine=engine)

@@ -15,6 +15,7 @@ from types import SimpleNamespace
 import control as ct
 import numpy as np
 
+from .._checks import diverged
 from ..compat import SYSTEM_CALLS
 from .contract import chunk_bounds, read_only, recorded_indices, response
 
@@ -47,12 +48,26 @@ def simulate(sys, T, X0, U, *, params=None, progress=None, chunks=1, record_ever
     else:
         time, outputs, states, inputs = _in_chunks(
             sys, T, X0, U, params, progress, chunks if sys.isdtime(strict=True) else 1)
+    _stop_if_not_finite(sys, time, outputs, states)
     if on_chunk is not None:  # this path holds the whole run anyway
         on_chunk(*read_only(time, outputs, states))
     if kept is not None:
         time, outputs, states, inputs = (time[kept], outputs[:, kept], states[:, kept],
                                          inputs[:, kept])
     return response(sys, time, outputs, states, inputs)
+
+
+def _stop_if_not_finite(sys, time, outputs, states) -> None:
+    """:class:`~controlkit._checks.Diverged` where a state or an output of the run became
+    NaN or infinite, as the fast engine stops there: a run never answers NaN silently."""
+    bad = ~(np.isfinite(states).all(axis=0) & np.isfinite(outputs).all(axis=0))
+    if bad.any():
+        k = int(np.argmax(bad))
+        labels = [label for label, value in zip(sys.state_labels + sys.output_labels,
+                                                np.concatenate([states[:, k], outputs[:, k]]),
+                                                strict=True) if not np.isfinite(value)]
+        raise diverged(float(time[k]), f"{', '.join(labels[:3])} of {sys.name!r} became "
+                                       f"non-finite")
 
 
 def _in_chunks(sys, T, X0, U, params, progress, chunks):
