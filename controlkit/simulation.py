@@ -126,8 +126,8 @@ def simulate(
     on_chunk : callable, optional
         ``on_chunk(time, outputs, states)``, called with every sample exactly once, in
         order, chunk by chunk and at full resolution: for metrics that need every step
-        (a maximum, a peak) while only decimated samples are kept. Its arrays are
-        read-only, and the callback's to keep.
+        (a maximum, a peak) while only decimated samples are kept (the python-control
+        engine: once, with the whole run). Its arrays are read-only, the callback's to keep.
     compile : bool or None
         On the fast engine, as for :func:`input_output_response`.
 
@@ -136,6 +136,13 @@ def simulate(
     control.TimeResponseData
         As :func:`control.input_output_response` with ``return_x=True``: ``.states`` is
         filled, and ``t, y, x = simulate(...)`` unpacks it.
+
+    Raises
+    ------
+    controlkit._checks.Diverged
+        Where a diagram's state or output becomes NaN or infinite, on either engine.
+    KeyboardInterrupt
+        On Ctrl-C, with the response so far on its ``response`` attribute.
 
     Examples
     --------
@@ -160,15 +167,21 @@ def simulate(
     options = dict(params=params, progress=progress, chunks=chunks,
                    record_every=record_every, on_chunk=on_chunk)
     resp = None
-    if engine != "python-control":
-        try:
-            resp = backend.simulate(sys, T, X0, U, compile=compile, **options)
-        except UnsupportedSystem as reason:
-            _warn(f"{engine} engine not used, running python-control instead: {reason} "
-                  "(controlkit.engines.fast.explain(sys) lists every block's tier)")
-    if resp is None:
-        resp = engines.backend("python-control").simulate(sys, T, X0, U, **options)
-    resp.return_x, resp.params = True, params  # (python-control's return_x=True response)
+    try:
+        if engine != "python-control":
+            try:
+                resp = backend.simulate(sys, T, X0, U, compile=compile, **options)
+            except UnsupportedSystem as reason:
+                _warn(f"{engine} engine not used, running python-control instead: {reason} "
+                      "(controlkit.engines.fast.explain(sys) lists every block's tier)")
+        if resp is None:
+            resp = engines.backend("python-control").simulate(sys, T, X0, U, **options)
+    except KeyboardInterrupt as stop:  # (the response so far, as a whole run's)
+        resp = getattr(stop, "response", None)
+        raise
+    finally:
+        if resp is not None:  # (python-control's return_x=True response)
+            resp.return_x, resp.params = True, params
     return resp
 
 

@@ -147,8 +147,8 @@ def recorded_indices(N: int, record_every: int) -> np.ndarray:
 
 
 def read_only(*arrays) -> tuple:
-    """Views of ``arrays`` that cannot be written: what ``on_chunk`` is handed, so that a
-    callback cannot change the run's result.
+    """Read-only views of ``arrays``: what ``on_chunk`` is handed, so that a callback does
+    not change the run's result by accident (one that sets them writable again does).
 
     Examples
     --------

@@ -15,7 +15,7 @@ from types import SimpleNamespace
 import control as ct
 import numpy as np
 
-from .._checks import diverged
+from .._checks import Diverged
 from ..compat import SYSTEM_CALLS
 from .contract import chunk_bounds, read_only, recorded_indices, response
 
@@ -58,16 +58,20 @@ def simulate(sys, T, X0, U, *, params=None, progress=None, chunks=1, record_ever
 
 
 def _stop_if_not_finite(sys, time, outputs, states) -> None:
-    """:class:`~controlkit._checks.Diverged` where a state or an output of the run became
-    NaN or infinite, as the fast engine stops there: a run never answers NaN silently."""
+    """:class:`~controlkit._checks.Diverged` where a state or an output of a diagram's run
+    became NaN or infinite, as the fast engine stops there (a system alone answers as
+    python-control's does on both engines: ``sin(t) / t`` is NaN at 0 by design)."""
     bad = ~(np.isfinite(states).all(axis=0) & np.isfinite(outputs).all(axis=0))
-    if bad.any():
+    if bad.any() and getattr(sys, "syslist", None) is not None:
         k = int(np.argmax(bad))
         labels = [label for label, value in zip(sys.state_labels + sys.output_labels,
                                                 np.concatenate([states[:, k], outputs[:, k]]),
                                                 strict=True) if not np.isfinite(value)]
-        raise diverged(float(time[k]), f"{', '.join(labels[:3])} of {sys.name!r} became "
-                                       f"non-finite")
+        error = Diverged(f"{', '.join(labels[:3])} of {sys.name!r} became non-finite at "
+                         f"t = {time[k]:g} s (the loop diverged, or a block's equation is "
+                         f"undefined there)")
+        error.time = float(time[k])
+        raise error
 
 
 def _in_chunks(sys, T, X0, U, params, progress, chunks):
