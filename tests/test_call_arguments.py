@@ -295,6 +295,27 @@ def test_other_routes_to_a_params_array_changed_in_place_are_python_control_s(up
         assert np.array_equal(ours_block.params[key], block.params[key])
 
 
+_TABLE = np.array([1.0, 2.0])
+
+
+def _scaled_by_table(v):
+    gain = _TABLE[0]  # (an element of a module's table: `*=` binds a new number)
+    gain *= v
+    return gain
+
+
+def _with_a_helper_scaling(t, x, u, params):
+    return 0.5 * x + _scaled_by_table(u[0]) * params["k"][0]
+
+
+def test_a_helper_scaling_an_element_of_an_outside_table_compiles_beside_array_params():
+    # a helper's `*=` on a name bound to an outside value was read as a params value's
+    # whose key is not known, and any array among the block's params sent it away
+    block = _block(_with_a_helper_scaling, None, {"k": np.array([1.0])})
+    assert controlkit.explain(ct.interconnect([block], inputs="u",
+                                              outputs="y"))[0].tier == "compiled"
+
+
 def test_an_element_of_a_params_array_changed_by_an_operator_compiles():
     block = _block(_scaled, None, {"gains": np.array([2.0, 3.0])})
     assert controlkit.explain(ct.interconnect([block], inputs="u",

@@ -332,8 +332,8 @@ class _Effects:
                         return (*self._said(found, written.id, ast.unparse(written))[:2],
                                 True)
                     if isinstance(node, ast.AugAssign):  # (a params value's, perhaps)
-                        known = self.keys.get(written.id) or (
-                            {(None, 0)} if found and found[0][0] == self.params else ())
+                        known = self.keys.get(written.id) or ({(None, 0)} if found and (
+                            self.params is not None and found[0][0] == self.params) else ())
                         self.in_place += [(*key, ast.unparse(node)) for key in sorted(
                             known, key=repr)]
                     continue
