@@ -136,8 +136,8 @@ def interconnect(syslist, connections=None, inplist=None, outlist=None, *args, *
         kwargs = {**{name: bound[name] for name in list(bound)[4:] if name != "kwargs"},
                   **bound.get("kwargs", {})}
     systems = list(syslist)
-    rates = _rates(systems)
-    if rates is None:  # one timebase: python-control's own result
+    periods = _periods(systems)
+    if periods is None:  # one timebase: python-control's own result
         return ct.interconnect(systems, connections, inplist, outlist, **kwargs)
     if kwargs.get("dt") not in (None, 0):
         raise ValueError(f"dt must be None or 0 for a diagram of blocks of several "
@@ -165,8 +165,6 @@ def interconnect(syslist, connections=None, inplist=None, outlist=None, *args, *
     sys.set_output_map(matched.output_map)
     sys.set_connect_map(matched.connect_map)
     sys.syslist = systems
-    periods = [(s.name, float(s.dt)) for s in systems
-               if s.isdtime(strict=True) and s.dt is not True]
     sys.rates = dict(periods)
     # (of the blocks, not of the names: two blocks may share one, at other rates)
     sys.base_period = min(period for _, period in periods)
@@ -185,8 +183,9 @@ def _never(t, x, u, params):
     raise RuntimeError("a stand-in of controlkit.interconnect is never simulated")
 
 
-def _rates(systems):
-    """None when ``systems`` share a timebase; else checks the rates of a mixed diagram."""
+def _periods(systems):
+    """None when ``systems`` share a timebase; else checks the rates of a mixed diagram and
+    gives ``(name, period)`` of each discrete block, in order."""
     try:  # python-control's own rule of one timebase (periods np.isclose, say)
         functools.reduce(ct.common_timebase, systems, None)
         return None
@@ -205,7 +204,7 @@ def _rates(systems):
         listed = ", ".join(f"{s.name!r} at {float(s.dt)!r} s" for s in off)
         raise ValueError(f"the sampling periods must be integer multiples of the shortest "
                          f"({float(shortest.dt)!r} s of {shortest.name!r}); got {listed}")
-    return {s.name: s.dt for s in discrete}
+    return [(s.name, float(s.dt)) for s in discrete]
 
 
 def is_multiple(period, base) -> bool:
