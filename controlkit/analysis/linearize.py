@@ -193,10 +193,9 @@ def _finite(name, value) -> float:
 
 def _vector(name, legacy, value, size, labels) -> np.ndarray:
     """A state or input vector read as python-control reads it: a scalar for every entry
-    (a 0-d array is a vector of one),
-    a list of numbers and arrays concatenated, a short vector padded with zeros (with
-    python-control's warning when its last value is not zero); too long or not finite
-    is refused."""
+    (a 0-d array is a vector of one), a list of numbers and arrays concatenated, a short
+    vector padded with zeros (with python-control's warning when its last value is not
+    zero); too long or not finite is refused."""
     scalar = np.isscalar(value)  # (python-control's test: a 0-d array is a vector)
     if isinstance(value, (list, tuple)):
         try:
@@ -248,9 +247,9 @@ def find_eqpt(sys, initial_state=0.0, inputs=None, outputs=None, t=0, params=Non
     ----------
     sys : control.InputOutputSystem
     initial_state, inputs, outputs, t, params, *args, **kwargs
-        As for :func:`control.find_eqpt`, by position too (``input_indices``, ``output_indices``,
-        ``state_indices``, ``deriv_indices``, ``derivs``, ``root_method``,
-        ``root_kwargs``, ``return_outputs``, ``return_result``).
+        As for :func:`control.find_eqpt`, by position too (``input_indices``,
+        ``output_indices``, ``state_indices``, ``deriv_indices``, ``derivs``,
+        ``root_method``, ``root_kwargs``, ``return_outputs``, ``return_result``).
 
     Returns
     -------
